@@ -1,0 +1,61 @@
+"""The command line: ``python -m tactile_viz COMMAND ...``."""
+
+import argparse
+import json
+import sys
+
+from .engine.errors import TactileVizError
+
+
+def _objects(args):
+    from .engine.objects import bundled_manifest
+
+    entries = bundled_manifest()
+    if args.json:
+        print(json.dumps([{"name": e["name"], "set": e["set"]} for e in entries]))
+        return 0
+    width = max(len(e["name"]) for e in entries)
+    print(f"{'name':<{width}}  set    variant of")
+    for entry in entries:
+        print(f"{entry['name']:<{width}}  {entry['set']:<5}  {entry.get('variant_of') or '-'}")
+    return 0
+
+
+def _bench(args):
+    if args.what == "sdf":
+        from .experiments.sdf_speed import main as sdf_speed
+
+        return sdf_speed(args.rest)
+    raise SystemExit(f"unknown benchmark {args.what!r}")
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="python -m tactile_viz",
+        description="Active tactile object recognition, pose estimation and shape transfer.")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    objects = commands.add_parser("objects", help="list the bundled objects and their set")
+    objects.add_argument("--json", action="store_true",
+                         help='print a JSON list of {"name": ..., "set": "known"|"novel"}')
+    objects.set_defaults(run=_objects)
+
+    bench = commands.add_parser("bench", help="run a benchmark (sdf)",
+                                description="Benchmarks; each has its own --help.")
+    bench.add_argument("what", choices=["sdf"], help="sdf: grid SDF vs exact queries per second")
+    bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
+    bench.set_defaults(run=_bench)
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except TactileVizError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,180 @@
+"""The prior library: the named set of object models the filter may recognise.
+
+A library is saved as a folder of PLY meshes plus ``library.json``. Mesh files carry the
+content hash in their name and are written before the manifest, which is replaced
+atomically last: a failed or interrupted save leaves the previous library readable.
+"""
+
+import hashlib
+import io
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .cache import write_bytes_atomic
+from .errors import LibraryError, MeshError
+from .objects import ObjectModel, bundled_names, load_bundled
+
+MANIFEST = "library.json"
+FORMAT = "tactile_viz-prior-library"
+
+
+class PriorLibrary:
+    """An ordered, named collection of :class:`~tactile_viz.engine.objects.ObjectModel`.
+
+    Parameters
+    ----------
+    models : iterable of ObjectModel, optional
+    """
+
+    def __init__(self, models=()):
+        self._models = {}
+        for model in models:
+            self.add(model)
+
+    def __len__(self):
+        return len(self._models)
+
+    def __iter__(self):
+        return iter(self._models.values())
+
+    def __contains__(self, name):
+        return name in self._models
+
+    def __getitem__(self, name):
+        try:
+            return self._models[name]
+        except KeyError:
+            raise LibraryError(f"no prior named {name!r}; the library has "
+                               f"{', '.join(self._models) or 'none'}") from None
+
+    def __repr__(self):
+        return f"PriorLibrary({self.names})"
+
+    @property
+    def names(self):
+        """Names of the models, in the order they were added."""
+        return list(self._models)
+
+    def add(self, model, replace=False):
+        """Add a model; a name already present is an error unless ``replace``."""
+        if model.name in self._models and not replace:
+            raise LibraryError(f"the library already has a prior named {model.name!r}")
+        self._models[model.name] = model
+        return model
+
+    def add_file(self, path, name=None, **kwargs):
+        """Load a mesh file as a new prior (raises MeshError and adds nothing if it is bad)."""
+        return self.add(ObjectModel.from_file(path, name=name, **kwargs))
+
+    def add_arrays(self, vertices, faces, name, **kwargs):
+        """Add a prior from ``(n, 3)`` vertices and ``(m, 3)`` faces."""
+        return self.add(ObjectModel.from_arrays(vertices, faces, name, **kwargs))
+
+    def remove(self, name):
+        """Remove and return the model ``name``."""
+        model = self[name]
+        del self._models[name]
+        return model
+
+    def subset(self, names):
+        """A new library with only the named models (sharing them)."""
+        return PriorLibrary(self[name] for name in names)
+
+    @classmethod
+    def bundled(cls, which="known", params=None, cache=None):
+        """The bundled object set: ``"known"`` (the paper's priors), ``"novel"`` or ``"all"``."""
+        return cls(load_bundled(name, params, cache) for name in bundled_names(which))
+
+    def save(self, folder):
+        """Write the library to ``folder`` (created if needed) without risking the old one."""
+        folder = Path(folder)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            entries = [_save_mesh(folder, model) for model in self]
+            manifest = {"format": FORMAT, "version": 1, "objects": entries}
+            write_bytes_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
+        except OSError as error:
+            raise LibraryError(f"cannot save the library to {folder}: {error}") from error
+        kept = {entry["file"] for entry in entries}
+        for stale in folder.glob("*.ply"):
+            if stale.name not in kept:
+                stale.unlink(missing_ok=True)
+        return folder
+
+    @classmethod
+    def load(cls, folder, params=None, cache=None):
+        """Read a library folder written by :meth:`save`.
+
+        Raises
+        ------
+        LibraryError
+            If the folder, its manifest or any mesh is missing or corrupt.
+        """
+        folder = Path(folder)
+        entries = _read_manifest(folder)
+        models = []
+        for entry in entries:
+            path = folder / entry["file"]
+            try:
+                data = path.read_bytes()
+            except OSError as error:
+                raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
+                                   f"{entry['name']!r} cannot be read ({error})") from error
+            if hashlib.sha256(data).hexdigest() != entry["sha256"]:
+                raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
+                                   f"{entry['name']!r} is corrupt (checksum mismatch)")
+            models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache))
+        return cls(models)
+
+
+def _slug(name):
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "prior"
+
+
+def _save_mesh(folder, model):
+    data = model.mesh.export(file_type="ply", encoding="binary")
+    digest = hashlib.sha256(data).hexdigest()
+    filename = f"{_slug(model.name)}-{digest[:12]}.ply"
+    if not (folder / filename).is_file():
+        write_bytes_atomic(folder / filename, data)
+    return {"name": model.name, "file": filename, "sha256": digest}
+
+
+def _mesh_from_ply(data, path):
+    try:
+        mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh", process=False)
+        return trimesh.Trimesh(np.asarray(mesh.vertices, dtype=np.float64),
+                               np.asarray(mesh.faces, dtype=np.int64), process=False)
+    except Exception as error:
+        raise LibraryError(f"{path}: cannot be read as a mesh ({error})") from error
+
+
+def _read_manifest(folder):
+    path = folder / MANIFEST
+    if not folder.is_dir():
+        raise LibraryError(f"{folder} is not a library folder (it does not exist)")
+    try:
+        manifest = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise LibraryError(f"{folder} is not a library folder (no {MANIFEST})") from None
+    except (OSError, ValueError) as error:
+        raise LibraryError(f"{path} is corrupt ({error})") from error
+    try:
+        if manifest["format"] != FORMAT:
+            raise LibraryError(f"{path} is not a tactile_viz library (format {manifest['format']!r})")
+        entries = list(manifest["objects"])
+        for entry in entries:
+            if not all(isinstance(entry[key], str) for key in ("name", "file", "sha256")):
+                raise TypeError("name, file and sha256 must be strings")
+            if Path(entry["file"]).name != entry["file"]:
+                raise ValueError(f"file {entry['file']!r} is outside the folder")
+    except (KeyError, TypeError, ValueError) as error:
+        raise LibraryError(f"{path} is corrupt ({error!r})") from error
+    return entries
+
+
+__all__ = ["PriorLibrary", "LibraryError", "MeshError"]

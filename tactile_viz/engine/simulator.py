@@ -1,0 +1,193 @@
+"""The contact simulator: a point sensor moving against a ground-truth object.
+
+As in the paper's experiment setup, the sensor moves along a path in small steps (1/300 of
+the object's longest side); a contact is detected when the ground-truth signed distance
+crosses zero and located by bisection to within the zero-level tolerance; it reports the
+position and the true outward normal. A start inside the object follows the gradient of
+the exact signed distance out to the surface, which ends at the closest surface point.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .observations import Contact, NonContact
+from .sdf import normalise_rows
+from .transforms import inverse_transform_points, transform_points
+
+
+@dataclass(frozen=True, eq=False)
+class GroundTruth:
+    """An object model placed in the world.
+
+    Attributes
+    ----------
+    model : ObjectModel
+    rotation : (3, 3) float
+        ``object_to_world`` rotation.
+    translation : (3,) float
+        ``object_to_world`` translation.
+    """
+
+    model: object
+    rotation: np.ndarray
+    translation: np.ndarray
+
+    def signed_distance(self, points):
+        """Exact signed distance at (k, 3) world points: (k,) float."""
+        return self.model.exact.signed_distance(self.to_object(points))
+
+    def closest(self, points):
+        """Signed distance, closest surface point and outward normal, all world frame.
+
+        Returns
+        -------
+        distance : (k,) float
+        closest : (k, 3) float
+        normal : (k, 3) float
+        """
+        distance, closest, face = self.model.exact.query(self.to_object(points))
+        normal = self.model.exact.surface_normal(closest, face)
+        return distance, self.to_world(closest), normal @ self.rotation.T
+
+    def to_object(self, points):
+        return inverse_transform_points(np.atleast_2d(points), self.rotation, self.translation)
+
+    def to_world(self, points):
+        return transform_points(np.atleast_2d(points), self.rotation, self.translation)
+
+    def surface_points(self, count, rng=None):
+        """Area-uniform points on the surface, world frame: (count, 3)."""
+        import trimesh  # local: only used here
+
+        points, _ = trimesh.sample.sample_surface(self.model.mesh, count,
+                                                  seed=np.random.default_rng(rng))
+        return self.to_world(points)
+
+
+class ContactSimulator:
+    """Moves a point sensor along paths and reports what it touches.
+
+    Parameters
+    ----------
+    truth : GroundTruth
+    step : float, optional
+        Step length; defaults to 1/300 of the object's longest side.
+    tolerance : float
+        A reported contact lies within this distance of the true surface.
+    position_noise : float
+        Standard deviation of Gaussian noise added to reported positions.
+    normal_noise_deg : float
+        Standard deviation, in degrees, of the angle by which reported normals are tilted.
+    rng : int, numpy.random.Generator or None
+        Seeds the noise.
+    """
+
+    def __init__(self, truth, step=None, tolerance=0.01, position_noise=0.0,
+                 normal_noise_deg=0.0, rng=None):
+        if step is not None and not step > 0:
+            raise ValueError(f"step must be positive, got {step}")
+        if not tolerance > 0:
+            raise ValueError(f"tolerance must be positive, got {tolerance}")
+        if position_noise < 0 or normal_noise_deg < 0:
+            raise ValueError("noise levels must not be negative")
+        self.truth = truth
+        self.step = float(step) if step is not None else truth.model.length / 300
+        self.tolerance = float(tolerance)
+        self.position_noise = float(position_noise)
+        self.normal_noise_deg = float(normal_noise_deg)
+        self.rng = np.random.default_rng(rng)
+
+    def probe(self, path):
+        """Move along a polyline until the first contact or its end.
+
+        Parameters
+        ----------
+        path : (k, 3) float, world frame
+            Waypoints; ``k >= 1`` (a single point only checks whether it is inside).
+
+        Returns
+        -------
+        Contact or NonContact
+            A non-contact is reported at the end of the path.
+        """
+        samples = sample_path(path, self.step)
+        distance = self.truth.signed_distance(samples)
+        if distance[0] < 0:
+            _, closest, normal = self.truth.closest(samples[:1])
+            return self._contact(closest[0], normal[0])
+        crossing = np.flatnonzero(distance <= 0)
+        if len(crossing) == 0:
+            return NonContact(self._noisy_position(samples[-1]))
+        hit = crossing[0]
+        position = self._bisect(samples[hit - 1], samples[hit], distance[hit - 1])
+        _, _, normal = self.truth.closest(position[None])
+        return self._contact(position, normal[0])
+
+    def _bisect(self, outside, inside, outside_distance):
+        """A point within ``tolerance`` of the surface between an outside and an inside point."""
+        if outside_distance <= self.tolerance:
+            return outside
+        for _ in range(64):
+            middle = (outside + inside) / 2
+            value = self.truth.signed_distance(middle[None])[0]
+            if abs(value) <= self.tolerance:
+                return middle
+            if value > 0:
+                outside = middle
+            else:
+                inside = middle
+        return outside
+
+    def _contact(self, position, normal):
+        return Contact(self._noisy_position(position), self._noisy_normal(normal))
+
+    def _noisy_position(self, position):
+        if self.position_noise == 0:
+            return position
+        return position + self.rng.normal(0.0, self.position_noise, size=3)
+
+    def _noisy_normal(self, normal):
+        if self.normal_noise_deg == 0:
+            return normal
+        return tilt(normal, np.radians(self.normal_noise_deg), self.rng)
+
+
+def sample_path(path, step):
+    """Points along a polyline at most ``step`` apart, including every waypoint.
+
+    Parameters
+    ----------
+    path : (k, 3) float
+    step : float
+
+    Returns
+    -------
+    (m, 3) float
+    """
+    path = np.atleast_2d(np.asarray(path, dtype=float))
+    if path.ndim != 2 or path.shape[1] != 3 or len(path) == 0:
+        raise ValueError(f"a path must have shape (k, 3) with k >= 1, got {path.shape}")
+    if not np.isfinite(path).all():
+        raise ValueError("a path must have finite coordinates")
+    pieces = [path[:1]]
+    for start, end in zip(path[:-1], path[1:]):
+        count = max(1, int(np.ceil(np.linalg.norm(end - start) / step)))
+        fractions = np.arange(1, count + 1)[:, None] / count
+        pieces.append(start + fractions * (end - start))
+    return np.vstack(pieces)
+
+
+def tilt(normal, sigma, rng):
+    """Tilt a unit vector by a Gaussian angle (std ``sigma`` radians) about a random axis."""
+    normal = np.asarray(normal, dtype=float)
+    axis = np.cross(normal, rng.normal(size=3))
+    axis = normalise_rows(axis[None], fallback=_any_perpendicular(normal))[0]
+    angle = rng.normal(0.0, sigma)
+    # Rodrigues with the axis perpendicular to the normal.
+    return np.cos(angle) * normal + np.sin(angle) * np.cross(axis, normal)
+
+
+def _any_perpendicular(vector):
+    helper = np.eye(3)[int(np.argmin(np.abs(vector)))]
+    return np.cross(vector, helper)

@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+from tactile_viz.engine.sdf import normalise_rows
+from tactile_viz.experiments.sdf_speed import near_surface_points
+
+
+def test_sphere_grid_matches_analytic_distance(sphere_model, rng):
+    points = rng.uniform(-4.0, 4.0, size=(5000, 3))
+    values, gradients = sphere_model.sdf.evaluate(points)
+    analytic = np.linalg.norm(points, axis=1) - 3.0
+    inside_grid = np.all(np.abs(points) <= sphere_model.sdf.upper, axis=1)
+    # The icosphere's facets sit up to ~0.01 inside the true sphere.
+    assert np.abs(values - analytic)[inside_grid].max() < 0.05
+    radial = normalise_rows(points)
+    near = inside_grid & (np.abs(analytic) < 1.0)
+    assert np.min(np.einsum("ij,ij->i", gradients[near], radial[near])) > 0.99
+
+
+def test_evaluate_keeps_leading_shape(sphere_model):
+    values, gradients = sphere_model.sdf.evaluate(np.zeros((2, 5, 3)))
+    assert values.shape == (2, 5) and gradients.shape == (2, 5, 3)
+
+
+def test_outside_grid_fallback_is_positive_upper_bound(sphere_model, rng):
+    directions = normalise_rows(rng.normal(size=(500, 3)))
+    far = directions * rng.uniform(5.0, 500.0, size=(500, 1))
+    values, gradients = sphere_model.sdf.evaluate(far)
+    exact = sphere_model.exact.signed_distance(far)
+    assert np.all(values > 0)
+    assert np.all(values >= exact - 0.05)
+    assert np.all(values <= exact * 1.8 + 0.1)  # the box corner detour is bounded by sqrt(3)
+    np.testing.assert_allclose(np.linalg.norm(gradients, axis=1), 1.0)
+    assert np.min(np.einsum("ij,ij->i", gradients, directions)) > 0
+
+
+def test_fallback_is_continuous_at_grid_border(sphere_model):
+    grid = sphere_model.sdf
+    border = np.array([[grid.upper[0], 0.3, -0.2]])
+    inside = border - [1e-7, 0, 0]
+    outside = border + [1e-7, 0, 0]
+    assert sphere_model.sdf.distance(inside)[0] == pytest.approx(
+        sphere_model.sdf.distance(outside)[0], abs=1e-5)
+
+
+def test_grid_is_cached_on_disk(sphere_model, tmp_path):
+    grid = sphere_model.sdf
+    files = list(tmp_path.glob("sdf-*.npz"))
+    assert len(files) == 1
+    again = type(sphere_model)(sphere_model.name, sphere_model.mesh, cache=sphere_model.cache)
+    np.testing.assert_array_equal(again.sdf.values, grid.values)
+    finer = sphere_model.with_params(sdf_resolution=32)
+    assert finer.sdf.shape != grid.shape
+    assert len(list(tmp_path.glob("sdf-*.npz"))) == 2
+
+
+def test_corrupt_cache_entry_is_rebuilt(sphere_model, tmp_path):
+    values = sphere_model.sdf.values
+    (entry,) = tmp_path.glob("sdf-*.npz")
+    entry.write_bytes(entry.read_bytes()[:100])
+    rebuilt = type(sphere_model)(sphere_model.name, sphere_model.mesh, cache=sphere_model.cache)
+    np.testing.assert_allclose(rebuilt.sdf.values, values)
+
+
+def test_bundled_grid_sdf_accuracy(bundled):
+    """On every bundled object: error < 2% of the length, signs right beyond one voxel."""
+    for name, model in bundled.items():
+        rng = np.random.default_rng(7)
+        points = near_surface_points(model, 2000, rng)
+        values, gradients = model.sdf.evaluate(points)
+        exact = model.exact.signed_distance(points)
+        error = np.abs(values - exact)
+        assert error.max() < 0.02 * model.length, f"{name}: max error {error.max():.3f}"
+        far = np.abs(exact) > model.sdf.spacing
+        assert np.all(np.sign(values[far]) == np.sign(exact[far])), f"{name}: wrong sign"
+        np.testing.assert_allclose(np.linalg.norm(gradients, axis=1), 1.0, atol=1e-9)

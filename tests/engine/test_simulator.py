@@ -1,0 +1,93 @@
+import numpy as np
+import pytest
+
+from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact, random_pose
+from tactile_viz.engine.simulator import sample_path
+
+
+@pytest.fixture(params=["mug_1", "armadillo", "office_chair"])
+def truth(request, bundled):
+    rotation, translation = random_pose(rng=3, max_translation=2.0)
+    return GroundTruth(bundled[request.param], rotation, translation)
+
+
+def _inward_probe(truth, rng):
+    """A path from 1.5 units outside a random surface point to 1.5 units inside."""
+    point = truth.surface_points(1, rng)[0]
+    _, _, normal = truth.closest(point[None])
+    return np.stack([point + 1.5 * normal[0], point - 1.5 * normal[0]])
+
+
+def test_contacts_lie_within_tolerance_of_true_surface(truth, rng):
+    simulator = ContactSimulator(truth)
+    assert simulator.step == pytest.approx(truth.model.length / 300)
+    for _ in range(40):
+        observation = simulator.probe(_inward_probe(truth, rng))
+        assert isinstance(observation, Contact)
+        distance, _, normal = truth.closest(observation.position[None])
+        assert abs(distance[0]) <= 0.01
+        np.testing.assert_allclose(observation.normal, normal[0], atol=1e-9)
+
+
+def test_path_that_misses_reports_non_contact_at_its_end(truth):
+    start = truth.translation + [20.0, 0.0, 0.0]
+    end = truth.translation + [20.0, 10.0, 0.0]
+    observation = ContactSimulator(truth).probe([start, end])
+    assert isinstance(observation, NonContact)
+    np.testing.assert_allclose(observation.position, end)
+
+
+def test_start_inside_follows_gradient_to_surface(truth, rng):
+    point = truth.surface_points(1, rng)[0]
+    _, _, normal = truth.closest(point[None])
+    inside = point - 0.05 * normal[0]
+    assert truth.signed_distance(inside[None])[0] < 0
+    observation = ContactSimulator(truth).probe([inside, inside + [5.0, 0, 0]])
+    assert isinstance(observation, Contact)
+    assert abs(truth.signed_distance(observation.position[None])[0]) <= 0.01
+    assert np.linalg.norm(observation.position - inside) <= 0.05 + 1e-6
+
+
+def test_first_crossing_wins(bundled):
+    truth = GroundTruth(bundled["bottle_1"], np.eye(3), np.zeros(3))
+    observation = ContactSimulator(truth).probe([[-10.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    assert isinstance(observation, Contact)
+    assert observation.position[0] < 0 and observation.normal[0] < -0.9
+
+
+def test_same_seed_same_noisy_observations(truth):
+    paths = [_inward_probe(truth, np.random.default_rng(i)) for i in range(10)]
+
+    def run(seed):
+        simulator = ContactSimulator(truth, position_noise=0.02, normal_noise_deg=10.0, rng=seed)
+        return np.array([np.r_[o.position, o.normal] for o in map(simulator.probe, paths)])
+
+    np.testing.assert_array_equal(run(5), run(5))
+    assert not np.allclose(run(5), run(6))
+
+
+def test_noise_levels_are_as_asked(bundled, rng):
+    truth = GroundTruth(bundled["vase_1"], np.eye(3), np.zeros(3))
+    clean = ContactSimulator(truth)
+    noisy = ContactSimulator(truth, position_noise=0.05, normal_noise_deg=15.0, rng=1)
+    paths = [_inward_probe(truth, rng) for _ in range(300)]
+    pairs = [(clean.probe(p), noisy.probe(p)) for p in paths]
+    offsets = np.array([n.position - c.position for c, n in pairs])
+    angles = np.degrees([np.arccos(np.clip(c.normal @ n.normal, -1, 1)) for c, n in pairs])
+    assert np.std(offsets) == pytest.approx(0.05, rel=0.2)
+    assert np.sqrt(np.mean(angles**2)) == pytest.approx(15.0, rel=0.2)
+
+
+def test_sample_path_steps():
+    samples = sample_path([[0, 0, 0], [1, 0, 0], [1, 1, 0]], 0.3)
+    assert np.all(np.linalg.norm(np.diff(samples, axis=0), axis=1) <= 0.3 + 1e-12)
+    np.testing.assert_allclose(samples[[0, -1]], [[0, 0, 0], [1, 1, 0]])
+    with pytest.raises(ValueError):
+        sample_path([[0, 0, np.nan]], 0.1)
+
+
+def test_bad_simulator_parameters(truth):
+    with pytest.raises(ValueError):
+        ContactSimulator(truth, step=0)
+    with pytest.raises(ValueError):
+        ContactSimulator(truth, position_noise=-1)
