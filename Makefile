@@ -1,0 +1,52 @@
+# tactile_viz: every target does its own set-up on a fresh Debian 12 machine.
+#
+#   make run     start the desktop app (needs a display; headless: xvfb-run -a make run)
+#   make test    run the whole pytest suite (GUI tests on a virtual X server)
+#   make setup   system packages + .venv + pip install -e '.[gui,test,bench]'
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := test
+
+VENV   := .venv
+PY     := $(VENV)/bin/python
+# pip runs again only when pyproject.toml is newer than this stamp.
+STAMP  := $(VENV)/.tactile_viz-installed
+EXTRAS := gui,test,bench
+
+# python3.11 if there is one, else python3 if it is 3.11 or newer.
+PYTHON ?= $(shell for p in python3.11 python3; do \
+	  command -v $$p >/dev/null 2>&1 && $$p -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null \
+	  && { echo $$p; break; }; done)
+
+.PHONY: setup system-deps venv run test
+
+setup: system-deps $(STAMP)
+
+system-deps:
+	@bash scripts/install-system-deps.sh
+
+$(PY):
+	@if [ -z "$(PYTHON)" ]; then \
+	  echo "error: Python 3.11+ not found (tried python3.11, python3); on Debian 12: apt-get install python3 python3-venv" >&2; \
+	  exit 1; fi
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install --no-input --disable-pip-version-check -q -e '.[$(EXTRAS)]'
+	@touch $@
+
+venv: $(STAMP)
+
+run: setup
+	$(PY) app.py
+
+# Display for the GUI tests: the pytest-xvfb plugin (in the `test` extra)
+# starts its own Xvfb on a free display for the pytest session and sets
+# DISPLAY, also when the caller already has a DISPLAY, so the tests never
+# touch a real desktop and need no xvfb-run wrapper. QtInteractor needs a real
+# X server: QT_QPA_PLATFORM=offscreen fails with "Render window is not
+# current", so tests/gui/conftest.py forces the xcb platform.
+# pytest's exit code is make's: a failing test fails `make test`.
+test: setup
+	$(PY) -m pytest $(PYTEST_ARGS)

@@ -1,0 +1,98 @@
+"""Fixtures for the GUI tests (pytest-qt on a real X server).
+
+The display comes from the pytest-xvfb plugin, which starts Xvfb for the test
+session. pyvistaqt's QtInteractor cannot render with QT_QPA_PLATFORM=offscreen
+("Render window is not current"), so the xcb platform is forced here, before
+pytest-qt creates the QApplication.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import threading
+import time
+
+import pytest
+
+os.environ["QT_QPA_PLATFORM"] = "xcb"
+
+try:
+    import pyvistaqt  # noqa: F401
+    from PySide6.QtCore import QCoreApplication, QEvent, QThread
+    from PySide6.QtGui import QGuiApplication
+    from PySide6.QtWidgets import QApplication
+except ImportError as exc:  # the gui extra is not installed: skip this folder
+    pytest.skip(
+        f"GUI tests need the gui extra (pip install -e '.[gui]'): {exc}",
+        allow_module_level=True,
+    )
+
+
+def _flush_events(app: QCoreApplication) -> None:
+    for _ in range(3):
+        app.processEvents()
+        QCoreApplication.sendPostedEvents(None, QEvent.Type.DeferredDelete)
+
+
+def _open_windows() -> list[str]:
+    widgets = [w for w in QApplication.topLevelWidgets() if w.isVisible()]
+    windows = [w for w in QGuiApplication.topLevelWindows() if w.isVisible()]
+    names = [f"{type(w).__name__}({w.windowTitle()!r})" for w in widgets]
+    names += [f"QWindow {type(w).__name__}({w.title()!r})" for w in windows]
+    return names
+
+
+def _running_qthreads(app: QCoreApplication) -> list[QThread]:
+    """Running QThreads other than the main one (found via their Python wrappers)."""
+    main = app.thread()
+    found = []
+    for obj in gc.get_objects():
+        try:
+            if isinstance(obj, QThread) and obj is not main and obj.isRunning():
+                found.append(obj)
+        except RuntimeError:  # wrapper whose C++ object is already deleted
+            continue
+    return found
+
+
+@pytest.fixture(autouse=True)
+def no_leaked_windows_or_threads(qapp):
+    """Fail a test that leaves a window open or a (Q)thread running.
+
+    pytest-qt closes the widgets registered with qtbot.addWidget before
+    fixture teardown, so everything a test opened must be closed by now.
+    """
+    threads_before = set(threading.enumerate())
+    qthreads_before = {id(t) for t in _running_qthreads(qapp)}
+    yield
+    _flush_events(qapp)
+
+    deadline = time.monotonic() + 2.0
+    while True:
+        extra_threads = [
+            t for t in threading.enumerate() if t not in threads_before and t.is_alive()
+        ]
+        qthreads = [t for t in _running_qthreads(qapp) if id(t) not in qthreads_before]
+        if not (extra_threads or qthreads) or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+        _flush_events(qapp)
+
+    windows = _open_windows()
+    # Clean up so one leaking test does not make the following ones fail too.
+    for w in QApplication.topLevelWidgets():
+        if w.isVisible():
+            w.close()
+    _flush_events(qapp)
+
+    problems = []
+    if windows:
+        problems.append(f"top-level windows still open: {windows}")
+    if extra_threads:
+        problems.append(f"Python threads still alive: {[t.name for t in extra_threads]}")
+    if qthreads:
+        names = [f"{type(t).__name__}({t.objectName()!r})" for t in qthreads]
+        problems.append(f"QThreads still running: {names}")
+    if problems:
+        pytest.fail("; ".join(problems))
