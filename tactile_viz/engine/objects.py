@@ -18,6 +18,7 @@ from .cache import ArrayCache
 from .errors import MeshError
 from .features import poisson_disk_points
 from .meshes import content_hash, load_mesh, prepare_mesh
+from .ppf import PairTable
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 
 ASSETS_ENV_VAR = "TACTILE_VIZ_ASSETS"
@@ -129,6 +130,22 @@ class ObjectModel:
         # Project onto the surface exactly so normals come from the same place the SDF does.
         _, closest, face = self.exact.query(points)
         return {"points": closest, "normals": self.exact.surface_normal(closest, face)}
+
+    def pair_table(self, distance_step=0.1, angle_step_deg=12.0):
+        """The :class:`~tactile_viz.engine.ppf.PairTable` of the feature points (cached)."""
+        key = (float(distance_step), float(angle_step_deg))
+        tables = self.__dict__.setdefault("_pair_tables", {})
+        if key not in tables:
+            params = {"distance_step": key[0], "angle_step_deg": key[1],
+                      "count": self.params.n_features, "seed": self.params.feature_seed}
+
+            def build():
+                points, normals = self.features
+                return PairTable.build(points, normals, key[0], np.radians(key[1])).to_arrays()
+
+            tables[key] = PairTable.from_arrays(
+                self.cache.get_or_build("pairs", self.content_hash, params, build))
+        return tables[key]
 
     def describe(self):
         """A JSON-ready summary (name, sizes, parameters, hash)."""

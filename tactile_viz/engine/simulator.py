@@ -191,3 +191,22 @@ def tilt(normal, sigma, rng):
 def _any_perpendicular(vector):
     helper = np.eye(3)[int(np.argmin(np.abs(vector)))]
     return np.cross(vector, helper)
+
+
+def random_touch(truth, rng=None, approach=1.0):
+    """A straight path that touches a random surface point from outside along its normal.
+
+    Parameters
+    ----------
+    truth : GroundTruth
+    rng : int, numpy.random.Generator or None
+    approach : float
+        How far outside the path starts (and inside it ends).
+
+    Returns
+    -------
+    (2, 3) float, world frame
+    """
+    point = truth.surface_points(1, rng)[0]
+    _, _, normal = truth.closest(point[None])
+    return np.stack([point + approach * normal[0], point - approach * normal[0]])

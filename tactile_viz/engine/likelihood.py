@@ -1,0 +1,58 @@
+"""The measurement likelihood of tactile observations, in log space.
+
+A contact at ``x`` with normal ``n`` under a hypothesis ``z`` (class and pose) is Gaussian
+in the signed distance ``f(x, z)`` (observed 0) and in the normal (observed ``n``, predicted
+the SDF gradient), with ``Sigma = diag(sigma_d^2, sigma_n^2 I3)``; its largest value is
+``1 / Z`` with ``Z = (2 pi)^2 sqrt(det Sigma)``. A non-contact at ``x`` says ``f > 0``:
+``log Phi(f / sigma_d)``.
+"""
+
+import numpy as np
+from scipy.special import log_ndtr
+
+
+def log_normaliser(sigma_d, sigma_n):
+    """``log Z`` of the contact likelihood."""
+    return 2 * np.log(2 * np.pi) + np.log(sigma_d) + 3 * np.log(sigma_n)
+
+
+def log_contact_likelihood(distance, predicted_normal, observed_normal, sigma_d, sigma_n):
+    """Log-likelihood of contacts.
+
+    Parameters
+    ----------
+    distance : (...) float
+        Predicted signed distance at the contact positions.
+    predicted_normal : (..., 3) float
+        Predicted unit normals there (same frame as ``observed_normal``).
+    observed_normal : (..., 3) float
+    sigma_d, sigma_n : float
+
+    Returns
+    -------
+    (...) float
+    """
+    normal_error = np.sum((predicted_normal - observed_normal) ** 2, axis=-1)
+    return (-0.5 * (np.square(distance / sigma_d) + normal_error / sigma_n**2)
+            - log_normaliser(sigma_d, sigma_n))
+
+
+def log_noncontact_likelihood(distance, sigma_d):
+    """Log-probability that non-contact points lie outside: ``log Phi(f / sigma_d)``."""
+    return log_ndtr(np.asarray(distance) / sigma_d)
+
+
+def log_sum_exp(values):
+    """``log(sum(exp(values)))`` without overflow; ``-inf`` for an empty or all ``-inf`` input."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return -np.inf
+    peak = np.max(values)
+    if not np.isfinite(peak):
+        return peak
+    return float(peak + np.log(np.sum(np.exp(values - peak))))
+
+
+def normalise_log_weights(log_weights):
+    """Log weights shifted so that their exponentials sum to one."""
+    return np.asarray(log_weights, dtype=float) - log_sum_exp(log_weights)

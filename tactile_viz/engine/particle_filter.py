@@ -1,0 +1,428 @@
+"""The customised particle filter over object class and 6-DOF pose (paper, Algorithm 1).
+
+Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
+
+1. weight update: ``log w_j += log p(D_t | z_j)`` and normalise;
+2. stochastic universal resampling, merging duplicates;
+3. the MAP particle ``z*`` and its evidence ``log p(D_1:t | z*)``;
+4. if the evidence is poor (gate ``lambda``), new particles from point-pair features of the
+   new contact paired with ``n_s`` earlier contacts, weighted by the paper's relative-weight
+   approximation;
+5. optionally a local refinement of the MAP pose, added as a particle;
+6. the known/novel decision from the MAP evidence.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from .errors import ObservationError
+from .likelihood import (log_contact_likelihood, log_noncontact_likelihood, log_normaliser,
+                         normalise_log_weights)
+from .observations import Contact, NonContact
+from .params import FilterParams
+from .ppf import align_pairs, is_degenerate, local_frames, pair_features, rotation_about_x
+
+_CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
+
+
+@dataclass(frozen=True, eq=False)
+class Particles:
+    """A weighted set of hypotheses.
+
+    Attributes
+    ----------
+    classes : (N,) int
+        Index of each particle's prior in the library.
+    rotations : (N, 3, 3) float
+        ``object_to_world`` rotations.
+    translations : (N, 3) float
+    log_weights : (N,) float
+        Normalised: ``logsumexp(log_weights) == 0``.
+    """
+
+    classes: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+    log_weights: np.ndarray
+
+    def __len__(self):
+        return len(self.classes)
+
+    def take(self, index):
+        return Particles(self.classes[index], self.rotations[index], self.translations[index],
+                         self.log_weights[index])
+
+    @staticmethod
+    def concatenate(parts):
+        return Particles(*(np.concatenate([getattr(p, name) for p in parts])
+                           for name in ("classes", "rotations", "translations", "log_weights")))
+
+
+@dataclass(frozen=True, eq=False)
+class FilterState:
+    """What a viewer or benchmark reads after a step (immutable).
+
+    Attributes
+    ----------
+    step : int
+    particles : Particles
+    class_names : list of str
+    class_posterior : dict
+        Summed weight per class name.
+    map_class : str or None
+    map_rotation, map_translation : (3, 3), (3,) float or None
+        ``object_to_world`` of the MAP particle.
+    log_evidence : float
+        ``log p(D | z*)`` over all observations.
+    log_threshold : float
+        The known/novel threshold on ``log_evidence``.
+    novel : bool
+    sampled : int
+        Particles added by point-pair sampling in this step.
+    n_contacts, n_noncontacts : int
+    """
+
+    step: int
+    particles: Particles
+    class_names: list
+    class_posterior: dict
+    map_class: object
+    map_rotation: object
+    map_translation: object
+    log_evidence: float
+    log_threshold: float
+    novel: bool
+    sampled: int
+    n_contacts: int
+    n_noncontacts: int
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def n_particles(self):
+        return len(self.particles)
+
+
+def stochastic_universal_resampling(weights, count, rng):
+    """Copies of each particle drawn by stochastic universal sampling.
+
+    Parameters
+    ----------
+    weights : (N,) float
+        Normalised weights.
+    count : int
+        Number of draws.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (N,) int
+        Copies per particle; they sum to ``count``, and every particle whose weight exceeds
+        ``1 / count`` gets at least one.
+    """
+    cumulative = np.cumsum(weights)
+    cumulative /= cumulative[-1]
+    positions = (rng.random() + np.arange(count)) / count
+    drawn = np.minimum(np.searchsorted(cumulative, positions, side="right"), len(weights) - 1)
+    return np.bincount(drawn, minlength=len(weights))
+
+
+class ParticleFilter:
+    """Joint class and pose belief over the priors of a library.
+
+    Parameters
+    ----------
+    library : PriorLibrary
+        The priors; their SDF grids, features and pair tables are built on first use.
+    params : FilterParams, optional
+    rng : int, numpy.random.Generator or None
+    """
+
+    def __init__(self, library, params=None, rng=None):
+        self.params = params or FilterParams()
+        if len(library) == 0:
+            raise ValueError("the prior library is empty")
+        self.models = [model.with_params(sdf_resolution=self.params.sdf_resolution,
+                                         n_features=self.params.n_features)
+                       if (model.params.sdf_resolution, model.params.n_features)
+                       != (self.params.sdf_resolution, self.params.n_features) else model
+                       for model in library]
+        self.class_names = [model.name for model in self.models]
+        self.rng = np.random.default_rng(rng)
+        self.contact_positions = np.zeros((0, 3))
+        self.contact_normals = np.zeros((0, 3))
+        self.noncontact_positions = np.zeros((0, 3))
+        self.particles = None
+        self.step_count = 0
+        self.state = None
+
+    # ----------------------------------------------------------------- likelihood
+    def log_likelihood(self, particles, contacts=None, normals=None, noncontacts=None):
+        """Log-likelihood of observations under each particle.
+
+        Parameters
+        ----------
+        particles : Particles
+        contacts, normals : (m, 3) float, world frame
+        noncontacts : (q, 3) float, world frame
+
+        Returns
+        -------
+        (N,) float
+        """
+        contacts = np.zeros((0, 3)) if contacts is None else contacts
+        normals = np.zeros((0, 3)) if normals is None else normals
+        noncontacts = np.zeros((0, 3)) if noncontacts is None else noncontacts
+        points = np.vstack([contacts, noncontacts])
+        total = np.zeros(len(particles))
+        if len(points) == 0 or len(particles) == 0:
+            return total
+        m = len(contacts)
+        chunk = max(1, _CHUNK // len(points))
+        for c in np.unique(particles.classes):
+            members = np.flatnonzero(particles.classes == c)
+            sdf = self.models[c].sdf
+            for start in range(0, len(members), chunk):
+                index = members[start:start + chunk]
+                rotation, translation = particles.rotations[index], particles.translations[index]
+                local = np.einsum("kij,kmi->kmj", rotation, points[None] - translation[:, None])
+                values, gradients = sdf.evaluate(local)
+                if m:
+                    observed = np.einsum("kij,mi->kmj", rotation, normals)
+                    total[index] += log_contact_likelihood(
+                        values[:, :m], gradients[:, :m], observed, self.params.sigma_d,
+                        self.params.sigma_n).sum(axis=1)
+                if len(points) > m:
+                    total[index] += log_noncontact_likelihood(
+                        values[:, m:], self.params.sigma_d).sum(axis=1)
+        return total
+
+    def log_evidence_of(self, particles):
+        """``log p(D_1:t | z)`` of particles over every observation so far."""
+        return self.log_likelihood(particles, self.contact_positions, self.contact_normals,
+                                   self.noncontact_positions)
+
+    # ----------------------------------------------------------------- the step
+    def update(self, observations):
+        """Take one step's observations (contacts and/or non-contacts) and return the state.
+
+        Parameters
+        ----------
+        observations : Contact, NonContact or a sequence of them
+
+        Returns
+        -------
+        FilterState
+
+        Raises
+        ------
+        ObservationError
+            For anything that is not a valid observation; the filter is left unchanged.
+        """
+        contacts, normals, noncontacts = _split(observations)
+        self.step_count += 1
+        new_contacts, new_normals = contacts, normals
+        self.contact_positions = np.vstack([self.contact_positions, contacts])
+        self.contact_normals = np.vstack([self.contact_normals, normals])
+        self.noncontact_positions = np.vstack([self.noncontact_positions, noncontacts])
+        sampled = 0
+        if self.particles is None:
+            if len(contacts) == 0:
+                return self._record(sampled)
+            self.particles = self._initial_particles(contacts[0], normals[0])
+            contacts, normals = contacts[1:], normals[1:]
+            new_contacts, new_normals = new_contacts[1:], new_normals[1:]
+        log_w = self.particles.log_weights + self.log_likelihood(
+            self.particles, contacts, normals, noncontacts)
+        self.particles = self._resample(_with_log_weights(self.particles, log_w))
+        map_index, map_evidence = self._map()
+        if len(new_contacts) and self._needs_sampling(map_evidence):
+            for position, normal in zip(new_contacts, new_normals):
+                new = self._sample_from_pairs(position, normal, map_index, map_evidence)
+                if new is not None:
+                    sampled += len(new)
+                    self.particles = self._merged(new)
+                    map_index, map_evidence = self._map()
+        if self.params.refine_map and len(self.contact_positions) >= 3:
+            refined = self._refined_map(map_index, map_evidence)
+            if refined is not None:
+                self.particles = self._merged(refined)
+        return self._record(sampled)
+
+    # ----------------------------------------------------------------- pieces
+    def _initial_particles(self, position, normal):
+        """Every feature point of every class put onto the first contact (Algorithm 1)."""
+        k = self.params.init_rotations
+        offset = self.rng.uniform(0, 2 * np.pi)
+        angles = offset + 2 * np.pi * np.arange(k) / k
+        parts = []
+        for c, model in enumerate(self.models):
+            points, normals = model.features
+            rm, tm, _ = local_frames(points, normals, points)
+            rs, ts, _ = local_frames(position[None], normal[None], position[None])
+            rs_inv = rs[0].T
+            rotations = np.einsum("ij,ajk,bkl->bail", rs_inv, rotation_about_x(angles), rm)
+            rotations = rotations.reshape(-1, 3, 3)
+            translations = position - np.einsum("kij,kj->ki", rotations, np.repeat(points, k, 0))
+            parts.append(Particles(np.full(len(rotations), c), rotations, translations,
+                                   np.zeros(len(rotations))))
+        particles = Particles.concatenate(parts)
+        return _with_log_weights(particles, np.zeros(len(particles)))
+
+    def _resample(self, particles):
+        weights = np.exp(particles.log_weights)
+        count = min(len(particles), self.params.max_particles)
+        copies = stochastic_universal_resampling(weights, count, self.rng)
+        keep = np.flatnonzero(copies)
+        return Particles(particles.classes[keep], particles.rotations[keep],
+                         particles.translations[keep], np.log(copies[keep] / count))
+
+    def _map(self):
+        index = int(np.argmax(self.particles.log_weights))
+        return index, float(self.log_evidence_of(self.particles.take([index]))[0])
+
+    def _max_log_evidence(self):
+        return -len(self.contact_positions) * log_normaliser(self.params.sigma_d,
+                                                             self.params.sigma_n)
+
+    def _needs_sampling(self, map_evidence):
+        """Gate: the per-observation geometric mean of p(D|z*) / p_max is below lambda."""
+        n = len(self.contact_positions) + len(self.noncontact_positions)
+        return (map_evidence - self._max_log_evidence()) / max(n, 1) < np.log(self.params.lam)
+
+    def _subset(self, position):
+        """Indices of the n_s earlier contacts: one per equal segment of the distance order."""
+        earlier = len(self.contact_positions) - 1
+        order = np.argsort(np.linalg.norm(self.contact_positions[:earlier] - position, axis=1))
+        segments = np.array_split(order, min(self.params.n_s, earlier))
+        return np.array([segment[0] for segment in segments if len(segment)], dtype=int)
+
+    def _sample_from_pairs(self, position, normal, map_index, map_evidence):
+        """New particles from point pairs (new contact, earlier contact), both orders."""
+        if len(self.contact_positions) < 2:
+            return None
+        subset = self._subset(position)
+        old_p, old_n = self.contact_positions[subset], self.contact_normals[subset]
+        new_p, new_n = np.broadcast_to(position, old_p.shape), np.broadcast_to(normal, old_n.shape)
+        p1, n1 = np.vstack([new_p, old_p]), np.vstack([new_n, old_n])
+        p2, n2 = np.vstack([old_p, new_p]), np.vstack([old_n, new_n])
+        usable = ~is_degenerate(p1, n1, p2, n2)
+        if not usable.any():
+            return None
+        p1, n1, p2, n2 = p1[usable], n1[usable], p2[usable], n2[usable]
+        features = pair_features(p1, n1, p2, n2)
+        subset_p = np.vstack([old_p, position[None]])
+        subset_n = np.vstack([old_n, normal[None]])
+        map_particle = self.particles.take([map_index])
+        parts = []
+        for c, model in enumerate(self.models):
+            table = model.pair_table(self.params.distance_step, self.params.angle_step_deg)
+            query, first, second = table.lookup(features, self.params.neighbour_bins)
+            if len(query) == 0:
+                continue
+            if len(query) > self.params.max_new_per_class:
+                pick = self.rng.choice(len(query), self.params.max_new_per_class, replace=False)
+                query, first, second = query[pick], first[pick], second[pick]
+            points, normals = model.features
+            rotations, translations = align_pairs(
+                (points[first], normals[first], points[second]), (p1[query], n1[query], p2[query]))
+            candidates = Particles(np.full(len(query), c), rotations, translations,
+                                   np.zeros(len(query)))
+            log_subset = self.log_likelihood(candidates, subset_p, subset_n)
+            best = int(np.argmax(log_subset))
+            best_evidence = self.log_evidence_of(candidates.take([best]))[0]
+            # Paper eq. new_weights: relative to the class's best candidate, which is placed
+            # relative to the MAP particle by their likelihoods over all data.
+            log_w = (log_subset - log_subset[best] + best_evidence - map_evidence
+                     + map_particle.log_weights[0])
+            parts.append(Particles(candidates.classes, rotations, translations, log_w))
+        if not parts:
+            return None
+        return Particles.concatenate(parts)
+
+    def _merged(self, new):
+        combined = Particles.concatenate([self.particles, new])
+        return _with_log_weights(combined, normalise_log_weights(combined.log_weights))
+
+    def _refined_map(self, map_index, map_evidence):
+        """The MAP pose after a few least-squares steps on all observations, as a particle."""
+        particle = self.particles.take([map_index])
+        sdf = self.models[particle.classes[0]].sdf
+        rotation0, translation0 = particle.rotations[0], particle.translations[0]
+        centre = self.contact_positions.mean(axis=0)
+        p, n, q = self.contact_positions, self.contact_normals, self.noncontact_positions
+        sd, sn = self.params.sigma_d, self.params.sigma_n
+
+        def pose(x):
+            turn = Rotation.from_rotvec(x[:3]).as_matrix()
+            return turn @ rotation0, turn @ (translation0 - centre) + centre + x[3:]
+
+        def residuals(x):
+            rotation, translation = pose(x)
+            values, gradients = sdf.evaluate((np.vstack([p, q]) - translation) @ rotation)
+            normal_error = gradients[:len(p)] - n @ rotation
+            outside = np.minimum(values[len(p):], 0.0)
+            return np.concatenate([values[:len(p)] / sd, normal_error.ravel() / sn, outside / sd])
+
+        try:
+            result = least_squares(residuals, np.zeros(6), method="trf",
+                                   max_nfev=self.params.refine_iterations * 7, x_scale=0.1)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+        rotation, translation = pose(result.x)
+        refined = Particles(particle.classes, rotation[None], translation[None], np.zeros(1))
+        evidence = self.log_evidence_of(refined)[0]
+        if not evidence > map_evidence:
+            return None
+        return Particles(particle.classes, rotation[None], translation[None],
+                         particle.log_weights + evidence - map_evidence)
+
+    def _record(self, sampled):
+        params = self.params
+        n_pos, n_neg = len(self.contact_positions), len(self.noncontact_positions)
+        threshold = (n_pos * (np.log(params.known_fraction)
+                              - log_normaliser(params.sigma_d, params.sigma_n))
+                     + n_neg * np.log(params.noncontact_fraction))
+        if self.particles is None:
+            state = FilterState(self.step_count, None, self.class_names, {}, None, None, None,
+                                -np.inf, threshold, False, 0, n_pos, n_neg)
+        else:
+            index, evidence = self._map()
+            weights = np.exp(self.particles.log_weights)
+            posterior = {name: float(weights[self.particles.classes == c].sum())
+                         for c, name in enumerate(self.class_names)}
+            state = FilterState(
+                self.step_count, self.particles, self.class_names, posterior,
+                self.class_names[self.particles.classes[index]],
+                self.particles.rotations[index].copy(), self.particles.translations[index].copy(),
+                evidence, threshold, bool(evidence < threshold), sampled, n_pos, n_neg)
+        self.state = state
+        return state
+
+
+def _with_log_weights(particles, log_weights):
+    return Particles(particles.classes, particles.rotations, particles.translations,
+                     normalise_log_weights(log_weights))
+
+
+def _split(observations):
+    """Validated arrays (contacts, normals, non-contacts) from observations."""
+    if isinstance(observations, (Contact, NonContact)):
+        observations = [observations]
+    try:
+        observations = list(observations)
+    except TypeError:
+        raise ObservationError(f"expected observations, got {type(observations).__name__}") from None
+    contacts, normals, noncontacts = [], [], []
+    for item in observations:
+        if isinstance(item, Contact):
+            contacts.append(item.position)
+            normals.append(item.normal)
+        elif isinstance(item, NonContact):
+            noncontacts.append(item.position)
+        else:
+            raise ObservationError(f"expected Contact or NonContact, got {type(item).__name__}")
+    as_array = lambda rows: np.array(rows, dtype=float).reshape(-1, 3)  # noqa: E731
+    return as_array(contacts), as_array(normals), as_array(noncontacts)

@@ -1,0 +1,144 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
+                                ObservationError, PriorLibrary, random_pose)
+from tactile_viz.engine.likelihood import log_sum_exp
+from tactile_viz.engine.metrics import pose_error
+from tactile_viz.engine.params import PRESETS, FilterParams, preset
+from tactile_viz.engine.particle_filter import (ParticleFilter,
+                                                stochastic_universal_resampling)
+from tactile_viz.engine.simulator import random_touch
+
+HOUSEHOLD = ["bottle_1", "mug_1", "ice_cream_1", "guitar_1", "vase_1", "office_chair", "sofa_1"]
+
+
+@settings(max_examples=200, deadline=None)
+@given(raw=st.lists(st.floats(0, 1e6), min_size=1, max_size=200), count=st.integers(1, 500),
+       seed=st.integers(0, 2**32 - 1))
+def test_sus_keeps_heavy_particles_and_draws_exactly_n(raw, count, seed):
+    weights = np.array(raw) + 1e-12
+    weights /= weights.sum()
+    copies = stochastic_universal_resampling(weights, count, np.random.default_rng(seed))
+    assert copies.sum() == count
+    assert np.all(copies[weights > 1.0 / count] >= 1)
+    assert np.all(copies >= np.floor(weights * count * (1 - 1e-9)))
+
+
+@pytest.fixture(scope="module")
+def known_library(bundled):
+    return PriorLibrary(bundled[name] for name in [
+        "armadillo", "asian_dragon", "elephant", "bottle_1", "mug_1", "ice_cream_1",
+        "guitar_1", "vase_1", "office_chair", "sofa_1"])
+
+
+def _run(library, truth, steps, seed, params=None):
+    rng = np.random.default_rng(seed)
+    simulator = ContactSimulator(truth, rng=seed)
+    particle_filter = ParticleFilter(library, params, rng=seed)
+    for _ in range(steps):
+        state = particle_filter.update(simulator.probe(random_touch(truth, rng)))
+        weights = state.particles.log_weights
+        assert np.all(np.isfinite(weights)) and abs(log_sum_exp(weights)) < 1e-9
+        assert np.isfinite(state.log_evidence)
+    return particle_filter, state
+
+
+def test_recognition_on_the_known_set(known_library):
+    """10 seeded trials, one per known object, random touches: right class and pose."""
+    good = []
+    for seed, name in enumerate(known_library.names):
+        rotation, translation = random_pose(rng=100 + seed, max_translation=1.0)
+        truth = GroundTruth(known_library[name], rotation, translation)
+        _, state = _run(known_library, truth, 40, seed)
+        error = pose_error(known_library[state.map_class], state.map_rotation,
+                           state.map_translation, truth)
+        good.append(state.map_class == name and error < 0.6)
+    assert sum(good) >= 9, good
+
+
+def test_known_object_is_judged_known(known_library):
+    truth = GroundTruth(known_library["vase_1"], *random_pose(rng=5, max_translation=1.0))
+    _, state = _run(known_library, truth, 25, seed=3)
+    assert state.map_class == "vase_1" and not state.novel
+    assert state.class_posterior["vase_1"] > 0.5
+
+
+def test_creature_is_novel_among_household_priors(bundled):
+    library = PriorLibrary(bundled[name] for name in HOUSEHOLD)
+    truth = GroundTruth(bundled["neptune"], *random_pose(rng=8, max_translation=1.0))
+    _, state = _run(library, truth, 25, seed=4)
+    assert state.novel
+    assert state.log_evidence < state.log_threshold
+
+
+def test_state_reports_what_a_viewer_needs(known_library):
+    truth = GroundTruth(known_library["mug_1"], np.eye(3), np.zeros(3))
+    particle_filter, state = _run(known_library, truth, 3, seed=0)
+    assert state.step == 3 and state.n_contacts == 3 and state.n_noncontacts == 0
+    assert sum(state.class_posterior.values()) == pytest.approx(1.0)
+    assert set(state.class_posterior) == set(known_library.names)
+    assert state.map_rotation.shape == (3, 3) and state.map_translation.shape == (3,)
+    assert state.n_particles == len(state.particles.classes) > 0
+
+
+def test_non_contacts_before_first_contact_and_mixed_steps(known_library):
+    particle_filter = ParticleFilter(known_library, rng=0)
+    state = particle_filter.update(NonContact([10.0, 0, 0]))
+    assert state.particles is None and state.n_noncontacts == 1
+    state = particle_filter.update([NonContact([0, 10.0, 0]),
+                                    Contact([0, 0, 3.0], [0, 0, 1.0])])
+    assert state.n_particles > 0 and state.n_noncontacts == 2
+
+
+@pytest.mark.parametrize("bad", [
+    [Contact([0, 0, 0], [0, 0, 1]), "not an observation"],
+    np.zeros(3),
+    None,
+])
+def test_bad_observations_change_nothing(known_library, bad):
+    particle_filter = ParticleFilter(known_library, rng=0)
+    particle_filter.update(Contact([0, 0, 3.0], [0, 0, 1.0]))
+    before = particle_filter.particles
+    with pytest.raises(ObservationError):
+        particle_filter.update(bad)
+    assert particle_filter.particles is before and len(particle_filter.contact_positions) == 1
+
+
+@pytest.mark.parametrize("position, normal", [
+    ([np.nan, 0, 0], [0, 0, 1]), ([0, 0, 0], [0, 0, 0]), ([0, 0], [0, 0, 1]),
+    ([0, 0, 0], [np.inf, 0, 1]),
+])
+def test_observation_validation(position, normal):
+    with pytest.raises(ObservationError):
+        Contact(position, normal)
+
+
+def test_contact_normal_is_renormalised():
+    np.testing.assert_allclose(Contact([0, 0, 0], [0, 0, 5.0]).normal, [0, 0, 1.0])
+
+
+def test_presets_and_parameter_validation():
+    assert PRESETS["paper"] == FilterParams()
+    assert preset("fast").n_features < FilterParams().n_features
+    assert preset("accurate").refine_map
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset("fastest")
+    for bad in [dict(sigma_d=-1.0), dict(sigma_n=0.0), dict(n_s=0), dict(lam=1.5),
+                dict(sigma_d=float("nan")), dict(neighbour_bins=2)]:
+        with pytest.raises(ValueError):
+            FilterParams(**bad)
+    with pytest.raises(ValueError, match="unknown"):
+        FilterParams.from_dict({"sigmad": 1.0})
+
+
+def test_refinement_switch_does_not_hurt(known_library):
+    truth = GroundTruth(known_library["guitar_1"], *random_pose(rng=11, max_translation=1.0))
+    errors = {}
+    for refine in (False, True):
+        _, state = _run(known_library, truth, 20, seed=6, params=FilterParams(refine_map=refine))
+        errors[refine] = pose_error(known_library[state.map_class], state.map_rotation,
+                                    state.map_translation, truth)
+    assert errors[True] <= errors[False] + 0.05

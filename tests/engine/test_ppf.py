@@ -1,0 +1,101 @@
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from tactile_viz.engine.ppf import (PairTable, align_pairs, is_degenerate, pair_features,
+                                    rotation_to_x)
+from tactile_viz.engine.transforms import transform_points
+
+SETTINGS = settings(max_examples=60, deadline=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture])
+poses = st.tuples(st.integers(0, 2**32 - 1), st.floats(-10, 10), st.floats(-10, 10),
+                  st.floats(-10, 10))
+
+
+def _pose(seed, x, y, z):
+    return Rotation.random(random_state=seed).as_matrix(), np.array([x, y, z])
+
+
+@pytest.fixture(scope="module")
+def mug_features(bundled):
+    return bundled["mug_1"].features
+
+
+@SETTINGS
+@given(pose=poses, i=st.integers(0, 199), j=st.integers(0, 199))
+def test_alignment_recovers_pose(mug_features, pose, i, j):
+    points, normals = mug_features
+    rotation, translation = _pose(*pose)
+    p1, n1, p2, n2 = points[i], normals[i], points[j], normals[j]
+    if i == j or is_degenerate(p1, n1, p2, n2):
+        return
+    world = transform_points(np.stack([p1, p2]), rotation, translation)
+    found_r, found_t = align_pairs((p1[None], n1[None], p2[None]),
+                                   (world[:1], (rotation @ n1)[None], world[1:]))
+    np.testing.assert_allclose(found_r[0], rotation, atol=1e-6)
+    np.testing.assert_allclose(found_t[0], translation, atol=1e-6)
+
+
+@SETTINGS
+@given(pose=poses, i=st.integers(0, 199), j=st.integers(0, 199))
+def test_features_are_invariant_under_rigid_motion(mug_features, pose, i, j):
+    points, normals = mug_features
+    rotation, translation = _pose(*pose)
+    moved = transform_points(points[[i, j]], rotation, translation)
+    turned = normals[[i, j]] @ rotation.T
+    np.testing.assert_allclose(
+        pair_features(moved[0], turned[0], moved[1], turned[1]),
+        pair_features(points[i], normals[i], points[j], normals[j]), atol=1e-9)
+
+
+def test_rotation_to_x_handles_parallel_and_antiparallel():
+    normals = np.array([[1.0, 0, 0], [-1.0, 0, 0], [-1.0, 1e-13, 0], [0, 0, 1.0]])
+    rotations = rotation_to_x(normals)
+    np.testing.assert_allclose(np.einsum("kij,kj->ki", rotations, normals),
+                               np.tile([1.0, 0, 0], (4, 1)), atol=1e-9)
+    np.testing.assert_allclose(rotations @ np.transpose(rotations, (0, 2, 1)),
+                               np.tile(np.eye(3), (4, 1, 1)), atol=1e-9)
+
+
+def test_degenerate_pairs_are_flagged():
+    p1, p2 = np.zeros(3), np.array([1.0, 0, 0])
+    up, along = np.array([0, 0, 1.0]), np.array([1.0, 0, 0])
+    assert is_degenerate(p1, along, p2, up)          # d parallel to n1
+    assert is_degenerate(p1, up, p2, -along)         # d antiparallel to n2
+    assert is_degenerate(p1, up, p1, up)             # zero distance
+    assert not is_degenerate(p1, up, p2, up)         # parallel normals still fix a pose
+
+
+def test_pair_table_has_all_usable_ordered_pairs(mug_features):
+    points, normals = mug_features
+    table = PairTable.build(points, normals)
+    first, second = np.nonzero(~np.eye(200, dtype=bool))
+    usable = ~is_degenerate(points[first], normals[first], points[second], normals[second])
+    assert len(first) == 39800 and len(table.keys) == usable.sum()
+    assert np.all(np.diff(table.keys) >= 0)
+
+
+def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
+    points, normals = mug_features
+    table = PairTable.build(points, normals)
+    features = pair_features(points[[3, 10]], normals[[3, 10]], points[[50, 120]],
+                             normals[[50, 120]])
+    query, first, second = table.lookup(features)
+    for q, (i, j) in enumerate([(3, 50), (10, 120)]):
+        assert np.any((query == q) & (first == i) & (second == j))
+    assert len(table.lookup(features, neighbours=1)[0]) > len(query)
+
+
+def test_lookup_of_an_unseen_feature_is_empty(mug_features):
+    table = PairTable.build(*mug_features)
+    query, first, second = table.lookup(np.array([[100.0, 1.0, 1.0, 1.0]]))
+    assert len(query) == len(first) == len(second) == 0
+
+
+def test_pair_table_cached_with_model(bundled):
+    model = bundled["vase_1"]
+    assert model.pair_table() is model.pair_table()
+    coarse = model.pair_table(distance_step=0.2, angle_step_deg=20)
+    assert len(np.unique(coarse.keys)) < len(np.unique(model.pair_table().keys))
