@@ -142,3 +142,24 @@ def test_refinement_switch_does_not_hurt(known_library):
         errors[refine] = pose_error(known_library[state.map_class], state.map_rotation,
                                     state.map_translation, truth)
     assert errors[True] <= errors[False] + 0.05
+
+
+vectors = st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3)
+
+
+@settings(max_examples=25, deadline=None)
+@given(steps=st.lists(st.tuples(vectors, vectors, st.booleans()), min_size=1, max_size=6),
+       seed=st.integers(0, 1000))
+def test_weights_stay_finite_for_arbitrary_observations(bundled, steps, seed):
+    """Contacts anywhere (far outside every grid, at odd normals): never NaN or inf."""
+    library = PriorLibrary(bundled[name] for name in ["mug_1", "sofa_1"])
+    particle_filter = ParticleFilter(library, FilterParams(max_new_per_class=200), rng=seed)
+    for position, normal, touched in steps:
+        if not np.linalg.norm(normal) > 1e-6:
+            normal = [0.0, 0.0, 1.0]
+        observation = Contact(position, normal) if touched else NonContact(position)
+        state = particle_filter.update(observation)
+        if state.particles is not None:
+            assert np.all(np.isfinite(state.particles.log_weights))
+            assert abs(log_sum_exp(state.particles.log_weights)) < 1e-9
+            assert not np.isnan(state.log_evidence)

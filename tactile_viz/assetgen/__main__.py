@@ -1,0 +1,5 @@
+import sys
+
+from tactile_viz.assetgen.build import main
+
+sys.exit(main())
