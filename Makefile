@@ -19,7 +19,7 @@ PYTHON ?= $(shell for p in python3.11 python3; do \
 	  command -v $$p >/dev/null 2>&1 && $$p -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null \
 	  && { echo $$p; break; }; done)
 
-.PHONY: setup system-deps venv run test
+.PHONY: setup system-deps venv run test screenshots
 
 setup: system-deps $(STAMP)
 
@@ -50,3 +50,8 @@ run: setup
 # pytest's exit code is make's: a failing test fails `make test`.
 test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
+
+# Regenerate the README's images (off-screen sheets; the window under Xvfb).
+screenshots: setup
+	$(PY) -m tactile_viz.gui.object_sheet --out screenshots
+	xvfb-run -a $(PY) app.py --object office_chair --screenshot screenshots/viewer_office_chair.png
