@@ -22,10 +22,11 @@ class FilterParams:
         Sampling gate lambda: new particles are sampled while the per-observation geometric
         mean of the MAP evidence relative to its maximum is below it (paper 0.97).
     known_fraction : float
-        Novelty test: known iff the MAP evidence reaches this fraction of the maximum per
-        contact (paper 0.9) ...
+        Novelty test: known iff the MAP evidence on the contacts reaches this fraction of
+        its maximum per contact (paper 0.9) ...
     noncontact_fraction : float
-        ... and this probability per non-contact (paper 0.5).
+        ... and its evidence on the non-contacts this probability per non-contact (paper
+        0.5); each kind is tested on its own.
     distance_step : float
         Point-pair key resolution of the distance (paper 0.1).
     angle_step_deg : float

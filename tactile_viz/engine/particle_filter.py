@@ -78,8 +78,11 @@ class FilterState:
     log_evidence : float
         ``log p(D | z*)`` over all observations.
     log_threshold : float
-        The known/novel threshold on ``log_evidence``.
+        The known/novel threshold on ``log_evidence``: ``n_pos (log 0.9 - log Z)`` for the
+        contacts plus ``n_neg log 0.5`` for the non-contacts.
     novel : bool
+        True unless the contacts and the non-contacts each reach their part of the
+        threshold.
     sampled : int
         Particles added by point-pair sampling in this step.
     n_contacts, n_noncontacts : int
@@ -382,14 +385,22 @@ class ParticleFilter:
     def _record(self, sampled):
         params = self.params
         n_pos, n_neg = len(self.contact_positions), len(self.noncontact_positions)
-        threshold = (n_pos * (np.log(params.known_fraction)
-                              - log_normaliser(params.sigma_d, params.sigma_n))
-                     + n_neg * np.log(params.noncontact_fraction))
+        contact_threshold = n_pos * (np.log(params.known_fraction)
+                                     - log_normaliser(params.sigma_d, params.sigma_n))
+        noncontact_threshold = n_neg * np.log(params.noncontact_fraction)
+        threshold = contact_threshold + noncontact_threshold
         if self.particles is None:
             state = FilterState(self.step_count, None, self.class_names, {}, None, None, None,
                                 -np.inf, threshold, False, 0, n_pos, n_neg)
         else:
-            index, evidence = self._map()
+            index = int(np.argmax(self.particles.log_weights))
+            best = self.particles.take([index])
+            on_contacts = self.log_likelihood(best, self.contact_positions,
+                                              self.contact_normals)[0]
+            on_noncontacts = self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
+            # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood
+            # ~1 > 0.5) must not buy slack for contacts that miss its surface.
+            novel = bool(on_contacts < contact_threshold or on_noncontacts < noncontact_threshold)
             weights = np.exp(self.particles.log_weights)
             posterior = {name: float(weights[self.particles.classes == c].sum())
                          for c, name in enumerate(self.class_names)}
@@ -397,7 +408,7 @@ class ParticleFilter:
                 self.step_count, self.particles, self.class_names, posterior,
                 self.class_names[self.particles.classes[index]],
                 self.particles.rotations[index].copy(), self.particles.translations[index].copy(),
-                evidence, threshold, bool(evidence < threshold), sampled, n_pos, n_neg)
+                float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg)
         self.state = state
         return state
 

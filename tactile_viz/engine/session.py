@@ -1,0 +1,485 @@
+"""The inference session: Algorithm 2 of the paper, one step at a time.
+
+A :class:`Session` couples a ground truth (through the simulator), a prior library, the
+particle filter, the GPIS and an exploration strategy. Each :meth:`Session.step` touches
+once (after the random first contact: reach for the target chosen last step, or an RRT
+step), updates the belief, reconstructs the surface when the object is judged novel,
+measures coverage (DHD) and errors against the truth, picks the next target and returns an
+immutable :class:`Snapshot`.
+"""
+
+import io
+import json
+import time
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+import trimesh
+
+from .errors import TactileVizError
+from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
+                          rrt_step)
+from .gpis import fit_gpis, zero_level_surface
+from .library import PriorLibrary
+from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
+from .objects import ObjectModel
+from .observations import Contact
+from .params import FilterParams, preset
+from .particle_filter import ParticleFilter
+from .sdf import normalise_rows
+from .simulator import ContactSimulator, GroundTruth
+from .transforms import transform_points
+
+
+class SessionError(TactileVizError):
+    """A session cannot be run, saved or loaded as asked."""
+
+
+@dataclass(frozen=True)
+class SessionParams:
+    """Knobs of a session beyond the filter's (paper, Table I and Section III-H).
+
+    Attributes
+    ----------
+    filter : FilterParams
+    eps : float
+        Termination threshold on the DHD from the estimated surface to the contacts.
+    max_steps_known, max_steps_novel : int
+        Step caps while the object is judged known / novel (paper 300 / 400).
+    gpis_noise : float
+        Observation noise variance of the GPIS (paper 1e-4).
+    gpis_scale : float
+        Initial kernel scale ``a_0``.
+    gpis_resolution : int
+        Marching-cubes cells along the longest side of the reconstruction box.
+    gpis_margin : float
+        Margin of the reconstruction box around the MAP shape and the contacts.
+    variance_points : int
+        Surface vertices at which the GPIS variance is evaluated (a random subset).
+    probe_depth, follow_step : float
+        How deep contact enforcement reaches; the length of a surface-following step.
+    rrt_step : float
+    metric_samples : int
+        Surface samples per shape for the error metrics (TWD).
+    """
+
+    filter: FilterParams = field(default_factory=FilterParams)
+    eps: float = 0.6
+    max_steps_known: int = 300
+    max_steps_novel: int = 400
+    gpis_noise: float = 1e-4
+    gpis_scale: float = 1.0
+    gpis_resolution: int = 32
+    gpis_margin: float = 0.6
+    variance_points: int = 1500
+    probe_depth: float = 1.0
+    follow_step: float = 0.3
+    rrt_step: float = 0.3
+    metric_samples: int = 3000
+
+    def __post_init__(self):
+        for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "probe_depth",
+                     "follow_step", "rrt_step"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be at least 1")
+        if self.gpis_resolution < 8:
+            raise ValueError("gpis_resolution must be at least 8")
+
+    def to_dict(self):
+        values = asdict(self)
+        values["filter"] = self.filter.to_dict()
+        return values
+
+    @classmethod
+    def from_dict(cls, values):
+        values = dict(values)
+        known = {f.name for f in fields(cls)}
+        unknown = set(values) - known
+        if unknown:
+            raise ValueError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
+        values["filter"] = FilterParams.from_dict(values.get("filter", {}))
+        return cls(**values)
+
+
+SESSION_PRESETS = {
+    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, variance_points=800,
+                          metric_samples=2000),
+    "paper": SessionParams(),
+    "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
+                              variance_points=3000, metric_samples=5000),
+}
+
+
+def session_preset(name, **overrides):
+    """Session parameters of a named preset (``fast``, ``paper``, ``accurate``)."""
+    try:
+        return replace(SESSION_PRESETS[name], **overrides)
+    except KeyError:
+        raise ValueError(f"unknown preset {name!r}; choose from "
+                         f"{', '.join(SESSION_PRESETS)}") from None
+
+
+def _frozen(array):
+    array = np.array(array)
+    array.flags.writeable = False
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """Everything a viewer or a benchmark needs after one step (arrays are read-only).
+
+    Frames: everything is in the world frame.
+    """
+
+    step: int
+    new_observations: tuple
+    paths: tuple
+    contacts: np.ndarray
+    normals: np.ndarray
+    noncontacts: np.ndarray
+    map_class: str
+    map_rotation: np.ndarray
+    map_translation: np.ndarray
+    map_vertices: np.ndarray
+    map_faces: np.ndarray
+    class_posterior: dict
+    n_particles: int
+    log_evidence: float
+    log_threshold: float
+    novel: bool
+    gpis_vertices: object
+    gpis_faces: object
+    gpis_variance: object
+    gpis_scale: object
+    target: object
+    dhd: float
+    pose_error: float
+    recon_error: object
+    terminated: bool
+    timings: dict
+
+    def record(self):
+        """The JSON record of this step (the ``trial`` command's contract)."""
+        return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
+                "dhd": self.dhd, "novel": self.novel, "recon_error": self.recon_error,
+                "n_particles": self.n_particles, "n_contacts": int(len(self.contacts)),
+                "n_noncontacts": int(len(self.noncontacts)),
+                "step_seconds": float(sum(self.timings.values())),
+                "timings": {k: float(v) for k, v in self.timings.items()},
+                "gpis_scale": self.gpis_scale}
+
+
+class Session:
+    """Active exploration of one ground truth with one prior library.
+
+    Parameters
+    ----------
+    truth : GroundTruth
+    library : PriorLibrary
+    strategy : {"gpis-dhd", "rrt"}
+    params : SessionParams, optional
+    seed : int
+        Seeds the filter, the exploration and the simulator noise.
+    sensor_noise : tuple of float
+        ``(position std, normal std in degrees)`` of the simulated sensor.
+    """
+
+    def __init__(self, truth, library, strategy="gpis-dhd", params=None, seed=0,
+                 sensor_noise=(0.0, 0.0)):
+        if strategy not in STRATEGIES:
+            raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+        if len(library) == 0:
+            raise SessionError("the prior library is empty")
+        self.truth = truth
+        self.library = library
+        self.strategy = strategy
+        self.params = params or SessionParams()
+        self.seed = int(seed)
+        self.sensor_noise = tuple(float(v) for v in sensor_noise)
+        self.rng = np.random.default_rng([self.seed, 1])
+        self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
+                                          normal_noise_deg=self.sensor_noise[1],
+                                          rng=np.random.default_rng([self.seed, 2]))
+        self.filter = ParticleFilter(library, self.params.filter, rng=np.random.default_rng([self.seed, 3]))
+        self.snapshots = []
+        self._scale = self.params.gpis_scale
+        self._target = None
+        self._missed_targets = []
+        self._truth_samples = transform_points(
+            surface_samples(truth.model, self.params.metric_samples), truth.rotation,
+            truth.translation)
+
+    @property
+    def step_count(self):
+        return len(self.snapshots)
+
+    @property
+    def terminated(self):
+        return bool(self.snapshots) and self.snapshots[-1].terminated
+
+    @property
+    def latest(self):
+        return self.snapshots[-1] if self.snapshots else None
+
+    def run(self, max_steps=None, callback=None):
+        """Step until termination (or ``max_steps`` more steps); returns the last snapshot."""
+        while not self.terminated and (max_steps is None or max_steps > 0):
+            snapshot = self.step()
+            if callback is not None:
+                callback(snapshot)
+            if max_steps is not None:
+                max_steps -= 1
+        return self.latest
+
+    def step(self):
+        """One time step of Algorithm 2; returns its :class:`Snapshot`."""
+        if self.terminated:
+            raise SessionError("the session has terminated; start a new one")
+        timings = {}
+        clock = time.perf_counter()
+        paths, observations = self._touch()
+        timings["simulator"] = time.perf_counter() - clock
+
+        clock = time.perf_counter()
+        state = self.filter.update(observations)
+        timings["filter"] = time.perf_counter() - clock
+
+        model = self.filter.models[self.filter.class_names.index(state.map_class)]
+        rotation, translation = state.map_rotation, state.map_translation
+        map_vertices = transform_points(model.mesh.vertices, rotation, translation)
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        gpis = None
+        if state.novel:
+            gpis = self._reconstruct(model, rotation, translation, map_vertices, timings)
+        clock = time.perf_counter()
+        surface = gpis[0] if gpis is not None and len(gpis[0]) else map_vertices
+        dhd = directed_hausdorff(surface, contacts)
+        cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
+        step = self.step_count + 1
+        terminated = bool(dhd <= self.params.eps or step >= cap)
+        self._target = None if terminated else self._next_target(
+            surface, gpis, model, rotation, translation, contacts)
+        timings["target"] = time.perf_counter() - clock
+
+        clock = time.perf_counter()
+        pose_samples = transform_points(surface_samples(model, self.params.metric_samples),
+                                        rotation, translation)
+        pose_error = two_way_hausdorff(pose_samples, self._truth_samples)
+        recon_error = None
+        if gpis is not None and len(gpis[1]):
+            recon = trimesh.Trimesh(gpis[0], gpis[1], process=False)
+            samples, _ = trimesh.sample.sample_surface(recon, self.params.metric_samples, seed=0)
+            recon_error = two_way_hausdorff(samples, self._truth_samples)
+        timings["metrics"] = time.perf_counter() - clock
+
+        snapshot = Snapshot(
+            step=step, new_observations=tuple(observations),
+            paths=tuple(_frozen(p) for p in paths), contacts=_frozen(contacts),
+            normals=_frozen(normals), noncontacts=_frozen(self.filter.noncontact_positions),
+            map_class=state.map_class, map_rotation=_frozen(rotation),
+            map_translation=_frozen(translation), map_vertices=_frozen(map_vertices),
+            map_faces=model.mesh.faces, class_posterior=dict(state.class_posterior),
+            n_particles=state.n_particles, log_evidence=float(state.log_evidence),
+            log_threshold=float(state.log_threshold), novel=bool(state.novel),
+            gpis_vertices=None if gpis is None else _frozen(gpis[0]),
+            gpis_faces=None if gpis is None else _frozen(gpis[1]),
+            gpis_variance=None if gpis is None else _frozen(gpis[2]),
+            gpis_scale=float(self._scale) if gpis is not None else None,
+            target=None if self._target is None else _frozen(self._target[0]),
+            dhd=float(dhd), pose_error=float(pose_error),
+            recon_error=None if recon_error is None else float(recon_error),
+            terminated=terminated, timings=timings)
+        self.snapshots.append(snapshot)
+        return snapshot
+
+    # ---------------------------------------------------------------- pieces
+    def _touch(self):
+        contacts = self.filter.contact_positions
+        if len(contacts) == 0:
+            return first_contact(self.simulator, np.zeros(3), self.rng)
+        p = self.params
+        if self.strategy == "rrt":
+            low, high = contacts.min(axis=0) - 3.0, contacts.max(axis=0) + 3.0
+            return rrt_step(self.simulator, contacts, self.filter.contact_normals, (low, high),
+                            self.rng, p.rrt_step, p.probe_depth)
+        target, normal, estimate = self._target
+        depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        paths, observations = enforce_contact(self.simulator, target, normal, contacts,
+                                              self.filter.contact_normals, depth,
+                                              follow_step=p.follow_step)
+        if not isinstance(observations[0], Contact):
+            self._missed_targets.append(target)
+        return paths, observations
+
+    def _prior(self, model, rotation, translation):
+        sdf = model.sdf
+
+        def prior(points):
+            values, gradients = sdf.evaluate((np.atleast_2d(points) - translation) @ rotation)
+            return values, gradients @ rotation.T
+
+        return prior
+
+    def _reconstruct(self, model, rotation, translation, map_vertices, timings):
+        p = self.params
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
+        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
+        radius = 1.2 * float(np.linalg.norm(high - low))
+        clock = time.perf_counter()
+        fit = fit_gpis(contacts, normals, self._prior(model, rotation, translation), radius,
+                       scale=self._scale, noise_variance=p.gpis_noise)
+        self._scale = fit.scale
+        timings["gpis"] = time.perf_counter() - clock
+        clock = time.perf_counter()
+        vertices, faces = zero_level_surface(fit, (low, high), p.gpis_resolution)
+        variance = np.zeros(len(vertices))
+        if len(vertices):
+            count = min(p.variance_points, len(vertices))
+            subset = self.rng.choice(len(vertices), count, replace=False)
+            variance[subset] = fit.variance(vertices[subset])
+            if count < len(vertices):
+                # Other vertices show the variance of the nearest evaluated one.
+                from scipy.spatial import cKDTree
+
+                nearest = cKDTree(vertices[subset]).query(vertices)[1]
+                variance = variance[subset][nearest]
+        timings["surface"] = time.perf_counter() - clock
+        self._fit = fit
+        return vertices, faces, variance, subset if len(vertices) else None, fit
+
+    def _next_target(self, surface, gpis, model, rotation, translation, contacts):
+        if gpis is not None and len(gpis[0]):
+            vertices, _, variance, subset, fit = gpis
+            score = variance[subset]
+            if self._missed_targets:
+                # Around a target whose probe found no surface, aiming again would only
+                # repeat the miss (the GPIS learns from contacts only).
+                from scipy.spatial import cKDTree
+
+                refuted = (cKDTree(self._missed_targets).query(vertices[subset])[0]
+                           < self.params.follow_step)
+                if not refuted.all():
+                    score = np.where(refuted, -np.inf, score)
+            index = subset[int(np.argmax(score))]
+            target = vertices[index]
+            _, gradient = fit.mean(target[None])
+            return target, normalise_rows(gradient)[0], fit.mean_value
+        index = farthest_vertex(surface, contacts)
+        normal = model.mesh.vertex_normals[index] @ rotation.T
+        estimate = self._prior(model, rotation, translation)
+        return surface[index], normalise_rows(normal[None])[0], lambda x: estimate(x)[0]
+
+    # ---------------------------------------------------------------- learning
+    def learned_model(self, name, snapshot=None):
+        """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
+
+        Keeps the largest connected piece of the GPIS zero level set; the model is checked
+        and normalised like any loaded mesh.
+        """
+        snapshot = snapshot or self.latest
+        if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
+            raise SessionError("no reconstructed surface to learn from: the object was not "
+                               "judged novel in this step")
+        return learned_model_from_surface(snapshot.gpis_vertices, snapshot.gpis_faces, name,
+                                          params=self.library[snapshot.map_class].params
+                                          if snapshot.map_class in self.library else None)
+
+    # ---------------------------------------------------------------- persistence
+    def save(self, path):
+        """Save the session (its set-up and its observation history) to an ``.npz`` file."""
+        from .cache import write_bytes_atomic
+
+        config = {"format": "tactile_viz-session", "version": 1, "strategy": self.strategy,
+                  "seed": self.seed, "params": self.params.to_dict(),
+                  "sensor_noise": list(self.sensor_noise), "steps": self.step_count,
+                  "truth_name": self.truth.model.name, "library": self.library.names}
+        arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
+                  "truth_rotation": self.truth.rotation, "truth_translation": self.truth.translation,
+                  "truth_vertices": self.truth.model.mesh.vertices,
+                  "truth_faces": self.truth.model.mesh.faces,
+                  "contacts": self.filter.contact_positions,
+                  "noncontacts": self.filter.noncontact_positions}
+        for index, model in enumerate(self.library):
+            arrays[f"prior{index}_vertices"] = model.mesh.vertices
+            arrays[f"prior{index}_faces"] = model.mesh.faces
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **arrays)
+        try:
+            write_bytes_atomic(path, buffer.getvalue())
+        except OSError as error:
+            raise SessionError(f"cannot save the session to {path}: {error}") from error
+        return path
+
+    @classmethod
+    def load(cls, path, callback=None):
+        """Rebuild a saved session by replaying its steps (deterministic from its seed)."""
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                arrays = {name: stored[name] for name in stored.files}
+            config = json.loads(arrays["config"].tobytes().decode())
+            if config.get("format") != "tactile_viz-session":
+                raise ValueError("not a tactile_viz session file")
+            truth_model = _model_from_arrays(config["truth_name"], arrays["truth_vertices"],
+                                             arrays["truth_faces"])
+            library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
+                                                      arrays[f"prior{i}_faces"])
+                                   for i, name in enumerate(config["library"]))
+            truth = GroundTruth(truth_model, arrays["truth_rotation"], arrays["truth_translation"])
+            session = cls(truth, library, config["strategy"],
+                          SessionParams.from_dict(config["params"]), config["seed"],
+                          tuple(config["sensor_noise"]))
+            steps = int(config["steps"])
+        except (OSError, ValueError, KeyError, TypeError, EOFError) as error:
+            raise SessionError(f"{path}: not a readable session file ({error})") from error
+        except Exception as error:  # zipfile.BadZipFile and friends from a truncated file
+            raise SessionError(f"{path}: not a readable session file ({error!r})") from error
+        for _ in range(steps):
+            snapshot = session.step()
+            if callback is not None:
+                callback(snapshot)
+        if not np.allclose(session.filter.contact_positions, arrays["contacts"]):
+            raise SessionError(f"{path}: replaying the session did not reproduce its contacts")
+        return session
+
+
+def deepest_inside(estimate, target, normal, max_depth, samples=21):
+    """How far to probe inward from ``target``: to the point the estimated surface puts
+    deepest inside (within ``max_depth``), so that a miss there is a non-contact that the
+    estimate most strongly contradicts; probing farther could leave a thin part again."""
+    depths = np.linspace(0.0, max_depth, samples)
+    values = estimate(target - depths[:, None] * normal)
+    return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
+
+
+def _model_from_arrays(name, vertices, faces):
+    """A model from stored (already normalised) arrays, without re-processing them."""
+    mesh = trimesh.Trimesh(np.asarray(vertices, dtype=np.float64),
+                           np.asarray(faces, dtype=np.int64), process=False)
+    return ObjectModel(name, mesh)
+
+
+def learned_model_from_surface(vertices, faces, name, params=None):
+    """An :class:`ObjectModel` from a reconstructed surface (largest connected piece)."""
+    mesh = trimesh.Trimesh(vertices, faces, process=True)
+    pieces = mesh.split(only_watertight=False)
+    if len(pieces):
+        mesh = max(pieces, key=lambda piece: abs(piece.area))
+    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, name, params=params)
+
+
+def make_truth(model, rng=None, max_translation=1.0):
+    """The ground truth of a trial: ``model`` at a random pose."""
+    from .transforms import random_pose
+
+    rotation, translation = random_pose(rng, max_translation)
+    return GroundTruth(model, rotation, translation)
+
+
+__all__ = ["Session", "SessionError", "SessionParams", "Snapshot", "session_preset",
+           "SESSION_PRESETS", "learned_model_from_surface", "make_truth", "Contact"]
