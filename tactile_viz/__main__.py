@@ -21,11 +21,21 @@ def _objects(args):
     return 0
 
 
+def _trial(args):
+    from .experiments.trial import run_trial_command
+
+    return run_trial_command(args)
+
+
 def _bench(args):
     if args.what == "sdf":
         from .experiments.sdf_speed import main as sdf_speed
 
         return sdf_speed(args.rest)
+    if args.what == "step":
+        from .experiments.step_timing import main as step_timing
+
+        return step_timing(args.rest)
     raise SystemExit(f"unknown benchmark {args.what!r}")
 
 
@@ -40,9 +50,20 @@ def build_parser():
                          help='print a JSON list of {"name": ..., "set": "known"|"novel"}')
     objects.set_defaults(run=_objects)
 
+    from .experiments.trial import add_trial_arguments
+
+    trial = commands.add_parser(
+        "trial", help="run one active-exploration trial headless and write its JSON",
+        description="Run one trial of Algorithm 2 on a bundled object or a mesh file at a "
+                    "random pose (from --seed) and write one JSON record per step.")
+    add_trial_arguments(trial)
+    trial.set_defaults(run=_trial)
+
     bench = commands.add_parser("bench", help="run a benchmark (sdf)",
                                 description="Benchmarks; each has its own --help.")
-    bench.add_argument("what", choices=["sdf"], help="sdf: grid SDF vs exact queries per second")
+    bench.add_argument("what", choices=["sdf", "step"],
+                       help="sdf: grid SDF vs exact queries per second; step: time of each "
+                            "part of a step at 50/200/400 contacts, full vs incremental GPIS")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
     bench.set_defaults(run=_bench)
     return parser

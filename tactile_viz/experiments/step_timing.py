@@ -1,0 +1,123 @@
+"""Benchmark: time of each part of a step at 50, 200 and 400 contacts.
+
+``python -m tactile_viz bench step [--object mug_2] [--sizes 50 200 400] [--repeats 5]``
+
+Contacts are sampled on the object at a random pose and fed to the particle filter; then
+each part of one more step (filter update, GPIS fit, surface extraction with variance,
+target choice, simulator probe) is timed ``--repeats`` times and the median printed. The
+GPIS factorisation is also timed both ways: a full Cholesky of ``a K0 + s I`` against
+appending the new contact's 4 rows to the previous factor (block update, O(n^2)).
+"""
+
+import argparse
+import time
+
+import numpy as np
+from scipy.linalg import cholesky, solve_triangular
+
+from ..engine.exploration import enforce_contact
+from ..engine.gpis import fit_gpis, kernel_blocks, stable_cholesky, zero_level_surface
+from ..engine.library import PriorLibrary
+from ..engine.objects import load_bundled
+from ..engine.particle_filter import ParticleFilter
+from ..engine.session import make_truth
+from ..engine.simulator import ContactSimulator, random_touch
+
+
+def _median_time(function, repeats):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def append_factor(factor, cross, corner):
+    """Cholesky factor of ``[[A, B], [B^T, C]]`` from the factor of ``A``: O(n^2 k)."""
+    lower_left = solve_triangular(factor, cross, lower=True, check_finite=False).T
+    lower_right = cholesky(corner - lower_left @ lower_left.T, lower=True, check_finite=False)
+    n, k = len(factor), len(corner)
+    result = np.zeros((n + k, n + k))
+    result[:n, :n] = factor
+    result[n:, :n] = lower_left
+    result[n:, n:] = lower_right
+    return result
+
+
+def measure(object_name, sizes, repeats, seed=0):
+    library = PriorLibrary.bundled("known")
+    truth = make_truth(load_bundled(object_name), rng=seed)
+    simulator = ContactSimulator(truth)
+    rng = np.random.default_rng(seed)
+    rows = []
+    particle_filter = ParticleFilter(library, rng=seed)
+    for size in sizes:
+        while len(particle_filter.contact_positions) < size:
+            particle_filter.update(simulator.probe(random_touch(truth, rng)))
+        state = particle_filter.state
+        model = particle_filter.models[particle_filter.class_names.index(state.map_class)]
+        rotation, translation = state.map_rotation, state.map_translation
+        contacts, normals = particle_filter.contact_positions, particle_filter.contact_normals
+        low, high = contacts.min(axis=0) - 1.0, contacts.max(axis=0) + 1.0
+        radius = 1.2 * float(np.linalg.norm(high - low))
+
+        def prior(points):
+            values, gradients = model.sdf.evaluate((points - translation) @ rotation)
+            return values, gradients @ rotation.T
+
+        path = random_touch(truth, rng)
+        observation = simulator.probe(path)
+        timing = {}
+        timing["filter"] = _median_time(lambda: _copy_update(particle_filter, observation), repeats)
+        fit = fit_gpis(contacts, normals, prior, radius)
+        timing["gpis fit"] = _median_time(lambda: fit_gpis(contacts, normals, prior, radius,
+                                                           scale=fit.scale), repeats)
+        vertices = zero_level_surface(fit, (low, high), 32)[0]
+        subset = vertices[rng.choice(len(vertices), min(1500, len(vertices)), replace=False)]
+        timing["surface"] = _median_time(
+            lambda: (zero_level_surface(fit, (low, high), 32), fit.variance(subset)), repeats)
+        timing["target"] = _median_time(
+            lambda: (np.argmax(fit.variance(subset[:1])), fit.mean(subset[:1])), repeats)
+        timing["simulator"] = _median_time(
+            lambda: enforce_contact(simulator, path[0] * 0.5 + path[1] * 0.5,
+                                    np.array([0.0, 0.0, 1.0]), contacts, normals), repeats)
+        noise = 1e-4
+        gram = fit.scale * kernel_blocks(contacts, contacts, radius) + noise * np.eye(4 * size)
+        previous = stable_cholesky(gram[:-4, :-4])[0]
+        timing["cholesky full"] = _median_time(lambda: stable_cholesky(gram), repeats)
+        timing["cholesky append"] = _median_time(
+            lambda: append_factor(previous, gram[:-4, -4:], gram[-4:, -4:]), repeats)
+        rows.append((size, timing))
+    return rows
+
+
+def _copy_update(particle_filter, observation):
+    """Time an update without changing the filter: restore its state afterwards."""
+    saved = (particle_filter.particles, particle_filter.contact_positions,
+             particle_filter.contact_normals, particle_filter.noncontact_positions,
+             particle_filter.step_count, particle_filter.state)
+    try:
+        particle_filter.update(observation)
+    finally:
+        (particle_filter.particles, particle_filter.contact_positions,
+         particle_filter.contact_normals, particle_filter.noncontact_positions,
+         particle_filter.step_count, particle_filter.state) = saved
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench step", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--object", default="mug_2")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 400])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    rows = measure(args.object, args.sizes, args.repeats, args.seed)
+    names = list(rows[0][1])
+    print(f"median seconds per part of a step ({args.object}, {args.repeats} repeats)")
+    print("| contacts | " + " | ".join(names) + " |")
+    print("|---" * (len(names) + 1) + "|")
+    for size, timing in rows:
+        print(f"| {size} | " + " | ".join(f"{timing[name]:.4f}" for name in names) + " |")
+    return 0

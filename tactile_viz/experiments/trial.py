@@ -1,0 +1,91 @@
+"""One headless trial: ``python -m tactile_viz trial ...`` (DESIGN section 6 contract)."""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..engine.errors import TactileVizError
+from ..engine.library import PriorLibrary
+from ..engine.objects import ObjectModel, load_bundled
+from ..engine.session import Session, make_truth, session_preset
+
+
+def add_trial_arguments(parser):
+    what = parser.add_mutually_exclusive_group(required=True)
+    what.add_argument("--object", metavar="NAME", help="a bundled object (see `objects`)")
+    what.add_argument("--object-file", metavar="MESH", help="any mesh file trimesh reads")
+    priors = parser.add_mutually_exclusive_group()
+    priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
+                        help="the filter's priors: a bundled set (default known)")
+    priors.add_argument("--prior-file", metavar="MESH", nargs="+",
+                        help="mesh files to use as the priors instead")
+    priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
+    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
+    parser.add_argument("--seed", type=int, default=0, help="pose, exploration and filter seed")
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help="stop after this many steps (default: the paper's caps 300/400)")
+    parser.add_argument("--preset", choices=["fast", "paper", "accurate"], default="paper",
+                        help="speed/accuracy preset (default paper)")
+    parser.add_argument("--json", metavar="OUT", help="write the JSON here (default stdout)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+def load_priors(args):
+    if args.prior_file:
+        library = PriorLibrary()
+        for path in args.prior_file:
+            library.add_file(path)
+        return library
+    if args.library_dir:
+        return PriorLibrary.load(args.library_dir)
+    return PriorLibrary.bundled(args.library or "known")
+
+
+def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
+              max_steps=None, progress=False):
+    """Run one trial and return its JSON-ready result dict."""
+    params = session_preset(preset)
+    truth = make_truth(truth_model, rng=[seed, 0])
+    session = Session(truth, library, strategy, params, seed=seed)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=max_steps or params.max_steps_novel, desc=truth_model.name,
+                   unit="step", file=sys.stderr, delay=2.0)
+    start = time.perf_counter()
+    steps = []
+    while not session.terminated and (max_steps is None or len(steps) < max_steps):
+        snapshot = session.step()
+        steps.append(snapshot.record())
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(cls=snapshot.map_class, novel=snapshot.novel,
+                            dhd=f"{snapshot.dhd:.2f}")
+    if bar is not None:
+        bar.close()
+    last = session.latest
+    return {"object": truth_model.name, "seed": seed, "strategy": strategy, "preset": preset,
+            "params": params.to_dict(), "library": library.names,
+            "truth_pose": {"rotation": truth.rotation.tolist(),
+                           "translation": truth.translation.tolist()},
+            "terminated_at": last.step if last.terminated else None,
+            "seconds": time.perf_counter() - start, "steps": steps}
+
+
+def run_trial_command(args):
+    try:
+        truth_model = (load_bundled(args.object) if args.object
+                       else ObjectModel.from_file(args.object_file))
+        library = load_priors(args)
+        result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
+                           args.max_steps, progress=not args.no_progress)
+    except TactileVizError:
+        raise
+    text = json.dumps(result, indent=1)
+    if args.json:
+        Path(args.json).write_text(text)
+    else:
+        print(text)
+    return 0

@@ -1,0 +1,127 @@
+import numpy as np
+import pytest
+
+from tactile_viz.engine.gpis import (fit_gpis, gradient_rows, kernel_blocks, value_rows,
+                                     zero_level_surface)
+from tactile_viz.engine.metrics import surface_samples
+
+
+def _kernel(x, y, radius):
+    r = np.linalg.norm(x - y)
+    return 2 * r**3 - 3 * radius * r**2 + radius**3
+
+
+@pytest.fixture(scope="module")
+def mug_data(bundled):
+    """Contacts on mug_2 with true normals, and mug_1's SDF as the prior mean."""
+    truth, prior_model = bundled["mug_2"], bundled["mug_1"]
+    samples = surface_samples(truth, 60, seed=3)
+    _, points, faces = truth.exact.query(samples)
+    normals = truth.exact.surface_normal(points, faces)
+    return points, normals, (lambda p: prior_model.sdf.evaluate(p)), prior_model
+
+
+def test_kernel_derivative_blocks_match_finite_differences(rng):
+    x, y, radius, h = rng.normal(size=(3, 3)), rng.normal(size=(4, 3)), 9.0, 1e-5
+    blocks = kernel_blocks(x, y, radius)
+    for i in range(3):
+        for j in range(4):
+            for a in range(3):
+                ea = np.eye(3)[a]
+                d_dx = (_kernel(x[i] + h * ea, y[j], radius)
+                        - _kernel(x[i] - h * ea, y[j], radius)) / (2 * h)
+                d_dy = (_kernel(x[i], y[j] + h * ea, radius)
+                        - _kernel(x[i], y[j] - h * ea, radius)) / (2 * h)
+                assert blocks[4 * i + 1 + a, 4 * j] == pytest.approx(d_dx, rel=1e-6)
+                assert blocks[4 * i, 4 * j + 1 + a] == pytest.approx(d_dy, rel=1e-6)
+                for b in range(3):
+                    eb, h = np.eye(3)[b], 1e-3  # second differences need a larger step
+                    second = (_kernel(x[i] + h * ea, y[j] + h * eb, radius)
+                              - _kernel(x[i] + h * ea, y[j] - h * eb, radius)
+                              - _kernel(x[i] - h * ea, y[j] + h * eb, radius)
+                              + _kernel(x[i] - h * ea, y[j] - h * eb, radius)) / (4 * h * h)
+                    assert blocks[4 * i + 1 + a, 4 * j + 1 + b] == pytest.approx(
+                        second, rel=1e-5, abs=1e-5)
+                h = 1e-5
+    np.testing.assert_allclose(value_rows(x, y, radius), blocks[::4])
+    np.testing.assert_allclose(gradient_rows(x, y, radius)[:, 1], blocks[2::4])
+
+
+def test_kernel_at_zero_distance_is_finite():
+    point = np.zeros((1, 3))
+    block = kernel_blocks(point, point, 5.0)
+    assert np.all(np.isfinite(block))
+    np.testing.assert_allclose(block[1:, 1:], 6 * 5.0 * np.eye(3))
+
+
+def test_posterior_interpolates_contacts(mug_data):
+    points, normals, prior, _ = mug_data
+    fit = fit_gpis(points, normals, prior, radius=15.0)
+    values, gradients = fit.mean(points)
+    assert np.abs(values).max() < 0.02
+    assert np.abs(gradients - normals).max() < 0.05
+    assert fit.variance(points).max() < 1e-3
+
+
+def test_variance_grows_away_from_contacts(mug_data):
+    points, normals, prior, _ = mug_data
+    fit = fit_gpis(points, normals, prior, radius=15.0)
+    near = fit.variance(points + 0.05)
+    far = fit.variance(points + 1.5)
+    assert np.all(far > near)
+
+
+def test_posterior_equals_prior_where_data_do_not_disagree(mug_data):
+    _, _, prior, prior_model = mug_data
+    query = np.random.default_rng(0).uniform(-3, 3, size=(200, 3))
+    empty = fit_gpis(np.zeros((0, 3)), np.zeros((0, 3)), prior, 15.0)
+    np.testing.assert_allclose(empty.mean_value(query), prior(query)[0])
+    np.testing.assert_allclose(empty.variance(query), 15.0**3)
+    # Contacts on the prior's own surface with its own normals change nothing.
+    points, _ = prior_model.features
+    _, gradients = prior(points[:40])
+    fit = fit_gpis(points[:40], gradients, prior, 15.0)
+    np.testing.assert_allclose(fit.mean_value(query), prior(query)[0], atol=0.05)
+
+
+def test_gram_is_positive_definite_with_duplicates(bundled):
+    model = bundled["office_chair"]
+    points = surface_samples(model, 360, seed=1)
+    points = np.vstack([points, points[:20], points[20:40] + 1e-7])  # 400 with duplicates
+    _, closest, faces = model.exact.query(points)
+    normals = model.exact.surface_normal(closest, faces)
+    radius = 1.2 * np.ptp(closest, axis=0).max() * np.sqrt(3)
+    gram = kernel_blocks(closest, closest, radius) + 1e-4 * np.eye(4 * len(closest))
+    assert np.linalg.eigvalsh(gram).min() > 0
+    fit = fit_gpis(closest, normals, lambda p: model.sdf.evaluate(p), radius)
+    assert np.all(np.isfinite(fit.alpha))
+
+
+def test_newton_step_never_lowers_marginal_likelihood(mug_data):
+    points, normals, prior, _ = mug_data
+    for scale in [1e-6, 1e-3, 1.0, 1e3]:
+        before = fit_gpis(points, normals, prior, 15.0, scale=scale, newton=False)
+        after = fit_gpis(points, normals, prior, 15.0, scale=scale)
+        assert after.log_marginal_likelihood >= before.log_marginal_likelihood - 1e-9
+
+
+@pytest.mark.parametrize("scale", [1e-8, 1e8])
+def test_extreme_scales_give_no_nan(mug_data, scale):
+    points, normals, prior, _ = mug_data
+    fit = fit_gpis(points, normals, prior, 15.0, scale=scale)
+    query = points + 0.3
+    values, gradients = fit.mean(query)
+    assert np.all(np.isfinite(values)) and np.all(np.isfinite(gradients))
+    assert np.all(np.isfinite(fit.variance(query)))
+
+
+def test_zero_level_surface_is_near_the_data(mug_data):
+    points, normals, prior, prior_model = mug_data
+    fit = fit_gpis(points, normals, prior, 15.0)
+    bounds = prior_model.mesh.bounds + [[-0.6] * 3, [0.6] * 3]
+    vertices, faces = zero_level_surface(fit, bounds, resolution=32)
+    assert len(faces) > 100
+    spacing = np.ptp(bounds, axis=0).max() / 32
+    # Vertices are linear interpolants along grid edges: off the zero set by a fraction of
+    # a voxel where the mean curves.
+    assert np.abs(fit.mean_value(vertices[::20])).max() < spacing / 2

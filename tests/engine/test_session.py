@@ -1,0 +1,152 @@
+import json
+
+import numpy as np
+import pytest
+
+from tactile_viz.__main__ import main
+from tactile_viz.engine import PriorLibrary
+from tactile_viz.engine.session import (Session, SessionError, SessionParams, make_truth,
+                                        session_preset)
+
+
+@pytest.fixture(scope="module")
+def known(bundled):
+    return PriorLibrary(bundled[name] for name in [
+        "armadillo", "asian_dragon", "elephant", "bottle_1", "mug_1", "ice_cream_1",
+        "guitar_1", "vase_1", "office_chair", "sofa_1"])
+
+
+@pytest.fixture(scope="module")
+def novel_session(bundled, known):
+    """vase_2 explored to termination against the known set (about 15 s)."""
+    session = Session(make_truth(bundled["vase_2"], rng=0), known, "gpis-dhd", seed=0)
+    session.run()
+    return session
+
+
+def test_known_object_recognised_and_terminates_by_dhd(bundled, known):
+    session = Session(make_truth(bundled["guitar_1"], rng=3), known, "gpis-dhd", seed=3)
+    last = session.run()
+    assert last.terminated and last.step < session.params.max_steps_known
+    assert last.dhd <= session.params.eps
+    assert last.map_class == "guitar_1" and not last.novel and last.pose_error < 0.6
+    assert last.recon_error is None and last.gpis_vertices is None
+
+
+def test_novel_object_reconstructed_better_than_map(novel_session):
+    last = novel_session.latest
+    assert last.novel and last.terminated
+    assert last.dhd <= novel_session.params.eps
+    assert last.recon_error < last.pose_error
+    assert len(last.gpis_variance) == len(last.gpis_vertices) > 0
+    assert np.all(np.isfinite(last.gpis_variance)) and np.all(last.gpis_variance >= 0)
+
+
+def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tmp_path):
+    learned = novel_session.learned_model("vase_2_learned")
+    assert learned.mesh.is_watertight
+    library = PriorLibrary(list(known) + [learned])
+    library.save(tmp_path / "priors")
+    library = PriorLibrary.load(tmp_path / "priors")
+    again = Session(make_truth(bundled["vase_2"], rng=1), library, "gpis-dhd", seed=1)
+    last = again.run()
+    assert last.map_class == "vase_2_learned" and not last.novel
+    assert last.pose_error < 0.6
+    assert last.step < novel_session.latest.step
+
+
+def test_snapshot_is_complete_and_immutable(bundled, known):
+    session = Session(make_truth(bundled["mug_1"], rng=0), known, "gpis-dhd", seed=0)
+    first = session.step()
+    second = session.step()
+    assert first.step == 1 and second.step == 2
+    assert len(second.contacts) == 2 and len(second.new_observations) >= 1
+    assert second.map_vertices.shape == (len(bundled[second.map_class].mesh.vertices), 3)
+    assert second.target is not None and second.paths
+    assert set(second.timings) >= {"simulator", "filter", "target", "metrics"}
+    assert sum(second.class_posterior.values()) == pytest.approx(1.0)
+    with pytest.raises(ValueError):
+        second.contacts[0, 0] = 1.0
+    record = second.record()
+    assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error", "n_particles",
+            "n_contacts", "n_noncontacts", "step_seconds"} <= set(record)
+    json.dumps(record)
+
+
+def test_rrt_strategy_runs(bundled, known):
+    session = Session(make_truth(bundled["sofa_1"], rng=2), known, "rrt", seed=2)
+    session.run(max_steps=25)
+    assert session.step_count == 25 and len(session.latest.contacts) == 25
+
+
+def test_same_seed_same_trial(bundled, known):
+    runs = []
+    for _ in range(2):
+        session = Session(make_truth(bundled["bottle_1"], rng=5), known, "gpis-dhd", seed=5)
+        session.run(max_steps=15)
+        runs.append(session.latest.contacts.copy())
+    np.testing.assert_array_equal(*runs)
+
+
+def test_save_and_load_replays_the_session(bundled, known, tmp_path):
+    session = Session(make_truth(bundled["ice_cream_1"], rng=4), known, "gpis-dhd", seed=4)
+    session.run(max_steps=12)
+    path = session.save(tmp_path / "trial.npz")
+    loaded = Session.load(path)
+    assert loaded.step_count == 12
+    np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
+    assert loaded.latest.map_class == session.latest.map_class
+
+
+@pytest.mark.parametrize("damage", [lambda p: p.write_bytes(p.read_bytes()[:200]),
+                                    lambda p: p.write_bytes(b"garbage"),
+                                    lambda p: p.unlink()])
+def test_corrupt_session_file_is_a_clear_error(bundled, known, tmp_path, damage):
+    session = Session(make_truth(bundled["bottle_1"], rng=4), known, seed=4)
+    session.run(max_steps=2)
+    path = session.save(tmp_path / "trial.npz")
+    damage(path)
+    with pytest.raises(SessionError, match="trial.npz"):
+        Session.load(path)
+
+
+def test_bad_session_arguments(bundled, known):
+    truth = make_truth(bundled["bottle_1"], rng=0)
+    with pytest.raises(SessionError, match="strategy"):
+        Session(truth, known, "random-walk")
+    with pytest.raises(SessionError, match="empty"):
+        Session(truth, PriorLibrary())
+    with pytest.raises(ValueError):
+        SessionParams(eps=0.0)
+    with pytest.raises(ValueError, match="unknown preset"):
+        session_preset("slowest")
+
+
+def test_trial_command_writes_the_json_contract(tmp_path):
+    out = tmp_path / "trial.json"
+    assert main(["trial", "--object", "bottle_1", "--seed", "2", "--max-steps", "6",
+                 "--json", str(out), "--no-progress"]) == 0
+    result = json.loads(out.read_text())
+    assert {"object", "seed", "strategy", "params", "terminated_at", "steps"} <= set(result)
+    assert result["object"] == "bottle_1" and result["seed"] == 2
+    assert len(result["steps"]) == 6 and result["terminated_at"] is None
+    step = result["steps"][-1]
+    assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error", "n_particles",
+            "n_contacts", "n_noncontacts", "step_seconds"} <= set(step)
+
+
+def test_trial_command_with_prior_files(tmp_path, bundled):
+    for name in ["mug_1", "vase_1"]:
+        bundled[name].mesh.export(tmp_path / f"{name}.ply")
+    out = tmp_path / "trial.json"
+    assert main(["trial", "--object-file", str(tmp_path / "vase_1.ply"), "--prior-file",
+                 str(tmp_path / "mug_1.ply"), str(tmp_path / "vase_1.ply"),
+                 "--max-steps", "4", "--json", str(out), "--no-progress"]) == 0
+    assert json.loads(out.read_text())["library"] == ["mug_1", "vase_1"]
+
+
+def test_trial_command_reports_bad_mesh(tmp_path, capsys):
+    bad = tmp_path / "broken.stl"
+    bad.write_bytes(b"")
+    assert main(["trial", "--object-file", str(bad), "--no-progress"]) == 2
+    assert "broken.stl" in capsys.readouterr().err
