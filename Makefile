@@ -51,7 +51,10 @@ run: setup
 test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-# Regenerate the README's images (off-screen sheets; the window under Xvfb).
+# Regenerate the README's images: object sheets off-screen, the window under Xvfb.
+XVFB_RUN := xvfb-run -a -s "-screen 0 1600x1000x24"
 screenshots: setup
 	$(PY) -m tactile_viz.gui.object_sheet --out screenshots
-	xvfb-run -a $(PY) app.py --object office_chair --screenshot screenshots/viewer_office_chair.png
+	$(XVFB_RUN) $(PY) app.py --object mug_1 --seed 0 --steps 60 --screenshot screenshots/app_known_mug.png
+	$(XVFB_RUN) $(PY) app.py --object vase_2 --seed 0 --steps 45 --screenshot screenshots/app_novel_vase2.png
+	$(XVFB_RUN) $(PY) app.py --object vase_2 --seed 0 --learn-first --steps 30 --screenshot screenshots/app_learned_vase2.png

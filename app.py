@@ -1,7 +1,10 @@
 #!/usr/bin/env python3
-"""Desktop launcher for tactile_viz: a thin wrapper around tactile_viz.gui."""
+"""Desktop launcher for tactile_viz: a thin wrapper around tactile_viz.gui.
 
-from __future__ import annotations
+    python app.py                                   # the window, default scene (mug_1)
+    python app.py --object vase_2 --seed 3          # another object and pose
+    python app.py --object mug_1 --steps 40 --screenshot out.png   # headless picture
+"""
 
 import argparse
 import os
@@ -10,56 +13,74 @@ import sys
 GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description="tactile_viz desktop app")
-    parser.add_argument("--object", default="mug_1", metavar="NAME", help="bundled object to show")
-    parser.add_argument(
-        "--screenshot",
-        metavar="FILE",
-        help="render, save a PNG of the 3D viewport to FILE and exit (no event loop)",
-    )
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description="tactile_viz desktop app: watch and steer "
+                                                 "active tactile recognition and shape learning")
+    parser.add_argument("--object", default="mug_1", metavar="NAME",
+                        help="bundled ground-truth object (default mug_1)")
+    parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
+    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
+    parser.add_argument("--preset", choices=["fast", "paper", "accurate"], default="paper")
+    parser.add_argument("--steps", type=int, default=0,
+                        help="run this many steps before showing (or before the screenshot)")
+    parser.add_argument("--learn-first", action="store_true",
+                        help="first explore the object to termination, add its reconstruction "
+                             "as a prior, then place it at the next seed's pose")
+    parser.add_argument("--screenshot", metavar="FILE",
+                        help="render, save a PNG of the window and exit (no event loop)")
     return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
+def build_scene(args):
+    from tactile_viz.engine.scene import Scene
 
+    scene = Scene(truth_name=args.object, seed=args.seed, strategy=args.strategy,
+                  preset=args.preset)
+    if args.learn_first:
+        scene.ensure_session().run()
+        scene.add_learned_shape()
+        scene.randomize_pose(args.seed + 1)
+    return scene
+
+
+def main(argv=None):
+    args = parse_args(argv)
     try:
         from PySide6.QtWidgets import QApplication
 
-        from tactile_viz.gui.viewer import ViewerWindow
-    except ImportError as exc:
-        print(f"error: {exc}\n{GUI_HINT}", file=sys.stderr)
+        from tactile_viz.gui.main_window import MainWindow
+    except ImportError as error:
+        print(f"error: {error}\n{GUI_HINT}", file=sys.stderr)
+        return 2
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        print("error: no display (DISPLAY is not set); on a headless machine run it under "
+              "Xvfb, e.g. `xvfb-run -a make run`", file=sys.stderr)
         return 2
 
-    if sys.platform.startswith("linux") and not (
-        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    ):
-        print(
-            "error: no display (DISPLAY is not set); on a headless machine run it "
-            "under Xvfb, e.g. `xvfb-run -a make run`",
-            file=sys.stderr,
-        )
+    from tactile_viz.engine.errors import TactileVizError
+
+    try:
+        scene = build_scene(args)
+    except TactileVizError as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
-
-    from tactile_viz.engine.objects import load_bundled
-
-    model = load_bundled(args.object)
-    mesh = model.mesh
-
     app = QApplication.instance() or QApplication(sys.argv[:1])
-    window = ViewerWindow(mesh, name=args.object)
-
+    window = MainWindow(scene)
+    window.show()
+    for _ in range(args.steps):
+        if scene.ensure_session().terminated:
+            break
+        scene.step()
     if args.screenshot:
-        window.show()
         app.processEvents()
-        window.screenshot(args.screenshot)
+        window.plots.draw()
+        app.processEvents()
+        window.grab().save(args.screenshot)
         window.close()
         app.processEvents()
         print(f"saved {args.screenshot}")
         return 0
-
-    window.show()
     return app.exec()
 
 

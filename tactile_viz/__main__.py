@@ -36,6 +36,11 @@ def _bench(args):
         from .experiments.step_timing import main as step_timing
 
         return step_timing(args.rest)
+    if args.what in ("paper", "tradeoff", "scaling", "noise"):
+        import importlib
+
+        module = importlib.import_module(f".experiments.{args.what}", __package__)
+        return module.main(args.rest)
     raise SystemExit(f"unknown benchmark {args.what!r}")
 
 
@@ -59,11 +64,16 @@ def build_parser():
     add_trial_arguments(trial)
     trial.set_defaults(run=_trial)
 
-    bench = commands.add_parser("bench", help="run a benchmark (sdf)",
+    bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
+                                              "scaling)",
                                 description="Benchmarks; each has its own --help.")
-    bench.add_argument("what", choices=["sdf", "step"],
+    bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise"],
                        help="sdf: grid SDF vs exact queries per second; step: time of each "
-                            "part of a step at 50/200/400 contacts, full vs incremental GPIS")
+                            "part of a step at 50/200/400 contacts, full vs incremental GPIS; "
+                            "paper: the paper's protocol, tables and plots; tradeoff: time "
+                            "per trial vs errors over presets and knobs, Pareto front; "
+                            "scaling: time per step vs contacts and vs number of priors; "
+                            "noise: recognition and pose error vs sensor noise")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
     bench.set_defaults(run=_bench)
     return parser

@@ -3,7 +3,8 @@
 Nothing here imports Qt, pyvista or vtk; a test enforces it.
 """
 
-from .errors import LibraryError, MeshError, ObservationError, TactileVizError
+from .errors import (LibraryError, MeshError, MeshWarning, ObservationError, ParameterError,
+                     TactileVizError)
 from .library import PriorLibrary
 from .meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .objects import ModelParams, ObjectModel, bundled_names, load_bundled
@@ -14,7 +15,8 @@ from .transforms import random_pose
 
 __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "GroundTruth", "LONGEST_SIDE",
-    "LibraryError", "MeshError", "ModelParams", "NonContact", "ObjectModel",
-    "ObservationError", "PriorLibrary", "SDFGrid", "TactileVizError", "build_sdf_grid",
-    "bundled_names", "load_bundled", "load_mesh", "prepare_mesh", "random_pose",
+    "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact", "ObjectModel",
+    "ObservationError", "ParameterError", "PriorLibrary", "SDFGrid", "TactileVizError",
+    "build_sdf_grid", "bundled_names", "load_bundled", "load_mesh", "prepare_mesh",
+    "random_pose",
 ]

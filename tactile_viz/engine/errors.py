@@ -33,3 +33,11 @@ class LibraryError(TactileVizError):
 
 class ObservationError(TactileVizError, ValueError):
     """An observation (contact or non-contact) has the wrong shape or non-finite values."""
+
+
+class ParameterError(TactileVizError, ValueError):
+    """A parameter value is out of range or of the wrong type (named in the message)."""
+
+
+class MeshWarning(UserWarning):
+    """A mesh was changed on loading in a way the user should know about (e.g. decimated)."""

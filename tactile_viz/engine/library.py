@@ -11,11 +11,11 @@ import json
 import re
 from pathlib import Path
 
-import numpy as np
 import trimesh
 
 from .cache import write_bytes_atomic
 from .errors import LibraryError, MeshError
+from .meshes import check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
 
 MANIFEST = "library.json"
@@ -147,10 +147,16 @@ def _save_mesh(folder, model):
 def _mesh_from_ply(data, path):
     try:
         mesh = trimesh.load(io.BytesIO(data), file_type="ply", force="mesh", process=False)
-        return trimesh.Trimesh(np.asarray(mesh.vertices, dtype=np.float64),
-                               np.asarray(mesh.faces, dtype=np.int64), process=False)
+        vertices, faces = getattr(mesh, "vertices", None), getattr(mesh, "faces", None)
     except Exception as error:
         raise LibraryError(f"{path}: cannot be read as a mesh ({error})") from error
+    if vertices is None or faces is None:
+        raise LibraryError(f"{path}: cannot be read as a mesh (it holds no triangles)")
+    try:
+        vertices, faces = check_arrays(vertices, faces, path)
+    except MeshError as error:
+        raise LibraryError(f"library mesh {error}") from error
+    return trimesh.Trimesh(vertices, faces, process=False)
 
 
 def _read_manifest(folder):

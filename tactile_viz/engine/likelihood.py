@@ -54,5 +54,13 @@ def log_sum_exp(values):
 
 
 def normalise_log_weights(log_weights):
-    """Log weights shifted so that their exponentials sum to one."""
-    return np.asarray(log_weights, dtype=float) - log_sum_exp(log_weights)
+    """Log weights shifted so that their exponentials sum to one.
+
+    If every weight is zero (all ``-inf``) nothing tells the hypotheses apart: they become
+    uniform instead of ``-inf - (-inf) = NaN``.
+    """
+    log_weights = np.asarray(log_weights, dtype=float)
+    total = log_sum_exp(log_weights)
+    if total == -np.inf:
+        return np.full(log_weights.shape, -np.log(max(log_weights.size, 1)))
+    return log_weights - total

@@ -6,6 +6,10 @@ import numpy as np
 
 from .errors import ObservationError
 
+# Observations beyond this distance from the origin (object units; objects are 6 long) are
+# refused: squaring their distances in the likelihood would overflow to infinity.
+MAX_COORDINATE = 1e6
+
 
 def _vector(value, what):
     try:
@@ -17,6 +21,14 @@ def _vector(value, what):
     if not np.isfinite(array).all():
         raise ObservationError(f"{what} is not finite: {array.tolist()}")
     array.flags.writeable = False
+    return array
+
+
+def _position(value, what):
+    array = _vector(value, what)
+    if np.abs(array).max() > MAX_COORDINATE:
+        raise ObservationError(f"{what} is out of range (a coordinate beyond "
+                               f"{MAX_COORDINATE:g} units): {array.tolist()}")
     return array
 
 
@@ -34,8 +46,11 @@ class Contact:
     normal: np.ndarray
 
     def __post_init__(self):
-        object.__setattr__(self, "position", _vector(self.position, "contact position"))
+        object.__setattr__(self, "position", _position(self.position, "contact position"))
         normal = _vector(self.normal, "contact normal")
+        if np.abs(normal).max() > 1e150:
+            # The length of a huge vector overflows: divide by its largest component first.
+            normal = normal / np.abs(normal).max()
         length = float(np.linalg.norm(normal))
         if not length > 1e-9:
             raise ObservationError("contact normal has zero length")
@@ -56,4 +71,4 @@ class NonContact:
     position: np.ndarray
 
     def __post_init__(self):
-        object.__setattr__(self, "position", _vector(self.position, "non-contact position"))
+        object.__setattr__(self, "position", _position(self.position, "non-contact position"))

@@ -1,9 +1,30 @@
 """Parameters of the filter in one dataclass, with the paper's values as defaults, and
 named presets on the speed/accuracy trade."""
 
+import numbers
 from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
+
+from .errors import ParameterError
+
+
+def _check_real(name, value):
+    """A real number (not a bool, string or None), else ParameterError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be a number, got {value!r}")
+
+
+def _check_integer(name, value):
+    """``value`` as an int (an integral float such as ``30.0`` is accepted), else
+    ParameterError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} must be an integer, got {value!r}")
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if not (np.isfinite(value) and float(value).is_integer()):
+        raise ParameterError(f"{name} must be an integer, got {value!r}")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -66,26 +87,37 @@ class FilterParams:
     sdf_resolution: int = 64
 
     def __post_init__(self):
+        integers = ("n_s", "init_rotations", "max_new_per_class", "max_particles",
+                    "n_features", "refine_iterations", "neighbour_bins", "sdf_resolution")
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if item.name in integers:
+                object.__setattr__(self, item.name, _check_integer(item.name, value))
+            elif item.name == "refine_map":
+                if not isinstance(value, (bool, np.bool_)):
+                    raise ParameterError(f"refine_map must be True or False, got {value!r}")
+            else:
+                _check_real(item.name, value)
         positive = ("sigma_d", "sigma_n", "distance_step", "angle_step_deg")
         for name in positive:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+                raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
         for name in ("lam", "known_fraction", "noncontact_fraction"):
             value = getattr(self, name)
             if not 0 < value <= 1:
-                raise ValueError(f"{name} must lie in (0, 1], got {value!r}")
+                raise ParameterError(f"{name} must lie in (0, 1], got {value!r}")
         at_least_one = ("n_s", "init_rotations", "max_new_per_class", "max_particles",
                         "n_features", "refine_iterations")
         for name in at_least_one:
             if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)!r}")
+                raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
         if self.neighbour_bins not in (0, 1):
-            raise ValueError(f"neighbour_bins must be 0 or 1, got {self.neighbour_bins!r}")
+            raise ParameterError(f"neighbour_bins must be 0 or 1, got {self.neighbour_bins!r}")
         if self.n_features < 3:
-            raise ValueError("n_features must be at least 3")
+            raise ParameterError(f"n_features must be at least 3, got {self.n_features!r}")
         if self.sdf_resolution < 8:
-            raise ValueError("sdf_resolution must be at least 8")
+            raise ParameterError(f"sdf_resolution must be at least 8, got {self.sdf_resolution!r}")
 
     def to_dict(self):
         return asdict(self)
@@ -93,10 +125,12 @@ class FilterParams:
     @classmethod
     def from_dict(cls, values):
         """Build from a dict, refusing unknown keys (a typo should not pass silently)."""
+        if not isinstance(values, dict):
+            raise ParameterError(f"filter parameters must be a dict, got {type(values).__name__}")
         known = {f.name for f in fields(cls)}
         unknown = set(values) - known
         if unknown:
-            raise ValueError(f"unknown filter parameter(s): {', '.join(sorted(unknown))}")
+            raise ParameterError(f"unknown filter parameter(s): {', '.join(sorted(unknown))}")
         return cls(**values)
 
 
@@ -116,5 +150,45 @@ def preset(name, **overrides):
     try:
         base = PRESETS[name]
     except KeyError:
-        raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}") from None
+        raise ParameterError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}") from None
     return replace(base, **overrides)
+
+
+
+def noise_matched(params, position_noise, normal_noise_deg):
+    """Filter parameters for a sensor with Gaussian position and normal noise.
+
+    The likelihood widths grow in quadrature with the noise: ``sigma_d`` with the position
+    noise and ``sigma_n`` with the expected length of the normal error (a tilt by an angle
+    of std ``s`` radians moves a unit normal by about ``s``). Once the noise reaches a
+    quarter of a point-pair key bin (distance ``distance_step``, angles ``angle_step_deg``)
+    observed pairs often fall into a neighbouring bin, so the neighbour-bin look-up is
+    turned on.
+
+    Parameters
+    ----------
+    params : FilterParams
+    position_noise : float
+        Standard deviation of the reported positions, object units.
+    normal_noise_deg : float
+        Standard deviation of the tilt of the reported normals, degrees.
+
+    Returns
+    -------
+    FilterParams
+    """
+    _check_real("position_noise", position_noise)
+    _check_real("normal_noise_deg", normal_noise_deg)
+    if not (np.isfinite(position_noise) and position_noise >= 0):
+        raise ParameterError(f"position_noise must be a finite number >= 0, got {position_noise!r}")
+    if not (np.isfinite(normal_noise_deg) and normal_noise_deg >= 0):
+        raise ParameterError(f"normal_noise_deg must be a finite number >= 0, "
+                             f"got {normal_noise_deg!r}")
+    angle = np.radians(normal_noise_deg)
+    # The pair distance carries the noise of two positions; the angles that of a normal.
+    coarse = (np.sqrt(2) * position_noise >= params.distance_step / 4
+              or normal_noise_deg >= params.angle_step_deg / 4)
+    return replace(params,
+                   sigma_d=float(np.hypot(params.sigma_d, position_noise)),
+                   sigma_n=float(np.hypot(params.sigma_n, angle)),
+                   neighbour_bins=1 if coarse else params.neighbour_bins)

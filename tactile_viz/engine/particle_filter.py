@@ -18,7 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from .errors import ObservationError
+from .errors import ObservationError, ParameterError
 from .likelihood import (log_contact_likelihood, log_noncontact_likelihood, log_normaliser,
                          normalise_log_weights)
 from .observations import Contact, NonContact
@@ -146,7 +146,7 @@ class ParticleFilter:
     def __init__(self, library, params=None, rng=None):
         self.params = params or FilterParams()
         if len(library) == 0:
-            raise ValueError("the prior library is empty")
+            raise ParameterError("the prior library is empty")
         self.models = [model.with_params(sdf_resolution=self.params.sdf_resolution,
                                          n_features=self.params.n_features)
                        if (model.params.sdf_resolution, model.params.n_features)

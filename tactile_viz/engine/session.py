@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 import trimesh
 
-from .errors import TactileVizError
+from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           rrt_step)
 from .gpis import fit_gpis, zero_level_surface
@@ -24,7 +24,8 @@ from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
 from .objects import ObjectModel
 from .observations import Contact
-from .params import FilterParams, preset
+from .meshes import check_arrays
+from .params import FilterParams, _check_integer, _check_real, preset
 from .particle_filter import ParticleFilter
 from .sdf import normalise_rows
 from .simulator import ContactSimulator, GroundTruth
@@ -78,16 +79,21 @@ class SessionParams:
     metric_samples: int = 3000
 
     def __post_init__(self):
+        if not isinstance(self.filter, FilterParams):
+            raise ParameterError(f"filter must be FilterParams, got {type(self.filter).__name__}")
         for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "probe_depth",
                      "follow_step", "rrt_step"):
             value = getattr(self, name)
+            _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-        for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be at least 1")
+                raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+        for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
+                     "gpis_resolution"):
+            object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
+            if getattr(self, name) < 1:
+                raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
         if self.gpis_resolution < 8:
-            raise ValueError("gpis_resolution must be at least 8")
+            raise ParameterError(f"gpis_resolution must be at least 8, got {self.gpis_resolution!r}")
 
     def to_dict(self):
         values = asdict(self)
@@ -96,11 +102,13 @@ class SessionParams:
 
     @classmethod
     def from_dict(cls, values):
+        if not isinstance(values, dict):
+            raise ParameterError(f"session parameters must be a dict, got {type(values).__name__}")
         values = dict(values)
         known = {f.name for f in fields(cls)}
         unknown = set(values) - known
         if unknown:
-            raise ValueError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
+            raise ParameterError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
         values["filter"] = FilterParams.from_dict(values.get("filter", {}))
         return cls(**values)
 
@@ -119,8 +127,8 @@ def session_preset(name, **overrides):
     try:
         return replace(SESSION_PRESETS[name], **overrides)
     except KeyError:
-        raise ValueError(f"unknown preset {name!r}; choose from "
-                         f"{', '.join(SESSION_PRESETS)}") from None
+        raise ParameterError(f"unknown preset {name!r}; choose from "
+                             f"{', '.join(SESSION_PRESETS)}") from None
 
 
 def _frozen(array):
@@ -237,9 +245,42 @@ class Session:
         return self.latest
 
     def step(self):
-        """One time step of Algorithm 2; returns its :class:`Snapshot`."""
+        """One time step of Algorithm 2; returns its :class:`Snapshot`.
+
+        A step that fails leaves the session exactly as it was before it.
+        """
         if self.terminated:
             raise SessionError("the session has terminated; start a new one")
+        saved = self._checkpoint()
+        try:
+            return self._step()
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    _FILTER_STATE = ("particles", "contact_positions", "contact_normals",
+                     "noncontact_positions", "step_count", "state")
+
+    def _checkpoint(self):
+        # The filter replaces its arrays on update rather than writing into them, so keeping
+        # references (and the generators' states) is enough to roll a step back.
+        return ({name: getattr(self.filter, name) for name in self._FILTER_STATE},
+                [g.bit_generator.state for g in self._generators()],
+                (self._scale, self._target, list(self._missed_targets), len(self.snapshots)))
+
+    def _restore(self, saved):
+        filter_state, generator_states, (scale, target, missed, count) = saved
+        for name, value in filter_state.items():
+            setattr(self.filter, name, value)
+        for generator, state in zip(self._generators(), generator_states):
+            generator.bit_generator.state = state
+        self._scale, self._target, self._missed_targets = scale, target, missed
+        del self.snapshots[count:]
+
+    def _generators(self):
+        return (self.rng, self.simulator.rng, self.filter.rng)
+
+    def _step(self):
         timings = {}
         clock = time.perf_counter()
         paths, observations = self._touch()
@@ -426,24 +467,37 @@ class Session:
             if config.get("format") != "tactile_viz-session":
                 raise ValueError("not a tactile_viz session file")
             truth_model = _model_from_arrays(config["truth_name"], arrays["truth_vertices"],
-                                             arrays["truth_faces"])
+                                             arrays["truth_faces"], "the truth mesh")
             library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
-                                                      arrays[f"prior{i}_faces"])
+                                                      arrays[f"prior{i}_faces"],
+                                                      f"the mesh of prior {name!r}")
                                    for i, name in enumerate(config["library"]))
-            truth = GroundTruth(truth_model, arrays["truth_rotation"], arrays["truth_translation"])
+            rotation, translation = _checked_pose(arrays["truth_rotation"],
+                                                  arrays["truth_translation"])
+            truth = GroundTruth(truth_model, rotation, translation)
             session = cls(truth, library, config["strategy"],
                           SessionParams.from_dict(config["params"]), config["seed"],
                           tuple(config["sensor_noise"]))
-            steps = int(config["steps"])
+            steps = _check_integer("steps", config["steps"])
+            cap = max(session.params.max_steps_known, session.params.max_steps_novel)
+            if not 0 <= steps <= cap:
+                raise ValueError(f"steps must lie in [0, {cap}], got {steps}")
+            contacts = np.asarray(arrays["contacts"], dtype=float)
         except (OSError, ValueError, KeyError, TypeError, EOFError) as error:
             raise SessionError(f"{path}: not a readable session file ({error})") from error
         except Exception as error:  # zipfile.BadZipFile and friends from a truncated file
             raise SessionError(f"{path}: not a readable session file ({error!r})") from error
         for _ in range(steps):
-            snapshot = session.step()
+            try:
+                snapshot = session.step()
+            except (TactileVizError, ValueError, TypeError, IndexError, ArithmeticError,
+                    np.linalg.LinAlgError) as error:
+                raise SessionError(f"{path}: replaying step {session.step_count + 1} failed "
+                                   f"({error!r})") from error
             if callback is not None:
                 callback(snapshot)
-        if not np.allclose(session.filter.contact_positions, arrays["contacts"]):
+        if (contacts.shape != session.filter.contact_positions.shape
+                or not np.allclose(session.filter.contact_positions, contacts)):
             raise SessionError(f"{path}: replaying the session did not reproduce its contacts")
         return session
 
@@ -457,11 +511,29 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
 
 
-def _model_from_arrays(name, vertices, faces):
-    """A model from stored (already normalised) arrays, without re-processing them."""
-    mesh = trimesh.Trimesh(np.asarray(vertices, dtype=np.float64),
-                           np.asarray(faces, dtype=np.int64), process=False)
-    return ObjectModel(name, mesh)
+def _model_from_arrays(name, vertices, faces, what="the mesh"):
+    """A model from stored (already normalised) arrays, checked but not re-processed."""
+    if not isinstance(name, str):
+        raise TypeError(f"the name of {what} must be a string, got {name!r}")
+    vertices, faces = check_arrays(vertices, faces, what)
+    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False))
+
+
+def _checked_pose(rotation, translation):
+    """A stored ``object_to_world`` pose: a proper rotation and a finite translation."""
+    rotation = np.asarray(rotation, dtype=float)
+    translation = np.asarray(translation, dtype=float)
+    if rotation.shape != (3, 3) or translation.shape != (3,):
+        raise ValueError(f"the truth pose has shapes {rotation.shape} and {translation.shape}, "
+                         "not (3, 3) and (3,)")
+    if not (np.isfinite(rotation).all() and np.isfinite(translation).all()):
+        raise ValueError("the truth pose is not finite")
+    if (np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-6
+            or not abs(np.linalg.det(rotation) - 1) < 1e-6):
+        raise ValueError("the truth rotation is not a rotation matrix")
+    if np.abs(translation).max() > 1e6:
+        raise ValueError("the truth translation is out of range")
+    return rotation, translation
 
 
 def learned_model_from_surface(vertices, faces, name, params=None):

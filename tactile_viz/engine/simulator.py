@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import ParameterError
 from .observations import Contact, NonContact
 from .sdf import normalise_rows
 from .transforms import inverse_transform_points, transform_points
@@ -85,12 +86,13 @@ class ContactSimulator:
 
     def __init__(self, truth, step=None, tolerance=0.01, position_noise=0.0,
                  normal_noise_deg=0.0, rng=None):
-        if step is not None and not step > 0:
-            raise ValueError(f"step must be positive, got {step}")
-        if not tolerance > 0:
-            raise ValueError(f"tolerance must be positive, got {tolerance}")
-        if position_noise < 0 or normal_noise_deg < 0:
-            raise ValueError("noise levels must not be negative")
+        for name, value in (("step", step), ("tolerance", tolerance)):
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+        for name, value in (("position_noise", position_noise),
+                            ("normal_noise_deg", normal_noise_deg)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
         self.truth = truth
         self.step = float(step) if step is not None else truth.model.length / 300
         self.tolerance = float(tolerance)
@@ -167,9 +169,9 @@ def sample_path(path, step):
     """
     path = np.atleast_2d(np.asarray(path, dtype=float))
     if path.ndim != 2 or path.shape[1] != 3 or len(path) == 0:
-        raise ValueError(f"a path must have shape (k, 3) with k >= 1, got {path.shape}")
+        raise ParameterError(f"a path must have shape (k, 3) with k >= 1, got {path.shape}")
     if not np.isfinite(path).all():
-        raise ValueError("a path must have finite coordinates")
+        raise ParameterError("a path must have finite coordinates")
     pieces = [path[:1]]
     for start, end in zip(path[:-1], path[1:]):
         count = max(1, int(np.ceil(np.linalg.norm(end - start) / step)))

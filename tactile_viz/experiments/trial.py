@@ -43,9 +43,14 @@ def load_priors(args):
 
 
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
-              max_steps=None, progress=False):
-    """Run one trial and return its JSON-ready result dict."""
-    params = session_preset(preset)
+              max_steps=None, progress=False, params=None, finish=None):
+    """Run one trial and return its JSON-ready result dict.
+
+    ``params`` (a ``SessionParams``) replaces the preset's parameters when given (``preset``
+    is then only a label). ``finish(session)`` is called after the last step; the dict it
+    returns is merged into the result (benchmarks add final contacts, baselines, ...).
+    """
+    params = params or session_preset(preset)
     truth = make_truth(truth_model, rng=[seed, 0])
     session = Session(truth, library, strategy, params, seed=seed)
     bar = None
@@ -66,12 +71,15 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
     if bar is not None:
         bar.close()
     last = session.latest
-    return {"object": truth_model.name, "seed": seed, "strategy": strategy, "preset": preset,
+    result = {"object": truth_model.name, "seed": seed, "strategy": strategy, "preset": preset,
             "params": params.to_dict(), "library": library.names,
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist()},
             "terminated_at": last.step if last.terminated else None,
             "seconds": time.perf_counter() - start, "steps": steps}
+    if finish is not None:
+        result.update(finish(session))
+    return result
 
 
 def run_trial_command(args):

@@ -10,7 +10,7 @@ from pathlib import Path
 import pyvista as pv
 
 from ..engine.objects import bundled_manifest, load_bundled
-from .viewer import trimesh_to_polydata
+from .layers import faces_to_polydata
 
 COLUMNS = 5
 
@@ -23,7 +23,8 @@ def render_sheet(names, path, tile=300):
     for index, name in enumerate(names):
         plotter.subplot(index // COLUMNS, index % COLUMNS)
         plotter.set_background("white")
-        plotter.add_mesh(trimesh_to_polydata(load_bundled(name).mesh), color="tan",
+        mesh = load_bundled(name).mesh
+        plotter.add_mesh(faces_to_polydata(mesh.vertices, mesh.faces), color="tan",
                          smooth_shading=True)
         plotter.add_text(name, font_size=10, color="black")
         plotter.view_isometric()

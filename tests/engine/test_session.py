@@ -150,3 +150,22 @@ def test_trial_command_reports_bad_mesh(tmp_path, capsys):
     bad.write_bytes(b"")
     assert main(["trial", "--object-file", str(bad), "--no-progress"]) == 2
     assert "broken.stl" in capsys.readouterr().err
+
+
+def test_failed_step_leaves_session_unchanged(bundled, known, monkeypatch):
+    session = Session(make_truth(bundled["mug_1"], rng=1), known, seed=1)
+    session.run(max_steps=3)
+    contacts = session.filter.contact_positions
+    reference = Session(make_truth(bundled["mug_1"], rng=1), known, seed=1)
+    reference.run(max_steps=4)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(session, "_next_target", broken)
+    with pytest.raises(RuntimeError, match="simulated"):
+        session.step()
+    assert session.step_count == 3 and session.filter.contact_positions is contacts
+    monkeypatch.undo()
+    after = session.step()
+    np.testing.assert_array_equal(after.contacts, reference.latest.contacts)

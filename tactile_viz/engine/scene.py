@@ -1,0 +1,246 @@
+"""The state the desktop app shows and steers, without Qt.
+
+A :class:`Scene` holds the user's choices (ground truth object and pose, which priors the
+filter uses, strategy, preset and parameter overrides) and the current :class:`Session`.
+Views subscribe to its :class:`Signal` s; every change that makes the running session
+stale resets it. Bad input (a broken mesh, an unreadable library, an invalid parameter)
+raises the project's error and changes nothing.
+"""
+
+from dataclasses import replace
+from pathlib import Path
+
+from .errors import LibraryError, TactileVizError
+from .library import PriorLibrary
+from .objects import ObjectModel, bundled_names, load_bundled
+from .params import FilterParams
+from .session import Session, SessionError, make_truth, session_preset
+
+FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
+SESSION_KNOBS = ("eps",)
+
+
+class Signal:
+    """A list of callbacks: ``connect(callback)``, ``emit(*args)``."""
+
+    def __init__(self):
+        self._callbacks = []
+
+    def connect(self, callback):
+        self._callbacks.append(callback)
+        return callback
+
+    def disconnect(self, callback):
+        self._callbacks.remove(callback)
+
+    def emit(self, *args):
+        for callback in list(self._callbacks):
+            callback(*args)
+
+
+class Scene:
+    """Ground truth, priors and settings of the app, and the session run on them.
+
+    Parameters
+    ----------
+    truth_name : str
+        A bundled object to start with.
+    seed : int
+        Seeds the truth's pose and the session.
+    library : PriorLibrary, optional
+        The priors (default: the bundled known set).
+    """
+
+    def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
+                 preset="paper"):
+        self.truth_changed = Signal()
+        self.library_changed = Signal()
+        self.settings_changed = Signal()
+        self.session_reset = Signal()
+        self.stepped = Signal()
+        self.library = library if library is not None else PriorLibrary.bundled("known")
+        self.enabled = {name: True for name in self.library.names}
+        self.truth_model = load_bundled(truth_name)
+        self.seed = int(seed)
+        self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        self.strategy = strategy
+        self.preset = preset
+        self.overrides = {}
+        self.session = None
+
+    # ------------------------------------------------------------------ settings
+    @property
+    def params(self):
+        """The session parameters: the preset with the user's overrides."""
+        params = session_preset(self.preset)
+        filter_changes = {k: v for k, v in self.overrides.items() if k in FILTER_KNOBS}
+        session_changes = {k: v for k, v in self.overrides.items() if k in SESSION_KNOBS}
+        return replace(params, filter=replace(params.filter, **filter_changes), **session_changes)
+
+    def parameter(self, name):
+        """Current value of a main knob (``sigma_d``, ``sigma_n``, ``n_s``, ``lam``, ``eps``)."""
+        params = self.params
+        return getattr(params.filter if name in FILTER_KNOBS else params, name)
+
+    def set_parameter(self, name, value):
+        """Change a main knob; an invalid value raises ValueError and changes nothing."""
+        if name not in FILTER_KNOBS + SESSION_KNOBS:
+            raise ValueError(f"unknown parameter {name!r}")
+        overrides = dict(self.overrides, **{name: value})
+        previous, self.overrides = self.overrides, overrides
+        try:
+            self.params  # validates through the dataclasses
+        except ValueError:
+            self.overrides = previous
+            raise
+        self._settings_changed()
+
+    def set_strategy(self, strategy):
+        if strategy not in ("gpis-dhd", "rrt"):
+            raise ValueError(f"unknown strategy {strategy!r}")
+        self.strategy = strategy
+        self._settings_changed()
+
+    def set_preset(self, preset):
+        session_preset(preset)  # raises for an unknown name
+        self.preset = preset
+        self.overrides = {}
+        self._settings_changed()
+
+    # ------------------------------------------------------------------ truth
+    @staticmethod
+    def bundled_objects():
+        return bundled_names("all")
+
+    def set_truth_bundled(self, name):
+        self._set_truth(load_bundled(name))
+
+    def set_truth_file(self, path):
+        """Use a mesh file as the ground truth (MeshError, and no change, if it is bad)."""
+        self._set_truth(ObjectModel.from_file(path))
+
+    def _set_truth(self, model):
+        self.truth_model = model
+        self.truth = make_truth(model, rng=[self.seed, 0])
+        self.reset()
+        self.truth_changed.emit(self.truth)
+
+    def randomize_pose(self, seed):
+        """Place the truth at the random pose of ``seed`` (also the session's seed)."""
+        self.seed = int(seed)
+        self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        self.reset()
+        self.truth_changed.emit(self.truth)
+
+    # ------------------------------------------------------------------ priors
+    def active_library(self):
+        """The priors the filter uses (the checked ones)."""
+        return self.library.subset([name for name in self.library.names if self.enabled[name]])
+
+    def set_prior_enabled(self, name, enabled):
+        self.library[name]  # raises LibraryError for an unknown name
+        self.enabled[name] = bool(enabled)
+        self.reset()
+        self.library_changed.emit(self.library)
+
+    def add_prior_file(self, path, name=None):
+        """Load a mesh file as a new prior (MeshError, and no change, if it is bad)."""
+        model = ObjectModel.from_file(path, name=name)
+        if model.name in self.library:
+            raise LibraryError(f"the library already has a prior named {model.name!r}")
+        self._add_prior(model)
+        return model
+
+    def _add_prior(self, model):
+        self.library.add(model)
+        self.enabled[model.name] = True
+        self.reset()
+        self.library_changed.emit(self.library)
+
+    def load_library(self, folder):
+        """Replace the priors by a saved library (LibraryError, and no change, if corrupt)."""
+        library = PriorLibrary.load(folder)
+        self.library = library
+        self.enabled = {name: True for name in library.names}
+        self.reset()
+        self.library_changed.emit(self.library)
+
+    def save_library(self, folder):
+        return self.library.save(Path(folder))
+
+    def can_learn(self):
+        """True when the latest step has a reconstructed (novel) surface."""
+        latest = self.latest
+        return latest is not None and latest.gpis_faces is not None and len(latest.gpis_faces) > 0
+
+    def add_learned_shape(self, name=None):
+        """Turn the latest reconstruction into a prior named ``name`` and enable it."""
+        if not self.can_learn():
+            raise SessionError("there is no reconstructed novel shape to add yet")
+        name = name or self._free_name(f"learned_{self.truth_model.name}")
+        model = self.session.learned_model(name)
+        self._add_prior(model)
+        return model
+
+    def _free_name(self, base):
+        name, index = base, 2
+        while name in self.library:
+            name, index = f"{base}_{index}", index + 1
+        return name
+
+    # ------------------------------------------------------------------ session
+    @property
+    def latest(self):
+        return None if self.session is None else self.session.latest
+
+    @property
+    def snapshots(self):
+        return [] if self.session is None else list(self.session.snapshots)
+
+    def ensure_session(self):
+        """The current session, created on first use with the current settings."""
+        if self.session is None:
+            library = self.active_library()
+            if len(library) == 0:
+                raise SessionError("no prior is selected: check at least one in the list")
+            self.session = Session(self.truth, library, self.strategy, self.params, self.seed)
+        return self.session
+
+    def step(self):
+        """One step in the calling thread (the app steps in a worker and calls
+        :meth:`announce` on the GUI thread instead)."""
+        snapshot = self.ensure_session().step()
+        self.announce(snapshot)
+        return snapshot
+
+    def announce(self, snapshot):
+        self.stepped.emit(snapshot)
+
+    def reset(self):
+        self.session = None
+        self.session_reset.emit()
+
+    def _settings_changed(self):
+        self.reset()
+        self.settings_changed.emit()
+
+    def save_session(self, path):
+        if self.session is None or self.session.step_count == 0:
+            raise SessionError("nothing to save: the session has not started")
+        return self.session.save(path)
+
+    def load_session(self, path):
+        """Load a saved session (its truth, priors and steps replace the current ones)."""
+        session = Session.load(path)
+        self.truth_model, self.truth = session.truth.model, session.truth
+        self.library = session.library
+        self.enabled = {name: True for name in self.library.names}
+        self.strategy, self.seed, self.session = session.strategy, session.seed, session
+        self.truth_changed.emit(self.truth)
+        self.library_changed.emit(self.library)
+        for snapshot in session.snapshots:
+            self.stepped.emit(snapshot)
+        return session
+
+
+__all__ = ["Scene", "Signal", "FilterParams", "TactileVizError"]

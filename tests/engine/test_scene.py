@@ -1,0 +1,86 @@
+"""The app's Qt-free model: settings, signals, and bad input that changes nothing."""
+
+import pytest
+
+from tactile_viz.engine import LibraryError, MeshError, PriorLibrary
+from tactile_viz.engine.scene import Scene
+from tactile_viz.engine.session import SessionError
+
+
+@pytest.fixture
+def scene(bundled):
+    library = PriorLibrary(bundled[name] for name in ["mug_1", "vase_1", "bottle_1"])
+    return Scene("vase_1", seed=1, library=library)
+
+
+def test_steps_announce_snapshots(scene):
+    seen = []
+    scene.stepped.connect(seen.append)
+    scene.step()
+    scene.step()
+    assert [s.step for s in seen] == [1, 2] and scene.latest is seen[-1]
+
+
+def test_settings_reset_the_session(scene):
+    resets = []
+    scene.session_reset.connect(lambda: resets.append(True))
+    scene.step()
+    scene.set_parameter("eps", 0.8)
+    assert scene.session is None and resets and scene.params.eps == 0.8
+    scene.set_preset("fast")
+    assert scene.params.filter.n_features == 120 and scene.parameter("eps") == 0.6
+    scene.set_strategy("rrt")
+    assert scene.ensure_session().strategy == "rrt"
+
+
+def test_invalid_settings_change_nothing(scene):
+    with pytest.raises(ValueError):
+        scene.set_parameter("n_s", 0)
+    with pytest.raises(ValueError):
+        scene.set_parameter("sigma_q", 1.0)
+    with pytest.raises(ValueError):
+        scene.set_preset("fastest")
+    assert scene.overrides == {} and scene.preset == "paper"
+
+
+def test_bad_mesh_changes_nothing(scene, tmp_path):
+    scene.step()
+    session, truth = scene.session, scene.truth
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(MeshError, match="bad.obj"):
+        scene.set_truth_file(bad)
+    with pytest.raises(MeshError, match="bad.obj"):
+        scene.add_prior_file(bad)
+    assert scene.session is session and scene.truth is truth
+    assert scene.library.names == ["mug_1", "vase_1", "bottle_1"]
+
+
+def test_prior_selection(scene):
+    scene.set_prior_enabled("mug_1", False)
+    assert scene.active_library().names == ["vase_1", "bottle_1"]
+    with pytest.raises(LibraryError):
+        scene.set_prior_enabled("sofa_9", True)
+    for name in ["vase_1", "bottle_1"]:
+        scene.set_prior_enabled(name, False)
+    with pytest.raises(SessionError, match="no prior"):
+        scene.step()
+
+
+def test_learned_shape_needs_a_reconstruction(scene):
+    assert not scene.can_learn()
+    with pytest.raises(SessionError):
+        scene.add_learned_shape()
+
+
+def test_save_and_load_session(scene, tmp_path):
+    with pytest.raises(SessionError):
+        scene.save_session(tmp_path / "none.npz")
+    scene.step()
+    scene.step()
+    scene.save_session(tmp_path / "s.npz")
+    other = Scene("mug_1", library=PriorLibrary(list(scene.library)))
+    seen = []
+    other.stepped.connect(seen.append)
+    other.load_session(tmp_path / "s.npz")
+    assert other.truth_model.name == "vase_1" and [s.step for s in seen] == [1, 2]

@@ -1,0 +1,138 @@
+"""The main window under Xvfb: stepping, running, pausing, layers, errors, closing."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtWidgets import QMessageBox
+
+from tactile_viz.engine import PriorLibrary, load_bundled
+from tactile_viz.engine.scene import Scene
+from tactile_viz.gui.main_window import MainWindow
+
+pytestmark = pytest.mark.gui
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def known_library():
+    return PriorLibrary.bundled("known")
+
+
+@pytest.fixture
+def window(qtbot, known_library):
+    library = PriorLibrary(list(known_library))  # a fresh container per test
+    scene = Scene("mug_1", seed=0, library=library)
+    window = MainWindow(scene)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    yield window
+    window.wait_for_worker()
+
+
+@pytest.fixture
+def errors(monkeypatch):
+    shown = []
+    monkeypatch.setattr(QMessageBox, "critical",
+                        lambda parent, title, text, *a, **k: shown.append(text))
+    return shown
+
+
+def _wait_idle(qtbot, window, timeout=60_000):
+    qtbot.waitUntil(lambda: not window.running, timeout=timeout)
+
+
+def test_window_opens_with_default_scene(window):
+    assert "truth" in window.layers.actors
+    assert window.prior_list.count() == 10
+    assert window.step_label.text() == "step 0"
+    assert window.object_box.currentText() == "mug_1"
+
+
+def test_step_adds_contacts_and_advances_counter(qtbot, window):
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    assert window.step_label.text().startswith("step 1")
+    contacts = window.layers.actors["contacts"]
+    assert contacts.mapper.dataset.n_points > 0
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    assert window.step_label.text().startswith("step 2")
+    assert len(window.scene.latest.contacts) == 2
+    assert "map" in window.layers.actors
+
+
+def test_run_then_pause_stops_within_one_step(qtbot, window):
+    window.run_button.setChecked(True)
+    qtbot.waitUntil(lambda: window.scene.latest is not None and window.scene.latest.step >= 3,
+                    timeout=60_000)
+    at_pause = window.scene.latest.step
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    assert window.scene.latest.step <= at_pause + 1
+    assert not window.run_button.isChecked() and window.step_button.isEnabled()
+
+
+def test_toggling_a_layer_hides_its_actor(qtbot, window):
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    window.layer_boxes["contacts"].setChecked(False)
+    assert not window.layers.actors["contacts"].GetVisibility()
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    assert not window.layers.actors["contacts"].GetVisibility()  # stays hidden across steps
+    window.layer_boxes["contacts"].setChecked(True)
+    assert window.layers.actors["contacts"].GetVisibility()
+    window.layer_boxes["truth"].setChecked(False)
+    assert not window.layers.actors["truth"].GetVisibility()
+
+
+def test_broken_mesh_shows_error_and_changes_nothing(qtbot, window, errors, tmp_path):
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    session, truth = window.scene.session, window.scene.truth
+    bad = tmp_path / "broken.stl"
+    bad.write_bytes(b"\x00garbage" * 7)
+    window.load_truth_file(bad)
+    assert errors and "broken.stl" in errors[0]
+    assert window.scene.truth is truth and window.scene.session is session
+    window._guarded(window.scene.add_prior_file, str(bad))
+    assert len(errors) == 2 and window.prior_list.count() == 10
+
+
+def test_invalid_parameter_is_refused(window, errors):
+    window.parameter_boxes["lam"].setValue(0.01)
+    assert window.scene.parameter("lam") == pytest.approx(0.01)
+    window.scene.set_parameter("lam", 0.97)
+    with pytest.raises(ValueError):
+        window.scene.set_parameter("sigma_d", -1.0)
+    assert window.scene.parameter("sigma_d") == 0.5
+
+
+def test_unchecking_priors_restricts_the_filter(qtbot, window):
+    for index in range(window.prior_list.count()):
+        item = window.prior_list.item(index)
+        if item.text() not in ("mug_1", "vase_1"):
+            item.setCheckState(item.checkState().__class__.Unchecked)
+    assert window.scene.active_library().names == ["mug_1", "vase_1"]
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    assert set(window.scene.latest.class_posterior) == {"mug_1", "vase_1"}
+
+
+def test_closing_during_run_stops_the_worker(qtbot, window):
+    window.run_button.setChecked(True)
+    qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
+    window.close()
+    assert not window.running
+
+
+def test_headless_screenshot_mode(qapp, tmp_path):
+    spec = importlib.util.spec_from_file_location("app", REPO_ROOT / "app.py")
+    app = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(app)
+    out = tmp_path / "shot.png"
+    assert app.main(["--object", "bottle_1", "--steps", "3", "--screenshot", str(out)]) == 0
+    assert out.stat().st_size > 10_000

@@ -1,0 +1,49 @@
+"""Off-screen rendering of the viewport layers (no Qt): colours where expected."""
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from tactile_viz.engine import PriorLibrary, load_bundled  # noqa: E402
+from tactile_viz.engine.session import Session, make_truth  # noqa: E402
+from tactile_viz.gui.layers import ViewportLayers  # noqa: E402
+
+pv.OFF_SCREEN = True
+
+
+@pytest.fixture(scope="module")
+def snapshot():
+    library = PriorLibrary(load_bundled(name) for name in ["mug_1", "vase_1", "bottle_1"])
+    session = Session(make_truth(load_bundled("vase_1"), rng=2), library, seed=2)
+    session.run(max_steps=12)
+    return session
+
+
+def _render(session, hidden=()):
+    plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
+    plotter.set_background("white")
+    layers = ViewportLayers(plotter)
+    layers.show_truth(session.truth)
+    layers.show_snapshot(session.latest)
+    for name in hidden:
+        layers.set_visible(name, False)
+    plotter.camera_position = [(14, -14, 10), tuple(session.truth.translation), (0, 0, 1)]
+    image = plotter.screenshot(return_img=True)
+    plotter.close()
+    return image[..., :3].astype(int)
+
+
+def _fraction(image, rgb, tolerance=60):
+    return float((np.abs(image - np.array(rgb)).sum(axis=-1) < tolerance).mean())
+
+
+def test_scene_is_not_blank_and_shows_layer_colours(snapshot):
+    image = _render(snapshot)
+    assert (np.abs(image - 255).sum(axis=-1) > 30).mean() > 0.05
+    red = _fraction(image, (255, 0, 0), 150)
+    assert red > 0.0005  # contacts
+    hidden = _render(snapshot, hidden=("contacts", "noncontacts", "map", "target", "path"))
+    assert _fraction(hidden, (255, 0, 0), 150) < red / 3
+    salmon = _fraction(image, (250, 128, 114), 90)
+    assert salmon > _fraction(hidden, (250, 128, 114), 90)
