@@ -74,6 +74,7 @@ def main(argv=None):
         scene.step()
     if args.screenshot:
         app.processEvents()
+        window.frame_truth()  # the final window size is known only now
         window.plots.draw()
         app.processEvents()
         window.grab().save(args.screenshot)

@@ -78,8 +78,14 @@ class MainWindow(QMainWindow):
         scene.stepped.connect(self._on_stepped)
         self.layers.show_truth(scene.truth)
         self.plotter.view_isometric()
-        self.plotter.reset_camera()
+        self.frame_truth()
         self._update_status(None)
+
+    def frame_truth(self):
+        """Point the camera at the ground truth (on a new object or pose, never per step)."""
+        bounds = self.layers.actors["truth"].GetBounds()
+        self.plotter.reset_camera(bounds=bounds)
+        self.plotter.render()
 
     # ------------------------------------------------------------------ building
     def _build_panel(self):
@@ -315,6 +321,7 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ scene events
     def _on_truth_changed(self, truth):
         self.layers.show_truth(truth)
+        self.frame_truth()
         self.object_box.setCurrentText(truth.model.name if self.object_box.findText(
             truth.model.name) >= 0 else self.object_box.currentText())
         self.seed_box.setValue(self.scene.seed)

@@ -1,0 +1,264 @@
+"""Running many trials: task descriptions, one code path per trial, and three ways to run
+them (in this process, in a local process pool, on a Dask distributed cluster).
+
+A *task* is a plain dict (picklable, mostly JSON)::
+
+    {"kind": "protocol", "object": "mug_1", "strategy": "gpis-dhd", "seed": 0,
+     "preset": "paper", "library": "known", "extra_priors": [], "params": None,
+     "max_steps": None, "poisson": True, "learn_as": None}
+
+``extra_priors`` holds ``{"name", "vertices", "faces"}`` models added to the bundled library
+(the learned prior travels this way, so remote workers need no shared disk); ``params`` is a
+``SessionParams.to_dict()`` that replaces the preset's values. :func:`run_task` runs one
+task through :func:`~tactile_viz.experiments.trial.run_trial` and adds what the benchmarks
+need (final contacts and normals, the Screened Poisson baseline, the learned surface).
+Every random choice comes from the task's seed, so where a task runs does not change its
+result (only the timing fields differ).
+"""
+
+import concurrent.futures as cf
+import functools
+import multiprocessing
+import os
+import sys
+import traceback
+
+import numpy as np
+
+TIMING_KEYS = ("seconds", "step_seconds", "timings")
+
+
+def make_task(object_name, strategy="gpis-dhd", seed=0, preset="paper", kind="protocol",
+              library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
+              learn_as=None, poisson_depth=9):
+    """A task dict (see the module docstring)."""
+    return {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
+            "preset": preset, "library": library, "extra_priors": list(extra_priors),
+            "params": params, "max_steps": max_steps, "poisson": bool(poisson),
+            "poisson_depth": int(poisson_depth), "learn_as": learn_as}
+
+
+def library_label(task):
+    """``known`` or ``known+NAME+...`` for the bundled set plus the extra priors."""
+    return "+".join([task["library"]] + [p["name"] for p in task["extra_priors"]])
+
+
+def task_key(task):
+    """A file-name-safe key that identifies a task within one benchmark run."""
+    tag = task.get("tag")
+    parts = [task["kind"], task["object"], task["strategy"], library_label(task),
+             task["preset"] + (f"-{tag}" if tag else ""), f"s{task['seed']}"]
+    if task["max_steps"] is not None:
+        parts.append(f"m{task['max_steps']}")
+    return "__".join(parts)
+
+
+@functools.lru_cache(maxsize=8)
+def _bundled_library(which):
+    from ..engine.library import PriorLibrary
+
+    return PriorLibrary.bundled(which)
+
+
+@functools.lru_cache(maxsize=64)
+def _bundled_model(name):
+    from ..engine.objects import load_bundled
+
+    return load_bundled(name)
+
+
+def task_library(task):
+    """The :class:`PriorLibrary` of a task: a bundled set plus its extra priors."""
+    from ..engine.library import PriorLibrary
+
+    library = PriorLibrary(list(_bundled_library(task["library"])))
+    for prior in task["extra_priors"]:
+        library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
+                           prior["name"])
+    return library
+
+
+def _finisher(task):
+    """The ``finish`` callback of :func:`run_trial` for a task."""
+
+    def finish(session):
+        from ..engine.metrics import surface_samples
+        from ..engine.transforms import transform_points
+
+        last = session.latest
+        extra = {"final": {"contacts": last.contacts.tolist(), "normals": last.normals.tolist(),
+                           "noncontacts": int(len(last.noncontacts))}}
+        if task["poisson"]:
+            from .poisson import poisson_error
+
+            truth = session.truth
+            samples = transform_points(surface_samples(truth.model,
+                                                       session.params.metric_samples),
+                                       truth.rotation, truth.translation)
+            extra["poisson"] = poisson_error(last.contacts, last.normals, samples,
+                                             session.params.metric_samples,
+                                             task.get("poisson_depth", 9))
+        if task["learn_as"]:
+            try:
+                model = session.learned_model(task["learn_as"])
+                extra["learned"] = {"name": model.name, "vertices": model.mesh.vertices.tolist(),
+                                    "faces": model.mesh.faces.tolist()}
+            except Exception as error:  # not novel, no surface, or a mesh the loader refuses
+                extra["learned"] = {"name": task["learn_as"], "error": str(error)}
+        return extra
+
+    return finish
+
+
+def run_task(task, progress=False):
+    """Run one task; returns the trial result dict with ``task`` (and ``error`` on failure).
+
+    Never raises for a failing trial: the traceback is returned under ``error`` so that a
+    long benchmark keeps its other results.
+    """
+    from ..engine.session import SessionParams
+    from .trial import run_trial
+
+    meta = {key: value for key, value in task.items() if key != "extra_priors"}
+    meta["library_label"] = library_label(task)
+    try:
+        params = SessionParams.from_dict(task["params"]) if task["params"] else None
+        result = run_trial(_bundled_model(task["object"]), task_library(task),
+                           task["strategy"], task["seed"], task["preset"], task["max_steps"],
+                           progress=progress, params=params, finish=_finisher(task))
+    except Exception:
+        return {"object": task["object"], "seed": task["seed"], "strategy": task["strategy"],
+                "task": meta, "error": traceback.format_exc()}
+    result["task"] = meta
+    return result
+
+
+def strip_timings(value):
+    """A copy of a result without its timing fields (they differ from run to run)."""
+    if isinstance(value, dict):
+        return {k: strip_timings(v) for k, v in value.items() if k not in TIMING_KEYS}
+    if isinstance(value, list):
+        return [strip_timings(v) for v in value]
+    return value
+
+
+# ------------------------------------------------------------------------------- pools
+class SerialPool:
+    """Runs each task in this process when it is waited for (shows per-step progress)."""
+
+    def __init__(self, progress=False):
+        self.progress = progress
+        self._pending = {}
+
+    def submit(self, task):
+        future = cf.Future()
+        self._pending[future] = task
+        return future
+
+    def wait_any(self, futures):
+        for future in futures:  # the first pending one in the order given
+            if not future.done():
+                future.set_result(run_task(self._pending.pop(future), self.progress))
+                break
+        done = [f for f in futures if f.done()]
+        return done, [f for f in futures if not f.done()]
+
+    def close(self):
+        self._pending.clear()
+
+
+def _limit_threads():
+    """One BLAS/OpenMP thread per worker process (they thrash when processes compete)."""
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
+
+
+class ProcessPool:
+    """A local pool of ``workers`` processes (spawned, one BLAS thread each)."""
+
+    def __init__(self, workers):
+        _limit_threads()  # inherited by the spawned workers before they import numpy
+        self.executor = cf.ProcessPoolExecutor(
+            max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, task):
+        return self.executor.submit(run_task, task)
+
+    def wait_any(self, futures):
+        done, pending = cf.wait(futures, return_when=cf.FIRST_COMPLETED)
+        return set(done), set(pending)
+
+    def close(self):
+        self.executor.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskPool:
+    """Tasks on a Dask distributed cluster (``tcp://host:port``, or a ``Client``)."""
+
+    def __init__(self, scheduler):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise SystemExit("--scheduler needs Dask distributed: pip install "
+                             "'tactile_viz[bench]' (or pip install 'dask[distributed]')") from None
+        self.own_client = not hasattr(scheduler, "submit")
+        self.client = Client(scheduler) if self.own_client else scheduler
+
+    def submit(self, task):
+        return self.client.submit(run_task, task, pure=False)
+
+    def wait_any(self, futures):
+        from distributed import wait
+
+        result = wait(list(futures), return_when="FIRST_COMPLETED")
+        return set(result.done), set(result.not_done)
+
+    def close(self):
+        if self.own_client:
+            self.client.close()
+
+
+def open_pool(workers=1, scheduler=None, progress=False):
+    """A Dask pool when ``scheduler`` is given, else a process pool for ``workers`` > 1,
+    else a serial pool."""
+    if scheduler is not None:
+        return DaskPool(scheduler)
+    if workers > 1:
+        return ProcessPool(workers)
+    return SerialPool(progress)
+
+
+def run_tasks(tasks, pool, follow_up=None, progress=True, description="trials"):
+    """Run tasks on a pool and yield ``(task, result)`` as each one finishes.
+
+    Parameters
+    ----------
+    tasks : list of dict
+    pool : SerialPool, ProcessPool or DaskPool
+    follow_up : callable, optional
+        ``follow_up(task, result)`` returns further tasks to submit (e.g. the trials with a
+        learned prior once the trial that learns it is done).
+    progress : bool
+        A progress bar over trials on stderr.
+    """
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), desc=description, unit="trial", file=sys.stderr,
+               disable=not progress)
+    futures = {pool.submit(task): task for task in tasks}
+    try:
+        while futures:
+            done = set(pool.wait_any(list(futures))[0])
+            for future in [f for f in futures if f in done]:  # in submission order
+                task = futures.pop(future)
+                result = future.result()
+                bar.update(1)
+                bar.set_postfix_str(f"{task['object']} {task['strategy']} s{task['seed']}"
+                                    f"{' FAILED' if 'error' in result else ''}")
+                for extra in (follow_up(task, result) if follow_up else []):
+                    futures[pool.submit(extra)] = extra
+                    bar.total += 1
+                    bar.refresh()
+                yield task, result
+    finally:
+        bar.close()

@@ -1,0 +1,58 @@
+"""``bench paper`` end to end on a tiny run, and its task planning."""
+
+import json
+
+import numpy as np
+import trimesh
+
+from tactile_viz.__main__ import main as cli
+from tactile_viz.experiments import paper
+
+
+def test_tiny_run_writes_trials_table_and_plots(tmp_path):
+    out = tmp_path / "run"
+    argv = ["bench", "paper", "--trials", "1", "--objects", "mug_1", "--strategies",
+            "gpis-dhd", "--max-steps", "3", "--no-learned", "--out", str(out), "--no-progress"]
+    assert cli(argv) == 0
+    files = list((out / "trials").glob("*.json"))
+    assert len(files) == 1
+    result = json.loads(files[0].read_text())
+    assert result["object"] == "mug_1" and len(result["steps"]) == 3
+    summary = (out / "summary.md").read_text()
+    assert "## Known objects" in summary and "| mug_1 | gpis-dhd | 1 |" in summary
+    assert (out / "overview.png").stat().st_size > 1000
+    stamp = files[0].stat().st_mtime_ns
+    assert cli(argv + ["--resume"]) == 0  # nothing to rerun
+    assert files[0].stat().st_mtime_ns == stamp
+
+
+def test_protocol_plan_orders_costly_trials_first_and_learns_from_the_home_chair():
+    sets = paper.object_sets()
+    tasks = paper.protocol_tasks(["mug_1", "home_chair"], ["gpis-dhd", "rrt"], 2, 10,
+                                 "paper", None, True, sets)
+    assert len(tasks) == 8
+    assert [(t["object"], t["strategy"]) for t in tasks[::2]] == [
+        ("home_chair", "gpis-dhd"), ("mug_1", "gpis-dhd"), ("home_chair", "rrt"), ("mug_1", "rrt")]
+    assert tasks[0]["poisson"]
+    assert not any(t["poisson"] for t in tasks if t["object"] == "mug_1")
+    planned = paper.learn_task(tasks, 10, "paper", None, True)
+    assert planned[0]["learn_as"] == paper.LEARNED_NAME
+    assert (planned[0]["object"], planned[0]["strategy"], planned[0]["seed"]) == (
+        "home_chair", "gpis-dhd", 10)
+    alone = paper.learn_task([t for t in tasks if t["object"] == "mug_1"], 10, "paper", None,
+                             True)
+    assert alone[0]["kind"] == "learn" and len(alone) == 5
+
+
+def test_learned_surface_is_saved_and_becomes_a_prior(tmp_path):
+    box = trimesh.creation.box((6, 3, 2))
+    result = {"learned": {"name": "home_chair_learned", "vertices": box.vertices.tolist(),
+                          "faces": box.faces.tolist()}}
+    prior = paper.save_learned(result, tmp_path)
+    assert result["learned"]["n_faces"] == 12 and "vertices" not in result["learned"]
+    loaded = paper.load_learned(tmp_path)
+    assert np.allclose(loaded["vertices"], prior["vertices"])
+    tasks = paper.learned_tasks(loaded, 3, 0, "paper", 5)
+    assert [t["seed"] for t in tasks] == [1000, 1001, 1002]
+    assert tasks[0]["extra_priors"][0]["name"] == "home_chair_learned"
+    assert paper.save_learned({"learned": {"error": "not novel"}}, tmp_path) is None

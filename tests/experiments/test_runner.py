@@ -1,0 +1,62 @@
+"""Running trials: the same JSON serially, in a process pool and on a Dask cluster."""
+
+import json
+
+import pytest
+
+from tactile_viz.experiments.runner import (ProcessPool, SerialPool, make_task, run_task,
+                                            run_tasks, strip_timings, task_key)
+
+TASKS = [make_task("mug_1", "gpis-dhd", seed=3, max_steps=5),
+         make_task("vase_2", "rrt", seed=4, max_steps=5, poisson=True, poisson_depth=6)]
+
+
+@pytest.fixture(scope="module")
+def serial():
+    return {task_key(t): strip_timings(run_task(t)) for t in TASKS}
+
+
+def _run(pool):
+    try:
+        return {task_key(t): strip_timings(r) for t, r in run_tasks(TASKS, pool, progress=False)}
+    finally:
+        pool.close()
+
+
+def test_serial_results_carry_the_benchmark_fields(serial):
+    for result in serial.values():
+        assert "error" not in result, result.get("error")
+        assert len(result["steps"]) == 5
+        assert len(result["final"]["contacts"]) == result["steps"][-1]["n_contacts"]
+        json.dumps(result)
+    vase = serial[task_key(TASKS[1])]
+    pytest.importorskip("pymeshlab")
+    assert vase["poisson"]["depth"] == 6
+
+
+def test_dask_cluster_gives_the_serial_json(serial):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            from tactile_viz.experiments.runner import DaskPool
+
+            assert _run(DaskPool(client)) == serial
+
+
+def test_follow_up_tasks_are_run():
+    first = make_task("mug_1", seed=0, max_steps=1)
+    extra = make_task("mug_1", seed=1, max_steps=1)
+    seen = [t["seed"] for t, _ in run_tasks(
+        [first], SerialPool(), lambda task, _: [extra] if task is first else [],
+        progress=False)]
+    assert seen == [0, 1]
+
+
+def test_a_failing_trial_is_reported_not_raised():
+    result = run_task(make_task("no_such_object", max_steps=1))
+    assert "error" in result and result["task"]["object"] == "no_such_object"
+
+
+def test_process_pool_gives_the_serial_json(serial):
+    assert _run(ProcessPool(2)) == serial

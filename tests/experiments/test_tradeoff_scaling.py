@@ -1,0 +1,52 @@
+"""Pareto front, configurations and growth exponents (no long runs)."""
+
+import numpy as np
+import pytest
+
+from tactile_viz.engine.session import SessionParams
+from tactile_viz.experiments import tradeoff
+from tactile_viz.experiments.aggregate import markdown_table
+from tactile_viz.experiments.scaling import growth_exponent, library_of_size
+
+
+def test_pareto_front():
+    times = [1.0, 2.0, 3.0, 2.5, 1.0, np.nan]
+    errors = [0.9, 0.5, 0.4, 0.6, 1.0, 0.1]
+    assert tradeoff.pareto_front(times, errors) == [0, 1, 2]
+
+
+def test_every_configuration_is_valid_and_the_presets_are_unchanged():
+    for name in tradeoff.CONFIGS:
+        SessionParams.from_dict(tradeoff.config_params(name))
+    assert tradeoff.config_params("gpis24")["gpis_resolution"] == 24
+    assert tradeoff.config_params("coarse-keys")["filter"]["distance_step"] == 0.2
+    assert tradeoff.config_params("paper") == SessionParams().to_dict()
+    assert tradeoff.describe("eps0.4") == "eps=0.4"
+
+
+def test_rows_mark_the_front():
+    def result(config, seconds, pose):
+        return {"object": "mug_1", "seed": 0, "strategy": "gpis-dhd", "seconds": seconds,
+                "terminated_at": 1, "task": {"kind": "tradeoff", "tag": config},
+                "steps": [{"t": 1, "map_class": "mug_1", "pose_error": pose, "dhd": 0.5,
+                           "novel": False, "recon_error": None, "n_particles": 10}]}
+
+    rows = tradeoff.rows_from_results([result("fast", 1.0, 0.5), result("paper", 2.0, 0.3),
+                                       result("sdf32", 3.0, 0.6)], {"mug_1": "known"})
+    front = {r["config"]: bool(r.get("front_pose_error")) for r in rows}
+    assert front == {"fast": True, "paper": True, "sdf32": False}
+
+
+def test_growth_exponent_of_a_power_law():
+    sizes = np.array([10, 20, 40, 80])
+    assert growth_exponent(sizes, 3e-4 * sizes ** 1.7) == pytest.approx(1.7)
+    assert np.isnan(growth_exponent([10], [1.0]))
+
+
+def test_library_of_forty_priors_has_unique_names():
+    library = library_of_size(40)
+    assert len(library) == 40 and len(set(library.names)) == 40
+
+
+def test_small_values_keep_their_digits():
+    assert "0.000123" in markdown_table(["x"], [[0.000123]])
