@@ -82,7 +82,7 @@ class ViewportLayers:
             surface = faces_to_polydata(snapshot.gpis_vertices, snapshot.gpis_faces)
             surface["variance"] = np.asarray(snapshot.gpis_variance)
             self._put("gpis", surface, scalars="variance", cmap="viridis", smooth_shading=True,
-                      scalar_bar_args={"title": "GPIS variance", "vertical": True,
+                      scalar_bar_args={"title": "variance", "vertical": True,
                                        "position_x": 0.88, "position_y": 0.1})
             self._show_scalar_bar(self.visible["gpis"])
         else:
@@ -125,8 +125,8 @@ class ViewportLayers:
 
     def _show_scalar_bar(self, visible):
         bars = getattr(self.plotter, "scalar_bars", {})
-        if visible and "gpis" in self.actors and "GPIS variance" not in bars:
-            self.plotter.add_scalar_bar(title="GPIS variance", mapper=self.actors["gpis"].mapper,
+        if visible and "gpis" in self.actors and "variance" not in bars:
+            self.plotter.add_scalar_bar(title="variance", mapper=self.actors["gpis"].mapper,
                                         vertical=True, position_x=0.88, position_y=0.1)
-        elif not visible and "GPIS variance" in bars:
-            self.plotter.remove_scalar_bar("GPIS variance", render=False)
+        elif not visible and "variance" in bars:
+            self.plotter.remove_scalar_bar("variance", render=False)
