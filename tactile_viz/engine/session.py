@@ -15,7 +15,9 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
+from .cache import write_bytes_atomic
 from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           rrt_step)
@@ -23,13 +25,13 @@ from .gpis import fit_gpis, zero_level_surface
 from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
 from .objects import ObjectModel
-from .observations import Contact
 from .meshes import check_arrays
+from .observations import Contact
 from .params import FilterParams, _check_integer, _check_real, preset
 from .particle_filter import ParticleFilter
 from .sdf import normalise_rows
 from .simulator import ContactSimulator, GroundTruth
-from .transforms import transform_points
+from .transforms import random_pose, transform_points
 
 
 class SessionError(TactileVizError):
@@ -386,8 +388,6 @@ class Session:
             variance[subset] = fit.variance(vertices[subset])
             if count < len(vertices):
                 # Other vertices show the variance of the nearest evaluated one.
-                from scipy.spatial import cKDTree
-
                 nearest = cKDTree(vertices[subset]).query(vertices)[1]
                 variance = variance[subset][nearest]
         timings["surface"] = time.perf_counter() - clock
@@ -401,8 +401,6 @@ class Session:
             if self._missed_targets:
                 # Around a target whose probe found no surface, aiming again would only
                 # repeat the miss (the GPIS learns from contacts only).
-                from scipy.spatial import cKDTree
-
                 refuted = (cKDTree(self._missed_targets).query(vertices[subset])[0]
                            < self.params.follow_step)
                 if not refuted.all():
@@ -434,8 +432,6 @@ class Session:
     # ---------------------------------------------------------------- persistence
     def save(self, path):
         """Save the session (its set-up and its observation history) to an ``.npz`` file."""
-        from .cache import write_bytes_atomic
-
         config = {"format": "tactile_viz-session", "version": 1, "strategy": self.strategy,
                   "seed": self.seed, "params": self.params.to_dict(),
                   "sensor_noise": list(self.sensor_noise), "steps": self.step_count,
@@ -547,8 +543,6 @@ def learned_model_from_surface(vertices, faces, name, params=None):
 
 def make_truth(model, rng=None, max_translation=1.0):
     """The ground truth of a trial: ``model`` at a random pose."""
-    from .transforms import random_pose
-
     rotation, translation = random_pose(rng, max_translation)
     return GroundTruth(model, rotation, translation)
 

@@ -10,6 +10,7 @@ the exact signed distance out to the surface, which ends at the closest surface 
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 
 from .errors import ParameterError
 from .observations import Contact, NonContact
@@ -59,8 +60,6 @@ class GroundTruth:
 
     def surface_points(self, count, rng=None):
         """Area-uniform points on the surface, world frame: (count, 3)."""
-        import trimesh  # local: only used here
-
         points, _ = trimesh.sample.sample_surface(self.model.mesh, count,
                                                   seed=np.random.default_rng(rng))
         return self.to_world(points)
