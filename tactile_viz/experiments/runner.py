@@ -189,7 +189,13 @@ class ProcessPool:
         return set(done), set(pending)
 
     def close(self):
-        self.executor.shutdown(wait=True, cancel_futures=True)
+        interrupted = sys.exc_info()[0] is not None  # closing while an exception unwinds
+        if interrupted:
+            # Ctrl-C: running trials can take minutes; waiting for them (or leaving the
+            # workers to finish on their own) would keep the cores busy after the run died.
+            for process in list(getattr(self.executor, "_processes", {}).values()):
+                process.terminate()
+        self.executor.shutdown(wait=not interrupted, cancel_futures=True)
 
 
 class DaskPool:
