@@ -65,7 +65,7 @@ def build_parser():
     trial.set_defaults(run=_trial)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
-                                              "scaling)",
+                                              "scaling, noise)",
                                 description="Benchmarks; each has its own --help.")
     bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise"],
                        help="sdf: grid SDF vs exact queries per second; step: time of each "
