@@ -1,0 +1,69 @@
+"""Target selection and contact enforcement on a sphere of radius 3 (exact answers)."""
+
+import numpy as np
+import pytest
+
+from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
+from tactile_viz.engine.exploration import (enforce_contact, farthest_vertex, first_contact,
+                                            follow_surface, rrt_step)
+from tactile_viz.engine.session import deepest_inside
+
+
+@pytest.fixture
+def simulator(sphere_model):
+    return ContactSimulator(GroundTruth(sphere_model, np.eye(3), np.zeros(3)))
+
+
+def _on_sphere(observation):
+    return isinstance(observation, Contact) and abs(np.linalg.norm(observation.position) - 3) < 0.02
+
+
+def test_first_contact_touches(simulator, rng):
+    paths, observations = first_contact(simulator, np.zeros(3), rng)
+    assert _on_sphere(observations[-1]) and len(paths) == len(observations)
+
+
+def test_reaching_a_real_target_gives_one_contact(simulator):
+    target, normal = np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0])
+    paths, observations = enforce_contact(simulator, target, normal, np.array([[3.0, 0, 0]]),
+                                          np.array([[1.0, 0, 0]]))
+    assert len(observations) == 1 and _on_sphere(observations[0])
+    np.testing.assert_allclose(observations[0].position, target, atol=0.02)
+
+
+def test_a_phantom_target_records_a_miss_then_follows_the_surface(simulator):
+    # The estimate claims surface at z = 4.5; the sphere ends at 3, the probe reaches 3.6.
+    target, normal = np.array([0.0, 0.0, 4.5]), np.array([0.0, 0.0, 1.0])
+    contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    paths, observations = enforce_contact(simulator, target, normal, contacts, normals,
+                                          depth=0.9, follow_step=0.3)
+    assert isinstance(observations[0], NonContact)
+    np.testing.assert_allclose(observations[0].position, [0, 0, 3.6])
+    assert _on_sphere(observations[-1])
+    # One tangent step from the nearest contact toward the target.
+    moved = observations[-1].position
+    assert moved[2] > 0.1 and np.linalg.norm(moved - contacts[0]) < 0.45
+
+
+def test_following_off_an_edge_comes_back_to_the_surface(simulator):
+    contacts, normals = np.array([[0.0, 0, 3.0]]), np.array([[0.0, 0, 1.0]])
+    paths, observations = follow_surface(simulator, np.array([50.0, 0, 3.0]), contacts, normals,
+                                         step=2.9, depth=0.2)
+    assert _on_sphere(observations[-1])
+
+
+def test_rrt_steps_stay_near_the_nearest_contact(simulator, rng):
+    contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    for _ in range(10):
+        _, observations = rrt_step(simulator, contacts, normals, (-np.ones(3) * 6, np.ones(3) * 6),
+                                   rng, step=0.3)
+        assert _on_sphere(observations[-1])
+        assert np.linalg.norm(observations[-1].position - contacts[0]) < 0.5
+
+
+def test_farthest_vertex_and_deepest_inside():
+    vertices = np.array([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    assert farthest_vertex(vertices, np.array([[0.5, 0, 0]])) == 2
+    estimate = lambda points: np.abs(points[:, 2] - 0.4) - 0.5  # noqa: E731 (slab, deepest at z=0.4)
+    depth = deepest_inside(estimate, np.array([0.0, 0, 1.0]), np.array([0.0, 0, 1.0]), 1.0)
+    assert depth == pytest.approx(0.6, abs=0.06)
