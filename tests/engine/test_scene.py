@@ -84,3 +84,26 @@ def test_save_and_load_session(scene, tmp_path):
     other.stepped.connect(seen.append)
     other.load_session(tmp_path / "s.npz")
     assert other.truth_model.name == "vase_1" and [s.step for s in seen] == [1, 2]
+
+
+def test_library_folders_round_trip_and_corrupt_ones_change_nothing(scene, tmp_path):
+    scene.set_prior_enabled("mug_1", False)
+    folder = scene.save_library(tmp_path / "priors")
+    scene.load_library(folder)
+    assert scene.library.names == ["mug_1", "vase_1", "bottle_1"]
+    assert all(scene.enabled.values())
+    (folder / "library.json").write_text("{not json")
+    library = scene.library
+    with pytest.raises(LibraryError, match="corrupt"):
+        scene.load_library(folder)
+    assert scene.library is library
+
+
+def test_prior_from_file_is_added_and_enabled(scene, bundled, tmp_path):
+    path = tmp_path / "sofa.ply"
+    bundled["sofa_1"].mesh.export(path)
+    model = scene.add_prior_file(path)
+    assert model.name == "sofa" and scene.enabled["sofa"]
+    with pytest.raises(LibraryError, match="already"):
+        scene.add_prior_file(path)
+    assert scene.active_library().names[-1] == "sofa"
