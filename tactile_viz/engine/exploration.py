@@ -8,6 +8,7 @@ simulator (the only thing that touches the ground truth) and an ``rng``.
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .errors import TactileVizError
 from .observations import Contact
 from .sdf import normalise_rows
 
@@ -39,7 +40,8 @@ def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
         observations.append(observation)
         if isinstance(observation, Contact):
             return paths, observations
-    raise RuntimeError(f"no contact after {attempts} random lines through the workspace")
+    raise TactileVizError(f"no contact after {attempts} random lines through the workspace: "
+                          "is the object near the origin?")
 
 
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,

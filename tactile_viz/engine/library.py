@@ -183,4 +183,4 @@ def _read_manifest(folder):
     return entries
 
 
-__all__ = ["PriorLibrary", "LibraryError", "MeshError"]
+__all__ = ["PriorLibrary"]

@@ -12,7 +12,7 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 6. the known/novel decision from the MAP evidence.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -101,7 +101,6 @@ class FilterState:
     sampled: int
     n_contacts: int
     n_noncontacts: int
-    timings: dict = field(default_factory=dict)
 
     @property
     def n_particles(self):

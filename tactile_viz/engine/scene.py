@@ -10,10 +10,9 @@ raises the project's error and changes nothing.
 from dataclasses import replace
 from pathlib import Path
 
-from .errors import LibraryError, TactileVizError
+from .errors import LibraryError
 from .library import PriorLibrary
 from .objects import ObjectModel, bundled_names, load_bundled
-from .params import FilterParams
 from .session import Session, SessionError, make_truth, session_preset
 
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
@@ -243,4 +242,4 @@ class Scene:
         return session
 
 
-__all__ = ["Scene", "Signal", "FilterParams", "TactileVizError"]
+__all__ = ["Scene", "Signal"]

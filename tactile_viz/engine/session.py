@@ -391,7 +391,6 @@ class Session:
                 nearest = cKDTree(vertices[subset]).query(vertices)[1]
                 variance = variance[subset][nearest]
         timings["surface"] = time.perf_counter() - clock
-        self._fit = fit
         return vertices, faces, variance, subset if len(vertices) else None, fit
 
     def _next_target(self, surface, gpis, model, rotation, translation, contacts):
@@ -548,4 +547,4 @@ def make_truth(model, rng=None, max_translation=1.0):
 
 
 __all__ = ["Session", "SessionError", "SessionParams", "Snapshot", "session_preset",
-           "SESSION_PRESETS", "learned_model_from_surface", "make_truth", "Contact"]
+           "SESSION_PRESETS", "learned_model_from_surface", "make_truth"]
