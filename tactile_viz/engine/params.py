@@ -139,6 +139,8 @@ PRESETS = {
     "fast": FilterParams(n_features=120, sdf_resolution=48, n_s=15, max_new_per_class=800),
     # The paper's values.
     "paper": FilterParams(),
+    # The paper's values plus the local refinement of the MAP pose (beyond the paper).
+    "refined": FilterParams(refine_map=True),
     # Finer grids, neighbour-bin look-up and MAP refinement.
     "accurate": FilterParams(n_features=300, sdf_resolution=96, neighbour_bins=1,
                              init_rotations=4, max_new_per_class=4000, refine_map=True),

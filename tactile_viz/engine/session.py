@@ -119,13 +119,14 @@ SESSION_PRESETS = {
     "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, variance_points=800,
                           metric_samples=2000),
     "paper": SessionParams(),
+    "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
 }
 
 
 def session_preset(name, **overrides):
-    """Session parameters of a named preset (``fast``, ``paper``, ``accurate``)."""
+    """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`)."""
     try:
         return replace(SESSION_PRESETS[name], **overrides)
     except KeyError:

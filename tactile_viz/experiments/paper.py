@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
+from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
 
 LEARN_OBJECT = "home_chair"
@@ -53,7 +54,7 @@ def build_parser():
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
                         help="run the trials on a Dask distributed cluster at this address "
                              "(e.g. tcp://10.0.0.5:8786) instead of locally")
-    parser.add_argument("--preset", choices=["fast", "paper", "accurate"], default="paper",
+    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset of every trial (default paper)")
     parser.add_argument("--seed", type=int, default=0,
                         help="first seed; trial i uses seed + i (learned-prior trials seed + "

@@ -23,6 +23,7 @@ from .runner import make_task, open_pool, run_tasks, task_key
 CONFIGS = {
     "fast": ("fast", {}, {}),
     "paper": ("paper", {}, {}),
+    "refined": ("refined", {}, {}),
     "accurate": ("accurate", {}, {}),
     "sdf32": ("paper", {}, {"sdf_resolution": 32}),
     "sdf96": ("paper", {}, {"sdf_resolution": 96}),
@@ -35,7 +36,7 @@ CONFIGS = {
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
 }
-PRESETS = ("fast", "paper", "accurate")
+PRESETS = ("fast", "paper", "refined", "accurate")
 
 
 def config_params(name):

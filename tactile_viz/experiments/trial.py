@@ -8,7 +8,7 @@ from pathlib import Path
 from ..engine.errors import TactileVizError
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, load_bundled
-from ..engine.session import Session, make_truth, session_preset
+from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
 
 
 def add_trial_arguments(parser):
@@ -25,7 +25,7 @@ def add_trial_arguments(parser):
     parser.add_argument("--seed", type=int, default=0, help="pose, exploration and filter seed")
     parser.add_argument("--max-steps", type=int, default=None,
                         help="stop after this many steps (default: the paper's caps 300/400)")
-    parser.add_argument("--preset", choices=["fast", "paper", "accurate"], default="paper",
+    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
     parser.add_argument("--json", metavar="OUT", help="write the JSON here (default stdout)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")

@@ -16,6 +16,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDockWidget, QDoubleSpinBox
 from superqt.utils import thread_worker
 
 from ..engine.errors import TactileVizError
+from ..engine.session import SESSION_PRESETS
 from .layers import LAYERS, ViewportLayers
 from .plots import PlotsWidget
 
@@ -163,10 +164,11 @@ class MainWindow(QMainWindow):
         self.strategy_box.currentTextChanged.connect(
             lambda text: self._guarded(self.scene.set_strategy, text))
         self.preset_box = QComboBox()
-        self.preset_box.addItems(["fast", "paper", "accurate"])
+        self.preset_box.addItems(list(SESSION_PRESETS))
         self.preset_box.setCurrentText(self.scene.preset)
         self.preset_box.setToolTip("fast: coarser grids, fewer features; paper: the paper's "
-                                   "values; accurate: finer grids, neighbour bins, refinement")
+                                   "values; refined: the paper's values plus MAP pose refinement; "
+                                   "accurate: finer grids, neighbour bins, refinement")
         self.preset_box.currentTextChanged.connect(self._on_preset)
         form.addRow("strategy", self.strategy_box)
         form.addRow("preset", self.preset_box)
