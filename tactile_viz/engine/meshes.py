@@ -88,7 +88,9 @@ def prepare_mesh(vertices, faces, source="arrays", longest_side=LONGEST_SIDE,
     faces : (m, 3) int
     source : str
         Named in error messages.
-    longest_side : float
+    longest_side : float or None
+        Scale so that the longest side of the bounding box has this length; None keeps the
+        size (only recentres), as for a learned shape measured in world units.
     max_faces : int or None
         See :func:`load_mesh`.
 
@@ -115,7 +117,7 @@ def prepare_mesh(vertices, faces, source="arrays", longest_side=LONGEST_SIDE,
         raise MeshError(source, "face winding is inconsistent (the surface is not orientable)")
     if mesh.volume < 0:
         mesh.invert()
-    if mesh.volume <= 1e-6 * longest_side**3:
+    if mesh.volume <= 1e-6 * float(mesh.extents.max())**3:
         raise MeshError(source, "encloses no volume (a flat or degenerate surface)")
     # Repairs move the box a little; recentre so the object frame stays the box centre.
     # Vertices are kept float32-exact so saving to PLY and reading back changes nothing.
@@ -222,7 +224,7 @@ def _normalised_vertices(vertices, faces, source, longest_side):
     # Relative to the coordinates' magnitude: a mesh 1e-9 units across is only small, but
     # one 1e-9 across at 1e6 from the origin has lost its shape to rounding.
     with np.errstate(over="ignore", divide="ignore"):
-        factor = longest_side / size if size > 0 else np.inf
+        factor = np.inf if size <= 0 else 1.0 if longest_side is None else longest_side / size
     if not np.isfinite(factor) or size <= 1e-12 * float(np.abs(used).max()):
         raise MeshError(source, "degenerate: all vertices coincide")
     return (vertices - (low + high) / 2) * factor

@@ -17,7 +17,7 @@ import trimesh
 from .cache import ArrayCache
 from .errors import MeshError
 from .features import poisson_disk_points
-from .meshes import content_hash, load_mesh, prepare_mesh
+from .meshes import LONGEST_SIDE, content_hash, load_mesh, prepare_mesh
 from .ppf import PairTable
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 
@@ -75,9 +75,12 @@ class ObjectModel:
         return cls(name or Path(path).stem, mesh, params, cache)
 
     @classmethod
-    def from_arrays(cls, vertices, faces, name, params=None, cache=None):
-        """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and normalised)."""
-        return cls(name, prepare_mesh(vertices, faces, source=name), params, cache)
+    def from_arrays(cls, vertices, faces, name, params=None, cache=None,
+                    longest_side=LONGEST_SIDE):
+        """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and normalised;
+        ``longest_side=None`` keeps their size)."""
+        return cls(name, prepare_mesh(vertices, faces, source=name, longest_side=longest_side),
+                   params, cache)
 
     def with_params(self, **changes):
         """The same mesh with other :class:`ModelParams` (shares the exact distance)."""

@@ -2,12 +2,13 @@ import json
 
 import numpy as np
 import pytest
+import trimesh
 
 from tactile_viz.__main__ import main
 from tactile_viz.engine import PriorLibrary
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.session import (Session, SessionError, SessionParams, make_truth,
-                                        session_preset)
+from tactile_viz.engine.session import (Session, SessionError, SessionParams,
+                                        learned_model_from_surface, make_truth, session_preset)
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +55,19 @@ def test_novel_object_reconstructed_better_than_map(novel_session):
     assert last.recon_error < last.pose_error
     assert len(last.gpis_variance) == len(last.gpis_vertices) > 0
     assert np.all(np.isfinite(last.gpis_variance)) and np.all(last.gpis_variance >= 0)
+
+
+def test_learned_shape_keeps_its_measured_size():
+    # A learned surface is in world units: rescaling its pose-dependent box to the bundled
+    # objects' 6 units would make it a different object.
+    box = trimesh.creation.box(extents=(2.0, 3.0, 4.0))
+    box.apply_transform(trimesh.transformations.rotation_matrix(0.7, [1, 1, 0]))
+    box.apply_translation([5.0, -2.0, 1.0])
+    model = learned_model_from_surface(box.vertices, box.faces, "learned_box")
+    np.testing.assert_allclose(np.sort(model.mesh.bounds[1] - model.mesh.bounds[0]),
+                               np.sort(box.extents), rtol=1e-6)
+    np.testing.assert_allclose(model.mesh.bounds.mean(axis=0), 0.0, atol=1e-6)
+    assert abs(model.mesh.volume - 24.0) < 1e-4
 
 
 def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tmp_path):
