@@ -224,7 +224,8 @@ def _normalised_vertices(vertices, faces, source, longest_side):
     # Relative to the coordinates' magnitude: a mesh 1e-9 units across is only small, but
     # one 1e-9 across at 1e6 from the origin has lost its shape to rounding.
     with np.errstate(over="ignore", divide="ignore"):
-        factor = np.inf if size <= 0 else 1.0 if longest_side is None else longest_side / size
+        target = size if longest_side is None else longest_side
+        factor = target / size if size > 0 else np.inf
     if not np.isfinite(factor) or size <= 1e-12 * float(np.abs(used).max()):
         raise MeshError(source, "degenerate: all vertices coincide")
     return (vertices - (low + high) / 2) * factor

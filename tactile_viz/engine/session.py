@@ -537,7 +537,7 @@ def learned_model_from_surface(vertices, faces, name, params=None):
 
     The surface keeps its measured size: it is in the same world units as the object it was
     learned from, whereas scaling its (pose-dependent) bounding box to the bundled objects'
-    size would shrink it by up to ~15% and spoil every later match.
+    size would change its size and spoil every later match.
     """
     mesh = trimesh.Trimesh(vertices, faces, process=True)
     pieces = mesh.split(only_watertight=False)

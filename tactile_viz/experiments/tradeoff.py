@@ -11,20 +11,21 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
 from .paper import machine_description, object_sets, split_names, write_json
 from .runner import make_task, open_pool, run_tasks, task_key
 
-# name -> (base preset, session overrides, filter overrides)
+PRESETS = tuple(SESSION_PRESETS)
+# name -> (base preset, session overrides, filter overrides): every preset, then one-knob
+# changes of the paper preset.
 CONFIGS = {
-    "fast": ("fast", {}, {}),
-    "paper": ("paper", {}, {}),
-    "refined": ("refined", {}, {}),
-    "accurate": ("accurate", {}, {}),
+    **{name: (name, {}, {}) for name in PRESETS},
     "sdf32": ("paper", {}, {"sdf_resolution": 32}),
     "sdf96": ("paper", {}, {"sdf_resolution": 96}),
     "features100": ("paper", {}, {"n_features": 100}),
@@ -36,15 +37,10 @@ CONFIGS = {
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
 }
-PRESETS = ("fast", "paper", "refined", "accurate")
 
 
 def config_params(name):
     """``SessionParams.to_dict()`` of a configuration."""
-    from dataclasses import replace
-
-    from ..engine.session import session_preset
-
     base, session_changes, filter_changes = CONFIGS[name]
     params = session_preset(base)
     params = replace(params, filter=replace(params.filter, **filter_changes), **session_changes)
