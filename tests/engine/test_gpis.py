@@ -1,8 +1,11 @@
 import numpy as np
 import pytest
 
-from tactile_viz.engine.gpis import (fit_gpis, gradient_rows, kernel_blocks, value_rows,
-                                     zero_level_surface)
+from scipy.linalg import cho_solve
+
+from tactile_viz.engine.gpis import (_inverse_from_cholesky, fit_gpis, gradient_rows,
+                                     kernel_blocks, stable_cholesky, value_correction,
+                                     value_rows, zero_level_surface)
 from tactile_viz.engine.metrics import surface_samples
 
 
@@ -45,6 +48,22 @@ def test_kernel_derivative_blocks_match_finite_differences(rng):
                 h = 1e-5
     np.testing.assert_allclose(value_rows(x, y, radius), blocks[::4])
     np.testing.assert_allclose(gradient_rows(x, y, radius)[:, 1], blocks[2::4])
+
+
+def test_value_correction_matches_the_kernel_rows(rng):
+    x, y = rng.uniform(-4, 4, size=(50, 3)), rng.uniform(-3, 3, size=(7, 3))
+    weights = rng.normal(size=4 * len(y))
+    x[0] = y[2]  # a query on a contact (r = 0)
+    np.testing.assert_allclose(value_correction(x, y, weights, 12.0),
+                               value_rows(x, y, 12.0) @ weights, rtol=1e-12, atol=1e-9)
+
+
+def test_inverse_from_cholesky_matches_a_solve(rng):
+    points = rng.normal(size=(6, 3))
+    gram = kernel_blocks(points, points, 10.0) + 1e-4 * np.eye(24)
+    factor, _ = stable_cholesky(gram)
+    np.testing.assert_allclose(_inverse_from_cholesky(factor),
+                               cho_solve((factor, True), np.eye(24)), rtol=1e-8, atol=1e-12)
 
 
 def test_kernel_at_zero_distance_is_finite():
