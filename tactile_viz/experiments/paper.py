@@ -248,6 +248,10 @@ def report(folder, command=None):
         lines += [f"Command: `{command}`", ""]
     lines += [f"Machine: {machine_description()}", "",
               f"Trials: {len(results)} ({sum('error' in s for s in summaries)} failed)", ""]
+    versions = sorted({str(r.get("code_version")) for r in results})
+    if versions:
+        # Trials are reproducible per seed only within one version of the code.
+        lines += [f"Code version(s) of the trials: {', '.join(versions)}", ""]
     failed = [s for s in summaries if "error" in s]
     for summary in failed:
         lines.append(f"- FAILED {summary['object']} {summary['strategy']} seed {summary['seed']}: "

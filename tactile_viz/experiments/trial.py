@@ -1,6 +1,8 @@
 """One headless trial: ``python -m tactile_viz trial ...`` (DESIGN section 6 contract)."""
 
+import functools
 import json
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -42,6 +44,21 @@ def load_priors(args):
     return PriorLibrary.bundled(args.library or "known")
 
 
+@functools.cache
+def code_version():
+    """``git describe`` of the checkout this package runs from, or None outside a checkout.
+
+    Trials are deterministic per seed for one version of the code; recording it tells which
+    trial files belong together.
+    """
+    try:
+        out = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True,
+                             text=True, timeout=10, cwd=Path(__file__).resolve().parent)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None if out.returncode == 0 else None
+
+
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
               max_steps=None, progress=False, params=None, finish=None):
     """Run one trial and return its JSON-ready result dict.
@@ -76,6 +93,7 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist()},
             "terminated_at": last.step if last.terminated else None,
+            "code_version": code_version(),
             "seconds": time.perf_counter() - start, "steps": steps}
     if finish is not None:
         result.update(finish(session))

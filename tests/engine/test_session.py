@@ -158,6 +158,8 @@ def test_trial_command_writes_the_json_contract(tmp_path):
     assert {"object", "seed", "strategy", "params", "terminated_at", "steps"} <= set(result)
     assert result["object"] == "bottle_1" and result["seed"] == 2
     assert len(result["steps"]) == 6 and result["terminated_at"] is None
+    # The commit the trial ran with (None outside a git checkout).
+    assert result["code_version"] is None or isinstance(result["code_version"], str)
     step = result["steps"][-1]
     assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error", "n_particles",
             "n_contacts", "n_noncontacts", "step_seconds"} <= set(step)
