@@ -42,6 +42,11 @@ def test_protocol_plan_orders_costly_trials_first_and_learns_from_the_home_chair
     alone = paper.learn_task([t for t in tasks if t["object"] == "mug_1"], 10, "paper", None,
                              True)
     assert alone[0]["kind"] == "learn" and len(alone) == 5
+    # Within a group, trial 0 of every object comes before trial 1 of any.
+    novel = paper.protocol_tasks(["mug_2", "home_chair"], ["gpis-dhd"], 2, 0, "paper", None,
+                                 False, sets)
+    assert [(t["object"], t["seed"]) for t in novel] == [
+        ("home_chair", 0), ("mug_2", 0), ("home_chair", 1), ("mug_2", 1)]
 
 
 def test_learned_surface_is_saved_and_becomes_a_prior(tmp_path):
