@@ -140,7 +140,9 @@ def main(argv=None):
              markdown_table(["priors", "median s", "mean s", "particles at the end"],
                             [[r["priors"], r["median"], r["mean"], r["particles"]]
                              for r in prior_rows]), "",
-             f"Growth exponent against the number of priors: {prior_exponent:.2f}", "",
+             "Growth exponent against the number of priors: "
+             + (f"{prior_exponent:.2f}" if np.isfinite(prior_exponent)
+                else "n/a (needs two library sizes)"), "",
              "![scaling](scaling.png)"]
     (out / "scaling.md").write_text("\n".join(lines) + "\n")
     (out / "scaling.json").write_text(json.dumps(
