@@ -46,17 +46,27 @@ def load_priors(args):
 
 @functools.cache
 def code_version():
-    """``git describe`` of the checkout this package runs from, or None outside a checkout.
+    """The commit this package runs from (``git describe``), ``-dirty`` if the package's own
+    files differ from it; None outside a git checkout.
 
     Trials are deterministic per seed for one version of the code; recording it tells which
-    trial files belong together.
+    trial files belong together. Changes outside the package (results, docs) do not count.
     """
+    package = Path(__file__).resolve().parents[1]
+
+    def git(*args):
+        out = subprocess.run(["git", *args], capture_output=True, text=True, timeout=10,
+                             cwd=package)
+        return out.stdout.strip() if out.returncode == 0 else None
+
     try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True,
-                             text=True, timeout=10, cwd=Path(__file__).resolve().parent)
+        commit = git("describe", "--always")
+        changed = git("status", "--porcelain", "--", ".")
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
+    if not commit:
+        return None
+    return commit + ("-dirty" if changed else "")
 
 
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",

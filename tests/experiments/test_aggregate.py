@@ -96,6 +96,9 @@ def test_learned_rows_count_recognition_of_the_learned_prior():
     after = [aggregate.summarise_trial(fake_trial("home_chair", seed=1000 + k,
                                                   map_class="home_chair_learned", kind="learned"))
              for k in range(2)]
+    after.append(aggregate.summarise_trial(fake_trial(
+        "home_chair", seed=1002, novel=True, map_class="home_chair_learned", kind="learned")))
     rows = aggregate.learned_rows(before, after)
-    assert rows[0][2] == "0/1" and rows[0][3] == "1/1" and rows[0][-1] == 5
-    assert rows[1][2] == "2/2" and rows[1][-1] == 3
+    # columns: library, trials, MAP class = learned, recognised, judged novel, ...
+    assert rows[0][2:5] == ["0/1", "0/1", "1/1"] and rows[0][-1] == 5
+    assert rows[1][2:5] == ["3/3", "2/3", "1/3"] and rows[1][-1] == 3
