@@ -48,8 +48,10 @@ run: setup
 # X server: QT_QPA_PLATFORM=offscreen fails with "Render window is not
 # current", so tests/gui/conftest.py forces the xcb platform.
 # pytest's exit code is make's: a failing test fails `make test`.
+# One BLAS thread, as in the benchmarks' workers: trajectories are deterministic per seed
+# only for a fixed summation order, which the number of BLAS threads changes.
 test: setup
-	$(PY) -m pytest $(PYTEST_ARGS)
+	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest $(PYTEST_ARGS)
 
 # Regenerate the README's images: object sheets off-screen, the window under Xvfb.
 XVFB_RUN := xvfb-run -a -s "-screen 0 1600x1000x24"

@@ -59,6 +59,10 @@ class SessionParams:
         Margin of the reconstruction box around the MAP shape and the contacts.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
+    learned_resolution : int
+        Marching-cubes cells along the longest side when a reconstruction is kept as a new
+        prior: the same posterior mean as the step's surface, sampled finer, since a learned
+        shape is extracted once and matched against every later contact.
     probe_depth, follow_step : float
         How deep contact enforcement reaches; the length of a surface-following step.
     rrt_step : float
@@ -75,6 +79,7 @@ class SessionParams:
     gpis_resolution: int = 32
     gpis_margin: float = 0.6
     variance_points: int = 1500
+    learned_resolution: int = 64
     probe_depth: float = 1.0
     follow_step: float = 0.3
     rrt_step: float = 0.3
@@ -90,12 +95,13 @@ class SessionParams:
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
         for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
-                     "gpis_resolution"):
+                     "gpis_resolution", "learned_resolution"):
             object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
             if getattr(self, name) < 1:
                 raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
-        if self.gpis_resolution < 8:
-            raise ParameterError(f"gpis_resolution must be at least 8, got {self.gpis_resolution!r}")
+        for name in ("gpis_resolution", "learned_resolution"):
+            if getattr(self, name) < 8:
+                raise ParameterError(f"{name} must be at least 8, got {getattr(self, name)!r}")
 
     def to_dict(self):
         values = asdict(self)
@@ -369,12 +375,17 @@ class Session:
 
         return prior
 
+    def _gpis_box(self, map_vertices, contacts):
+        """The reconstruction box (low, high) and the kernel ``R`` (1.2 x its diagonal)."""
+        margin = self.params.gpis_margin
+        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - margin
+        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + margin
+        return low, high, 1.2 * float(np.linalg.norm(high - low))
+
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
         p = self.params
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
-        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
-        radius = 1.2 * float(np.linalg.norm(high - low))
+        low, high, radius = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
         fit = fit_gpis(contacts, normals, self._prior(model, rotation, translation), radius,
                        scale=self._scale, noise_variance=p.gpis_noise)
@@ -415,19 +426,38 @@ class Session:
         return surface[index], normalise_rows(normal[None])[0], lambda x: estimate(x)[0]
 
     # ---------------------------------------------------------------- learning
-    def learned_model(self, name, snapshot=None):
+    def learned_model(self, name, snapshot=None, resolution=None):
         """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
 
-        Keeps the largest connected piece of the GPIS zero level set; the model is checked
-        and normalised like any loaded mesh.
+        The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
+        extracted again at ``resolution`` (default ``params.learned_resolution``); the
+        largest connected piece of the zero level set is kept, and the model is checked and
+        normalised like any loaded mesh.
         """
         snapshot = snapshot or self.latest
         if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
             raise SessionError("no reconstructed surface to learn from: the object was not "
                                "judged novel in this step")
-        return learned_model_from_surface(snapshot.gpis_vertices, snapshot.gpis_faces, name,
+        resolution = resolution or self.params.learned_resolution
+        vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
+        if resolution != self.params.gpis_resolution:
+            vertices, faces = self._surface_at(snapshot, resolution)
+        return learned_model_from_surface(vertices, faces, name,
                                           params=self.library[snapshot.map_class].params
                                           if snapshot.map_class in self.library else None)
+
+    def _surface_at(self, snapshot, resolution):
+        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
+        model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
+        prior = self._prior(model, snapshot.map_rotation, snapshot.map_translation)
+        low, high, radius = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
+        fit = fit_gpis(snapshot.contacts, snapshot.normals, prior, radius,
+                       scale=snapshot.gpis_scale, noise_variance=self.params.gpis_noise,
+                       newton=False)
+        vertices, faces = zero_level_surface(fit, (low, high), resolution)
+        if len(faces) == 0:
+            raise SessionError("the reconstruction has no surface at the learned resolution")
+        return vertices, faces
 
     # ---------------------------------------------------------------- persistence
     def save(self, path):

