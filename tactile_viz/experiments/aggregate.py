@@ -269,5 +269,6 @@ def learned_rows(before, after):
     return rows
 
 
-LEARNED_HEADER = ["library", "trials", "MAP class = learned prior", "recognised", "judged novel", "pose < 0.6 within 50",
+LEARNED_HEADER = ["library", "trials", "MAP class = learned prior", "recognised", "judged novel",
+                  "pose < 0.6 within 50",
                   "steps to pose < 0.6", "final pose error", "termination step"]
