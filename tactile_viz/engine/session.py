@@ -308,12 +308,13 @@ class Session:
             gpis = self._reconstruct(model, rotation, translation, map_vertices, timings)
         clock = time.perf_counter()
         surface = gpis[0] if gpis is not None and len(gpis[0]) else map_vertices
-        dhd = directed_hausdorff(surface, contacts)
+        reachable = self._reachable(surface)
+        dhd = directed_hausdorff(surface[reachable], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         step = self.step_count + 1
         terminated = bool(dhd <= self.params.eps or step >= cap)
         self._target = None if terminated else self._next_target(
-            surface, gpis, model, rotation, translation, contacts)
+            surface, reachable, gpis, model, rotation, translation, contacts)
         timings["target"] = time.perf_counter() - clock
 
         clock = time.perf_counter()
@@ -362,9 +363,33 @@ class Session:
         paths, observations = enforce_contact(self.simulator, target, normal, contacts,
                                               self.filter.contact_normals, depth,
                                               follow_step=p.follow_step)
-        if not isinstance(observations[0], Contact):
+        if not isinstance(observations[0], Contact) or self._repeats_contact(observations[-1]):
             self._missed_targets.append(target)
         return paths, observations
+
+    def _repeats_contact(self, observation):
+        """Whether a contact lands where an earlier one did (within the sensor noise).
+
+        Such a touch taught nothing: something in front of the target (or a crevice the
+        probe cannot enter) took it, and aiming at the same target again would repeat it.
+        """
+        contacts = self.filter.contact_positions
+        if not isinstance(observation, Contact) or len(contacts) == 0:
+            return False
+        tolerance = max(4.0 * self.sensor_noise[0], 1e-9)
+        return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
+
+    def _reachable(self, vertices):
+        """Mask of the vertices away from every target the sensor failed to reach.
+
+        The DHD and the next target leave those out (all vertices count if none is left):
+        probing there again cannot change the estimate, so the trial would only run to its
+        step cap.
+        """
+        if not self._missed_targets:
+            return np.ones(len(vertices), bool)
+        far = cKDTree(self._missed_targets).query(vertices)[0] >= self.params.follow_step
+        return far if far.any() else np.ones(len(vertices), bool)
 
     def _prior(self, model, rotation, translation):
         sdf = model.sdf
@@ -405,22 +430,17 @@ class Session:
         timings["surface"] = time.perf_counter() - clock
         return vertices, faces, variance, subset if len(vertices) else None, fit
 
-    def _next_target(self, surface, gpis, model, rotation, translation, contacts):
+    def _next_target(self, surface, reachable, gpis, model, rotation, translation, contacts):
         if gpis is not None and len(gpis[0]):
             vertices, _, variance, subset, fit = gpis
             score = variance[subset]
-            if self._missed_targets:
-                # Around a target whose probe found no surface, aiming again would only
-                # repeat the miss (the GPIS learns from contacts only).
-                refuted = (cKDTree(self._missed_targets).query(vertices[subset])[0]
-                           < self.params.follow_step)
-                if not refuted.all():
-                    score = np.where(refuted, -np.inf, score)
+            if reachable[subset].any():
+                score = np.where(reachable[subset], score, -np.inf)
             index = subset[int(np.argmax(score))]
             target = vertices[index]
             _, gradient = fit.mean(target[None])
             return target, normalise_rows(gradient)[0], fit.mean_value
-        index = farthest_vertex(surface, contacts)
+        index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
         normal = model.mesh.vertex_normals[index] @ rotation.T
         estimate = self._prior(model, rotation, translation)
         return surface[index], normalise_rows(normal[None])[0], lambda x: estimate(x)[0]

@@ -6,6 +6,7 @@ import trimesh
 
 from tactile_viz.__main__ import main
 from tactile_viz.engine import PriorLibrary
+from tactile_viz.engine.observations import Contact, NonContact
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.session import (Session, SessionError, SessionParams,
                                         learned_model_from_surface, make_truth, session_preset)
@@ -41,6 +42,29 @@ def test_known_object_recognised_and_terminates_by_dhd(bundled, known):
     assert last.dhd <= session.params.eps
     assert last.map_class == "guitar_1" and not last.novel and last.pose_error < 0.6
     assert last.recon_error is None and last.gpis_vertices is None
+
+
+def test_unreachable_target_is_given_up(bundled, known):
+    # In this trial the farthest MAP vertex is one the probe cannot reach: every touch aimed
+    # at it ends on the same earlier contact. Before such targets were given up, the trial
+    # touched that one point about 200 times and ran to the 300-step cap.
+    session = Session(make_truth(bundled["sofa_1"], rng=[0, 0]), known, "gpis-dhd", seed=0)
+    last = session.run()
+    assert last.terminated and last.dhd <= session.params.eps and last.step < 200
+    repeats = len(last.contacts) - len(np.unique(last.contacts, axis=0))
+    assert repeats <= 3
+    assert last.map_class == "sofa_1" and not last.novel and last.pose_error < 0.6
+
+
+def test_a_repeat_is_judged_within_the_sensor_noise(bundled, known):
+    noisy = Session(make_truth(bundled["bottle_1"], rng=1), known, seed=1,
+                    sensor_noise=(0.01, 0.0))
+    noisy.run(max_steps=3)
+    first = noisy.filter.contact_positions[0]
+    normal = noisy.filter.contact_normals[0]
+    assert noisy._repeats_contact(Contact(first + 0.02, normal))
+    assert not noisy._repeats_contact(Contact(first + 0.2, normal))
+    assert not noisy._repeats_contact(NonContact(first))
 
 
 def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
