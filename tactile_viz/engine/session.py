@@ -46,7 +46,8 @@ class SessionParams:
     ----------
     filter : FilterParams
     eps : float
-        Termination threshold on the DHD from the estimated surface to the contacts.
+        Termination threshold on the DHD from the estimated surface to the contacts (the
+        surface near targets the sensor could not reach is left out).
     max_steps_known, max_steps_novel : int
         Step caps while the object is judged known / novel (paper 300 / 400).
     gpis_noise : float
@@ -226,7 +227,7 @@ class Session:
         self.snapshots = []
         self._scale = self.params.gpis_scale
         self._target = None
-        self._missed_targets = []
+        self._given_up_targets = []
         self._truth_samples = transform_points(
             surface_samples(truth.model, self.params.metric_samples), truth.rotation,
             truth.translation)
@@ -275,15 +276,15 @@ class Session:
         # references (and the generators' states) is enough to roll a step back.
         return ({name: getattr(self.filter, name) for name in self._FILTER_STATE},
                 [g.bit_generator.state for g in self._generators()],
-                (self._scale, self._target, list(self._missed_targets), len(self.snapshots)))
+                (self._scale, self._target, list(self._given_up_targets), len(self.snapshots)))
 
     def _restore(self, saved):
-        filter_state, generator_states, (scale, target, missed, count) = saved
+        filter_state, generator_states, (scale, target, given_up, count) = saved
         for name, value in filter_state.items():
             setattr(self.filter, name, value)
         for generator, state in zip(self._generators(), generator_states):
             generator.bit_generator.state = state
-        self._scale, self._target, self._missed_targets = scale, target, missed
+        self._scale, self._target, self._given_up_targets = scale, target, given_up
         del self.snapshots[count:]
 
     def _generators(self):
@@ -364,7 +365,7 @@ class Session:
                                               self.filter.contact_normals, depth,
                                               follow_step=p.follow_step)
         if not isinstance(observations[0], Contact) or self._repeats_contact(observations[-1]):
-            self._missed_targets.append(target)
+            self._given_up_targets.append(target)
         return paths, observations
 
     def _repeats_contact(self, observation):
@@ -386,9 +387,9 @@ class Session:
         probing there again cannot change the estimate, so the trial would only run to its
         step cap.
         """
-        if not self._missed_targets:
+        if not self._given_up_targets:
             return np.ones(len(vertices), bool)
-        far = cKDTree(self._missed_targets).query(vertices)[0] >= self.params.follow_step
+        far = cKDTree(self._given_up_targets).query(vertices)[0] >= self.params.follow_step
         return far if far.any() else np.ones(len(vertices), bool)
 
     def _prior(self, model, rotation, translation):
