@@ -18,6 +18,7 @@ import os
 import platform
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -249,10 +250,11 @@ def report(folder, command=None):
         lines += [f"Command: `{command}`", ""]
     lines += [f"Machine: {machine_description()}", "",
               f"Trials: {len(results)} ({sum('error' in s for s in summaries)} failed)", ""]
-    versions = sorted({str(r.get("code_version")) for r in results})
+    versions = Counter(str(r.get("code_version")) for r in results)
     if versions:
         # Trials are reproducible per seed only within one version of the code.
-        lines += [f"Code version(s) of the trials: {', '.join(versions)}", ""]
+        counts = ", ".join(f"{v} ({n})" for v, n in sorted(versions.items()))
+        lines += [f"Code version(s) of the trials (number of trials): {counts}", ""]
     failed = [s for s in summaries if "error" in s]
     for summary in failed:
         lines.append(f"- FAILED {summary['object']} {summary['strategy']} seed {summary['seed']}: "
@@ -319,12 +321,25 @@ def _learned_section(before, after, results):
                                      aggregate.learned_rows(before, after))]
 
 
+def recorded_command(report_path):
+    """The ``Command:`` of an earlier report (the run that made its trials), or None."""
+    report_path = Path(report_path)
+    if not report_path.exists():
+        return None
+    for line in report_path.read_text().splitlines():
+        if line.startswith("Command: `") and line.endswith("`"):
+            return line[len("Command: `"):-1]
+    return None
+
+
 def main(argv=None):
     args = build_parser().parse_args(argv)
     start = time.perf_counter()
     if not args.report_only:
         run(args)
     command = "python -m tactile_viz bench paper " + " ".join(argv or sys.argv[3:])
+    if args.report_only:  # the table still comes from the run that made the trials
+        command = recorded_command(Path(args.out) / "summary.md") or command
     path = report(args.out, command)
     print(f"wrote {path} ({time.perf_counter() - start:.0f} s)", file=sys.stderr)
     return 0

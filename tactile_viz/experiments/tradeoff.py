@@ -18,7 +18,8 @@ import numpy as np
 
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
-from .paper import machine_description, object_sets, split_names, write_json
+from .paper import (machine_description, object_sets, recorded_command, split_names,
+                    write_json)
 from .runner import make_task, open_pool, run_tasks, task_key
 
 PRESETS = tuple(SESSION_PRESETS)
@@ -221,6 +222,9 @@ def main(argv=None):
     start = time.perf_counter()
     if not args.report_only:
         run(args)
-    path = report(args.out, "python -m tactile_viz bench tradeoff " + " ".join(argv or []))
+    command = "python -m tactile_viz bench tradeoff " + " ".join(argv or [])
+    if args.report_only:
+        command = recorded_command(Path(args.out) / "tradeoff.md") or command
+    path = report(args.out, command)
     print(f"wrote {path} ({time.perf_counter() - start:.0f} s)", file=sys.stderr)
     return 0

@@ -20,10 +20,16 @@ def test_tiny_run_writes_trials_table_and_plots(tmp_path):
     assert result["object"] == "mug_1" and len(result["steps"]) == 3
     summary = (out / "summary.md").read_text()
     assert "## Known objects" in summary and "| mug_1 | gpis-dhd | 1 |" in summary
+    assert f"Code version(s) of the trials (number of trials): {result['code_version']} (1)" in summary
     assert (out / "overview.png").stat().st_size > 1000
     stamp = files[0].stat().st_mtime_ns
     assert cli(argv + ["--resume"]) == 0  # nothing to rerun
     assert files[0].stat().st_mtime_ns == stamp
+    command = next(line for line in (out / "summary.md").read_text().splitlines()
+                   if line.startswith("Command:"))
+    assert "--resume" in command
+    assert cli(["bench", "paper", "--report-only", "--out", str(out)]) == 0
+    assert command in (out / "summary.md").read_text()  # the run's command, not --report-only
 
 
 def test_protocol_plan_orders_costly_trials_first_and_learns_from_the_home_chair():
