@@ -45,25 +45,94 @@ def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
 
 
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,
-                    clearance=0.5, follow_step=0.3):
-    """Reach for a target; if the surface is not there, follow the surface toward it.
+                    clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0):
+    """Reach for a target as in the paper's figure; returns what was touched.
 
     The sensor moves from just outside ``target`` inward along ``-normal`` up to ``depth``.
-    A miss is recorded as a non-contact; the sensor then goes back to the nearest contact and
-    takes one step along its tangent plane toward the target, probing inward there.
+    A miss is recorded as a non-contact; the sensor then moves from the probe's end toward
+    the nearest contact (a contact on the way counts) and from wherever it touched follows
+    the surface in small in-contact steps toward the target, until it stands at least
+    ``spacing`` from every earlier contact. That contact is recorded.
+
+    Parameters
+    ----------
+    simulator : ContactSimulator
+    target, normal : (3,) float, world frame
+        The target and the estimated outward normal there.
+    contacts, contact_normals : (n, 3) float
+        Earlier contacts (n >= 1).
+    depth, clearance : float
+        How far inside and outside the target the first probe runs.
+    follow_step : float
+        Length of one surface-following step.
+    spacing : float
+        A contact this far from every earlier one is new; following stops there.
+    max_follow : float
+        Longest surface path before giving up.
 
     Returns
     -------
     paths : list of (k, 3) arrays
     observations : list of Contact / NonContact
+        ``[contact]`` on a hit, else ``[non-contact, contact]``.
+    reached : bool
+        False when the procedure ended within ``spacing`` of an earlier contact: the target
+        is out of the sensor's reach from here.
     """
     path = np.stack([target + clearance * normal, target - depth * normal])
     observation = simulator.probe(path)
     if isinstance(observation, Contact):
-        return [path], [observation]
-    paths, observations = follow_surface(simulator, target, contacts, contact_normals,
-                                         follow_step, depth, clearance)
-    return [path] + paths, [observation] + observations
+        return [path], [observation], True
+    tree = cKDTree(contacts)
+    nearest = int(tree.query(path[-1])[1])
+    anchor, anchor_normal = contacts[nearest], contact_normals[nearest]
+    back = np.stack([path[-1], anchor, anchor - 2 * simulator.step * anchor_normal])
+    touched = simulator.probe(back)
+    paths = [path, back]
+    if not isinstance(touched, Contact):  # the sensor noise put the contact off the surface
+        touched = Contact(anchor, anchor_normal)
+    follow_paths, touched = follow_toward(simulator, touched, target, tree, follow_step,
+                                          spacing, max_follow)
+    reached = bool(tree.query(touched.position)[0] >= spacing)
+    return paths + follow_paths, [observation, touched], reached
+
+
+def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
+    """Slide along the surface from ``contact`` toward ``target`` in in-contact steps.
+
+    Each step moves ``step`` along the tangent plane toward the target and probes across
+    the surface there; off an edge the probe swings back under the last contact, which
+    wraps it around the edge. Stops at ``spacing`` from every contact in ``tree``, at the
+    target, after ``max_follow`` of path, or when the surface stops leading on.
+
+    Returns
+    -------
+    paths : list of (k, 3) arrays
+    contact : Contact
+        Where the sensor stopped.
+    """
+    paths, travelled = [], 0.0
+    while travelled < max_follow and tree.query(contact.position)[0] < spacing:
+        position, normal = contact.position, normalise_rows(contact.normal[None])[0]
+        tangent = target - position
+        tangent -= (tangent @ normal) * normal
+        length = float(np.linalg.norm(tangent))
+        if length < step / 2:
+            break
+        moved = position + min(step, length) * tangent / length
+        reach = 2 * step
+        path = np.stack([moved + reach * normal, moved - reach * normal,
+                         position - reach * normal])
+        following = simulator.probe(path)
+        paths.append(path)
+        if not isinstance(following, Contact):
+            break
+        advance = float(np.linalg.norm(following.position - position))
+        if advance < step / 10:
+            break
+        travelled += advance
+        contact = following
+    return paths, contact
 
 
 def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth=1.0,

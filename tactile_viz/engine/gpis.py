@@ -2,15 +2,24 @@
 
 Each contact is an observation of the implicit function ``f`` and its gradient at a point:
 value 0 and gradient equal to the observed normal (4 numbers). The prior mean is the MAP
-object's signed distance and gradient, so the posterior keeps the prior's shape where there
-are no data and bends it through the contacts. The thin-plate kernel
+object's signed distance and gradient, so the posterior keeps the prior's shape where no
+datum contradicts it and bends it through the contacts. Two radial kernels give the
+covariance of values and gradients:
 
-    k(x, x') = a (2 r^3 - 3 R r^2 + R^3),  r = |x - x'|
+- :class:`ThinPlateKernel`, the paper's ``k = a (2 r^3 - 3 R r^2 + R^3)``. Its correlation
+  falls slowly (``k(r)/k(0)`` is still 0.78 at ``r = 0.3 R``), so a residual at a few
+  contacts shifts the field everywhere inside ``R``; at ``R`` equal to the largest distance
+  (the paper's choice) the Gram matrix with derivative observations is indefinite, and a
+  nugget (jitter) just larger than its most negative eigenvalue is added to the kernel.
+- :class:`WendlandKernel`, the compactly supported ``k = a (1 - r/c)^4_+ (4 r/c + 1)``
+  (Wendland's C2 function, positive definite in 3-D, twice differentiable so that gradient
+  observations have a covariance): a contact corrects the prior only within the support
+  ``c``, and beyond it the prior shape survives with the prior variance.
 
-with its first and second derivatives gives the covariance of values and gradients. ``R``
-must exceed the largest distance between any two points involved by a margin (at
-``R = max distance`` the Gram matrix is indefinite), and the scale ``a`` takes one Newton
-step on the log marginal likelihood per fit, in ``log a`` so that it stays positive.
+Optionally (beyond the paper) non-contacts where the prior puts the surface or the inside
+enter as value-only pseudo-observations ``f = m > 0`` with noise ``(m / 2)^2``: a probe
+that passed through the prior's phantom part removes it there. The scale ``a`` takes one
+Newton step on the log marginal likelihood per fit, in ``log a`` so that it stays positive.
 """
 
 from dataclasses import dataclass
@@ -25,15 +34,84 @@ _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)
 
 
-def kernel_blocks(x, y, radius):
-    """Thin-plate covariance (``a = 1``) between [value, gradient] observations.
+@dataclass(frozen=True)
+class ThinPlateKernel:
+    """The paper's thin-plate kernel (``a = 1``): ``2 r^3 - 3 R r^2 + R^3``.
+
+    Attributes
+    ----------
+    radius : float
+        ``R``; the paper takes the largest distance between the points involved.
+    """
+
+    radius: float
+
+    @property
+    def at_zero(self):
+        """``k(0)``: the prior variance of a value."""
+        return self.radius**3
+
+    def profile(self, r):
+        """``k(r)``, ``g = k'(r) / r`` and ``g'(r)`` on an array of distances."""
+        big = self.radius
+        return 2 * r**3 - 3 * big * r**2 + big**3, 6 * (r - big), np.full_like(r, 6.0)
+
+
+@dataclass(frozen=True)
+class WendlandKernel:
+    """Wendland's compactly supported C2 kernel (``a = 1``): ``(1 - s)^4 (4 s + 1)``,
+    ``s = r / c`` (0 beyond the support ``c``).
+
+    Attributes
+    ----------
+    support : float
+        ``c``: how far a contact's correction of the prior reaches.
+    """
+
+    support: float
+
+    @property
+    def at_zero(self):
+        return 1.0
+
+    @property
+    def radius(self):
+        return self.support
+
+    def profile(self, r):
+        c = self.support
+        rest = np.clip(1.0 - r / c, 0.0, None)
+        return (rest**4 * (4 * r / c + 1), -20 * rest**3 / c**2, 60 * rest**2 / c**3)
+
+
+def as_kernel(kernel):
+    """A kernel object; a plain number is a thin-plate ``R`` (the paper's kernel)."""
+    if isinstance(kernel, (ThinPlateKernel, WendlandKernel)):
+        return kernel
+    return ThinPlateKernel(float(kernel))
+
+
+def _pair_terms(x, y, kernel):
+    diff = x[:, None, :] - y[None, :, :]
+    r = np.linalg.norm(diff, axis=-1)
+    value, g, dg = as_kernel(kernel).profile(r)
+    # (x_i - y_i)(x_j - y_j) / r tends to 0 as r -> 0.
+    safe = np.where(r > 0, r, 1.0)
+    outer = np.where((r > 0)[..., None, None],
+                     diff[..., :, None] * diff[..., None, :] / safe[..., None, None], 0.0)
+    hessian = -(dg[..., None, None] * outer + np.eye(3) * g[..., None, None])
+    return diff, value, g, hessian
+
+
+def kernel_blocks(x, y, kernel):
+    """Covariance (``a = 1``) between [value, gradient] observations.
 
     Parameters
     ----------
     x : (p, 3) float
     y : (q, 3) float
-    radius : float
-        ``R``; larger than every distance between points of ``x`` and ``y``.
+    kernel : ThinPlateKernel, WendlandKernel or float
+        A float is a thin-plate ``R``.
 
     Returns
     -------
@@ -41,58 +119,46 @@ def kernel_blocks(x, y, radius):
         Row ``4 i + c`` is component ``c`` (0 value, 1-3 gradient) at ``x[i]``, likewise for
         columns and ``y``.
     """
-    diff = x[:, None, :] - y[None, :, :]
-    r = np.linalg.norm(diff, axis=-1)
-    blocks = np.empty(r.shape + (4, 4))
-    blocks[..., 0, 0] = 2 * r**3 - 3 * radius * r**2 + radius**3
-    first = 6 * diff * (r - radius)[..., None]
+    diff, value, g, hessian = _pair_terms(x, y, kernel)
+    blocks = np.empty(value.shape + (4, 4))
+    blocks[..., 0, 0] = value
+    first = g[..., None] * diff
     blocks[..., 1:, 0] = first            # cov(df(x)/dx_i, f(y))
     blocks[..., 0, 1:] = -first           # cov(f(x), df(y)/dy_j)
-    # (x_i - y_i)(x_j - y_j) / r tends to 0 as r -> 0.
-    safe = np.where(r > 0, r, 1.0)
-    outer = np.where((r > 0)[..., None, None],
-                     diff[..., :, None] * diff[..., None, :] / safe[..., None, None], 0.0)
-    blocks[..., 1:, 1:] = -6 * (outer + np.eye(3) * (r - radius)[..., None, None])
-    p, q = r.shape
+    blocks[..., 1:, 1:] = hessian
+    p, q = value.shape
     return blocks.transpose(0, 2, 1, 3).reshape(4 * p, 4 * q)
 
 
-def value_rows(x, y, radius):
+def value_rows(x, y, kernel):
     """Covariance of values at ``x`` with [value, gradient] at ``y`` (``a = 1``): (p, 4q)."""
     diff = x[:, None, :] - y[None, :, :]
-    r = np.linalg.norm(diff, axis=-1)
-    rows = np.empty(r.shape + (4,))
-    rows[..., 0] = 2 * r**3 - 3 * radius * r**2 + radius**3
-    rows[..., 1:] = -6 * diff * (r - radius)[..., None]
+    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1))
+    rows = np.empty(value.shape + (4,))
+    rows[..., 0] = value
+    rows[..., 1:] = -g[..., None] * diff
     return rows.reshape(len(x), -1)
 
 
-def value_correction(x, y, weights, radius):
-    """``value_rows(x, y, radius) @ weights`` without the (p, 4q) matrix: (p,) float.
+def value_correction(x, y, weights, kernel):
+    """``value_rows(x, y, kernel) @ weights`` without the (p, 4q) matrix: (p,) float.
 
-    With ``D = r - R``, the value-value kernel is ``D^2 (2 r + R)`` and the value-gradient
-    kernel is ``-6 D (x - y)``, so both reduce to products of the (p, q) distance matrix
-    with vectors (the README's step timings show the gain).
+    The value-value kernel is ``k(r)`` and the value-gradient kernel ``-g(r) (x - y)``, so
+    both reduce to products of (p, q) matrices of the distances with vectors.
     """
     weights = weights.reshape(-1, 4)
-    r = cdist(x, y)
-    shifted = r - radius
-    values = (shifted**2 * (2 * r + radius)) @ weights[:, 0]
-    toward = shifted @ weights[:, 1:]                       # sum_j D_ij g_j, (p, 3)
-    offsets = shifted @ np.einsum("ij,ij->i", y, weights[:, 1:])
-    return values - 6 * (np.einsum("ij,ij->i", x, toward) - offsets)
+    value, g, _ = as_kernel(kernel).profile(cdist(x, y))
+    toward = g @ weights[:, 1:]                              # sum_j g_ij w_j, (p, 3)
+    offsets = g @ np.einsum("ij,ij->i", y, weights[:, 1:])
+    return value @ weights[:, 0] - (np.einsum("ij,ij->i", x, toward) - offsets)
 
 
-def gradient_rows(x, y, radius):
+def gradient_rows(x, y, kernel):
     """Covariance of gradients at ``x`` with [value, gradient] at ``y``: (p, 3, 4q)."""
-    diff = x[:, None, :] - y[None, :, :]
-    r = np.linalg.norm(diff, axis=-1)
-    rows = np.empty(r.shape + (3, 4))
-    rows[..., 0] = 6 * diff * (r - radius)[..., None]
-    safe = np.where(r > 0, r, 1.0)
-    outer = np.where((r > 0)[..., None, None],
-                     diff[..., :, None] * diff[..., None, :] / safe[..., None, None], 0.0)
-    rows[..., 1:] = -6 * (outer + np.eye(3) * (r - radius)[..., None, None])
+    diff, _, g, hessian = _pair_terms(x, y, kernel)
+    rows = np.empty(g.shape + (3, 4))
+    rows[..., 0] = g[..., None] * diff
+    rows[..., 1:] = hessian
     return rows.transpose(0, 2, 1, 3).reshape(len(x), 3, -1)
 
 
@@ -116,6 +182,20 @@ def stable_cholesky(matrix, max_tries=8):
     raise LinAlgError(f"matrix not positive definite even with jitter {jitter:.3g}")
 
 
+def indefinite_nugget(gram):
+    """The diagonal shift that makes a symmetric ``gram`` positive definite: just over its
+    most negative eigenvalue's size (0 when it has none).
+
+    ``gram + nugget I`` is the Gram matrix of the kernel plus a nugget (white noise of that
+    variance), so training rows and cross-covariances stay consistent, unlike eigenvalue
+    clipping, which changes the training covariance alone.
+    """
+    smallest = float(np.linalg.eigvalsh(gram)[0])
+    if smallest > 0:
+        return 0.0
+    return 1.01 * -smallest + 1e-12 * float(np.abs(np.diag(gram)).max())
+
+
 @dataclass(frozen=True, eq=False)
 class GPISFit:
     """A fitted GPIS posterior (immutable); see :func:`fit_gpis`.
@@ -123,41 +203,57 @@ class GPISFit:
     Attributes
     ----------
     points : (n, 3) float, world frame
-        Contact positions.
+        Observation positions: the contacts, then any non-contact pseudo-observations.
+    kept : (m,) int
+        The rows of the ``4 n`` [value, gradient] components that are observed (all four at
+        a contact, the value only at a non-contact).
     scale : float
         The kernel scale ``a`` after this fit's Newton step.
-    radius : float
-        The kernel's ``R``.
-    noise_variance : float
-    factor : (4n, 4n) float
-        Lower Cholesky factor of ``a K0 + noise I``.
+    kernel : ThinPlateKernel or WendlandKernel
+    noise : (m,) float
+        Observation noise variance of each kept row.
+    factor : (m, m) float
+        Lower Cholesky factor of ``a K0 + diag(noise)``.
     alpha : (4n,) float
-        ``(a K0 + noise I)^-1 (D - mu(X))``.
+        ``(a K0 + diag(noise))^-1 (D - mu(X))`` on the kept rows, 0 elsewhere.
     log_marginal_likelihood : float
     prior : callable
         ``prior(points) -> (values, gradients)``.
     """
 
     points: np.ndarray
+    kept: np.ndarray
     scale: float
-    radius: float
-    noise_variance: float
+    kernel: object
+    noise: np.ndarray
     factor: np.ndarray
     alpha: np.ndarray
     log_marginal_likelihood: float
     prior: object
+
+    @property
+    def radius(self):
+        """The kernel's reach: thin-plate ``R`` or Wendland support ``c``."""
+        return self.kernel.radius
+
+    @property
+    def prior_variance(self):
+        """Variance of a value far from (or without) any observation."""
+        return self.scale * self.kernel.at_zero
 
     def mean(self, query):
         """Posterior mean value and gradient: (k,), (k, 3) for (k, 3) world points."""
         query = np.atleast_2d(query)
         values, gradients = self.prior(query)
         values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
+        if len(self.points) == 0:
+            return values, gradients
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
             values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.radius)
+                part, self.points, self.alpha, self.kernel)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
-                part, self.points, self.radius) @ self.alpha
+                part, self.points, self.kernel) @ self.alpha
         return values, gradients
 
     def mean_value(self, query):
@@ -169,26 +265,26 @@ class GPISFit:
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
             values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.radius)
+                part, self.points, self.alpha, self.kernel)
         return values
 
     def variance(self, query):
         """Posterior variance of the value: (k,) float, never negative."""
         query = np.atleast_2d(query)
-        result = np.empty(len(query))
-        prior_variance = self.scale * self.radius**3
         if len(self.points) == 0:
-            return np.full(len(query), prior_variance)
+            return np.full(len(query), self.prior_variance)
+        result = np.empty(len(query))
         for start in range(0, len(query), _CHUNK):
-            cross = self.scale * value_rows(query[start:start + _CHUNK], self.points, self.radius)
+            cross = self.scale * value_rows(query[start:start + _CHUNK], self.points,
+                                            self.kernel)[:, self.kept]
             reduced = solve_triangular(self.factor, cross.T, lower=True, check_finite=False)
-            result[start:start + _CHUNK] = prior_variance - np.sum(reduced**2, axis=0)
+            result[start:start + _CHUNK] = self.prior_variance - np.sum(reduced**2, axis=0)
         return np.maximum(result, 0.0)
 
 
 def _log_likelihood_terms(gram0, residual, scale, noise):
-    """Cholesky, alpha and log marginal likelihood of ``a K0 + noise I``."""
-    factor, jitter = stable_cholesky(scale * gram0 + noise * np.eye(len(gram0)))
+    """Cholesky, alpha and log marginal likelihood of ``a K0 + diag(noise)``."""
+    factor, _ = stable_cholesky(scale * gram0 + np.diag(noise))
     alpha = cho_solve((factor, True), residual, check_finite=False)
     value = (-0.5 * residual @ alpha - np.sum(np.log(np.diag(factor)))
              - 0.5 * len(residual) * _LOG_2PI)
@@ -207,8 +303,8 @@ def _inverse_from_cholesky(factor):
 def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step=2.0):
     """One Newton step on ``log a`` for the log marginal likelihood.
 
-    With ``K = a K0 + s I`` and ``B = K^-1``: ``K0 = (K - s I) / a``, so all derivatives
-    follow from ``B``, ``alpha = B y`` and ``y``.
+    With ``K = a K0 + S``, ``S = diag(noise)`` and ``B = K^-1``: ``K0 = (K - S) / a``, so
+    all derivatives follow from ``B``, ``alpha = B y`` and ``y``.
 
     Returns
     -------
@@ -216,13 +312,14 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
         The proposed change of ``log a`` (bounded by ``max_step``).
     """
     n = len(residual)
+    s = np.broadcast_to(np.asarray(noise, dtype=float), (n,))
     inverse = _inverse_from_cholesky(factor)
-    trace_b = np.trace(inverse)
-    y, s, a = residual, noise, scale
-    gradient_a = 0.5 * (y @ alpha - s * alpha @ alpha) / a - 0.5 * (n - s * trace_b) / a
+    trace_bs = float(np.diag(inverse) @ s)
+    y, a = residual, scale
+    gradient_a = 0.5 * (y @ alpha - alpha @ (s * alpha)) / a - 0.5 * (n - trace_bs) / a
     shifted = y - s * alpha
-    quad = shifted @ (alpha - s * (inverse @ alpha)) / a**2
-    trace_term = (n - 2 * s * trace_b + s**2 * np.sum(inverse**2)) / a**2
+    quad = shifted @ (alpha - inverse @ (s * alpha)) / a**2
+    trace_term = (n - 2 * trace_bs + s @ (inverse**2) @ s) / a**2
     hessian_a = -quad + 0.5 * trace_term
     gradient = a * gradient_a
     hessian = a**2 * hessian_a + a * gradient_a
@@ -233,7 +330,22 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
     return float(np.clip(step, -max_step, max_step)) if np.isfinite(step) else 0.0
 
 
-def fit_gpis(points, normals, prior, radius, scale=1.0, noise_variance=1e-4, newton=True):
+def noncontact_observations(prior, noncontacts, value):
+    """The non-contacts that contradict the prior (prior value below ``value``).
+
+    Returns
+    -------
+    (k, 3) float
+        Their positions; each becomes a pseudo-observation ``f = value``.
+    """
+    noncontacts = np.asarray(noncontacts, dtype=float).reshape(-1, 3)
+    if len(noncontacts) == 0:
+        return noncontacts
+    return noncontacts[np.asarray(prior(noncontacts)[0]) < value]
+
+
+def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,
+             noncontacts=None, noncontact_value=0.1):
     """Fit the GPIS to contacts, taking one Newton step on the kernel scale.
 
     Parameters
@@ -242,46 +354,68 @@ def fit_gpis(points, normals, prior, radius, scale=1.0, noise_variance=1e-4, new
     normals : (n, 3) float, unit
     prior : callable
         ``prior(points) -> (values (k,), gradients (k, 3))``, the prior mean.
-    radius : float
-        Kernel ``R``: at least 1.2 times the largest distance between any training and
-        query points.
+    kernel : ThinPlateKernel, WendlandKernel or float
+        A float is a thin-plate ``R`` (at least the largest distance between any training
+        and query points; an indefinite Gram matrix gets a nugget, see
+        :func:`indefinite_nugget`).
     scale : float
         Current kernel scale ``a`` (start of the Newton step).
     noise_variance : float
-        ``sigma^2`` of the observations (1e-4: sigma matches the 0.01 contact tolerance).
+        ``sigma^2`` of the contact observations (1e-4: sigma matches the 0.01 tolerance).
     newton : bool
         Take the Newton step; it is accepted only if the marginal likelihood does not drop
         (with step halving).
+    noncontacts : (k, 3) float, optional
+        Positions known to be outside the object (beyond the paper): those where the prior
+        value is below ``noncontact_value`` observe ``f = noncontact_value`` with noise
+        variance ``(noncontact_value / 2)^2``.
+    noncontact_value : float
 
     Returns
     -------
     GPISFit
     """
+    kernel = as_kernel(kernel)
     points = np.asarray(points, dtype=float).reshape(-1, 3)
-    if len(points) == 0:
-        return GPISFit(points, float(scale), float(radius), float(noise_variance),
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    outside = (np.zeros((0, 3)) if noncontacts is None
+               else noncontact_observations(prior, noncontacts, noncontact_value))
+    everything = np.vstack([points, outside])
+    if len(everything) == 0:
+        return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)
-    prior_values, prior_gradients = prior(points)
-    observed = np.hstack([np.zeros((len(points), 1)), normals])
+    prior_values, prior_gradients = prior(everything)
+    observed = np.hstack([np.zeros((len(everything), 1)),
+                          np.vstack([normals, np.zeros((len(outside), 3))])])
+    observed[len(points):, 0] = noncontact_value
     residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
-    gram0 = kernel_blocks(points, points, radius)
-    factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise_variance)
+    kept = np.concatenate([np.arange(4 * len(points)), 4 * (len(points) + np.arange(len(outside)))])
+    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
+                            np.full(len(outside), float(noise_variance))])
+    gram0 = kernel_blocks(everything, everything, kernel)[np.ix_(kept, kept)]
+    residual = residual[kept]
+    try:
+        factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise)
+    except LinAlgError:  # thin-plate R too small: jitter as a nugget of the kernel
+        gram0 = gram0 + indefinite_nugget(gram0) * np.eye(len(gram0))
+        factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise)
     if newton:
-        step = newton_step_log_scale(gram0, residual, scale, noise_variance, factor, alpha)
+        step = newton_step_log_scale(gram0, residual, scale, noise, factor, alpha)
         for _ in range(6):
             if abs(step) < 1e-12:
                 break
             candidate = scale * np.exp(step)
             try:
-                trial = _log_likelihood_terms(gram0, residual, candidate, noise_variance)
+                trial = _log_likelihood_terms(gram0, residual, candidate, noise)
             except LinAlgError:
                 trial = None
             if trial is not None and trial[2] >= value:
                 scale, (factor, alpha, value) = candidate, trial
                 break
             step /= 2
-    return GPISFit(points, float(scale), float(radius), float(noise_variance), factor, alpha,
-                   value, prior)
+    weights = np.zeros(4 * len(everything))
+    weights[kept] = alpha
+    return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
 
 
 def zero_level_surface(fit, bounds, resolution=32):

@@ -21,7 +21,7 @@ from .cache import write_bytes_atomic
 from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           rrt_step)
-from .gpis import fit_gpis, zero_level_surface
+from .gpis import ThinPlateKernel, WendlandKernel, fit_gpis, zero_level_surface
 from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
 from .objects import ObjectModel
@@ -36,6 +36,9 @@ from .transforms import random_pose, transform_points
 
 class SessionError(TactileVizError):
     """A session cannot be run, saved or loaded as asked."""
+
+
+GPIS_KERNELS = ("wendland", "thin-plate")
 
 
 @dataclass(frozen=True)
@@ -58,14 +61,37 @@ class SessionParams:
         Marching-cubes cells along the longest side of the reconstruction box.
     gpis_margin : float
         Margin of the reconstruction box around the MAP shape and the contacts.
+    gpis_kernel : {"wendland", "thin-plate"}
+        ``wendland``: compactly supported, a contact corrects the prior only within
+        ``gpis_support`` (the prior shape survives elsewhere); ``thin-plate``: the paper's
+        kernel, whose correction reaches the whole box.
+    gpis_support : float
+        Support radius ``c`` of the Wendland kernel.
+    gpis_radius_factor : float
+        Thin-plate ``R`` over the reconstruction box's diagonal (which bounds every
+        distance involved): 1.0 is the paper's "largest distance" (the indefinite Gram
+        matrix is projected on the PSD cone), 1.2 makes it positive definite.
+    gpis_noncontacts : bool
+        Beyond the paper: non-contacts where the prior puts the inside observe
+        ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
+        a probe passed through it.
+    gpis_noncontact_value : float
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int
         Marching-cubes cells along the longest side when a reconstruction is kept as a new
         prior: the same posterior mean as the step's surface, sampled finer, since a learned
         shape is extracted once and matched against every later contact.
-    probe_depth, follow_step : float
-        How deep contact enforcement reaches; the length of a surface-following step.
+    probe_depth : float
+        How deep contact enforcement reaches at most (the estimate's deepest point within
+        it is probed).
+    follow_step : float
+        Length of one in-contact surface-following step of contact enforcement.
+    contact_spacing : float
+        Surface following stops at a contact this far from every earlier one; a target
+        whose procedure ends nearer is given up.
+    max_follow : float
+        Longest surface-following path of one step.
     rrt_step : float
     metric_samples : int
         Surface samples per shape for the error metrics (TWD).
@@ -79,18 +105,32 @@ class SessionParams:
     gpis_scale: float = 1.0
     gpis_resolution: int = 32
     gpis_margin: float = 0.6
+    gpis_kernel: str = "wendland"
+    gpis_support: float = 4.0
+    gpis_radius_factor: float = 1.2
+    gpis_noncontacts: bool = True
+    gpis_noncontact_value: float = 0.1
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
-    follow_step: float = 0.3
+    follow_step: float = 0.1
+    contact_spacing: float = 0.3
+    max_follow: float = 3.0
     rrt_step: float = 0.3
     metric_samples: int = 3000
 
     def __post_init__(self):
         if not isinstance(self.filter, FilterParams):
             raise ParameterError(f"filter must be FilterParams, got {type(self.filter).__name__}")
-        for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "probe_depth",
-                     "follow_step", "rrt_step"):
+        if self.gpis_kernel not in GPIS_KERNELS:
+            raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
+                                 f"got {self.gpis_kernel!r}")
+        if not isinstance(self.gpis_noncontacts, (bool, np.bool_)):
+            raise ParameterError(f"gpis_noncontacts must be True or False, "
+                                 f"got {self.gpis_noncontacts!r}")
+        for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
+                     "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
+                     "follow_step", "contact_spacing", "max_follow", "rrt_step"):
             value = getattr(self, name)
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
@@ -126,6 +166,10 @@ SESSION_PRESETS = {
     "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, variance_points=800,
                           metric_samples=2000),
     "paper": SessionParams(),
+    # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
+    # only (the shape-transfer shortfall of the README comes from it).
+    "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
+                              gpis_noncontacts=False),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
@@ -160,6 +204,7 @@ class Snapshot:
     contacts: np.ndarray
     normals: np.ndarray
     noncontacts: np.ndarray
+    free_space: np.ndarray
     map_class: str
     map_rotation: np.ndarray
     map_translation: np.ndarray
@@ -176,6 +221,7 @@ class Snapshot:
     gpis_scale: object
     target: object
     dhd: float
+    truth_coverage: float
     pose_error: float
     recon_error: object
     terminated: bool
@@ -184,7 +230,7 @@ class Snapshot:
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
         return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
-                "dhd": self.dhd, "novel": self.novel, "recon_error": self.recon_error,
+                "dhd": self.dhd, "truth_coverage": self.truth_coverage, "novel": self.novel, "recon_error": self.recon_error,
                 "n_particles": self.n_particles, "n_contacts": int(len(self.contacts)),
                 "n_noncontacts": int(len(self.noncontacts)),
                 "step_seconds": float(sum(self.timings.values())),
@@ -228,6 +274,7 @@ class Session:
         self._scale = self.params.gpis_scale
         self._target = None
         self._given_up_targets = []
+        self._free_space = np.zeros((0, 3))
         self._truth_samples = transform_points(
             surface_samples(truth.model, self.params.metric_samples), truth.rotation,
             truth.translation)
@@ -276,15 +323,17 @@ class Session:
         # references (and the generators' states) is enough to roll a step back.
         return ({name: getattr(self.filter, name) for name in self._FILTER_STATE},
                 [g.bit_generator.state for g in self._generators()],
-                (self._scale, self._target, list(self._given_up_targets), len(self.snapshots)))
+                (self._scale, self._target, list(self._given_up_targets), self._free_space,
+                 len(self.snapshots)))
 
     def _restore(self, saved):
-        filter_state, generator_states, (scale, target, given_up, count) = saved
+        filter_state, generator_states, (scale, target, given_up, free, count) = saved
         for name, value in filter_state.items():
             setattr(self.filter, name, value)
         for generator, state in zip(self._generators(), generator_states):
             generator.bit_generator.state = state
         self._scale, self._target, self._given_up_targets = scale, target, given_up
+        self._free_space = free
         del self.snapshots[count:]
 
     def _generators(self):
@@ -333,6 +382,7 @@ class Session:
             step=step, new_observations=tuple(observations),
             paths=tuple(_frozen(p) for p in paths), contacts=_frozen(contacts),
             normals=_frozen(normals), noncontacts=_frozen(self.filter.noncontact_positions),
+            free_space=_frozen(self._free_space),
             map_class=state.map_class, map_rotation=_frozen(rotation),
             map_translation=_frozen(translation), map_vertices=_frozen(map_vertices),
             map_faces=model.mesh.faces, class_posterior=dict(state.class_posterior),
@@ -343,7 +393,8 @@ class Session:
             gpis_variance=None if gpis is None else _frozen(gpis[2]),
             gpis_scale=float(self._scale) if gpis is not None else None,
             target=None if self._target is None else _frozen(self._target[0]),
-            dhd=float(dhd), pose_error=float(pose_error),
+            dhd=float(dhd), truth_coverage=directed_hausdorff(self._truth_samples, contacts),
+            pose_error=float(pose_error),
             recon_error=None if recon_error is None else float(recon_error),
             terminated=terminated, timings=timings)
         self.snapshots.append(snapshot)
@@ -361,11 +412,14 @@ class Session:
                             self.rng, p.rrt_step, p.probe_depth)
         target, normal, estimate = self._target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        paths, observations = enforce_contact(self.simulator, target, normal, contacts,
-                                              self.filter.contact_normals, depth,
-                                              follow_step=p.follow_step)
-        if not isinstance(observations[0], Contact) or self._repeats_contact(observations[-1]):
+        paths, observations, reached = enforce_contact(
+            self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
+            follow_step=p.follow_step, spacing=p.contact_spacing, max_follow=p.max_follow)
+        if not reached or self._repeats_contact(observations[-1]):
             self._given_up_targets.append(target)
+        if not isinstance(observations[0], Contact):
+            self._free_space = free_space_points(self._free_space, paths[0],
+                                                 p.gpis_support / 4)
         return paths, observations
 
     def _repeats_contact(self, observation):
@@ -389,8 +443,13 @@ class Session:
         """
         if not self._given_up_targets:
             return np.ones(len(vertices), bool)
-        far = cKDTree(self._given_up_targets).query(vertices)[0] >= self.params.follow_step
+        far = cKDTree(self._given_up_targets).query(vertices)[0] >= self.params.contact_spacing
         return far if far.any() else np.ones(len(vertices), bool)
+
+    def _noncontact_points(self):
+        """Where the sensor found no object: the non-contacts and the points along missed
+        probes (what the GPIS's non-contact switch constrains)."""
+        return np.vstack([self.filter.noncontact_positions, self._free_space])
 
     def _prior(self, model, rotation, translation):
         sdf = model.sdf
@@ -402,19 +461,28 @@ class Session:
         return prior
 
     def _gpis_box(self, map_vertices, contacts):
-        """The reconstruction box (low, high) and the kernel ``R`` (1.2 x its diagonal)."""
-        margin = self.params.gpis_margin
-        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - margin
-        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + margin
-        return low, high, 1.2 * float(np.linalg.norm(high - low))
+        """The reconstruction box (low, high) and the GPIS kernel."""
+        p = self.params
+        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
+        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
+        if p.gpis_kernel == "wendland":
+            return low, high, WendlandKernel(p.gpis_support)
+        return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
+
+    def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
+        p = self.params
+        return fit_gpis(contacts, normals, prior, kernel, scale=scale,
+                        noise_variance=p.gpis_noise, newton=newton,
+                        noncontacts=noncontacts if p.gpis_noncontacts else None,
+                        noncontact_value=p.gpis_noncontact_value)
 
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
         p = self.params
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        low, high, radius = self._gpis_box(map_vertices, contacts)
+        low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
-        fit = fit_gpis(contacts, normals, self._prior(model, rotation, translation), radius,
-                       scale=self._scale, noise_variance=p.gpis_noise)
+        fit = self._fit(kernel, contacts, normals, self._noncontact_points(),
+                        self._prior(model, rotation, translation), self._scale)
         self._scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
@@ -437,7 +505,11 @@ class Session:
             score = variance[subset]
             if reachable[subset].any():
                 score = np.where(reachable[subset], score, -np.inf)
-            index = subset[int(np.argmax(score))]
+            # Beyond a compact kernel's support the variance is the prior's everywhere: the
+            # tie goes to the vertex farthest from the contacts.
+            distance = cKDTree(contacts).query(vertices[subset])[0]
+            best = score >= score.max() - 1e-9 * abs(score.max())
+            index = subset[int(np.argmax(np.where(best, distance, -np.inf)))]
             target = vertices[index]
             _, gradient = fit.mean(target[None])
             return target, normalise_rows(gradient)[0], fit.mean_value
@@ -471,10 +543,10 @@ class Session:
         """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
         prior = self._prior(model, snapshot.map_rotation, snapshot.map_translation)
-        low, high, radius = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
-        fit = fit_gpis(snapshot.contacts, snapshot.normals, prior, radius,
-                       scale=snapshot.gpis_scale, noise_variance=self.params.gpis_noise,
-                       newton=False)
+        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
+        fit = self._fit(kernel, snapshot.contacts, snapshot.normals,
+                        np.vstack([snapshot.noncontacts, snapshot.free_space]), prior,
+                        snapshot.gpis_scale, newton=False)
         vertices, faces = zero_level_surface(fit, (low, high), resolution)
         if len(faces) == 0:
             raise SessionError("the reconstruction has no surface at the learned resolution")
@@ -547,6 +619,21 @@ class Session:
                 or not np.allclose(session.filter.contact_positions, contacts)):
             raise SessionError(f"{path}: replaying the session did not reproduce its contacts")
         return session
+
+
+def free_space_points(points, path, spacing):
+    """``points`` plus samples of a missed probe ``path``, one per grid cell of ``spacing``.
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    length = float(np.linalg.norm(path[-1] - path[0]))
+    count = max(2, int(np.ceil(length / spacing)) + 1)
+    samples = path[0] + np.linspace(0.0, 1.0, count)[:, None] * (path[-1] - path[0])
+    merged = np.vstack([points, samples])
+    _, first = np.unique(np.floor(merged / spacing).astype(np.int64), axis=0, return_index=True)
+    return merged[np.sort(first)]
 
 
 def deepest_inside(estimate, target, normal, max_depth, samples=21):

@@ -54,7 +54,8 @@ def summarise_trial(result):
         end), recon_error (PF-MAP-GPIS: the GPIS surface's TWD, or the MAP shape's when
         judged known), poisson_error, terminated_at, steps, steps_to_pose (first step with
         pose error < 0.6), steps_to_recon (same with the estimate's error), max_particles,
-        seconds. ``error`` is set for a failed trial.
+        seconds, truth_coverage (distance from the farthest point of the true surface to its
+        nearest contact at the end; None in trials made before it was recorded). ``error`` is set for a failed trial.
     """
     task = result.get("task", {})
     summary = {"object": result["object"], "strategy": result["strategy"],
@@ -77,7 +78,8 @@ def summarise_trial(result):
         "steps_to_recon": first_step_below(
             [dict(r, estimate=estimate_error(r)) for r in steps], "estimate"),
         "max_particles": max(r["n_particles"] for r in steps),
-        "seconds": result.get("seconds"), "dhd": last["dhd"]})
+        "seconds": result.get("seconds"), "dhd": last["dhd"],
+        "truth_coverage": last.get("truth_coverage")})
     return summary
 
 

@@ -37,6 +37,13 @@ CONFIGS = {
     "gpis48": ("paper", {"gpis_resolution": 48}, {}),
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
+    # The GPIS kernel ablation (novel objects): thin-plate at the landed R, Wendland supports,
+    # non-contacts off.
+    "thin-plate1.2": ("paper", {"gpis_kernel": "thin-plate", "gpis_radius_factor": 1.2,
+                                "gpis_noncontacts": False}, {}),
+    "wendland2.5": ("paper", {"gpis_support": 2.5}, {}),
+    "wendland6": ("paper", {"gpis_support": 6.0}, {}),
+    "no-noncontacts": ("paper", {"gpis_noncontacts": False}, {}),
 }
 
 
@@ -149,6 +156,9 @@ def rows_from_results(results, sets):
                      "pose_error": aggregate.mean_std([s["pose_error"] for s in known])[0],
                      "correct": f"{sum(s['correct'] for s in known)}/{len(known)}",
                      "recon_error": aggregate.mean_std([s["recon_error"] for s in novel])[0],
+                     "coverage_novel": aggregate.mean_std(
+                         [s.get("truth_coverage") for s in novel])[0],
+                     "steps_novel": aggregate.mean_std([s["steps"] for s in novel])[0],
                      "steps": aggregate.mean_std([s["steps"] for s in items])[0],
                      "failed": len(by_config[name]) - len(items)})
     for key, seconds in (("pose_error", "seconds_known"), ("recon_error", "seconds_novel")):
@@ -192,11 +202,12 @@ def report(folder, command=None):
     rows = rows_from_results(results, object_sets())
     plot(rows, folder / "tradeoff.png")
     header = ["configuration", "changes", "trials", "s/trial known", "pose error (known)",
-              "correct class", "s/trial novel", "recon error (novel)", "steps", "front: pose",
-              "front: recon"]
+              "correct class", "s/trial novel", "recon error (novel)",
+              "truth coverage (novel)", "steps (novel)", "steps", "front: pose", "front: recon"]
     table = aggregate.markdown_table(header, [
         [r["config"], r["changes"], r["trials"], r["seconds_known"], r["pose_error"],
-         r["correct"], r["seconds_novel"], r["recon_error"], r["steps"], "yes" if r.get("front_pose_error") else "",
+         r["correct"], r["seconds_novel"], r["recon_error"], r["coverage_novel"],
+         r["steps_novel"], r["steps"], "yes" if r.get("front_pose_error") else "",
          "yes" if r.get("front_recon_error") else ""] for r in rows])
     lines = [f"# bench tradeoff: {folder}", ""]
     if command:

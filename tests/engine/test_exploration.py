@@ -25,24 +25,46 @@ def test_first_contact_touches(simulator, rng):
 
 def test_reaching_a_real_target_gives_one_contact(simulator):
     target, normal = np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0])
-    paths, observations = enforce_contact(simulator, target, normal, np.array([[3.0, 0, 0]]),
-                                          np.array([[1.0, 0, 0]]))
-    assert len(observations) == 1 and _on_sphere(observations[0])
+    paths, observations, reached = enforce_contact(
+        simulator, target, normal, np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]]))
+    assert reached and len(observations) == 1 and _on_sphere(observations[0])
     np.testing.assert_allclose(observations[0].position, target, atol=0.02)
 
 
-def test_a_phantom_target_records_a_miss_then_follows_the_surface(simulator):
+def test_a_contact_on_the_way_to_the_nearest_contact_counts(simulator):
     # The estimate claims surface at z = 4.5; the sphere ends at 3, the probe reaches 3.6.
+    # From there the way to the contact at (3, 0, 0) enters the sphere near (0.54, 0, 2.95).
     target, normal = np.array([0.0, 0.0, 4.5]), np.array([0.0, 0.0, 1.0])
     contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
-    paths, observations = enforce_contact(simulator, target, normal, contacts, normals,
-                                          depth=0.9, follow_step=0.3)
+    paths, observations, reached = enforce_contact(simulator, target, normal, contacts,
+                                                   normals, depth=0.9)
     assert isinstance(observations[0], NonContact)
     np.testing.assert_allclose(observations[0].position, [0, 0, 3.6])
-    assert _on_sphere(observations[-1])
-    # One tangent step from the nearest contact toward the target.
-    moved = observations[-1].position
-    assert moved[2] > 0.1 and np.linalg.norm(moved - contacts[0]) < 0.45
+    assert reached and len(observations) == 2 and _on_sphere(observations[1])
+    np.testing.assert_allclose(observations[1].position, [0.54, 0, 2.95], atol=0.05)
+
+
+def test_a_miss_beside_a_contact_follows_the_surface_to_a_new_contact(simulator):
+    # The probe ends just outside the sphere next to the only contact: the sensor touches
+    # that contact again and slides up toward the target until it is 0.3 from it.
+    target, normal = np.array([3.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0])
+    contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    paths, observations, reached = enforce_contact(simulator, target, normal, contacts,
+                                                   normals, depth=0.4, follow_step=0.1,
+                                                   spacing=0.3)
+    assert isinstance(observations[0], NonContact) and reached
+    touched = observations[1]
+    assert _on_sphere(touched) and 0.3 <= touched.position[2] <= 0.45
+    assert 0.3 <= np.linalg.norm(touched.position - contacts[0]) <= 0.45
+    assert len(paths) >= 4  # probe, back to the contact, then several in-contact steps
+
+
+def test_a_target_out_of_reach_is_reported(simulator):
+    target, normal = np.array([3.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0])
+    contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    _, observations, reached = enforce_contact(simulator, target, normal, contacts, normals,
+                                               depth=0.4, follow_step=0.1, max_follow=0.05)
+    assert not reached and _on_sphere(observations[-1])
 
 
 def test_following_off_an_edge_comes_back_to_the_surface(simulator):

@@ -31,7 +31,7 @@ def _assert_sound(fit, query):
     variance = fit.variance(query)
     assert np.all(np.isfinite(values)) and np.all(np.isfinite(gradients))
     assert np.all(np.isfinite(variance)) and np.all(variance >= 0)
-    assert np.all(variance <= fit.scale * fit.radius**3 * (1 + 1e-9))
+    assert np.all(variance <= fit.prior_variance * (1 + 1e-9))
     assert np.isfinite(fit.log_marginal_likelihood)
     assert np.isfinite(fit.scale) and fit.scale > 0
     assert np.all(np.isfinite(fit.alpha))
@@ -47,7 +47,7 @@ def test_noise_variance_and_kernel_scale_extremes(mug, noise, scale):
     _assert_sound(fit, points + 0.3)
     # One bounded Newton step on log a: never more than a factor e^2.
     assert np.exp(-2) * scale * (1 - 1e-9) <= fit.scale <= np.exp(2) * scale * (1 + 1e-9)
-    prior_variance = fit.scale * RADIUS**3
+    prior_variance = fit.prior_variance
     at_contacts = fit.variance(points)
     assert np.all(at_contacts <= 1.01 * noise + 1e-8 * prior_variance)
     if noise <= 1e-4 and fit.scale >= 0.1:

@@ -2,16 +2,23 @@ import numpy as np
 import pytest
 
 from scipy.linalg import cho_solve
+from scipy.spatial.distance import pdist
 
-from tactile_viz.engine.gpis import (_inverse_from_cholesky, fit_gpis, gradient_rows,
-                                     kernel_blocks, stable_cholesky, value_correction,
-                                     value_rows, zero_level_surface)
+from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
+                                     fit_gpis, gradient_rows, kernel_blocks,
+                                     indefinite_nugget, stable_cholesky,
+                                     value_correction, value_rows, zero_level_surface)
 from tactile_viz.engine.metrics import surface_samples
 
 
 def _kernel(x, y, radius):
     r = np.linalg.norm(x - y)
     return 2 * r**3 - 3 * radius * r**2 + radius**3
+
+
+def _wendland(x, y, support):
+    s = min(np.linalg.norm(x - y) / support, 1.0)
+    return (1 - s) ** 4 * (4 * s + 1)
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +31,14 @@ def mug_data(bundled):
     return points, normals, (lambda p: prior_model.sdf.evaluate(p)), prior_model
 
 
-def test_kernel_derivative_blocks_match_finite_differences(rng):
-    x, y, radius, h = rng.normal(size=(3, 3)), rng.normal(size=(4, 3)), 9.0, 1e-5
+@pytest.mark.parametrize("kernel, function", [
+    (ThinPlateKernel(9.0), lambda x, y: _kernel(x, y, 9.0)),
+    (WendlandKernel(2.5), lambda x, y: _wendland(x, y, 2.5))])
+def test_kernel_derivative_blocks_match_finite_differences(rng, kernel, function):
+    x, y, h = rng.normal(size=(3, 3)), rng.normal(size=(4, 3)), 1e-5
+    x[2] = y[3] + [3.0, 0, 0]  # beyond the Wendland support
+    radius = kernel
+    _kernel = lambda a, b, _: function(a, b)  # noqa: E731
     blocks = kernel_blocks(x, y, radius)
     for i in range(3):
         for j in range(4):
@@ -50,12 +63,75 @@ def test_kernel_derivative_blocks_match_finite_differences(rng):
     np.testing.assert_allclose(gradient_rows(x, y, radius)[:, 1], blocks[2::4])
 
 
-def test_value_correction_matches_the_kernel_rows(rng):
+@pytest.mark.parametrize("kernel", [12.0, WendlandKernel(3.0)])
+def test_value_correction_matches_the_kernel_rows(rng, kernel):
     x, y = rng.uniform(-4, 4, size=(50, 3)), rng.uniform(-3, 3, size=(7, 3))
     weights = rng.normal(size=4 * len(y))
     x[0] = y[2]  # a query on a contact (r = 0)
-    np.testing.assert_allclose(value_correction(x, y, weights, 12.0),
-                               value_rows(x, y, 12.0) @ weights, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(value_correction(x, y, weights, kernel),
+                               value_rows(x, y, kernel) @ weights, rtol=1e-12, atol=1e-9)
+
+
+def test_wendland_gram_with_gradients_is_positive_definite(bundled):
+    model = bundled["office_chair"]
+    points = surface_samples(model, 200, seed=1)
+    for support in (0.5, 2.0, 8.0):
+        gram = kernel_blocks(points, points, WendlandKernel(support))
+        assert np.linalg.eigvalsh(gram).min() > -1e-9
+
+
+def test_wendland_keeps_the_prior_beyond_its_support(mug_data):
+    # The issue this kernel answers: with the thin-plate kernel a few contacts that
+    # disagree with the prior move the field everywhere; with a compact kernel nothing
+    # changes farther than the support from every contact.
+    points, normals, prior, _ = mug_data
+    few, few_normals = points[:5], normals[:5]
+    query = np.random.default_rng(0).uniform(-4, 4, size=(3000, 3))
+    far = np.min(np.linalg.norm(query[:, None] - few[None], axis=-1), axis=1) > 1.5
+    local = fit_gpis(few, few_normals, prior, WendlandKernel(1.5))
+    np.testing.assert_allclose(local.mean_value(query[far]), prior(query[far])[0], atol=1e-12)
+    np.testing.assert_allclose(local.variance(query[far]), local.prior_variance)
+    near_values, near_gradients = local.mean(few)
+    assert np.abs(near_values).max() < 0.02
+    assert np.abs(near_gradients - few_normals).max() < 0.05
+    radius = 1.2 * np.ptp(np.vstack([few, query]), axis=0).max() * np.sqrt(3)
+    whole = fit_gpis(few, few_normals, prior, radius)
+    moved = np.abs(whole.mean_value(query[far]) - prior(query[far])[0])
+    assert np.median(moved) > 0.05
+
+
+def test_thin_plate_at_the_largest_distance_is_projected_and_fits(mug_data):
+    points, normals, prior, _ = mug_data
+    largest = pdist(points).max()
+    gram = kernel_blocks(points, points, largest)
+    assert np.linalg.eigvalsh(gram).min() < -1.0  # indefinite, as measured
+    nugget = indefinite_nugget(gram)
+    assert np.linalg.eigvalsh(gram + nugget * np.eye(len(gram))).min() > 0
+    fit = fit_gpis(points, normals, prior, largest)
+    values, gradients = fit.mean(points)
+    variance = fit.variance(points + 0.3)
+    # The nugget needed exceeds the gradients' own variance (6 R): the fit stays finite but
+    # no longer honours the contacts, which is why the sessions' thin-plate R is measured
+    # on the reconstruction box's diagonal (see SessionParams.gpis_radius_factor).
+    assert np.all(np.isfinite(values)) and np.all(np.isfinite(variance))
+    assert np.all(np.isfinite(gradients)) and np.isfinite(fit.log_marginal_likelihood)
+
+
+def test_a_noncontact_inside_the_prior_pushes_the_surface_away(mug_data):
+    points, normals, prior, prior_model = mug_data
+    candidates = np.random.default_rng(1).uniform(-3, 3, size=(2000, 3))
+    inside = candidates[np.argmin(prior(candidates)[0])][None]  # the deepest point
+    assert prior(inside)[0][0] < -0.2
+    kernel = WendlandKernel(3.0)
+    plain = fit_gpis(points[:10], normals[:10], prior, kernel)
+    carved = fit_gpis(points[:10], normals[:10], prior, kernel, noncontacts=inside,
+                      noncontact_value=0.1)
+    assert plain.mean_value(inside)[0] < 0 < carved.mean_value(inside)[0]
+    assert len(carved.points) == 11 and len(carved.kept) == 41
+    # A non-contact the prior already puts outside adds nothing.
+    outside = inside + [[20.0, 0, 0]]
+    same = fit_gpis(points[:10], normals[:10], prior, kernel, noncontacts=outside)
+    assert len(same.points) == 10
 
 
 def test_inverse_from_cholesky_matches_a_solve(rng):
@@ -75,7 +151,7 @@ def test_kernel_at_zero_distance_is_finite():
 
 def test_posterior_interpolates_contacts(mug_data):
     points, normals, prior, _ = mug_data
-    fit = fit_gpis(points, normals, prior, radius=15.0)
+    fit = fit_gpis(points, normals, prior, 15.0)
     values, gradients = fit.mean(points)
     assert np.abs(values).max() < 0.02
     assert np.abs(gradients - normals).max() < 0.05
@@ -84,7 +160,7 @@ def test_posterior_interpolates_contacts(mug_data):
 
 def test_variance_grows_away_from_contacts(mug_data):
     points, normals, prior, _ = mug_data
-    fit = fit_gpis(points, normals, prior, radius=15.0)
+    fit = fit_gpis(points, normals, prior, 15.0)
     near = fit.variance(points + 0.05)
     far = fit.variance(points + 1.5)
     assert np.all(far > near)
@@ -96,6 +172,7 @@ def test_posterior_equals_prior_where_data_do_not_disagree(mug_data):
     empty = fit_gpis(np.zeros((0, 3)), np.zeros((0, 3)), prior, 15.0)
     np.testing.assert_allclose(empty.mean_value(query), prior(query)[0])
     np.testing.assert_allclose(empty.variance(query), 15.0**3)
+    assert empty.prior_variance == pytest.approx(15.0**3)
     # Contacts on the prior's own surface with its own normals change nothing.
     points, _ = prior_model.features
     _, gradients = prior(points[:40])
