@@ -49,8 +49,9 @@ class SessionParams:
     ----------
     filter : FilterParams
     eps : float
-        Termination threshold on the DHD from the estimated surface to the contacts (the
-        surface near targets the sensor could not reach is left out).
+        Termination threshold on the DHD from the estimated surface (and, with
+        ``cover_prior``, the MAP prior of a novel object) to the contacts; the surface near
+        targets the sensor could not reach and near missed probes' paths is left out.
     max_steps_known, max_steps_novel : int
         Step caps while the object is judged known / novel (paper 300 / 400).
     gpis_noise : float
@@ -76,6 +77,10 @@ class SessionParams:
         ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
         a probe passed through it.
     gpis_noncontact_value : float
+    cover_prior : bool
+        Beyond the paper: a novel object's exploration also has to cover the MAP prior's
+        surface (within ``eps`` of a contact, or refuted by a missed probe), so that a
+        reconstruction that shrank away from the untouched prior cannot pass the stop.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int
@@ -110,6 +115,7 @@ class SessionParams:
     gpis_radius_factor: float = 1.2
     gpis_noncontacts: bool = True
     gpis_noncontact_value: float = 0.1
+    cover_prior: bool = True
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
@@ -125,9 +131,10 @@ class SessionParams:
         if self.gpis_kernel not in GPIS_KERNELS:
             raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
                                  f"got {self.gpis_kernel!r}")
-        if not isinstance(self.gpis_noncontacts, (bool, np.bool_)):
-            raise ParameterError(f"gpis_noncontacts must be True or False, "
-                                 f"got {self.gpis_noncontacts!r}")
+        for name in ("gpis_noncontacts", "cover_prior"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ParameterError(f"{name} must be True or False, "
+                                     f"got {getattr(self, name)!r}")
         for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
                      "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
                      "follow_step", "contact_spacing", "max_follow", "rrt_step"):
@@ -169,7 +176,7 @@ SESSION_PRESETS = {
     # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
     # only (the shape-transfer shortfall of the README comes from it).
     "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                              gpis_noncontacts=False),
+                              gpis_noncontacts=False, cover_prior=False),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
@@ -360,11 +367,24 @@ class Session:
         surface = gpis[0] if gpis is not None and len(gpis[0]) else map_vertices
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
+        prior_open, prior_dhd = None, 0.0
+        if gpis is not None and self.params.cover_prior:
+            prior_open = self._reachable(map_vertices)
+            prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         step = self.step_count + 1
-        terminated = bool(dhd <= self.params.eps or step >= cap)
-        self._target = None if terminated else self._next_target(
-            surface, reachable, gpis, model, rotation, translation, contacts)
+        terminated = bool(max(dhd, prior_dhd) <= self.params.eps or step >= cap)
+        if terminated:
+            self._target = None
+        elif dhd <= self.params.eps < prior_dhd:
+            # The reconstruction is covered, but part of the prior it came from is neither
+            # touched nor refuted: the object may extend there.
+            self._target = self._next_target(map_vertices, prior_open, None, model, rotation,
+                                             translation, contacts)
+        else:
+            self._target = self._next_target(surface, reachable, gpis, model, rotation,
+                                             translation, contacts)
+        dhd = max(dhd, prior_dhd)
         timings["target"] = time.perf_counter() - clock
 
         clock = time.perf_counter()
@@ -419,7 +439,7 @@ class Session:
             self._given_up_targets.append(target)
         if not isinstance(observations[0], Contact):
             self._free_space = free_space_points(self._free_space, paths[0],
-                                                 p.gpis_support / 4)
+                                                 p.contact_spacing)
         return paths, observations
 
     def _repeats_contact(self, observation):
@@ -435,21 +455,28 @@ class Session:
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
 
     def _reachable(self, vertices):
-        """Mask of the vertices away from every target the sensor failed to reach.
+        """Mask of the vertices that exploration may still have to visit: away from every
+        target the sensor failed to reach and from the free space that missed probes
+        passed through (within ``contact_spacing``).
 
-        The DHD and the next target leave those out (all vertices count if none is left):
-        probing there again cannot change the estimate, so the trial would only run to its
-        step cap.
+        The DHD and the next target leave the others out (all vertices count if none is
+        left): probing there again cannot change the estimate, so the trial would only run
+        to its step cap.
         """
-        if not self._given_up_targets:
+        refuted = np.vstack([np.reshape(self._given_up_targets, (-1, 3)), self._free_space])
+        if len(refuted) == 0:
             return np.ones(len(vertices), bool)
-        far = cKDTree(self._given_up_targets).query(vertices)[0] >= self.params.contact_spacing
+        far = cKDTree(refuted).query(vertices)[0] >= self.params.contact_spacing
         return far if far.any() else np.ones(len(vertices), bool)
 
-    def _noncontact_points(self):
+    def _noncontact_points(self, noncontacts=None, free_space=None):
         """Where the sensor found no object: the non-contacts and the points along missed
-        probes (what the GPIS's non-contact switch constrains)."""
-        return np.vstack([self.filter.noncontact_positions, self._free_space])
+        probes, one per quarter of the kernel's reach (what the GPIS's non-contact switch
+        constrains)."""
+        noncontacts = self.filter.noncontact_positions if noncontacts is None else noncontacts
+        free_space = self._free_space if free_space is None else free_space
+        reach = self.params.gpis_support if self.params.gpis_kernel == "wendland" else 1.0
+        return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
 
     def _prior(self, model, rotation, translation):
         sdf = model.sdf
@@ -545,7 +572,8 @@ class Session:
         prior = self._prior(model, snapshot.map_rotation, snapshot.map_translation)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
         fit = self._fit(kernel, snapshot.contacts, snapshot.normals,
-                        np.vstack([snapshot.noncontacts, snapshot.free_space]), prior,
+                        self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
+                        prior,
                         snapshot.gpis_scale, newton=False)
         vertices, faces = zero_level_surface(fit, (low, high), resolution)
         if len(faces) == 0:
@@ -631,9 +659,15 @@ def free_space_points(points, path, spacing):
     length = float(np.linalg.norm(path[-1] - path[0]))
     count = max(2, int(np.ceil(length / spacing)) + 1)
     samples = path[0] + np.linspace(0.0, 1.0, count)[:, None] * (path[-1] - path[0])
-    merged = np.vstack([points, samples])
-    _, first = np.unique(np.floor(merged / spacing).astype(np.int64), axis=0, return_index=True)
-    return merged[np.sort(first)]
+    return thin_points(np.vstack([points, samples]), spacing)
+
+
+def thin_points(points, spacing):
+    """The first of ``points`` in each grid cell of size ``spacing`` (order kept)."""
+    if len(points) == 0:
+        return points
+    _, first = np.unique(np.floor(points / spacing).astype(np.int64), axis=0, return_index=True)
+    return points[np.sort(first)]
 
 
 def deepest_inside(estimate, target, normal, max_depth, samples=21):

@@ -191,7 +191,8 @@ KNOWN_HEADER = ["object", "strategy", "trials", "correct class", "pose < 0.6 at 
 
 
 def novel_rows(summaries):
-    """Per novel object and strategy: judged novel, the three reconstruction errors."""
+    """Per novel object and strategy: judged novel, the three reconstruction errors and the
+    truth coverage at the end (which tells an untouched object from a bad reconstruction)."""
     rows = []
     for (name, strategy), items in group(summaries, "object", "strategy").items():
         ok = [s for s in items if "error" not in s]
@@ -199,6 +200,7 @@ def novel_rows(summaries):
         for key in ("pose_error", "recon_error", "poisson_error"):
             mean, std, _ = mean_std([s[key] for s in ok])
             row += [mean, std]
+        row += [mean_std([s.get("truth_coverage") for s in ok])[0]]
         row += [mean_std([_steps(s, "steps_to_recon") for s in ok])[0],
                 mean_std([s["steps"] for s in ok])[0], mean_std([s["seconds"] for s in ok])[0]]
         rows.append(row)
@@ -207,7 +209,7 @@ def novel_rows(summaries):
 
 NOVEL_HEADER = ["object", "strategy", "trials", "judged novel", "PF-MAP mean", "PF-MAP std",
                 "PF-MAP-GPIS mean", "PF-MAP-GPIS std", "Poisson mean", "Poisson std",
-                "steps to error < 0.6", "termination step", "seconds"]
+                "truth coverage", "steps to error < 0.6", "termination step", "seconds"]
 
 
 def reconstruction_comparison(summaries):
