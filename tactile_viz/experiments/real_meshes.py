@@ -40,6 +40,7 @@ import trimesh
 
 from ..engine.errors import MeshError, TactileVizError
 from ..engine.session import SESSION_PRESETS
+from .paper import split_names
 
 INSTALL_HINT = "pip install -e '.[realmesh]'"
 CASES = ("novel", "known")
@@ -483,11 +484,6 @@ def build_parser():
                         help="run nothing; rebuild summary.md from DIR/trials")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
-
-
-def split_names(values):
-    """Names given as separate arguments and/or comma lists."""
-    return [name for value in values for name in value.split(",") if name]
 
 
 def pybullet_version():
