@@ -21,7 +21,8 @@ from .cache import write_bytes_atomic
 from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           rrt_step)
-from .gpis import ThinPlateKernel, WendlandKernel, fit_gpis, zero_level_surface
+from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
+                   zero_level_surface)
 from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
 from .objects import ObjectModel
@@ -77,6 +78,11 @@ class SessionParams:
         ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
         a probe passed through it.
     gpis_noncontact_value : float
+    gpis_carve_radius : float
+        Beyond the paper: the GPIS prior mean has a ball of this radius (at most the
+        distance to the nearest contact) cut out of the MAP shape around every non-contact
+        and every sample of a missed probe's path, so a probe through a phantom part of a
+        wrong prior removes it there; 0 keeps the prior whole.
     cover_prior : bool
         Beyond the paper: a novel object's exploration also has to cover the MAP prior's
         surface (within ``eps`` of a contact, or refuted by a missed probe), so that a
@@ -115,6 +121,7 @@ class SessionParams:
     gpis_radius_factor: float = 1.2
     gpis_noncontacts: bool = True
     gpis_noncontact_value: float = 0.1
+    gpis_carve_radius: float = 0.6
     cover_prior: bool = True
     variance_points: int = 1500
     learned_resolution: int = 64
@@ -142,6 +149,10 @@ class SessionParams:
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+        _check_real("gpis_carve_radius", self.gpis_carve_radius)
+        if not (np.isfinite(self.gpis_carve_radius) and self.gpis_carve_radius >= 0):
+            raise ParameterError("gpis_carve_radius must be a finite number >= 0, "
+                                 f"got {self.gpis_carve_radius!r}")
         for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
                      "gpis_resolution", "learned_resolution"):
             object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
@@ -176,7 +187,8 @@ SESSION_PRESETS = {
     # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
     # only (the shape-transfer shortfall of the README comes from it).
     "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                              gpis_noncontacts=False, cover_prior=False),
+                              gpis_noncontacts=False, gpis_carve_radius=0.0,
+                              cover_prior=False),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
@@ -369,7 +381,9 @@ class Session:
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
         if gpis is not None and self.params.cover_prior:
-            prior_open = self._reachable(map_vertices)
+            # The prior is cut out around missed probes as far as the carve reaches.
+            prior_open = self._reachable(map_vertices, max(self.params.contact_spacing,
+                                                           self.params.gpis_carve_radius))
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         step = self.step_count + 1
@@ -454,10 +468,10 @@ class Session:
         tolerance = max(4.0 * self.sensor_noise[0], 1e-9)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
 
-    def _reachable(self, vertices):
+    def _reachable(self, vertices, radius=None):
         """Mask of the vertices that exploration may still have to visit: away from every
         target the sensor failed to reach and from the free space that missed probes
-        passed through (within ``contact_spacing``).
+        passed through (within ``radius``, default ``contact_spacing``).
 
         The DHD and the next target leave the others out (all vertices count if none is
         left): probing there again cannot change the estimate, so the trial would only run
@@ -466,7 +480,8 @@ class Session:
         refuted = np.vstack([np.reshape(self._given_up_targets, (-1, 3)), self._free_space])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
-        far = cKDTree(refuted).query(vertices)[0] >= self.params.contact_spacing
+        radius = self.params.contact_spacing if radius is None else radius
+        far = cKDTree(refuted).query(vertices)[0] >= radius
         return far if far.any() else np.ones(len(vertices), bool)
 
     def _noncontact_points(self, noncontacts=None, free_space=None):
@@ -486,6 +501,12 @@ class Session:
             return values, gradients @ rotation.T
 
         return prior
+
+    def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space):
+        """The GPIS prior mean: the MAP shape with the refuted space cut out."""
+        return carved_prior(self._prior(model, rotation, translation),
+                            np.vstack([noncontacts, free_space]), contacts,
+                            self.params.gpis_carve_radius)
 
     def _gpis_box(self, map_vertices, contacts):
         """The reconstruction box (low, high) and the GPIS kernel."""
@@ -508,8 +529,10 @@ class Session:
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
-        fit = self._fit(kernel, contacts, normals, self._noncontact_points(),
-                        self._prior(model, rotation, translation), self._scale)
+        prior = self._gpis_prior(model, rotation, translation, contacts,
+                                 self.filter.noncontact_positions, self._free_space)
+        fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+                        self._scale)
         self._scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
@@ -569,7 +592,8 @@ class Session:
     def _surface_at(self, snapshot, resolution):
         """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
-        prior = self._prior(model, snapshot.map_rotation, snapshot.map_translation)
+        prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
+                                 snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
         fit = self._fit(kernel, snapshot.contacts, snapshot.normals,
                         self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
