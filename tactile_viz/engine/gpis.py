@@ -526,7 +526,25 @@ def zero_level_surface(fit, bounds, resolution=32, band=True):
     return vertices + low - spacing, faces.astype(np.int64)
 
 
-BAND_CELLS = 1.5
+BAND_CELLS = 1.0
+
+
+def _in_crossing_cells(coarse):
+    """Fine nodes (twice the resolution) on a coarse cell whose corners change sign: there
+    the surface is, whatever the slope."""
+    low = minimum_filter(coarse, size=2, origin=-1)[:-1, :-1, :-1]
+    high = maximum_filter(coarse, size=2, origin=-1)[:-1, :-1, :-1]
+    cells = (low < 0) & (high > 0)
+    for axis in range(3):
+        fine = np.repeat(cells, 2, axis=axis)  # fine cells
+        pad = [(0, 0)] * 3
+        pad[axis] = (1, 1)
+        fine = np.pad(fine, pad)
+        count = fine.shape[axis]
+        # A node touches the fine cells before and after it.
+        cells = (np.take(fine, range(count - 1), axis=axis)
+                 | np.take(fine, range(1, count), axis=axis))
+    return cells
 
 
 def _banded_mean(fit, low, spacing, counts):
@@ -539,10 +557,7 @@ def _banded_mean(fit, low, spacing, counts):
     coarse = fit.mean_value(grid).reshape(tuple(coarse_counts))
     index = np.indices(tuple(counts), dtype=float).reshape(3, -1) / 2
     volume = map_coordinates(coarse, index, order=1).reshape(tuple(counts))
-    # Around a sign change of the coarse grid every node is exact, whatever the slope.
-    crossing = (minimum_filter(coarse, size=3) < 0) & (maximum_filter(coarse, size=3) > 0)
-    crossing = map_coordinates(crossing.astype(float), index, order=1) > 0
-    near = (np.abs(volume) <= BAND_CELLS * 2 * spacing * np.sqrt(3)) | crossing.reshape(volume.shape)
+    near = (np.abs(volume) <= BAND_CELLS * 2 * spacing * np.sqrt(3)) | _in_crossing_cells(coarse)
     points = low + spacing * np.argwhere(near)
     volume[near] = fit.mean_value(points)
     return volume

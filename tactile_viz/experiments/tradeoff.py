@@ -37,13 +37,15 @@ CONFIGS = {
     "gpis48": ("paper", {"gpis_resolution": 48}, {}),
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
-    # The GPIS kernel ablation (novel objects): thin-plate at the landed R, Wendland supports,
-    # non-contacts off.
+    # The GPIS ablation (novel objects): thin-plate at the landed R, Wendland supports,
+    # non-contacts off, the prior's carve off or wider.
     "thin-plate1.2": ("paper", {"gpis_kernel": "thin-plate", "gpis_radius_factor": 1.2,
                                 "gpis_noncontacts": False}, {}),
     "wendland2.5": ("paper", {"gpis_support": 2.5}, {}),
     "wendland6": ("paper", {"gpis_support": 6.0}, {}),
     "no-noncontacts": ("paper", {"gpis_noncontacts": False}, {}),
+    "no-carve": ("paper", {"gpis_carve_radius": 0.0}, {}),
+    "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
 }
 
 
