@@ -553,11 +553,16 @@ class Session:
         if gpis is not None and len(gpis[0]):
             vertices, _, variance, subset, fit = gpis
             score = variance[subset]
-            if reachable[subset].any():
-                score = np.where(reachable[subset], score, -np.inf)
+            distance = cKDTree(contacts).query(vertices[subset])[0]
+            # Only vertices that keep the stop from holding are worth a touch (beyond the
+            # paper, whose maximum variance can sit within eps of a contact while a vertex
+            # the sensor still has to reach has a lower one).
+            for usable in (reachable[subset] & (distance > self.params.eps), reachable[subset]):
+                if usable.any():
+                    score = np.where(usable, score, -np.inf)
+                    break
             # Beyond a compact kernel's support the variance is the prior's everywhere: the
             # tie goes to the vertex farthest from the contacts.
-            distance = cKDTree(contacts).query(vertices[subset])[0]
             best = score >= score.max() - 1e-9 * abs(score.max())
             index = subset[int(np.argmax(np.where(best, distance, -np.inf)))]
             target = vertices[index]
