@@ -87,6 +87,9 @@ class SessionParams:
         Beyond the paper: a novel object's exploration also has to cover the MAP prior's
         surface (within ``eps`` of a contact, or refuted by a missed probe), so that a
         reconstruction that shrank away from the untouched prior cannot pass the stop.
+    target_uncovered : bool
+        Beyond the paper: the GPIS-DHD target is the largest variance among the surface
+        vertices still farther than ``eps`` from every contact (the paper's: among all).
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int
@@ -123,6 +126,7 @@ class SessionParams:
     gpis_noncontact_value: float = 0.1
     gpis_carve_radius: float = 0.6
     cover_prior: bool = True
+    target_uncovered: bool = True
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
@@ -138,7 +142,7 @@ class SessionParams:
         if self.gpis_kernel not in GPIS_KERNELS:
             raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
                                  f"got {self.gpis_kernel!r}")
-        for name in ("gpis_noncontacts", "cover_prior"):
+        for name in ("gpis_noncontacts", "cover_prior", "target_uncovered"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} must be True or False, "
                                      f"got {getattr(self, name)!r}")
@@ -188,7 +192,7 @@ SESSION_PRESETS = {
     # only (the shape-transfer shortfall of the README comes from it).
     "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
                               gpis_noncontacts=False, gpis_carve_radius=0.0,
-                              cover_prior=False),
+                              cover_prior=False, target_uncovered=False),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
@@ -557,7 +561,8 @@ class Session:
             # Only vertices that keep the stop from holding are worth a touch (beyond the
             # paper, whose maximum variance can sit within eps of a contact while a vertex
             # the sensor still has to reach has a lower one).
-            for usable in (reachable[subset] & (distance > self.params.eps), reachable[subset]):
+            uncovered = distance > (self.params.eps if self.params.target_uncovered else -1.0)
+            for usable in (reachable[subset] & uncovered, reachable[subset]):
                 if usable.any():
                     score = np.where(usable, score, -np.inf)
                     break

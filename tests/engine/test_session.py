@@ -276,7 +276,8 @@ def test_free_space_points_sample_missed_probes_once_per_cell():
 
 
 @pytest.mark.parametrize("changes", [{"gpis_kernel": "sphere"}, {"gpis_support": 0.0},
-                                     {"gpis_noncontacts": "yes"}, {"contact_spacing": -1.0}])
+                                     {"gpis_noncontacts": "yes"}, {"contact_spacing": -1.0},
+                                     {"gpis_carve_radius": -0.1}, {"target_uncovered": 1}])
 def test_bad_gpis_and_enforcement_parameters(changes):
     with pytest.raises(ParameterError):
         SessionParams(**changes)
@@ -286,3 +287,5 @@ def test_faithful_preset_is_the_papers_gpis():
     params = session_preset("faithful")
     assert params.gpis_kernel == "thin-plate" and params.gpis_radius_factor == 1.0
     assert not params.gpis_noncontacts and params.filter == session_preset("paper").filter
+    assert params.gpis_carve_radius == 0 and not params.cover_prior
+    assert not params.target_uncovered
