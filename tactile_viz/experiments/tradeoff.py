@@ -46,6 +46,7 @@ CONFIGS = {
     "no-noncontacts": ("paper", {"gpis_noncontacts": False}, {}),
     "no-carve": ("paper", {"gpis_carve_radius": 0.0}, {}),
     "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
+    "target-uncovered": ("paper", {"target_uncovered": True}, {}),
 }
 
 
