@@ -19,6 +19,7 @@ import trimesh
 from skimage.measure import marching_cubes
 
 from tactile_viz.assetgen.catalog import CATALOG, by_name
+from tactile_viz.cli import ExtendList
 
 LONGEST_SIDE = 6.0
 SPACING = 0.055  # grid spacing in final units
@@ -291,8 +292,9 @@ def main(argv=None):
     """Command-line entry point."""
     parser = argparse.ArgumentParser(prog=GENERATOR, description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(DEFAULT_OUT), help="output folder")
-    parser.add_argument("--only", nargs="+", metavar="NAME", choices=[s.name for s in CATALOG],
-                        help="objects to regenerate (default: all)")
+    parser.add_argument("--only", action=ExtendList, metavar="NAME",
+                        choices=[s.name for s in CATALOG],
+                        help="objects to regenerate (default: all; repeats add up)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     build(args.out, args.only)

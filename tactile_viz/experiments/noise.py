@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ExtendList
 from ..engine.library import PriorLibrary
 from ..engine.metrics import pose_error
 from ..engine.params import noise_matched, preset
@@ -192,12 +193,12 @@ def _level(text):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench noise", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--levels", type=_level, nargs="+", default=list(DEFAULT_LEVELS),
+    parser.add_argument("--levels", type=_level, action=ExtendList, default=list(DEFAULT_LEVELS),
                         metavar="POSITION:DEGREES")
     parser.add_argument("--seeds", type=int, default=2, help="random poses per object")
     parser.add_argument("--contacts", type=int, default=40, help="random touches per trial")
-    parser.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
-    parser.add_argument("--objects", nargs="+", default=None,
+    parser.add_argument("--configs", action=ExtendList, choices=CONFIGS, default=list(CONFIGS))
+    parser.add_argument("--objects", action=ExtendList, default=None,
                         help="known objects to test (default: all ten)")
     parser.add_argument("--out", type=Path, default=Path("."),
                         help="folder for noise.md, noise.json and noise.png")

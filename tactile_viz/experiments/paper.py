@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
+from ..cli import ExtendList
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
 
@@ -46,7 +47,7 @@ def build_parser():
                     "JSON, a Markdown summary and the paper's plots.")
     parser.add_argument("--trials", type=int, default=10,
                         help="trials per object and strategy (paper 10; 1 = quick version)")
-    parser.add_argument("--objects", nargs="+", default=None, metavar="NAME",
+    parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
                         help="bundled objects to run (default all 20); comma lists work too")
     parser.add_argument("--strategies", default="gpis-dhd,rrt",
                         help="comma-separated exploration strategies (default gpis-dhd,rrt)")

@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..cli import ExtendList
 from ..engine.errors import TactileVizError
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, load_bundled
@@ -20,8 +21,8 @@ def add_trial_arguments(parser):
     priors = parser.add_mutually_exclusive_group()
     priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
                         help="the filter's priors: a bundled set (default known)")
-    priors.add_argument("--prior-file", metavar="MESH", nargs="+",
-                        help="mesh files to use as the priors instead")
+    priors.add_argument("--prior-file", metavar="MESH", action=ExtendList,
+                        help="mesh files to use as the priors instead (repeats add up)")
     priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
     parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
     parser.add_argument("--seed", type=int, default=0, help="pose, exploration and filter seed")
