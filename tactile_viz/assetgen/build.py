@@ -7,9 +7,7 @@ import argparse
 import hashlib
 import io
 import json
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -20,6 +18,7 @@ from skimage.measure import marching_cubes
 
 from tactile_viz.assetgen.catalog import CATALOG, by_name
 from tactile_viz.cli import ExtendList
+from tactile_viz.engine.files import write_atomic
 
 LONGEST_SIDE = 6.0
 SPACING = 0.055  # grid spacing in final units
@@ -223,20 +222,6 @@ def check_ply(name, data):
         found.append("not normalised after float32 rounding")
     if found:
         raise RuntimeError(f"{name}: {', '.join(found)}")
-
-
-def write_atomic(path, data):
-    """Write bytes via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def manifest_entry(spec, path):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import trimesh
 
-from .cache import write_bytes_atomic
+from .files import write_atomic
 from .errors import LibraryError, MeshError
 from .meshes import check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
@@ -96,7 +96,7 @@ class PriorLibrary:
             folder.mkdir(parents=True, exist_ok=True)
             entries = [_save_mesh(folder, model) for model in self]
             manifest = {"format": FORMAT, "version": 1, "objects": entries}
-            write_bytes_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
+            write_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
         except OSError as error:
             raise LibraryError(f"cannot save the library to {folder}: {error}") from error
         kept = {entry["file"] for entry in entries}
@@ -140,7 +140,7 @@ def _save_mesh(folder, model):
     digest = hashlib.sha256(data).hexdigest()
     filename = f"{_slug(model.name)}-{digest[:12]}.ply"
     if not (folder / filename).is_file():
-        write_bytes_atomic(folder / filename, data)
+        write_atomic(folder / filename, data)
     return {"name": model.name, "file": filename, "sha256": digest}
 
 

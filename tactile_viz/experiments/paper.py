@@ -25,6 +25,7 @@ import numpy as np
 
 from . import aggregate
 from ..cli import ExtendList
+from ..engine.files import write_atomic
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
 
@@ -151,9 +152,7 @@ def load_learned(folder):
 
 def write_json(path, value):
     """Write JSON atomically (a killed run leaves no half file)."""
-    temporary = path.with_suffix(".tmp")
-    temporary.write_text(json.dumps(value, indent=1))
-    os.replace(temporary, path)
+    write_atomic(path, json.dumps(value, indent=1).encode())
 
 
 def run(args):
