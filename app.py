@@ -34,7 +34,7 @@ def parse_args(argv=None):
 
 
 def build_scene(args):
-    from tactile_viz.engine.scene import Scene
+    from tactile_viz.app.scene import Scene
 
     scene = Scene(truth_name=args.object, seed=args.seed, strategy=args.strategy,
                   preset=args.preset)

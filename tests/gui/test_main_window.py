@@ -8,7 +8,7 @@ import pytest
 from PySide6.QtWidgets import QMessageBox
 
 from tactile_viz.engine import PriorLibrary, load_bundled
-from tactile_viz.engine.scene import Scene
+from tactile_viz.app.scene import Scene
 from tactile_viz.gui.main_window import MainWindow
 
 pytestmark = pytest.mark.gui

@@ -10,10 +10,10 @@ raises the project's error and changes nothing.
 from dataclasses import replace
 from pathlib import Path
 
-from .errors import LibraryError
-from .library import PriorLibrary
-from .objects import ObjectModel, bundled_names, load_bundled
-from .session import Session, SessionError, make_truth, session_preset
+from ..engine.errors import LibraryError
+from ..engine.library import PriorLibrary
+from ..engine.objects import ObjectModel, bundled_names, load_bundled
+from ..engine.session import Session, SessionError, make_truth, session_preset
 
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
 SESSION_KNOBS = ("eps",)
