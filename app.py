@@ -14,14 +14,14 @@ GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
 
 
 def parse_args(argv=None):
-    from tactile_viz.engine.session import SESSION_PRESETS
+    from tactile_viz.engine import SESSION_PRESETS, STRATEGIES
 
     parser = argparse.ArgumentParser(description="tactile_viz desktop app: watch and steer "
                                                  "active tactile recognition and shape learning")
     parser.add_argument("--object", default="mug_1", metavar="NAME",
                         help="bundled ground-truth object (default mug_1)")
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
-    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
     parser.add_argument("--steps", type=int, default=0,
                         help="run this many steps before showing (or before the screenshot)")

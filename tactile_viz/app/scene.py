@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..engine.errors import LibraryError
+from ..engine.exploration import STRATEGIES
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.session import Session, SessionError, make_truth, session_preset
@@ -95,7 +96,7 @@ class Scene:
         self._settings_changed()
 
     def set_strategy(self, strategy):
-        if strategy not in ("gpis-dhd", "rrt"):
+        if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}")
         self.strategy = strategy
         self._settings_changed()

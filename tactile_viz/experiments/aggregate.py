@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-THRESHOLD = 0.6
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 
 # Paper, Table "Comparison of shape reconstruction methods" (mean, std) and DESIGN section 7.
 PAPER_RECONSTRUCTION = {

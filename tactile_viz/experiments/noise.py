@@ -29,7 +29,7 @@ import numpy as np
 
 from ..cli import ExtendList
 from ..engine.library import PriorLibrary
-from ..engine.metrics import pose_error
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
 from ..engine.params import noise_matched, preset
 from ..engine.particle_filter import ParticleFilter
 from ..engine.simulator import ContactSimulator, GroundTruth, random_touch
@@ -116,7 +116,7 @@ def measure(levels=DEFAULT_LEVELS, seeds=2, contacts=40, configs=CONFIGS, names=
         rows.append({
             "position_noise": level[0], "normal_noise_deg": level[1], "config": config,
             "trials": len(outcomes), "recognised": float(recognised.mean()),
-            "success": float(np.mean(recognised & (errors < 0.6))),
+            "success": float(np.mean(recognised & (errors < THRESHOLD))),
             "median_pose_error": float(np.median(errors)),
             "mean_pose_error": float(np.mean(errors)),
             "mean_particles": float(np.mean([o["particles"] for o in outcomes])),
@@ -127,7 +127,7 @@ def measure(levels=DEFAULT_LEVELS, seeds=2, contacts=40, configs=CONFIGS, names=
 def markdown_table(rows):
     """The rows as a Markdown table."""
     lines = ["| position noise | normal noise (deg) | filter | trials | recognised | "
-             "pose < 0.6 | median pose error | mean pose error | particles | s/trial |",
+             f"pose < {THRESHOLD} | median pose error | mean pose error | particles | s/trial |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         lines.append(
@@ -158,7 +158,7 @@ def plot(rows, path):
         left.plot(x, [100 * chosen[level]["recognised"] for level in levels], **style,
                   label=f"{config}: class right")
         left.plot(x, [100 * chosen[level]["success"] for level in levels], **style,
-                  linestyle="--", label=f"{config}: class right and pose < 0.6")
+                  linestyle="--", label=f"{config}: class right and pose < {THRESHOLD}")
         right.plot(x, [chosen[level]["median_pose_error"] for level in levels], **style,
                    label=f"{config}: median")
         right.plot(x, [chosen[level]["mean_pose_error"] for level in levels], **style,
@@ -171,7 +171,7 @@ def plot(rows, path):
     left.set_ylabel("trials (%)")
     left.set_ylim(50, 102)
     right.set_ylabel("pose error (TWD, units)")
-    right.axhline(0.6, color="grey", linewidth=0.8)
+    right.axhline(THRESHOLD, color="grey", linewidth=0.8)
     trials = rows[0]["trials"]
     figure.suptitle(f"Known set, random touches, {trials} trials per point")
     figure.tight_layout()

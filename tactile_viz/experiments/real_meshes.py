@@ -40,6 +40,7 @@ import trimesh
 
 from ..cli import ExtendList
 from ..engine.errors import MeshError, TactileVizError
+from ..engine.exploration import STRATEGIES
 from ..engine.session import SESSION_PRESETS
 from .paper import split_names
 
@@ -462,7 +463,7 @@ def build_parser():
                         help="trials per object and case; trial i uses seed --seed + i "
                              "(default 3)")
     parser.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd",
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="exploration strategy (default gpis-dhd)")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")

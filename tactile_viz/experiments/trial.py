@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..cli import ExtendList
 from ..engine.errors import TactileVizError
+from ..engine.exploration import STRATEGIES
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
@@ -24,7 +25,7 @@ def add_trial_arguments(parser):
     priors.add_argument("--prior-file", metavar="MESH", action=ExtendList,
                         help="mesh files to use as the priors instead (repeats add up)")
     priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
-    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--seed", type=int, default=0, help="pose, exploration and filter seed")
     parser.add_argument("--max-steps", type=int, default=None,
                         help="stop after this many steps (default: the paper's caps 300/400)")
