@@ -7,6 +7,7 @@ Qt-free and light: the engine's commands, the benchmarks and ``app.py`` all use 
 import argparse
 import logging
 import os
+import sys
 from pathlib import Path
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
@@ -32,6 +33,19 @@ class ExtendList(argparse.Action):
         setattr(namespace, self.dest, [*current, *values])
 
 
+class _CurrentStderr(logging.StreamHandler):
+    """A handler that writes to whatever ``sys.stderr`` is when a message comes (pytest and
+    some GUIs replace it after logging is set up)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):
+        pass
+
+
 def default_log_file():
     """``$XDG_STATE_HOME/tactile_viz/app.log``, else ``~/.local/state/tactile_viz/app.log``."""
     base = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
@@ -42,24 +56,29 @@ def add_logging_arguments(parser, log_file_default=None):
     """``--verbose`` (debug messages on stderr) and ``--log-file FILE`` (every message there)."""
     parser.add_argument("--verbose", "-v", action="store_true",
                         help="log debug messages on stderr (default: warnings and errors)")
-    where = f" (default {log_file_default})" if log_file_default else ""
+    where = f" (default {log_file_default}; '' for none)" if log_file_default else ""
     parser.add_argument("--log-file", metavar="FILE", default=log_file_default,
                         help=f"also append every log message to this file{where}")
 
 
 def setup_logging(verbose=False, log_file=None):
-    """Configure the ``tactile_viz`` loggers: stderr at WARNING (DEBUG with ``verbose``), and
-    ``log_file`` (appended, at DEBUG) when given. A log file that cannot be opened is reported
-    on stderr and skipped: logging never stops the program. Returns the log file's path or
-    None."""
-    root = logging.getLogger("tactile_viz")
-    for handler in list(root.handlers):
-        if getattr(handler, "_tactile_viz", False):
-            root.removeHandler(handler)
-            handler.close()
-    root.setLevel(logging.DEBUG)
-    root.propagate = False
-    console = logging.StreamHandler()
+    """Send the ``tactile_viz`` loggers' messages to stderr (warnings and errors; everything
+    with ``verbose``) and, when ``log_file`` is given, append everything to that file.
+
+    Calling it again replaces what an earlier call set up. A log file that cannot be opened
+    is reported on stderr and skipped: logging never stops the program.
+
+    Returns
+    -------
+    Path or None
+        The log file in use.
+    """
+    logger = logging.getLogger("tactile_viz")
+    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
+        logger.removeHandler(handler)
+        handler.close()
+    logger.setLevel(logging.DEBUG)
+    console = _CurrentStderr()
     console.setLevel(logging.DEBUG if verbose else logging.WARNING)
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
     handlers = [console]
@@ -67,17 +86,18 @@ def setup_logging(verbose=False, log_file=None):
     if log_file:
         try:
             Path(log_file).parent.mkdir(parents=True, exist_ok=True)
-            handler = logging.FileHandler(log_file, encoding="utf-8")
+            file_handler = logging.FileHandler(log_file, encoding="utf-8")
         except OSError as error:
-            root.addHandler(console)
-            console._tactile_viz = True
-            root.warning("cannot write the log file %s: %s", log_file, error)
-            return None
-        handler.setLevel(logging.DEBUG)
-        handler.setFormatter(logging.Formatter(LOG_FORMAT))
-        handlers.append(handler)
-        opened = Path(log_file)
+            problem = f"cannot write the log file {log_file}: {error}"
+        else:
+            problem = None
+            file_handler.setLevel(logging.DEBUG)
+            file_handler.setFormatter(logging.Formatter(LOG_FORMAT))
+            handlers.append(file_handler)
+            opened = Path(log_file)
     for handler in handlers:
-        handler._tactile_viz = True
-        root.addHandler(handler)
+        handler.tactile_viz_cli = True
+        logger.addHandler(handler)
+    if log_file and opened is None:
+        logger.warning(problem)
     return opened

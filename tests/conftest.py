@@ -7,6 +7,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 os.environ.setdefault("TACTILE_VIZ_CACHE", str(REPO / ".cache" / "tests"))
+# The app's default log file goes under $XDG_STATE_HOME: keep it out of the user's home.
+os.environ["XDG_STATE_HOME"] = str(REPO / ".cache" / "tests" / "state")
 # Seeded trials are reproducible only for one BLAS summation order; the thread count changes
 # it. `make test` sets these before Python starts; this covers a bare `pytest` run, as long
 # as numpy has not been imported yet.

@@ -7,6 +7,7 @@ corrupt or unreadable entry is treated as missing and rebuilt.
 
 import hashlib
 import json
+import logging
 import os
 import zipfile
 from pathlib import Path
@@ -16,6 +17,7 @@ import numpy as np
 from .files import write_atomic
 
 ENV_VAR = "TACTILE_VIZ_CACHE"
+log = logging.getLogger(__name__)
 
 
 def default_cache_dir():
@@ -51,13 +53,15 @@ class ArrayCache:
         try:
             with np.load(path, allow_pickle=False) as stored:
                 return {name: stored[name] for name in stored.files}
-        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
-            pass  # missing or corrupt: rebuild below
+        except FileNotFoundError:
+            log.debug("cache: building %s", path.name)
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as error:
+            log.warning("cache: rebuilding the unreadable entry %s (%s)", path, error)
         arrays = build()
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             write_atomic(path, lambda stream: np.savez(stream, **arrays))
-        except OSError:
-            pass  # a read-only cache folder only costs time
+        except OSError as error:  # a read-only cache folder only costs time
+            log.debug("cache: cannot store %s (%s)", path, error)
         return arrays
 

@@ -8,15 +8,18 @@ atomically last: a failed or interrupted save leaves the previous library readab
 import hashlib
 import io
 import json
+import logging
 import re
 from pathlib import Path
 
 import trimesh
 
-from .files import write_atomic
 from .errors import LibraryError, MeshError
+from .files import write_atomic
 from .meshes import check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
+
+log = logging.getLogger(__name__)
 
 MANIFEST = "library.json"
 FORMAT = "tactile_viz-prior-library"
@@ -103,6 +106,7 @@ class PriorLibrary:
         for stale in folder.glob("*.ply"):
             if stale.name not in kept:
                 stale.unlink(missing_ok=True)
+        log.info("saved %d priors to %s", len(entries), folder)
         return folder
 
     @classmethod
@@ -128,6 +132,7 @@ class PriorLibrary:
                 raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
                                    f"{entry['name']!r} is corrupt (checksum mismatch)")
             models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache))
+        log.info("loaded %d priors from %s", len(models), folder)
         return cls(models)
 
 

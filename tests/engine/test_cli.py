@@ -2,6 +2,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from tactile_viz.__main__ import main
 
 
@@ -90,3 +92,53 @@ def test_benchmark_list_options_add_up(monkeypatch):
     with pytest.raises(SystemExit):
         sdf_speed.main(["--objects", "mug_1", "--objects", "armadillo", "vase_2"])
     assert parsed[0].objects == ["mug_1", "armadillo", "vase_2"]
+
+
+@pytest.fixture
+def reset_logging():
+    """Remove the handlers setup_logging attaches, so later tests log nowhere new."""
+    yield
+    import logging
+
+    logger = logging.getLogger("tactile_viz")
+    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
+        logger.removeHandler(handler)
+        handler.close()
+
+
+def test_log_file_gets_the_error_and_its_traceback(tmp_path, capsys, reset_logging):
+    bad = tmp_path / "broken.stl"
+    bad.write_bytes(b"")
+    log_file = tmp_path / "logs" / "run.log"
+    assert main(["--log-file", str(log_file), "trial", "--object-file", str(bad),
+                 "--no-progress"]) == 2
+    assert "broken.stl" in capsys.readouterr().err  # the user still sees the message
+    text = log_file.read_text()
+    assert "command: " in text and "Traceback" in text and "broken.stl" in text
+
+
+def test_verbose_logs_debug_on_stderr(capsys, reset_logging):
+    assert main(["--verbose", "objects", "--json"]) == 0
+    assert "DEBUG tactile_viz.__main__: command: " in capsys.readouterr().err
+    assert main(["objects", "--json"]) == 0
+    assert "DEBUG" not in capsys.readouterr().err
+
+
+def test_unwritable_log_file_is_reported_not_fatal(tmp_path, capsys, reset_logging):
+    from tactile_viz.cli import setup_logging
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert setup_logging(log_file=blocker / "app.log") is None
+    assert "cannot write the log file" in capsys.readouterr().err
+
+
+def test_default_log_file_is_in_the_state_folder(monkeypatch, tmp_path):
+    from pathlib import Path
+
+    from tactile_viz.cli import default_log_file
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    assert default_log_file() == tmp_path / "tactile_viz" / "app.log"
+    monkeypatch.delenv("XDG_STATE_HOME")
+    assert default_log_file() == Path.home() / ".local" / "state" / "tactile_viz" / "app.log"
