@@ -61,6 +61,14 @@ def add_logging_arguments(parser, log_file_default=None):
                         help=f"also append every log message to this file{where}")
 
 
+def stop_logging():
+    """Remove (and close) the handlers :func:`setup_logging` added."""
+    logger = logging.getLogger("tactile_viz")
+    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
+        logger.removeHandler(handler)
+        handler.close()
+
+
 def setup_logging(verbose=False, log_file=None):
     """Send the ``tactile_viz`` loggers' messages to stderr (warnings and errors; everything
     with ``verbose``) and, when ``log_file`` is given, append everything to that file.
@@ -73,10 +81,8 @@ def setup_logging(verbose=False, log_file=None):
     Path or None
         The log file in use.
     """
+    stop_logging()
     logger = logging.getLogger("tactile_viz")
-    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
-        logger.removeHandler(handler)
-        handler.close()
     logger.setLevel(logging.DEBUG)
     console = _CurrentStderr()
     console.setLevel(logging.DEBUG if verbose else logging.WARNING)

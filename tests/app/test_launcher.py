@@ -1,7 +1,6 @@
 """app.py's logging, without Qt: errors the window shows and uncaught ones reach the log."""
 
 import importlib.util
-import logging
 import sys
 from pathlib import Path
 
@@ -20,14 +19,10 @@ def launcher():
 
 @pytest.fixture
 def log_file(tmp_path):
-    from tactile_viz.cli import setup_logging
+    from tactile_viz.cli import setup_logging, stop_logging
 
-    path = setup_logging(log_file=tmp_path / "app.log")
-    yield path
-    logger = logging.getLogger("tactile_viz")
-    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
-        logger.removeHandler(handler)
-        handler.close()
+    yield setup_logging(log_file=tmp_path / "app.log")
+    stop_logging()
 
 
 class FakeWindow:

@@ -97,13 +97,10 @@ def test_benchmark_list_options_add_up(monkeypatch):
 @pytest.fixture
 def reset_logging():
     """Remove the handlers setup_logging attaches, so later tests log nowhere new."""
-    yield
-    import logging
+    from tactile_viz.cli import stop_logging
 
-    logger = logging.getLogger("tactile_viz")
-    for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
-        logger.removeHandler(handler)
-        handler.close()
+    yield
+    stop_logging()
 
 
 def test_log_file_gets_the_error_and_its_traceback(tmp_path, capsys, reset_logging):

@@ -1,7 +1,6 @@
 """The main window under Xvfb: stepping, running, pausing, layers, errors, closing."""
 
 import importlib.util
-import logging
 import sys
 from pathlib import Path
 
@@ -10,6 +9,7 @@ import pytest
 from PySide6.QtWidgets import QMessageBox
 
 from tactile_viz.app.scene import Scene
+from tactile_viz.cli import stop_logging
 from tactile_viz.engine import PriorLibrary, load_bundled
 from tactile_viz.gui.main_window import MainWindow
 
@@ -141,10 +141,7 @@ def test_headless_screenshot_mode(qapp, tmp_path):
         assert app.main(["--object", "bottle_1", "--steps", "3", "--screenshot", str(out),
                          "--log-file", str(log_file)]) == 0
     finally:
-        logger = logging.getLogger("tactile_viz")
-        for handler in [h for h in logger.handlers if getattr(h, "tactile_viz_cli", False)]:
-            logger.removeHandler(handler)
-            handler.close()
+        stop_logging()
     assert out.stat().st_size > 10_000
     assert sys.excepthook is hook  # the app's hook is gone again
     assert "app started" in log_file.read_text()
