@@ -17,7 +17,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from .cache import write_bytes_atomic
+from .files import write_atomic
 from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           rrt_step)
@@ -635,7 +635,7 @@ class Session:
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **arrays)
         try:
-            write_bytes_atomic(path, buffer.getvalue())
+            write_atomic(path, buffer.getvalue())
         except OSError as error:
             raise SessionError(f"cannot save the session to {path}: {error}") from error
         return path

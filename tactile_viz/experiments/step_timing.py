@@ -15,6 +15,7 @@ import time
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
+from ..cli import ExtendList
 from ..engine.exploration import enforce_contact
 from ..engine.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
                            stable_cholesky, zero_level_surface)
@@ -118,7 +119,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench step", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", default="mug_2")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 400])
+    parser.add_argument("--sizes", type=int, action=ExtendList, default=[50, 200, 400])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)

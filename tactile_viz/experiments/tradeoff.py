@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ExtendList
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
 from .paper import (machine_description, object_sets, recorded_command, split_names,
@@ -88,7 +89,7 @@ def build_parser():
                     "feature points, point-pair key resolution and neighbour look-up, GPIS "
                     "grid, eps); plot time per trial against pose error (known objects) and "
                     "reconstruction error (novel objects) with the Pareto front.")
-    parser.add_argument("--objects", nargs="+", default=["mug_1", "elephant", "vase_2"],
+    parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
     parser.add_argument("--seeds", type=int, default=2, help="trials (seeds 0..N-1) per object")
     parser.add_argument("--configs", default=",".join(CONFIGS),

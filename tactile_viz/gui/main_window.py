@@ -57,7 +57,7 @@ class MainWindow(QMainWindow):
 
     Parameters
     ----------
-    scene : tactile_viz.engine.scene.Scene
+    scene : tactile_viz.app.scene.Scene
     """
 
     def __init__(self, scene, parent=None):

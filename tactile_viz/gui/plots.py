@@ -4,7 +4,7 @@ import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 
-THRESHOLD = 0.6
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 
 
 class PlotsWidget(FigureCanvasQTAgg):

@@ -234,8 +234,10 @@ def test_trial_command_with_prior_files(tmp_path, bundled):
     for name in ["mug_1", "vase_1"]:
         bundled[name].mesh.export(tmp_path / f"{name}.ply")
     out = tmp_path / "trial.json"
-    assert main(["trial", "--object-file", str(tmp_path / "vase_1.ply"), "--prior-file",
-                 str(tmp_path / "mug_1.ply"), str(tmp_path / "vase_1.ply"),
+    # Repeated flags add up (issue 17: only the last --prior-file used to count).
+    assert main(["trial", "--object-file", str(tmp_path / "vase_1.ply"),
+                 "--prior-file", str(tmp_path / "mug_1.ply"),
+                 "--prior-file", str(tmp_path / "vase_1.ply"),
                  "--max-steps", "4", "--json", str(out), "--no-progress"]) == 0
     assert json.loads(out.read_text())["library"] == ["mug_1", "vase_1"]
 

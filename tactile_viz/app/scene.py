@@ -7,13 +7,17 @@ stale resets it. Bad input (a broken mesh, an unreadable library, an invalid par
 raises the project's error and changes nothing.
 """
 
+import logging
 from dataclasses import replace
 from pathlib import Path
 
-from .errors import LibraryError
-from .library import PriorLibrary
-from .objects import ObjectModel, bundled_names, load_bundled
-from .session import Session, SessionError, make_truth, session_preset
+from ..engine.errors import LibraryError
+from ..engine.exploration import STRATEGIES
+from ..engine.library import PriorLibrary
+from ..engine.objects import ObjectModel, bundled_names, load_bundled
+from ..engine.session import Session, SessionError, make_truth, session_preset
+
+log = logging.getLogger(__name__)
 
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
 SESSION_KNOBS = ("eps",)
@@ -92,18 +96,21 @@ class Scene:
         except ValueError:
             self.overrides = previous
             raise
+        log.info("parameter %s = %s", name, value)
         self._settings_changed()
 
     def set_strategy(self, strategy):
-        if strategy not in ("gpis-dhd", "rrt"):
+        if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}")
         self.strategy = strategy
+        log.info("strategy %s", strategy)
         self._settings_changed()
 
     def set_preset(self, preset):
         session_preset(preset)  # raises for an unknown name
         self.preset = preset
         self.overrides = {}
+        log.info("preset %s", preset)
         self._settings_changed()
 
     # ------------------------------------------------------------------ truth
@@ -121,6 +128,7 @@ class Scene:
     def _set_truth(self, model):
         self.truth_model = model
         self.truth = make_truth(model, rng=[self.seed, 0])
+        log.info("ground truth %s at the pose of seed %d", model.name, self.seed)
         self.reset()
         self.truth_changed.emit(self.truth)
 
@@ -128,6 +136,7 @@ class Scene:
         """Place the truth at the random pose of ``seed`` (also the session's seed)."""
         self.seed = int(seed)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        log.info("ground truth %s at the pose of seed %d", self.truth_model.name, self.seed)
         self.reset()
         self.truth_changed.emit(self.truth)
 
@@ -139,6 +148,7 @@ class Scene:
     def set_prior_enabled(self, name, enabled):
         self.library[name]  # raises LibraryError for an unknown name
         self.enabled[name] = bool(enabled)
+        log.info("prior %s %s", name, "enabled" if enabled else "disabled")
         self.reset()
         self.library_changed.emit(self.library)
 
@@ -153,6 +163,7 @@ class Scene:
     def _add_prior(self, model):
         self.library.add(model)
         self.enabled[model.name] = True
+        log.info("prior %s added", model.name)
         self.reset()
         self.library_changed.emit(self.library)
 
@@ -226,11 +237,14 @@ class Scene:
     def save_session(self, path):
         if self.session is None or self.session.step_count == 0:
             raise SessionError("nothing to save: the session has not started")
-        return self.session.save(path)
+        saved = self.session.save(path)
+        log.info("session saved to %s (%d steps)", saved, self.session.step_count)
+        return saved
 
     def load_session(self, path):
         """Load a saved session (its truth, priors and steps replace the current ones)."""
         session = Session.load(path)
+        log.info("session loaded from %s (%d steps)", path, session.step_count)
         self.truth_model, self.truth = session.truth.model, session.truth
         self.library = session.library
         self.enabled = {name: True for name in self.library.names}
