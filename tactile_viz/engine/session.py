@@ -25,6 +25,7 @@ from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
+from .metrics import pose_error as metric_pose_error
 from .objects import ObjectModel
 from .meshes import check_arrays
 from .observations import Contact
@@ -408,9 +409,8 @@ class Session:
         timings["target"] = time.perf_counter() - clock
 
         clock = time.perf_counter()
-        pose_samples = transform_points(surface_samples(model, self.params.metric_samples),
-                                        rotation, translation)
-        pose_error = two_way_hausdorff(pose_samples, self._truth_samples)
+        pose_error = metric_pose_error(model, rotation, translation, self.truth,
+                                       self.params.metric_samples)
         recon_error = None
         if gpis is not None and len(gpis[1]):
             recon = trimesh.Trimesh(gpis[0], gpis[1], process=False)
