@@ -53,10 +53,13 @@ class ThinPlateKernel:
         """``k(0)``: the prior variance of a value."""
         return self.radius**3
 
-    def profile(self, r):
-        """``k(r)``, ``g = k'(r) / r`` and ``g'(r)`` on an array of distances."""
+    def profile(self, r, second=True):
+        """``k(r)``, ``g = k'(r) / r`` and ``g'(r)`` (None unless ``second``) on an array
+        of distances."""
         big = self.radius
-        return 2 * r**3 - 3 * big * r**2 + big**3, 6 * (r - big), np.full_like(r, 6.0)
+        r2 = r * r
+        return (2 * r2 * r - 3 * big * r2 + big**3, 6 * (r - big),
+                np.full_like(r, 6.0) if second else None)
 
 
 @dataclass(frozen=True)
@@ -80,10 +83,14 @@ class WendlandKernel:
     def radius(self):
         return self.support
 
-    def profile(self, r):
+    def profile(self, r, second=True):
         c = self.support
         rest = np.clip(1.0 - r / c, 0.0, None)
-        return (rest**4 * (4 * r / c + 1), -20 * rest**3 / c**2, 60 * rest**2 / c**3)
+        rest2 = rest * rest  # products, not powers: this runs on every (grid node, point) pair
+        rest3 = rest2 * rest
+        value = rest3 * rest * (4 / c * r + 1)
+        rest3 *= -20 / c**2
+        return value, rest3, (60 / c**3) * rest2 if second else None
 
 
 def as_kernel(kernel):
@@ -135,7 +142,7 @@ def kernel_blocks(x, y, kernel):
 def value_rows(x, y, kernel):
     """Covariance of values at ``x`` with [value, gradient] at ``y`` (``a = 1``): (p, 4q)."""
     diff = x[:, None, :] - y[None, :, :]
-    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1))
+    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1), second=False)
     rows = np.empty(value.shape + (4,))
     rows[..., 0] = value
     rows[..., 1:] = -g[..., None] * diff
@@ -149,7 +156,7 @@ def value_correction(x, y, weights, kernel):
     both reduce to products of (p, q) matrices of the distances with vectors.
     """
     weights = weights.reshape(-1, 4)
-    value, g, _ = as_kernel(kernel).profile(cdist(x, y))
+    value, g, _ = as_kernel(kernel).profile(cdist(x, y), second=False)
     toward = g @ weights[:, 1:]                              # sum_j g_ij w_j, (p, 3)
     offsets = g @ np.einsum("ij,ij->i", y, weights[:, 1:])
     return value @ weights[:, 0] - (np.einsum("ij,ij->i", x, toward) - offsets)
