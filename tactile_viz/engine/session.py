@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from .files import write_atomic
 from .errors import ParameterError, TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
-                          rrt_step)
+                          next_sweep_direction, rrt_step, sweep_line)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .library import PriorLibrary
@@ -93,6 +93,12 @@ class SessionParams:
         vertices still farther than ``eps`` from every contact (the paper's, the default:
         among all; restricting it stopped home_chair and noisy_dino earlier with less of
         the object touched, seed 0).
+    check_lines : int
+        Beyond the paper: once a novel object's estimate is covered, this many straight
+        lines (from directions spread over the sphere, each through a random contact moved
+        by about ``eps``) must each touch nothing farther than ``eps`` from the estimate and from every
+        contact before the session stops; a line that does restarts the count, since part of
+        the object was never predicted. 0: stop as soon as the estimate is covered (paper).
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int
@@ -130,6 +136,7 @@ class SessionParams:
     gpis_carve_radius: float = 0.6
     cover_prior: bool = True
     target_uncovered: bool = False
+    check_lines: int = 0
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
@@ -160,6 +167,9 @@ class SessionParams:
         if not (np.isfinite(self.gpis_carve_radius) and self.gpis_carve_radius >= 0):
             raise ParameterError("gpis_carve_radius must be a finite number >= 0, "
                                  f"got {self.gpis_carve_radius!r}")
+        object.__setattr__(self, "check_lines", _check_integer("check_lines", self.check_lines))
+        if self.check_lines < 0:
+            raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")
         for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
                      "gpis_resolution", "learned_resolution"):
             object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
@@ -195,7 +205,7 @@ SESSION_PRESETS = {
     # only (the shape-transfer shortfall of the README comes from it).
     "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
                               gpis_noncontacts=False, gpis_carve_radius=0.0,
-                              cover_prior=False),
+                              cover_prior=False, check_lines=0),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
@@ -301,6 +311,9 @@ class Session:
         self._target = None
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
+        self._check = None  # the estimate's vertices while a check line is due
+        self._check_directions = []
+        self._checks_passed = 0
         self._truth_samples = transform_points(
             surface_samples(truth.model, self.params.metric_samples), truth.rotation,
             truth.translation)
@@ -350,10 +363,12 @@ class Session:
         return ({name: getattr(self.filter, name) for name in self._FILTER_STATE},
                 [g.bit_generator.state for g in self._generators()],
                 (self._scale, self._target, list(self._given_up_targets), self._free_space,
-                 len(self.snapshots)))
+                 len(self.snapshots)),
+                (self._check, list(self._check_directions), self._checks_passed))
 
     def _restore(self, saved):
-        filter_state, generator_states, (scale, target, given_up, free, count) = saved
+        filter_state, generator_states, (scale, target, given_up, free, count), check = saved
+        self._check, self._check_directions, self._checks_passed = check
         for name, value in filter_state.items():
             setattr(self.filter, name, value)
         for generator, state in zip(self._generators(), generator_states):
@@ -394,9 +409,15 @@ class Session:
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         step = self.step_count + 1
-        terminated = bool(max(dhd, prior_dhd) <= self.params.eps or step >= cap)
+        covered = max(dhd, prior_dhd) <= self.params.eps
+        checking = covered and state.novel and self._checks_passed < self.params.check_lines
+        terminated = bool((covered and not checking) or step >= cap)
+        self._check = None
         if terminated:
             self._target = None
+        elif checking:
+            self._target = None
+            self._check = surface
         elif dhd <= self.params.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
@@ -450,6 +471,8 @@ class Session:
             low, high = contacts.min(axis=0) - 3.0, contacts.max(axis=0) + 3.0
             return rrt_step(self.simulator, contacts, self.filter.contact_normals, (low, high),
                             self.rng, p.rrt_step, p.probe_depth)
+        if self._check is not None:
+            return self._check_line(contacts)
         target, normal, estimate = self._target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
         paths, observations, reached = enforce_contact(
@@ -460,6 +483,25 @@ class Session:
         if not isinstance(observations[0], Contact):
             self._free_space = free_space_points(self._free_space, paths[0],
                                                  p.contact_spacing)
+        return paths, observations
+
+    def _check_line(self, contacts):
+        """One check line (``check_lines``); counts it as passed unless it touched the
+        object farther than ``eps`` from the estimate and from every contact."""
+        estimate = self._check
+        direction = next_sweep_direction(self._check_directions, self.rng)
+        self._check_directions.append(direction)
+        through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
+            0.0, self.params.eps, size=3)
+        paths, observations = sweep_line(self.simulator, through, direction)
+        touched = observations[0]
+        surprise = isinstance(touched, Contact) and min(
+            cKDTree(contacts).query(touched.position)[0],
+            cKDTree(estimate).query(touched.position)[0]) > self.params.eps
+        self._checks_passed = 0 if surprise else self._checks_passed + 1
+        if not isinstance(touched, Contact):
+            self._free_space = free_space_points(self._free_space, paths[0],
+                                                 self.params.contact_spacing)
         return paths, observations
 
     def _repeats_contact(self, observation):

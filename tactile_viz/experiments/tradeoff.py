@@ -48,6 +48,7 @@ CONFIGS = {
     "no-carve": ("paper", {"gpis_carve_radius": 0.0}, {}),
     "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
     "target-uncovered": ("paper", {"target_uncovered": True}, {}),
+    "check-lines8": ("paper", {"check_lines": 8}, {}),
 }
 
 
