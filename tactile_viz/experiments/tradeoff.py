@@ -38,13 +38,19 @@ CONFIGS = {
     "gpis48": ("paper", {"gpis_resolution": 48}, {}),
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
-    # The GPIS ablation (novel objects): thin-plate at the landed R, Wendland supports,
-    # non-contacts off, the prior's carve off or wider.
+    # The GPIS ablation (novel objects): the thin-plate kernel (the paper preset's) at the
+    # paper's R and explicitly, the compact Wendland kernel with free space at three
+    # supports (c = 4 was the paper preset at ef75223), free space with the thin-plate
+    # kernel, the prior's carve off or wider.
+    "thin-plate1.0": ("paper", {"gpis_radius_factor": 1.0}, {}),
     "thin-plate1.2": ("paper", {"gpis_kernel": "thin-plate", "gpis_radius_factor": 1.2,
                                 "gpis_noncontacts": False}, {}),
-    "wendland2.5": ("paper", {"gpis_support": 2.5}, {}),
-    "wendland6": ("paper", {"gpis_support": 6.0}, {}),
-    "no-noncontacts": ("paper", {"gpis_noncontacts": False}, {}),
+    "wendland4": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True}, {}),
+    "wendland2.5": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
+                              "gpis_support": 2.5}, {}),
+    "wendland6": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
+                            "gpis_support": 6.0}, {}),
+    "noncontacts": ("paper", {"gpis_noncontacts": True}, {}),
     "no-carve": ("paper", {"gpis_carve_radius": 0.0}, {}),
     "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
     "target-uncovered": ("paper", {"target_uncovered": True}, {}),
