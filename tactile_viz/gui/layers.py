@@ -256,24 +256,56 @@ class ViewportLayers:
             width, height = 800, 600
         return max(int(width), 100), max(int(height), 100)
 
+    def _make_legend(self):
+        """One legend actor for the life of the view; its entries are rewritten in place."""
+        legend = vtk.vtkLegendBoxActor()
+        legend.SetNumberOfEntries(len(LAYERS))
+        legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+        legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
+        legend.UseBackgroundOn()
+        legend.SetBackgroundColor(1.0, 1.0, 1.0)
+        legend.SetBackgroundOpacity(0.85)
+        legend.BorderOff()
+        legend.SetPadding(2)
+        legend.GetEntryTextProperty().SetColor(0.1, 0.1, 0.1)
+        legend.GetEntryTextProperty().SetFontSize(12)
+        square = vtk.vtkPolyData()
+        points = vtk.vtkPoints()
+        for x, y in ((0, 0), (1, 0), (1, 1), (0, 1)):
+            points.InsertNextPoint(x, y, 0)
+        square.SetPoints(points)
+        cells = vtk.vtkCellArray()
+        cells.InsertNextCell(4, [0, 1, 2, 3])
+        square.SetPolys(cells)
+        self._square = square
+        self._icon = _viridis_icon()
+        self.plotter.renderer.AddViewProp(legend)
+        self.legend = legend
+
     def _sync_legend(self):
-        """A legend of the layers that exist and are switched on, sized in pixels."""
+        """A legend of the layers that exist and are switched on, sized in pixels (readable
+        whatever the window's size); GPIS is shown as a viridis ramp, as it is drawn."""
         names = [name for name in LAYERS if self.shown(name)]
         pixels = self._viewport_pixels()
         key = (tuple(names), pixels)
         if key == self._legend_key:
             return
         self._legend_key = key
-        if getattr(self.plotter, "legend", None) is not None:
-            self.plotter.remove_legend(render=False)
+        if getattr(self, "legend", None) is None:
+            self._make_legend()
+        legend = self.legend
+        legend.SetVisibility(bool(names))
         if not names:
             return
+        legend.SetNumberOfEntries(len(names))
+        for index, name in enumerate(names):
+            label, colour = LAYERS[name]
+            if name == "gpis":
+                legend.SetEntry(index, None, self._icon, label, (1.0, 1.0, 1.0))
+            else:
+                legend.SetEntry(index, self._square, label, pv.Color(colour).float_rgb)
         width, height = pixels
-        entries = [[LAYERS[n][0], "white" if n == "gpis" else LAYERS[n][1]] for n in names]
-        size = (min(0.6, LEGEND_WIDTH_PIXELS / width),
-                min(0.9, LEGEND_ROW_PIXELS * len(names) / height))
-        legend = self.plotter.add_legend(labels=entries, bcolor="white", face="rectangle",
-                                         size=size, loc="upper left")
-        if "gpis" in names:
-            legend.SetEntryIcon(names.index("gpis"), _viridis_icon())
-            legend.SetEntrySymbol(names.index("gpis"), None)
+        box_w = min(0.6, LEGEND_WIDTH_PIXELS / width)
+        box_h = min(0.9, LEGEND_ROW_PIXELS * len(names) / height)
+        legend.SetPosition(0.01, 0.99 - box_h)
+        legend.SetPosition2(box_w, box_h)

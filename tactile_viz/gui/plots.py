@@ -6,6 +6,7 @@ layout is computed once and again only when the widget is resized, and drawing i
 """
 
 import time
+from collections import deque
 
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
@@ -33,6 +34,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._series = {key: [] for key, _ in ERROR_SERIES}
         self._steps = []
         self.last_draw_seconds = 0.0
+        self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
         self._setup_errors()
         self.update_plots([])
         self._relayout()
@@ -65,6 +67,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         began = time.perf_counter()
         super().draw()
         self.last_draw_seconds = time.perf_counter() - began
+        self.draw_log.append((began, self.last_draw_seconds))
 
     def resizeEvent(self, event):
         super().resizeEvent(event)

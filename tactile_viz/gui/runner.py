@@ -17,13 +17,16 @@ from superqt.utils import thread_worker
 
 
 @thread_worker(start_thread=False)
-def step_worker(session, count, stop, generation):
+def step_worker(session, count, stop, generation, step_ends=None):
     """Step ``session`` ``count`` times (None: until it terminates) unless ``stop`` is set,
-    yielding ``(generation, snapshot)`` after each step."""
+    yielding ``(generation, snapshot)`` after each step (and appending the time each step
+    ended to ``step_ends``, if given)."""
     done = 0
     while not stop.is_set() and not session.terminated and (count is None or done < count):
         snapshot = session.step()
         done += 1
+        if step_ends is not None:
+            step_ends.append(time.perf_counter())
         yield generation, snapshot
 
 
@@ -53,7 +56,7 @@ class StepRunner(QObject):
         self.pending = None
         self.drawn = 0  # snapshots drawn during runs
         self.received = 0  # snapshots received from the worker
-        self.draw_seconds = []
+        self.draw_seconds = []  # seconds of each draw() call (the viewport's part)
         self._stop = threading.Event()
         self._closing = False
         self._next_draw = 0.0
@@ -61,6 +64,8 @@ class StepRunner(QObject):
         self._timer.setSingleShot(True)
         self._timer.timeout.connect(self.flush)
         self.stop_requested_at = None
+        self.step_ends = []  # perf_counter() at the end of each step of the current run
+        self.finished_at = None  # perf_counter() when the run's end was handled
         # Time of drawing done later in its own pass of the event loop (the plots'
         # draw_idle), counted in the pacing: a callable returning seconds.
         self.extra_seconds = lambda: 0.0
@@ -77,7 +82,8 @@ class StepRunner(QObject):
         self._stop = threading.Event()
         self.generation = generation
         self.stop_requested_at = None
-        worker = step_worker(session, count, self._stop, generation)
+        self.step_ends = []
+        worker = step_worker(session, count, self._stop, generation, self.step_ends)
         worker.yielded.connect(self._on_yielded)
         worker.errored.connect(self._on_errored)
         worker.finished.connect(self._on_finished)
@@ -126,6 +132,7 @@ class StepRunner(QObject):
         if self._closing:
             return
         self.flush()  # the last step is always shown, at once
+        self.finished_at = time.perf_counter()
         self.finished.emit()
 
     # ------------------------------------------------------------------ drawing
@@ -140,8 +147,9 @@ class StepRunner(QObject):
         began = time.perf_counter()
         self.draw(snapshot)
         ended = time.perf_counter()
-        seconds = ended - began + float(self.extra_seconds())
         self.drawn += 1
-        self.draw_seconds.append(seconds)
-        # Pace the next draw so that drawing stays within `duty` of the time.
+        self.draw_seconds.append(ended - began)
+        # Pace the next draw so that drawing (this one and the deferred part of the previous
+        # one) stays within `duty` of the time.
+        seconds = ended - began + float(self.extra_seconds())
         self._next_draw = ended + seconds * (1.0 / self.duty - 1.0)
