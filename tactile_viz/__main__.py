@@ -2,9 +2,13 @@
 
 import argparse
 import json
+import logging
 import sys
 
+from .cli import add_logging_arguments, setup_logging
 from .engine.errors import TactileVizError
+
+log = logging.getLogger(__name__)
 
 
 def _objects(args):
@@ -56,6 +60,7 @@ def build_parser():
     parser = argparse.ArgumentParser(
         prog="python -m tactile_viz",
         description="Active tactile object recognition, pose estimation and shape transfer.")
+    add_logging_arguments(parser)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     objects = commands.add_parser("objects", help="list the bundled objects and their set")
@@ -92,9 +97,12 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
+    setup_logging(args.verbose, args.log_file)
+    log.debug("command: %s", sys.argv if argv is None else argv)
     try:
         return args.run(args)
     except TactileVizError as error:
+        log.debug("the command failed", exc_info=True)
         print(f"error: {error}", file=sys.stderr)
         return 2
 

@@ -7,9 +7,7 @@ import argparse
 import hashlib
 import io
 import json
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -19,6 +17,8 @@ import trimesh
 from skimage.measure import marching_cubes
 
 from tactile_viz.assetgen.catalog import CATALOG, by_name
+from tactile_viz.cli import ExtendList
+from tactile_viz.engine.files import write_atomic
 
 LONGEST_SIDE = 6.0
 SPACING = 0.055  # grid spacing in final units
@@ -224,20 +224,6 @@ def check_ply(name, data):
         raise RuntimeError(f"{name}: {', '.join(found)}")
 
 
-def write_atomic(path, data):
-    """Write bytes via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def manifest_entry(spec, path):
     """Manifest record for an object whose PLY file exists at ``path``."""
     data = Path(path).read_bytes()
@@ -291,8 +277,9 @@ def main(argv=None):
     """Command-line entry point."""
     parser = argparse.ArgumentParser(prog=GENERATOR, description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(DEFAULT_OUT), help="output folder")
-    parser.add_argument("--only", nargs="+", metavar="NAME", choices=[s.name for s in CATALOG],
-                        help="objects to regenerate (default: all)")
+    parser.add_argument("--only", action=ExtendList, metavar="NAME",
+                        choices=[s.name for s in CATALOG],
+                        help="objects to regenerate (default: all; repeats add up)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     build(args.out, args.only)

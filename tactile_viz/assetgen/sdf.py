@@ -8,6 +8,7 @@ that zero-level-set extraction needs.
 """
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 
 def _length(v):
@@ -32,10 +33,7 @@ def rotation(axis, degrees):
     if isinstance(axis, str):
         axis = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}[axis]
     k = np.asarray(axis, float)
-    k = k / np.linalg.norm(k)
-    t = np.radians(degrees)
-    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(t) * kx + (1 - np.cos(t)) * kx @ kx
+    return Rotation.from_rotvec(np.radians(degrees) * k / np.linalg.norm(k)).as_matrix()
 
 
 def to_local(points, center, rot=None):

@@ -1,22 +1,32 @@
 """The headless engine of tactile_viz: numpy, scipy, trimesh, scikit-image and libigl only.
 
+Everything a script needs is importable from here::
+
+    from tactile_viz.engine import PriorLibrary, Session, load_bundled, make_truth
+
 Nothing here imports Qt, pyvista or vtk; a test enforces it.
 """
 
 from .errors import (LibraryError, MeshError, MeshWarning, ObservationError, ParameterError,
                      TactileVizError)
+from .exploration import STRATEGIES
 from .library import PriorLibrary
 from .meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .objects import ModelParams, ObjectModel, bundled_names, load_bundled
 from .observations import Contact, NonContact
+from .params import FilterParams, preset
+from .particle_filter import ParticleFilter
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
+from .session import (SESSION_PRESETS, Session, SessionError, SessionParams, Snapshot, make_truth,
+                      session_preset)
 from .simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [
-    "Contact", "ContactSimulator", "ExactDistance", "GroundTruth", "LONGEST_SIDE",
-    "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact", "ObjectModel",
-    "ObservationError", "ParameterError", "PriorLibrary", "SDFGrid", "TactileVizError",
-    "build_sdf_grid", "bundled_names", "load_bundled", "load_mesh", "prepare_mesh",
-    "random_pose",
+    "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
+    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact",
+    "ObjectModel", "ObservationError", "ParameterError", "ParticleFilter", "PriorLibrary",
+    "SDFGrid", "SESSION_PRESETS", "STRATEGIES", "Session", "SessionError", "SessionParams",
+    "Snapshot", "TactileVizError", "build_sdf_grid", "bundled_names", "load_bundled",
+    "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose", "session_preset",
 ]

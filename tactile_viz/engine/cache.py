@@ -7,14 +7,17 @@ corrupt or unreadable entry is treated as missing and rebuilt.
 
 import hashlib
 import json
+import logging
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from .files import write_atomic
+
 ENV_VAR = "TACTILE_VIZ_CACHE"
+log = logging.getLogger(__name__)
 
 
 def default_cache_dir():
@@ -50,40 +53,15 @@ class ArrayCache:
         try:
             with np.load(path, allow_pickle=False) as stored:
                 return {name: stored[name] for name in stored.files}
-        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):
-            pass  # missing or corrupt: rebuild below
+        except FileNotFoundError:
+            log.debug("cache: building %s", path.name)
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as error:
+            log.warning("cache: rebuilding the unreadable entry %s (%s)", path, error)
         arrays = build()
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
-            write_npz_atomic(path, arrays)
-        except OSError:
-            pass  # a read-only cache folder only costs time
+            write_atomic(path, lambda stream: np.savez(stream, **arrays))
+        except OSError as error:  # a read-only cache folder only costs time
+            log.debug("cache: cannot store %s (%s)", path, error)
         return arrays
 
-
-def write_npz_atomic(path, arrays):
-    """Write arrays to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, **arrays)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-
-
-def write_bytes_atomic(path, data):
-    """Write bytes to ``path`` atomically (temporary file, fsync, ``os.replace``)."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(data)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise

@@ -44,6 +44,41 @@ def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
                           "is the object near the origin?")
 
 
+def sweep_directions(count):
+    """``count`` nearly evenly spread unit vectors (a Fibonacci sphere): (count, 3) float."""
+    index = np.arange(count) + 0.5
+    height = 1.0 - 2.0 * index / count
+    angle = np.pi * (1.0 + np.sqrt(5.0)) * index
+    ring = np.sqrt(1.0 - height**2)
+    return np.column_stack([ring * np.cos(angle), ring * np.sin(angle), height])
+
+
+def next_sweep_direction(used, rng, count=64):
+    """The direction of the next check line: the one of ``count`` spread directions farthest
+    in angle from every direction in ``used`` ((k, 3); a random one when k = 0)."""
+    candidates = sweep_directions(count)
+    used = np.reshape(used, (-1, 3))
+    if len(used) == 0:
+        return candidates[rng.integers(count)]
+    return candidates[int(np.argmin((candidates @ used.T).max(axis=1)))]
+
+
+def sweep_line(simulator, through, direction, radius=10.0):
+    """A straight line along ``direction`` through the point ``through``, from ``radius``
+    outside it: the first thing it touches is recorded.
+
+    It checks an estimate that looks covered: a contact far from the estimate and from
+    every earlier contact means part of the object was never predicted.
+
+    Returns
+    -------
+    paths : [(2, 3) float]
+    observations : [Contact or NonContact]
+    """
+    path = np.stack([through + radius * direction, through - radius * direction])
+    return [path], [simulator.probe(path)]
+
+
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,
                     clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0):
     """Reach for a target as in the paper's figure; returns what was touched.

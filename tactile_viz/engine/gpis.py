@@ -27,7 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
 from scipy.linalg.lapack import dpotri
+from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
+from scipy.ndimage import map_coordinates, maximum_filter, minimum_filter
 from skimage.measure import marching_cubes
 
 _CHUNK = 4096  # query points per kernel block
@@ -51,10 +53,13 @@ class ThinPlateKernel:
         """``k(0)``: the prior variance of a value."""
         return self.radius**3
 
-    def profile(self, r):
-        """``k(r)``, ``g = k'(r) / r`` and ``g'(r)`` on an array of distances."""
+    def profile(self, r, second=True):
+        """``k(r)``, ``g = k'(r) / r`` and ``g'(r)`` (None unless ``second``) on an array
+        of distances."""
         big = self.radius
-        return 2 * r**3 - 3 * big * r**2 + big**3, 6 * (r - big), np.full_like(r, 6.0)
+        r2 = r * r
+        return (2 * r2 * r - 3 * big * r2 + big**3, 6 * (r - big),
+                np.full_like(r, 6.0) if second else None)
 
 
 @dataclass(frozen=True)
@@ -78,10 +83,14 @@ class WendlandKernel:
     def radius(self):
         return self.support
 
-    def profile(self, r):
+    def profile(self, r, second=True):
         c = self.support
         rest = np.clip(1.0 - r / c, 0.0, None)
-        return (rest**4 * (4 * r / c + 1), -20 * rest**3 / c**2, 60 * rest**2 / c**3)
+        rest2 = rest * rest  # products, not powers: this runs on every (grid node, point) pair
+        rest3 = rest2 * rest
+        value = rest3 * rest * (4 / c * r + 1)
+        rest3 *= -20 / c**2
+        return value, rest3, (60 / c**3) * rest2 if second else None
 
 
 def as_kernel(kernel):
@@ -133,7 +142,7 @@ def kernel_blocks(x, y, kernel):
 def value_rows(x, y, kernel):
     """Covariance of values at ``x`` with [value, gradient] at ``y`` (``a = 1``): (p, 4q)."""
     diff = x[:, None, :] - y[None, :, :]
-    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1))
+    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1), second=False)
     rows = np.empty(value.shape + (4,))
     rows[..., 0] = value
     rows[..., 1:] = -g[..., None] * diff
@@ -147,7 +156,7 @@ def value_correction(x, y, weights, kernel):
     both reduce to products of (p, q) matrices of the distances with vectors.
     """
     weights = weights.reshape(-1, 4)
-    value, g, _ = as_kernel(kernel).profile(cdist(x, y))
+    value, g, _ = as_kernel(kernel).profile(cdist(x, y), second=False)
     toward = g @ weights[:, 1:]                              # sum_j g_ij w_j, (p, 3)
     offsets = g @ np.einsum("ij,ij->i", y, weights[:, 1:])
     return value @ weights[:, 0] - (np.einsum("ij,ij->i", x, toward) - offsets)
@@ -344,6 +353,71 @@ def noncontact_observations(prior, noncontacts, value):
     return noncontacts[np.asarray(prior(noncontacts)[0]) < value]
 
 
+def carved_prior(prior, free_points, contacts, radius, neighbours=8):
+    """The prior mean with the space known to be empty cut out of its shape.
+
+    A ball around each free-space point (where a probe passed without touching) is removed
+    from the prior's solid, a CSG difference on signed distances:
+    ``m'(x) = max(m(x), r_i - |x - f_i|)``. A ball never reaches a contact:
+    ``r_i = min(radius, distance from f_i to the nearest contact)``. Unlike a value
+    observation, which moves the field within a kernel's reach of the point only as far as
+    the other data allow, the cut removes a phantom part of a wrong-class prior wherever a
+    probe refuted it.
+
+    Parameters
+    ----------
+    prior : callable
+        ``prior(points) -> (values (k,), gradients (k, 3))``.
+    free_points : (q, 3) float
+        Points outside the object.
+    contacts : (n, 3) float
+    radius : float
+        Largest ball radius; 0 returns ``prior`` itself.
+    neighbours : int
+        Balls considered per query point (the nearest centres).
+
+    Returns
+    -------
+    callable
+        The carved prior, same signature as ``prior``.
+    """
+    free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
+    if radius <= 0 or len(free_points) == 0:
+        return prior
+    radii = np.full(len(free_points), float(radius))
+    contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
+    if len(contacts):
+        radii = np.minimum(radii, cKDTree(contacts).query(free_points)[0])
+    keep = radii > 0
+    free_points, radii = free_points[keep], radii[keep]
+    if len(free_points) == 0:
+        return prior
+    tree, count = cKDTree(free_points), min(neighbours, len(free_points))
+
+    def carved(points):
+        points = np.atleast_2d(points)
+        values, gradients = prior(points)
+        values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
+        candidates = np.flatnonzero(values < radii.max())  # a cut never exceeds its radius
+        if len(candidates) == 0:
+            return values, gradients
+        distance, index = tree.query(points[candidates], k=count)
+        distance, index = distance.reshape(len(candidates), -1), index.reshape(len(candidates), -1)
+        cut = radii[index] - distance
+        best = np.argmax(cut, axis=1)
+        rows = np.arange(len(candidates))
+        cut, centre = cut[rows, best], free_points[index[rows, best]]
+        wins = cut > values[candidates]
+        changed = candidates[wins]
+        offset = points[changed] - centre[wins]
+        length = np.linalg.norm(offset, axis=1, keepdims=True)
+        values[changed] = cut[wins]
+        gradients[changed] = -offset / np.maximum(length, 1e-12)
+        return values, gradients
+
+    return carved
+
+
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,
              noncontacts=None, noncontact_value=0.1):
     """Fit the GPIS to contacts, taking one Newton step on the kernel scale.
@@ -418,7 +492,7 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
 
 
-def zero_level_surface(fit, bounds, resolution=32):
+def zero_level_surface(fit, bounds, resolution=32, band=True):
     """Marching cubes on the posterior mean over a box.
 
     Parameters
@@ -428,6 +502,11 @@ def zero_level_surface(fit, bounds, resolution=32):
         The box (world frame); it should contain the surface with some margin.
     resolution : int
         Cells along the longest side of the box.
+    band : bool
+        Evaluate the mean exactly only near the surface: on every second grid node first,
+        then on the nodes whose interpolated value is within :data:`BAND_CELLS` coarse cell
+        diagonals of zero (the mean is about a distance, so farther nodes cannot change
+        sign); elsewhere the interpolated value stands. False evaluates every node.
 
     Returns
     -------
@@ -438,9 +517,13 @@ def zero_level_surface(fit, bounds, resolution=32):
     low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
     spacing = float((high - low).max()) / resolution
     counts = np.maximum(np.ceil((high - low) / spacing).astype(int) + 1, 2)
-    axes = [low[i] + spacing * np.arange(counts[i]) for i in range(3)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    volume = fit.mean_value(grid).reshape(tuple(counts))
+    if band:
+        counts += (counts + 1) % 2  # odd: every second node spans the same box
+        volume = _banded_mean(fit, low, spacing, counts)
+    else:
+        axes = [low[i] + spacing * np.arange(counts[i]) for i in range(3)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        volume = fit.mean_value(grid).reshape(tuple(counts))
     # Close the surface at the box: outside the box counts as outside the object.
     volume = np.pad(volume, 1, constant_values=max(float(volume.max()), spacing))
     if not (volume.min() < 0 < volume.max()):
@@ -448,3 +531,40 @@ def zero_level_surface(fit, bounds, resolution=32):
     vertices, faces, _, _ = marching_cubes(volume, 0.0, spacing=(spacing,) * 3,
                                            method="lewiner")
     return vertices + low - spacing, faces.astype(np.int64)
+
+
+BAND_CELLS = 1.0
+
+
+def _in_crossing_cells(coarse):
+    """Fine nodes (twice the resolution) on a coarse cell whose corners change sign: there
+    the surface is, whatever the slope."""
+    low = minimum_filter(coarse, size=2, origin=-1)[:-1, :-1, :-1]
+    high = maximum_filter(coarse, size=2, origin=-1)[:-1, :-1, :-1]
+    cells = (low < 0) & (high > 0)
+    for axis in range(3):
+        fine = np.repeat(cells, 2, axis=axis)  # fine cells
+        pad = [(0, 0)] * 3
+        pad[axis] = (1, 1)
+        fine = np.pad(fine, pad)
+        count = fine.shape[axis]
+        # A node touches the fine cells before and after it.
+        cells = (np.take(fine, range(count - 1), axis=axis)
+                 | np.take(fine, range(1, count), axis=axis))
+    return cells
+
+
+def _banded_mean(fit, low, spacing, counts):
+    """The posterior mean on the grid ``low + spacing * index`` (odd ``counts``), exact
+    within a band around the zero level and interpolated from every second node
+    elsewhere."""
+    coarse_counts = (counts + 1) // 2
+    axes = [low[i] + 2 * spacing * np.arange(coarse_counts[i]) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    coarse = fit.mean_value(grid).reshape(tuple(coarse_counts))
+    index = np.indices(tuple(counts), dtype=float).reshape(3, -1) / 2
+    volume = map_coordinates(coarse, index, order=1).reshape(tuple(counts))
+    near = (np.abs(volume) <= BAND_CELLS * 2 * spacing * np.sqrt(3)) | _in_crossing_cells(coarse)
+    points = low + spacing * np.argwhere(near)
+    volume[near] = fit.mean_value(points)
+    return volume

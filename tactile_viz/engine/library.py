@@ -8,15 +8,18 @@ atomically last: a failed or interrupted save leaves the previous library readab
 import hashlib
 import io
 import json
+import logging
 import re
 from pathlib import Path
 
 import trimesh
 
-from .cache import write_bytes_atomic
 from .errors import LibraryError, MeshError
+from .files import write_atomic
 from .meshes import check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
+
+log = logging.getLogger(__name__)
 
 MANIFEST = "library.json"
 FORMAT = "tactile_viz-prior-library"
@@ -96,13 +99,14 @@ class PriorLibrary:
             folder.mkdir(parents=True, exist_ok=True)
             entries = [_save_mesh(folder, model) for model in self]
             manifest = {"format": FORMAT, "version": 1, "objects": entries}
-            write_bytes_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
+            write_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
         except OSError as error:
             raise LibraryError(f"cannot save the library to {folder}: {error}") from error
         kept = {entry["file"] for entry in entries}
         for stale in folder.glob("*.ply"):
             if stale.name not in kept:
                 stale.unlink(missing_ok=True)
+        log.info("saved %d priors to %s", len(entries), folder)
         return folder
 
     @classmethod
@@ -128,6 +132,7 @@ class PriorLibrary:
                 raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
                                    f"{entry['name']!r} is corrupt (checksum mismatch)")
             models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache))
+        log.info("loaded %d priors from %s", len(models), folder)
         return cls(models)
 
 
@@ -140,7 +145,7 @@ def _save_mesh(folder, model):
     digest = hashlib.sha256(data).hexdigest()
     filename = f"{_slug(model.name)}-{digest[:12]}.ply"
     if not (folder / filename).is_file():
-        write_bytes_atomic(folder / filename, data)
+        write_atomic(folder / filename, data)
     return {"name": model.name, "file": filename, "sha256": digest}
 
 

@@ -8,7 +8,7 @@ the SDF gradient), with ``Sigma = diag(sigma_d^2, sigma_n^2 I3)``; its largest v
 """
 
 import numpy as np
-from scipy.special import log_ndtr
+from scipy.special import log_ndtr, logsumexp
 
 
 def log_normaliser(sigma_d, sigma_n):
@@ -42,17 +42,6 @@ def log_noncontact_likelihood(distance, sigma_d):
     return log_ndtr(np.asarray(distance) / sigma_d)
 
 
-def log_sum_exp(values):
-    """``log(sum(exp(values)))`` without overflow; ``-inf`` for an empty or all ``-inf`` input."""
-    values = np.asarray(values, dtype=float)
-    if values.size == 0:
-        return -np.inf
-    peak = np.max(values)
-    if not np.isfinite(peak):
-        return peak
-    return float(peak + np.log(np.sum(np.exp(values - peak))))
-
-
 def normalise_log_weights(log_weights):
     """Log weights shifted so that their exponentials sum to one.
 
@@ -60,7 +49,7 @@ def normalise_log_weights(log_weights):
     uniform instead of ``-inf - (-inf) = NaN``.
     """
     log_weights = np.asarray(log_weights, dtype=float)
-    total = log_sum_exp(log_weights)
+    total = logsumexp(log_weights)
     if total == -np.inf:
         return np.full(log_weights.shape, -np.log(max(log_weights.size, 1)))
     return log_weights - total

@@ -6,6 +6,10 @@ from scipy.spatial import cKDTree
 
 from .transforms import transform_points
 
+# The paper's success threshold for the pose and reconstruction errors (TWD, in the units of
+# objects whose longest side is 6): an estimate within 0.6 counts as right.
+ERROR_THRESHOLD = 0.6
+
 
 def directed_hausdorff(from_points, to_points):
     """``max_a min_b |a - b|`` for (n, 3) and (m, 3) point sets (``inf`` if ``to`` is empty)."""

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from itertools import product
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .sdf import normalise_rows
 
@@ -81,20 +82,13 @@ def rotation_to_x(normals):
     axis = np.where(sin[:, None] > 1e-9, axis / np.maximum(sin, 1e-300)[:, None], [0.0, 0.0, 1.0])
     sin = np.where(sin > 1e-9, sin, 0.0)
     cos = np.where(sin > 0, cos, np.sign(cos) + (cos == 0))
-    k = np.zeros((len(normals), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
-    return np.eye(3) + sin[:, None, None] * k + (1 - cos)[:, None, None] * (k @ k)
+    return Rotation.from_rotvec(axis * np.arctan2(sin, cos)[:, None]).as_matrix()
 
 
 def rotation_about_x(angles):
     """Rotations about +x by angles: (k, 3, 3)."""
-    angles = np.atleast_1d(angles)
-    c, s = np.cos(angles), np.sin(angles)
-    r = np.zeros((len(angles), 3, 3))
-    r[:, 0, 0] = 1.0
-    r[:, 1, 1], r[:, 1, 2], r[:, 2, 1], r[:, 2, 2] = c, -s, s, c
-    return r
+    angles = np.atleast_1d(np.asarray(angles, dtype=float))
+    return Rotation.from_rotvec(angles[:, None] * [1.0, 0.0, 0.0]).as_matrix()
 
 
 def local_frames(p1, n1, p2):

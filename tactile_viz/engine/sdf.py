@@ -12,6 +12,7 @@ Two kinds, both with negative values inside:
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -141,6 +142,12 @@ class SDFGrid:
     def shape(self):
         return self.values.shape
 
+    @cached_property
+    def _corners(self):
+        """Value and gradient per node as one (nodes, 4) table (built once: every
+        interpolation reads it)."""
+        return np.concatenate([self.values[..., None], self.gradients], axis=-1).reshape(-1, 4)
+
     @property
     def upper(self):
         """(3,) float: position of the last grid node."""
@@ -225,9 +232,8 @@ def _trilinear(grid, points):
     upper_cell = np.array(grid.shape) - 2
     base = np.clip(np.floor(position).astype(np.int64), 0, upper_cell)
     frac = position - base
-    stacked = np.concatenate([grid.values[..., None], grid.gradients], axis=-1)
     nx, ny, nz = grid.shape
-    flat = stacked.reshape(-1, 4)
+    flat = grid._corners
     index = (base[:, 0] * ny + base[:, 1]) * nz + base[:, 2]
     result = np.zeros((len(points), 4))
     for dx in (0, 1):

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from .errors import ParameterError
 from .observations import Contact, NonContact
@@ -185,8 +186,7 @@ def tilt(normal, sigma, rng):
     axis = np.cross(normal, rng.normal(size=3))
     axis = normalise_rows(axis[None], fallback=_any_perpendicular(normal))[0]
     angle = rng.normal(0.0, sigma)
-    # Rodrigues with the axis perpendicular to the normal.
-    return np.cos(angle) * normal + np.sin(angle) * np.cross(axis, normal)
+    return Rotation.from_rotvec(angle * axis).apply(normal)
 
 
 def _any_perpendicular(vector):

@@ -26,6 +26,8 @@ import sys
 import tempfile
 import time
 
+from ..engine.exploration import STRATEGIES
+
 TARGET_OVERHEAD = 0.15
 TARGET_BLOCK = 0.150
 TARGET_PAUSE = 0.150
@@ -38,7 +40,7 @@ def _parser():
                         help="bundled objects to run (default: mug_1 known, vase_2 novel)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--preset", default="paper")
-    parser.add_argument("--strategy", default="gpis-dhd", choices=["gpis-dhd", "rrt"])
+    parser.add_argument("--strategy", default="gpis-dhd", choices=STRATEGIES)
     parser.add_argument("--max-steps", type=int, default=0,
                         help="cap the runs at this many steps (default 0: to termination)")
     parser.add_argument("--pause-after", type=int, default=5,
@@ -85,7 +87,7 @@ def _wait(app, condition, timeout):
 
 
 def _scene(args, name):
-    from ..engine.scene import Scene
+    from ..app.scene import Scene
 
     return Scene(name, seed=args.seed, strategy=args.strategy, preset=args.preset)
 

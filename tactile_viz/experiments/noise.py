@@ -27,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ExtendList
 from ..engine.library import PriorLibrary
-from ..engine.metrics import pose_error
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
 from ..engine.params import noise_matched, preset
 from ..engine.particle_filter import ParticleFilter
 from ..engine.simulator import ContactSimulator, GroundTruth, random_touch
@@ -115,7 +116,7 @@ def measure(levels=DEFAULT_LEVELS, seeds=2, contacts=40, configs=CONFIGS, names=
         rows.append({
             "position_noise": level[0], "normal_noise_deg": level[1], "config": config,
             "trials": len(outcomes), "recognised": float(recognised.mean()),
-            "success": float(np.mean(recognised & (errors < 0.6))),
+            "success": float(np.mean(recognised & (errors < THRESHOLD))),
             "median_pose_error": float(np.median(errors)),
             "mean_pose_error": float(np.mean(errors)),
             "mean_particles": float(np.mean([o["particles"] for o in outcomes])),
@@ -126,7 +127,7 @@ def measure(levels=DEFAULT_LEVELS, seeds=2, contacts=40, configs=CONFIGS, names=
 def markdown_table(rows):
     """The rows as a Markdown table."""
     lines = ["| position noise | normal noise (deg) | filter | trials | recognised | "
-             "pose < 0.6 | median pose error | mean pose error | particles | s/trial |",
+             f"pose < {THRESHOLD} | median pose error | mean pose error | particles | s/trial |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         lines.append(
@@ -157,7 +158,7 @@ def plot(rows, path):
         left.plot(x, [100 * chosen[level]["recognised"] for level in levels], **style,
                   label=f"{config}: class right")
         left.plot(x, [100 * chosen[level]["success"] for level in levels], **style,
-                  linestyle="--", label=f"{config}: class right and pose < 0.6")
+                  linestyle="--", label=f"{config}: class right and pose < {THRESHOLD}")
         right.plot(x, [chosen[level]["median_pose_error"] for level in levels], **style,
                    label=f"{config}: median")
         right.plot(x, [chosen[level]["mean_pose_error"] for level in levels], **style,
@@ -170,7 +171,7 @@ def plot(rows, path):
     left.set_ylabel("trials (%)")
     left.set_ylim(50, 102)
     right.set_ylabel("pose error (TWD, units)")
-    right.axhline(0.6, color="grey", linewidth=0.8)
+    right.axhline(THRESHOLD, color="grey", linewidth=0.8)
     trials = rows[0]["trials"]
     figure.suptitle(f"Known set, random touches, {trials} trials per point")
     figure.tight_layout()
@@ -192,12 +193,12 @@ def _level(text):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench noise", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--levels", type=_level, nargs="+", default=list(DEFAULT_LEVELS),
+    parser.add_argument("--levels", type=_level, action=ExtendList, default=list(DEFAULT_LEVELS),
                         metavar="POSITION:DEGREES")
     parser.add_argument("--seeds", type=int, default=2, help="random poses per object")
     parser.add_argument("--contacts", type=int, default=40, help="random touches per trial")
-    parser.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
-    parser.add_argument("--objects", nargs="+", default=None,
+    parser.add_argument("--configs", action=ExtendList, choices=CONFIGS, default=list(CONFIGS))
+    parser.add_argument("--objects", action=ExtendList, default=None,
                         help="known objects to test (default: all ten)")
     parser.add_argument("--out", type=Path, default=Path("."),
                         help="folder for noise.md, noise.json and noise.png")

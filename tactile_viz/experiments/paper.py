@@ -24,6 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
+from ..cli import ExtendList
+from ..engine.files import write_atomic
+from ..engine.exploration import STRATEGIES
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
 
@@ -46,10 +50,10 @@ def build_parser():
                     "JSON, a Markdown summary and the paper's plots.")
     parser.add_argument("--trials", type=int, default=10,
                         help="trials per object and strategy (paper 10; 1 = quick version)")
-    parser.add_argument("--objects", nargs="+", default=None, metavar="NAME",
+    parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
                         help="bundled objects to run (default all 20); comma lists work too")
-    parser.add_argument("--strategies", default="gpis-dhd,rrt",
-                        help="comma-separated exploration strategies (default gpis-dhd,rrt)")
+    parser.add_argument("--strategies", default=",".join(STRATEGIES),
+                        help="comma-separated exploration strategies (default %(default)s)")
     parser.add_argument("--workers", type=int, default=1,
                         help="local worker processes (default 1 = serial in this process, "
                              "with a per-step progress bar)")
@@ -150,9 +154,7 @@ def load_learned(folder):
 
 def write_json(path, value):
     """Write JSON atomically (a killed run leaves no half file)."""
-    temporary = path.with_suffix(".tmp")
-    temporary.write_text(json.dumps(value, indent=1))
-    os.replace(temporary, path)
+    write_atomic(path, json.dumps(value, indent=1).encode())
 
 
 def run(args):
@@ -166,6 +168,9 @@ def run(args):
     if unknown:
         raise SystemExit(f"unknown object(s): {', '.join(unknown)}; see `python -m tactile_viz objects`")
     strategies = split_names([args.strategies])
+    if set(strategies) - set(STRATEGIES):
+        raise SystemExit(f"unknown strategy in {args.strategies!r}; choose from "
+                         f"{', '.join(STRATEGIES)}")
     poisson = not args.no_poisson
     if poisson and any(sets[name] == "novel" for name in objects):
         from .poisson import require_poisson
@@ -290,7 +295,8 @@ def _known_section(summaries):
     for strategy, items in aggregate.group(ok, "strategy").items():
         n = len(items)
         lines.append(f"- {strategy[0]}: classification {sum(s['correct'] for s in items)}/{n}, "
-                     f"pose error < 0.6 at termination {sum(s['pose_error'] < 0.6 for s in items)}/{n}, "
+                     f"pose error < {THRESHOLD} at termination "
+                     f"{sum(s['pose_error'] < THRESHOLD for s in items)}/{n}, "
                      f"largest particle count {max(s['max_particles'] for s in items)}")
     return lines
 

@@ -38,7 +38,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..cli import ExtendList
 from ..engine.errors import MeshError, TactileVizError
+from ..engine.exploration import STRATEGIES
 from ..engine.session import SESSION_PRESETS
 from .paper import split_names
 
@@ -452,7 +454,7 @@ def build_parser():
                     "a 'known' case (the object is in it), at the same seeded poses. "
                     "Writes per-trial JSON and a Markdown summary.",
         epilog="objects: " + "; ".join(f"{e.name} ({e.note})" for e in CATALOGUE))
-    parser.add_argument("--objects", nargs="+", default=None, metavar="NAME",
+    parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
                         help="real meshes to use as the truth (default every usable one); "
                              "all usable ones are priors either way; comma lists work too")
     parser.add_argument("--cases", default=",".join(CASES),
@@ -461,7 +463,7 @@ def build_parser():
                         help="trials per object and case; trial i uses seed --seed + i "
                              "(default 3)")
     parser.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd",
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="exploration strategy (default gpis-dhd)")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ExtendList
 from .aggregate import markdown_table
 from .paper import machine_description
 
@@ -76,10 +77,10 @@ def build_parser():
                     "number of priors (filter update with 10/20/40 priors).")
     parser.add_argument("--object", default="mug_2",
                         help="object touched for the contact sweep (default mug_2, novel)")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[25, 50, 100, 200, 400],
+    parser.add_argument("--sizes", type=int, action=ExtendList, default=[25, 50, 100, 200, 400],
                         help="contact counts (default 25 50 100 200 400)")
     parser.add_argument("--repeats", type=int, default=3, help="timings per part (median)")
-    parser.add_argument("--priors", type=int, nargs="+", default=[10, 20, 40],
+    parser.add_argument("--priors", type=int, action=ExtendList, default=[10, 20, 40],
                         help="library sizes (default 10 20 40)")
     parser.add_argument("--prior-object", default="mug_1",
                         help="object touched for the prior sweep (default mug_1)")

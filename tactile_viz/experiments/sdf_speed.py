@@ -13,6 +13,8 @@ import time
 
 import numpy as np
 
+from ..cli import ExtendList
+
 
 def near_surface_points(model, count, rng, band=1.0):
     """Points within ``band`` of the surface: surface samples moved along random directions.
@@ -46,7 +48,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench sdf", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--points", type=int, default=100_000, help="query points (default 100000)")
-    parser.add_argument("--objects", nargs="+", default=["mug_1", "armadillo"],
+    parser.add_argument("--objects", action=ExtendList, default=["mug_1", "armadillo"],
                         help="bundled objects to measure (default mug_1 armadillo)")
     parser.add_argument("--resolution", type=int, default=64, help="SDF grid resolution")
     parser.add_argument("--skip-trimesh", action="store_true",

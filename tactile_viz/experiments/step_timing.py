@@ -15,12 +15,14 @@ import time
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
+from ..cli import ExtendList
 from ..engine.exploration import enforce_contact
-from ..engine.gpis import fit_gpis, kernel_blocks, stable_cholesky, zero_level_surface
+from ..engine.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
+                           stable_cholesky, zero_level_surface)
 from ..engine.library import PriorLibrary
 from ..engine.objects import load_bundled
 from ..engine.particle_filter import ParticleFilter
-from ..engine.session import make_truth
+from ..engine.session import make_truth, session_preset
 from ..engine.simulator import ContactSimulator, random_touch
 
 
@@ -60,7 +62,7 @@ def measure(object_name, sizes, repeats, seed=0):
         rotation, translation = state.map_rotation, state.map_translation
         contacts, normals = particle_filter.contact_positions, particle_filter.contact_normals
         low, high = contacts.min(axis=0) - 1.0, contacts.max(axis=0) + 1.0
-        radius = 1.2 * float(np.linalg.norm(high - low))
+        radius = _paper_kernel(low, high)
 
         def prior(points):
             values, gradients = model.sdf.evaluate((points - translation) @ rotation)
@@ -92,6 +94,14 @@ def measure(object_name, sizes, repeats, seed=0):
     return rows
 
 
+def _paper_kernel(low, high):
+    """The GPIS kernel of the ``paper`` preset for a reconstruction box."""
+    params = session_preset("paper")
+    if params.gpis_kernel == "wendland":
+        return WendlandKernel(params.gpis_support)
+    return ThinPlateKernel(params.gpis_radius_factor * float(np.linalg.norm(high - low)))
+
+
 def _copy_update(particle_filter, observation):
     """Time an update without changing the filter: restore its state afterwards."""
     saved = (particle_filter.particles, particle_filter.contact_positions,
@@ -109,7 +119,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench step", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", default="mug_2")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[50, 200, 400])
+    parser.add_argument("--sizes", type=int, action=ExtendList, default=[50, 200, 400])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ExtendList
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
 from .paper import (machine_description, object_sets, recorded_command, split_names,
@@ -37,13 +38,23 @@ CONFIGS = {
     "gpis48": ("paper", {"gpis_resolution": 48}, {}),
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
-    # The GPIS kernel ablation (novel objects): thin-plate at the landed R, Wendland supports,
-    # non-contacts off.
+    # The GPIS ablation (novel objects): the thin-plate kernel (the paper preset's) at the
+    # paper's R and explicitly, the compact Wendland kernel with free space at three
+    # supports (c = 4 was the paper preset at ef75223), free space with the thin-plate
+    # kernel, the prior's carve off or wider.
+    "thin-plate1.0": ("paper", {"gpis_radius_factor": 1.0}, {}),
     "thin-plate1.2": ("paper", {"gpis_kernel": "thin-plate", "gpis_radius_factor": 1.2,
                                 "gpis_noncontacts": False}, {}),
-    "wendland2.5": ("paper", {"gpis_support": 2.5}, {}),
-    "wendland6": ("paper", {"gpis_support": 6.0}, {}),
-    "no-noncontacts": ("paper", {"gpis_noncontacts": False}, {}),
+    "wendland4": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True}, {}),
+    "wendland2.5": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
+                              "gpis_support": 2.5}, {}),
+    "wendland6": ("paper", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
+                            "gpis_support": 6.0}, {}),
+    "noncontacts": ("paper", {"gpis_noncontacts": True}, {}),
+    "no-carve": ("paper", {"gpis_carve_radius": 0.0}, {}),
+    "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
+    "target-uncovered": ("paper", {"target_uncovered": True}, {}),
+    "check-lines8": ("paper", {"check_lines": 8}, {}),
 }
 
 
@@ -85,7 +96,7 @@ def build_parser():
                     "feature points, point-pair key resolution and neighbour look-up, GPIS "
                     "grid, eps); plot time per trial against pose error (known objects) and "
                     "reconstruction error (novel objects) with the Pareto front.")
-    parser.add_argument("--objects", nargs="+", default=["mug_1", "elephant", "vase_2"],
+    parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
     parser.add_argument("--seeds", type=int, default=2, help="trials (seeds 0..N-1) per object")
     parser.add_argument("--configs", default=",".join(CONFIGS),

@@ -1,4 +1,11 @@
-"""One headless trial: ``python -m tactile_viz trial ...`` (DESIGN section 6 contract)."""
+"""One headless trial: ``python -m tactile_viz trial ...``.
+
+Its JSON is what scripts and the benchmarks read, so its keys only grow: the set-up
+(``object``, ``seed``, ``strategy``, ``preset``, ``params``, ``library``, ``truth_pose``,
+``code_version``), ``terminated_at``, ``seconds`` and ``steps``, one
+:meth:`~tactile_viz.engine.Snapshot.record` per step (``t``, ``map_class``, ``pose_error``,
+``dhd``, ``novel``, ``recon_error``, ...). ``tests/engine/test_session.py`` checks the keys.
+"""
 
 import functools
 import json
@@ -7,7 +14,9 @@ import sys
 import time
 from pathlib import Path
 
+from ..cli import ExtendList
 from ..engine.errors import TactileVizError
+from ..engine.exploration import STRATEGIES
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
@@ -20,10 +29,10 @@ def add_trial_arguments(parser):
     priors = parser.add_mutually_exclusive_group()
     priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
                         help="the filter's priors: a bundled set (default known)")
-    priors.add_argument("--prior-file", metavar="MESH", nargs="+",
-                        help="mesh files to use as the priors instead")
+    priors.add_argument("--prior-file", metavar="MESH", action=ExtendList,
+                        help="mesh files to use as the priors instead (repeats add up)")
     priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
-    parser.add_argument("--strategy", choices=["gpis-dhd", "rrt"], default="gpis-dhd")
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--seed", type=int, default=0, help="pose, exploration and filter seed")
     parser.add_argument("--max-steps", type=int, default=None,
                         help="stop after this many steps (default: the paper's caps 300/400)")

@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDockWidget, QDoubleSpinBox
 from superqt.utils import thread_worker
 
 from ..engine.errors import TactileVizError
-from ..engine.scene import STRATEGIES
+from ..engine.exploration import STRATEGIES
 from ..engine.session import Session
 from .layers import LAYERS, ViewportLayers
 from .plots import PlotsWidget
@@ -152,7 +152,7 @@ class MainWindow(QMainWindow):
 
     Parameters
     ----------
-    scene : tactile_viz.engine.scene.Scene
+    scene : tactile_viz.app.scene.Scene
     settings : QSettings, optional
         Where the window geometry, dock layout and last folders are kept (default: the
         user's tactile_viz settings).

@@ -12,7 +12,8 @@ import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 
-THRESHOLD = 0.6
+from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
+
 ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
                 ("recon_error", "reconstruction error"))
 

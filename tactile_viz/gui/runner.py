@@ -35,7 +35,7 @@ class StepRunner(QObject):
 
     Parameters
     ----------
-    scene : tactile_viz.engine.scene.Scene
+    scene : tactile_viz.app.scene.Scene
     draw : callable
         ``draw(snapshot)`` on the GUI thread (the newest snapshot of the current session).
     duty : float

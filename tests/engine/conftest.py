@@ -2,13 +2,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import ObjectModel, PriorLibrary, bundled_names, load_bundled
-
-
-@pytest.fixture(scope="session")
-def bundled():
-    """Every bundled object model, loaded once (derived data cached in the test cache)."""
-    return {name: load_bundled(name) for name in bundled_names("all")}
+from tactile_viz.engine import ObjectModel, PriorLibrary
 
 
 @pytest.fixture

@@ -5,7 +5,8 @@ import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
 from tactile_viz.engine.exploration import (enforce_contact, farthest_vertex, first_contact,
-                                            follow_surface, rrt_step)
+                                            follow_surface, next_sweep_direction, rrt_step,
+                                            sweep_directions, sweep_line)
 from tactile_viz.engine.session import deepest_inside
 
 
@@ -89,3 +90,26 @@ def test_farthest_vertex_and_deepest_inside():
     estimate = lambda points: np.abs(points[:, 2] - 0.4) - 0.5  # noqa: E731 (slab, deepest at z=0.4)
     depth = deepest_inside(estimate, np.array([0.0, 0, 1.0]), np.array([0.0, 0, 1.0]), 1.0)
     assert depth == pytest.approx(0.6, abs=0.06)
+
+
+def test_sweep_directions_are_spread_and_the_next_is_the_least_used(rng):
+    directions = sweep_directions(64)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0)
+    cosines = directions @ directions.T - 2 * np.eye(64)
+    assert cosines.max() < np.cos(np.radians(20))  # no two within 20 degrees
+    first = next_sweep_direction([], rng)
+    second = next_sweep_direction([first], rng)
+    assert first @ second < -0.95  # the opposite side (of the 64 directions)
+    third = next_sweep_direction([first, second], rng)
+    assert abs(third @ first) < 0.2  # then across
+
+
+def test_a_sweep_line_records_the_first_surface_it_meets(simulator):
+    paths, observations = sweep_line(simulator, np.array([0.0, 1.0, 0.0]),
+                                     np.array([1.0, 0.0, 0.0]))
+    touched = observations[0]
+    assert _on_sphere(touched) and touched.position[0] > 0
+    np.testing.assert_allclose(touched.position, [np.sqrt(8.0), 1.0, 0.0], atol=0.02)
+    paths, observations = sweep_line(simulator, np.array([0.0, 4.0, 0.0]),
+                                      np.array([1.0, 0.0, 0.0]))
+    assert isinstance(observations[0], NonContact)

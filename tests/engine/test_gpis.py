@@ -5,10 +5,10 @@ from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
 from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
-                                     fit_gpis, gradient_rows, kernel_blocks,
+                                     carved_prior, fit_gpis, gradient_rows, kernel_blocks,
                                      indefinite_nugget, stable_cholesky,
                                      value_correction, value_rows, zero_level_surface)
-from tactile_viz.engine.metrics import surface_samples
+from tactile_viz.engine.metrics import directed_hausdorff, surface_samples
 
 
 def _kernel(x, y, radius):
@@ -134,6 +134,54 @@ def test_a_noncontact_inside_the_prior_pushes_the_surface_away(mug_data):
     assert len(same.points) == 10
 
 
+def test_carved_prior_cuts_balls_and_keeps_the_rest(mug_data):
+    points, _, prior, _ = mug_data
+    candidates = np.random.default_rng(2).uniform(-3, 3, size=(4000, 3))
+    free = candidates[np.argsort(prior(candidates)[0])[:3]]  # deep inside the prior
+    carved = carved_prior(prior, free, points, radius=0.6)
+    values, gradients = carved(free)
+    allowed = np.minimum(0.6, np.min(np.linalg.norm(free[:, None] - points[None], axis=-1), 1))
+    np.testing.assert_allclose(values, allowed)
+    # CSG: the cut reaches |m| beyond its ball into the prior's inside, no farther.
+    reach = 0.6 + np.abs(prior(candidates)[0])
+    far = np.min(np.linalg.norm(candidates[:, None] - free[None], axis=-1), axis=1) > reach
+    np.testing.assert_array_equal(carved(candidates[far])[0], prior(candidates[far])[0])
+    # Where the cut wins, the gradient is the cut's: finite differences agree.
+    inside_cut = free + [[0.2, 0.1, -0.1]]
+    step = 1e-6
+    for axis in range(3):
+        offset = np.zeros(3)
+        offset[axis] = step
+        numeric = (carved(inside_cut + offset)[0] - carved(inside_cut - offset)[0]) / (2 * step)
+        np.testing.assert_allclose(carved(inside_cut)[1][:, axis], numeric, atol=1e-5)
+    # No ball reaches past a contact (it stays on or inside the carved shape), and a zero
+    # radius keeps the prior itself.
+    assert np.all(carved(points)[0] <= np.maximum(prior(points)[0], 0) + 1e-12)
+    assert carved_prior(prior, free, points, radius=0.0) is prior
+    assert carved_prior(prior, np.zeros((0, 3)), points, radius=0.6) is prior
+
+
+def test_carving_corrects_a_refuted_part_and_keeps_the_prior_elsewhere(mug_data):
+    # A wrong prior (mug_1) meets contacts on the truth (mug_2); probes through the prior's
+    # part that the truth lacks remove it from the posterior's inside, while the prior's
+    # inside away from any probe or contact is kept.
+    points, normals, prior, _ = mug_data
+    candidates = np.random.default_rng(4).uniform(-3, 3, size=(6000, 3))
+    distance_to_contacts = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=-1), 1)
+    refuted = candidates[(prior(candidates)[0] < -0.1) & (distance_to_contacts > 1.0)][:20]
+    kernel = WendlandKernel(2.0)
+    carved = fit_gpis(points, normals, carved_prior(prior, refuted, points, 0.6), kernel)
+    plain = fit_gpis(points, normals, prior, kernel)
+    assert np.all(carved.mean_value(refuted) > 0)
+    assert np.mean(plain.mean_value(refuted) < 0) > 0.5
+    inside = prior(candidates)[0] < -0.1
+    untouched = candidates[inside & (np.min(np.linalg.norm(
+        candidates[:, None] - refuted[None], axis=-1), 1) > 0.6 - prior(candidates)[0])]
+    assert len(untouched) > 100
+    kept = np.mean((carved.mean_value(untouched) < 0) == (plain.mean_value(untouched) < 0))
+    assert kept > 0.95
+
+
 def test_inverse_from_cholesky_matches_a_solve(rng):
     points = rng.normal(size=(6, 3))
     gram = kernel_blocks(points, points, 10.0) + 1e-4 * np.eye(24)
@@ -220,4 +268,17 @@ def test_zero_level_surface_is_near_the_data(mug_data):
     spacing = np.ptp(bounds, axis=0).max() / 32
     # Vertices are linear interpolants along grid edges: off the zero set by a fraction of
     # a voxel where the mean curves.
-    assert np.abs(fit.mean_value(vertices[::20])).max() < spacing / 2
+    error = np.abs(fit.mean_value(vertices))
+    assert np.percentile(error, 99) < spacing / 2 and error.max() < spacing
+
+
+def test_banded_surface_matches_the_full_grid(mug_data):
+    points, normals, prior, _ = mug_data
+    fit = fit_gpis(points[:20], normals[:20], prior, WendlandKernel(2.0))
+    bounds = (np.full(3, -3.6), np.full(3, 3.6))
+    full_vertices, _ = zero_level_surface(fit, bounds, 31, band=False)  # 32 nodes: odd grid
+    band_vertices, band_faces = zero_level_surface(fit, bounds, 31, band=True)
+    assert len(band_faces) > 100
+    spacing = 7.2 / 31
+    assert directed_hausdorff(band_vertices, full_vertices) < 0.05 * spacing
+    assert directed_hausdorff(full_vertices, band_vertices) < 0.05 * spacing

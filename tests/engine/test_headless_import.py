@@ -1,4 +1,4 @@
-"""The engine must import without any GUI toolkit (Qt, pyvista, VTK)."""
+"""The engine and the app's model must import without any GUI toolkit (Qt, pyvista, VTK)."""
 
 from __future__ import annotations
 
@@ -36,15 +36,19 @@ SCRIPT = textwrap.dedent(
     sys.meta_path.insert(0, BlockGui())
 
     import tactile_viz.engine as engine
+    import tactile_viz.app as app
+    import tactile_viz.cli
 
     errors = []
     def onerror(name):
         errors.append(name)
 
-    names = [engine.__name__]
-    for info in pkgutil.walk_packages(engine.__path__, engine.__name__ + ".", onerror=onerror):
-        importlib.import_module(info.name)
-        names.append(info.name)
+    names = [engine.__name__, app.__name__, "tactile_viz.cli"]
+    for package in (engine, app):
+        for info in pkgutil.walk_packages(package.__path__, package.__name__ + ".",
+                                          onerror=onerror):
+            importlib.import_module(info.name)
+            names.append(info.name)
     if errors:
         raise SystemExit(f"could not import: {errors}")
     leaked = sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED)
@@ -55,7 +59,7 @@ SCRIPT = textwrap.dedent(
 )
 
 
-def test_engine_imports_without_gui_toolkits():
+def test_engine_and_app_model_import_without_gui_toolkits():
     proc = subprocess.run(
         [sys.executable, "-c", SCRIPT, ",".join(BLOCKED)],
         capture_output=True,
@@ -64,6 +68,7 @@ def test_engine_imports_without_gui_toolkits():
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "imported" in proc.stdout
+    assert "tactile_viz.app.scene" in proc.stdout.split()  # the app's model, moved from engine
 
 
 def test_blocker_really_blocks():
@@ -77,3 +82,4 @@ def test_blocker_really_blocks():
     )
     assert proc.returncode != 0
     assert "blocked GUI import: pyvista" in proc.stderr
+

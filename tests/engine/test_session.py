@@ -8,6 +8,7 @@ from tactile_viz.__main__ import main
 from tactile_viz.engine import PriorLibrary
 from tactile_viz.engine.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
+from tactile_viz.engine.objects import ObjectModel
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.session import (Session, SessionError, SessionParams,
                                         free_space_points, learned_model_from_surface,
@@ -234,8 +235,10 @@ def test_trial_command_with_prior_files(tmp_path, bundled):
     for name in ["mug_1", "vase_1"]:
         bundled[name].mesh.export(tmp_path / f"{name}.ply")
     out = tmp_path / "trial.json"
-    assert main(["trial", "--object-file", str(tmp_path / "vase_1.ply"), "--prior-file",
-                 str(tmp_path / "mug_1.ply"), str(tmp_path / "vase_1.ply"),
+    # Repeated flags add up (issue 17: only the last --prior-file used to count).
+    assert main(["trial", "--object-file", str(tmp_path / "vase_1.ply"),
+                 "--prior-file", str(tmp_path / "mug_1.ply"),
+                 "--prior-file", str(tmp_path / "vase_1.ply"),
                  "--max-steps", "4", "--json", str(out), "--no-progress"]) == 0
     assert json.loads(out.read_text())["library"] == ["mug_1", "vase_1"]
 
@@ -276,7 +279,9 @@ def test_free_space_points_sample_missed_probes_once_per_cell():
 
 
 @pytest.mark.parametrize("changes", [{"gpis_kernel": "sphere"}, {"gpis_support": 0.0},
-                                     {"gpis_noncontacts": "yes"}, {"contact_spacing": -1.0}])
+                                     {"gpis_noncontacts": "yes"}, {"contact_spacing": -1.0},
+                                     {"gpis_carve_radius": -0.1}, {"target_uncovered": 1},
+                                     {"check_lines": -1}, {"check_lines": 1.5}])
 def test_bad_gpis_and_enforcement_parameters(changes):
     with pytest.raises(ParameterError):
         SessionParams(**changes)
@@ -286,3 +291,45 @@ def test_faithful_preset_is_the_papers_gpis():
     params = session_preset("faithful")
     assert params.gpis_kernel == "thin-plate" and params.gpis_radius_factor == 1.0
     assert not params.gpis_noncontacts and params.filter == session_preset("paper").filter
+    assert params.gpis_carve_radius == 0 and not params.cover_prior
+    assert not params.target_uncovered and params.check_lines == 0
+
+
+def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known,
+                                                                  monkeypatch):
+    # The estimate covers only the top of the truth: a line from below touches the bottom
+    # first, which nothing predicted, and restarts the count; a line from above touches the
+    # top, confirming the estimate.
+    params = session_preset("paper", check_lines=3, eps=0.3)
+    session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
+    rotation, translation = session.truth.rotation, session.truth.translation
+    axis = rotation[:, 2]
+    surface = session.truth.model.mesh.vertices @ rotation.T + translation
+    height = (surface - translation) @ axis
+    top = surface[height > height.max() - 1.0]
+    inside = translation + (height.max() - 1.5) * axis
+    lines = iter([-axis, axis])  # a line starts at through + 10 direction
+    monkeypatch.setattr("tactile_viz.engine.session.next_sweep_direction",
+                        lambda used, rng: next(lines))
+    session._check, session._checks_passed = top, 2
+    session._check_line(inside[None])  # the path starts below and runs up
+    assert session._checks_passed == 0
+    session._check_line(inside[None])  # from above
+    assert session._checks_passed == 1
+
+
+def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
+    # A sphere against a box prior is novel; with a loose eps its estimate is covered early.
+    box = trimesh.creation.box((6.0, 3.0, 3.0))
+    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
+                                                    cache=sphere_model.cache)])
+    runs = {}
+    for lines in (0, 4):
+        params = session_preset("paper", check_lines=lines, eps=2.0)
+        session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+        runs[lines] = session.run(max_steps=60), session.snapshots
+    (plain, _), (checked, snapshots) = runs[0], runs[4]
+    assert plain.terminated and plain.novel and plain.dhd <= 2.0
+    checks = [s.step for s in snapshots if s.novel and s.target is None and not s.terminated]
+    assert checks[0] == plain.step and len(checks) >= 4
+    assert checked.terminated and checked.step > checks[3]

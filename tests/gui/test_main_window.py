@@ -1,14 +1,16 @@
 """The main window under Xvfb: stepping, running, pausing, layers, errors, closing."""
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PySide6.QtWidgets import QMessageBox
 
+from tactile_viz.app.scene import Scene
+from tactile_viz.cli import stop_logging
 from tactile_viz.engine import PriorLibrary, load_bundled
-from tactile_viz.engine.scene import Scene
 from tactile_viz.gui.main_window import MainWindow
 
 pytestmark = pytest.mark.gui
@@ -133,6 +135,13 @@ def test_headless_screenshot_mode(qapp, tmp_path):
     spec = importlib.util.spec_from_file_location("app", REPO_ROOT / "app.py")
     app = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(app)
-    out = tmp_path / "shot.png"
-    assert app.main(["--object", "bottle_1", "--steps", "3", "--screenshot", str(out)]) == 0
+    out, log_file = tmp_path / "shot.png", tmp_path / "app.log"
+    hook = sys.excepthook
+    try:
+        assert app.main(["--object", "bottle_1", "--steps", "3", "--screenshot", str(out),
+                         "--log-file", str(log_file)]) == 0
+    finally:
+        stop_logging()
     assert out.stat().st_size > 10_000
+    assert sys.excepthook is hook  # the app's hook is gone again
+    assert "app started" in log_file.read_text()

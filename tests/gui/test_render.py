@@ -42,7 +42,11 @@ def test_scene_is_not_blank_and_shows_layer_colours(snapshot):
     image = _render(snapshot)
     assert (np.abs(image - 255).sum(axis=-1) > 30).mean() > 0.05
     red = _fraction(image, (255, 0, 0), 150)
-    assert red > 0.0005  # contacts
+    # Contacts: 12 spheres of radius 0.07 are about 0.1% of the image when all face the
+    # camera; some lie behind the object, and how many depends on the trajectory down to
+    # rounding, so ask for about two visible (0.02%) and let the hidden render prove they
+    # are the contacts.
+    assert red > 0.0002
     hidden = _render(snapshot, hidden=("contacts", "noncontacts", "map", "target", "path"))
     assert _fraction(hidden, (255, 0, 0), 150) < red / 3
     salmon = _fraction(image, (250, 128, 114), 90)

@@ -1,9 +1,9 @@
-"""The app's Qt-free model: settings, signals, and bad input that changes nothing."""
+"""The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes nothing."""
 
 import pytest
 
 from tactile_viz.engine import LibraryError, MeshError, PriorLibrary
-from tactile_viz.engine.scene import Scene
+from tactile_viz.app.scene import Scene
 from tactile_viz.engine.session import SessionError
 
 

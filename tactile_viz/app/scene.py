@@ -13,17 +13,20 @@ a loaded session, a preset) and never keeps settings of its own. Each session ge
 snapshots of a session that is no longer current.
 """
 
+import logging
 from dataclasses import replace
 from pathlib import Path
 
-from .errors import LibraryError
-from .library import PriorLibrary
-from .objects import ObjectModel, bundled_names, load_bundled
-from .session import SESSION_PRESETS, Session, SessionError, make_truth, session_preset
+from ..engine.errors import LibraryError
+from ..engine.exploration import STRATEGIES
+from ..engine.library import PriorLibrary
+from ..engine.objects import ObjectModel, bundled_names, load_bundled
+from ..engine.session import SESSION_PRESETS, Session, SessionError, make_truth, session_preset
+
+log = logging.getLogger(__name__)
 
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
 SESSION_KNOBS = ("eps",)
-STRATEGIES = ("gpis-dhd", "rrt")
 LOADED_PRESET = "loaded session"  # the base parameters of a loaded session that match no preset
 
 
@@ -116,18 +119,21 @@ class Scene:
         except ValueError:
             self.overrides = previous
             raise
+        log.info("parameter %s = %s", name, value)
         self._settings_changed()
 
     def set_strategy(self, strategy):
         if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}")
         self.strategy = strategy
+        log.info("strategy %s", strategy)
         self._settings_changed()
 
     def set_preset(self, preset):
         self._base_params(preset)  # raises for an unknown name
         self.preset = preset
         self.overrides = {}
+        log.info("preset %s", preset)
         self._settings_changed()
 
     # ------------------------------------------------------------------ truth
@@ -145,6 +151,7 @@ class Scene:
     def _set_truth(self, model):
         self.truth_model = model
         self.truth = make_truth(model, rng=[self.seed, 0])
+        log.info("ground truth %s at the pose of seed %d", model.name, self.seed)
         self.reset()
         self.truth_changed.emit(self.truth)
 
@@ -152,6 +159,7 @@ class Scene:
         """Place the truth at the random pose of ``seed`` (also the session's seed)."""
         self.seed = int(seed)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        log.info("ground truth %s at the pose of seed %d", self.truth_model.name, self.seed)
         self.reset()
         self.truth_changed.emit(self.truth)
 
@@ -163,6 +171,7 @@ class Scene:
     def set_prior_enabled(self, name, enabled):
         self.library[name]  # raises LibraryError for an unknown name
         self.enabled[name] = bool(enabled)
+        log.info("prior %s %s", name, "enabled" if enabled else "disabled")
         self.reset()
         self.library_changed.emit(self.library)
 
@@ -177,6 +186,7 @@ class Scene:
     def _add_prior(self, model):
         self.library.add(model)
         self.enabled[model.name] = True
+        log.info("prior %s added", model.name)
         self.reset()
         self.library_changed.emit(self.library)
 
@@ -255,12 +265,16 @@ class Scene:
     def save_session(self, path):
         if self.session is None or self.session.step_count == 0:
             raise SessionError("nothing to save: the session has not started")
-        return self.session.save(path)
+        saved = self.session.save(path)
+        log.info("session saved to %s (%d steps)", saved, self.session.step_count)
+        return saved
 
     def load_session(self, path, callback=None):
         """Load a saved session (its truth, priors, settings and steps replace the current
         ones). ``callback(snapshot)`` sees each replayed step (it may raise to cancel)."""
-        return self.adopt_session(Session.load(path, callback=callback))
+        session = Session.load(path, callback=callback)
+        log.info("session loaded from %s (%d steps)", path, session.step_count)
+        return self.adopt_session(session)
 
     def adopt_session(self, session):
         """Make ``session`` (e.g. loaded in another thread) the current one, with its truth,

@@ -1,0 +1,21 @@
+"""What the README's examples import: the engine's public names, from one place."""
+
+import tactile_viz.engine as engine
+
+
+def test_engine_exports_the_session_api():
+    from tactile_viz.engine import (FilterParams, ParticleFilter, Session, SessionParams,
+                                    Snapshot, preset, session_preset)
+    from tactile_viz.engine.params import FilterParams as FilterParamsAgain
+    from tactile_viz.engine.session import Session as SessionAgain
+
+    assert Session is SessionAgain and FilterParams is FilterParamsAgain
+    assert isinstance(session_preset("paper"), SessionParams)
+    assert isinstance(preset("paper"), FilterParams)
+    assert ParticleFilter.__module__.endswith("particle_filter") and Snapshot
+
+
+def test_all_names_exist():
+    missing = [name for name in engine.__all__ if not hasattr(engine, name)]
+    assert missing == []
+    assert len(set(engine.__all__)) == len(engine.__all__)
