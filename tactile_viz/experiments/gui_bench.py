@@ -4,10 +4,11 @@ For each object (default: mug_1, a known object, and vase_2, a novel one) at one
 
 1. **engine**: the session stepped headless to termination (or ``--max-steps``), wall time;
 2. **gui**: the same session run with *Run to termination* in the main window: wall time
-   from the click to the last step shown, steps drawn, seconds per drawn step (viewport
-   update + render, and the plots' own draw pass), the longest single drawing pass, and
-   the largest gap of a 5 ms QTimer (the event loop's longest block from any cause,
-   including the engine's thread holding the interpreter);
+   from the click to the last step shown, steps drawn, seconds of drawing per drawn step
+   (the scene update, the viewport's render in the paint after it, and the plots' own draw
+   pass), the longest single drawing pass, and the largest gap of a 5 ms QTimer (the event
+   loop's longest block from any cause, including the engine's thread holding the
+   interpreter);
 3. **pause**: *Run*, then *Pause* after a few steps: time from the click to the run's end
    being handled, and the part of it after the step in progress ended;
 4. **close**: *Run*, then close the window after a few steps: how long ``close()`` takes,
@@ -110,11 +111,14 @@ def _engine_run(args, name):
     return time.perf_counter() - began, session.step_count
 
 
+def _since(log, began):
+    return [seconds for start, seconds in list(log) if start >= began]
+
+
 def _gui_run(app, args, name, settings):
     window = _window(args, _scene(args, name), settings)
     app.processEvents()
     probe = _LoopProbe()
-    plots_before = len(window.plots.draw_log)
     probe.start()
     began = time.perf_counter()
     window.start(args.max_steps or None)
@@ -124,18 +128,21 @@ def _gui_run(app, args, name, settings):
     runner = window.runner
     steps = window.scene.latest.step
     shown = window.step_label.text()
-    plot_draws = [seconds for start, seconds in list(window.plots.draw_log)[plots_before:]
-                  if start >= began]
-    viewport = list(runner.draw_seconds)
+    viewport = list(runner.draw_seconds)  # scene update of the drawn steps
+    paints = _since(window.plotter.paint_log, began)  # the render, in the paint after it
+    plots = _since(window.plots.draw_log, began)
     window.close()
     app.processEvents()
-    per_step = [v + p for v, p in zip(viewport, plot_draws + [0.0] * len(viewport))]
+    passes = viewport + paints + plots
+    drawn = max(runner.drawn, 1)
     return {"gui_seconds": wall, "steps": steps, "drawn": runner.drawn,
             "shown_last_step": shown.startswith(f"step {steps}"),
-            "draw_median": statistics.median(per_step) if per_step else 0.0,
+            "draw_per_step": sum(passes) / drawn,
+            "drawing_seconds": sum(passes),
             "viewport_median": statistics.median(viewport) if viewport else 0.0,
-            "plots_median": statistics.median(plot_draws) if plot_draws else 0.0,
-            "longest_draw_pass": max(viewport + plot_draws, default=0.0),
+            "paint_median": statistics.median(paints) if paints else 0.0,
+            "plots_median": statistics.median(plots) if plots else 0.0,
+            "longest_draw_pass": max(passes, default=0.0),
             "largest_loop_gap": largest_gap}
 
 
@@ -193,7 +200,7 @@ def format_table(rows):
     for r in rows:
         lines.append(" | ".join([
             r["object"], str(r["steps"]), f"{r['engine_seconds']:.1f}", f"{r['gui_seconds']:.1f}",
-            f"{100 * r['overhead']:+.1f}%", f"{r['drawn']}", f"{r['draw_median']:.3f}",
+            f"{100 * r['overhead']:+.1f}%", f"{r['drawn']}", f"{r['draw_per_step']:.3f}",
             f"{r['longest_draw_pass']:.3f}", f"{r['largest_loop_gap']:.3f}",
             f"{r['pause_latency']:.2f} ({r['pause_after_step']:.3f})",
             f"{r['close_latency']:.2f} ({r['close_after_step']:.3f})"]))

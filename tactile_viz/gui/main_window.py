@@ -11,6 +11,8 @@ thread. While steps run, every control that would change the scene is disabled.
 import json
 import os
 import threading
+import time
+from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -115,6 +117,22 @@ class Viewport(QtInteractor):
 
     files_dropped = Signal(list)
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.last_paint_seconds = 0.0
+        self.paint_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per paint
+
+    def schedule_render(self):
+        """Render once, in the next paint (a synchronous render would be followed by a
+        second one in that paint)."""
+        QWidget.update(self)
+
+    def paintGL(self):
+        began = time.perf_counter()
+        super().paintGL()
+        self.last_paint_seconds = time.perf_counter() - began
+        self.paint_log.append((began, self.last_paint_seconds))
+
     def dragEnterEvent(self, event):
         if any(_is_mesh_path(url.toLocalFile()) for url in event.mimeData().urls()):
             event.acceptProposedAction()
@@ -186,7 +204,8 @@ class MainWindow(QMainWindow):
         self._build_toolbar()
         self._build_status_bar()
         self._restore_settings()
-        self.runner.extra_seconds = lambda: self.plots.last_draw_seconds
+        self.runner.extra_seconds = lambda: (self.plots.last_draw_seconds
+                                             + self.plotter.last_paint_seconds)
         scene.truth_changed.connect(self._on_truth_changed)
         scene.library_changed.connect(lambda library: self._fill_priors())
         scene.settings_changed.connect(self._sync_settings)
@@ -589,12 +608,14 @@ class MainWindow(QMainWindow):
         self._show_truth_choice()
 
     def _on_session_reset(self):
-        self.layers.clear_session()
+        self.layers.clear_session(render=False)
+        self.plotter.schedule_render()
         self.plots.update_plots([])
         self._update_status(None)
 
     def _on_stepped(self, snapshot):
-        self.layers.show_snapshot(snapshot)
+        self.layers.show_snapshot(snapshot, render=False)
+        self.plotter.schedule_render()
         self.plots.update_plots(self.scene.snapshots[:snapshot.step])
         self._update_status(snapshot)
 
@@ -606,8 +627,7 @@ class MainWindow(QMainWindow):
             self.statusBar().showMessage("new session: press Step or Run to start touching",
                                          STATUS_SECONDS)
             self.learn_button.setEnabled(False)
-            self.progress.setRange(0, self.scene.params.max_steps_known)
-            self.progress.setValue(0)
+            self._set_progress(0, self.scene.params.max_steps_known)
             self.dhd_label.setText(f"DHD - / eps {eps:.2f}")
             return
         recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
@@ -621,10 +641,18 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text)
         params = self.scene.session.params if self.scene.session is not None else self.scene.params
         cap = params.max_steps_novel if snapshot.novel else params.max_steps_known
-        self.progress.setRange(0, max(cap, snapshot.step))
-        self.progress.setValue(snapshot.step)
+        self._set_progress(snapshot.step, max(cap, snapshot.step))
         self.dhd_label.setText(f"DHD {snapshot.dhd:.2f} / eps {params.eps:.2f}")
         self.learn_button.setEnabled(not self.running and self.scene.can_learn())
+
+    def _set_progress(self, value, maximum):
+        """Without QProgressBar's synchronous repaint, which repaints the whole window (the
+        viewport too) inside ``setValue``: the bar is painted in the next pass instead."""
+        self.progress.setUpdatesEnabled(False)
+        self.progress.setRange(0, maximum)
+        self.progress.setValue(value)
+        self.progress.setUpdatesEnabled(True)
+        self.progress.update()
 
     # ------------------------------------------------------------------ controls
     def _fill_priors(self):

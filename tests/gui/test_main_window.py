@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PySide6.QtCore import QSettings
 from PySide6.QtWidgets import QMessageBox
 
 from tactile_viz.app.scene import Scene
@@ -23,10 +24,15 @@ def known_library():
 
 
 @pytest.fixture
-def window(qtbot, known_library):
+def settings(tmp_path):
+    return QSettings(str(tmp_path / "settings.ini"), QSettings.IniFormat)
+
+
+@pytest.fixture
+def window(qtbot, known_library, settings):
     library = PriorLibrary(list(known_library))  # a fresh container per test
     scene = Scene("mug_1", seed=0, library=library)
-    window = MainWindow(scene)
+    window = MainWindow(scene, settings=settings)
     qtbot.addWidget(window)
     window.show()
     qtbot.waitExposed(window)
@@ -145,3 +151,75 @@ def test_headless_screenshot_mode(qapp, tmp_path):
     assert out.stat().st_size > 10_000
     assert sys.excepthook is hook  # the app's hook is gone again
     assert "app started" in log_file.read_text()
+
+
+def _open(qtbot, scene, settings):
+    window = MainWindow(scene, settings=settings)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    return window
+
+
+def test_scene_changing_controls_are_disabled_during_run(qtbot, window):
+    window.run_button.setChecked(True)
+    assert window.running and window.run_button.text() == "Pause"
+    assert window.run_button.isEnabled()
+    assert all(not control.isEnabled() for control in window.scene_controls())
+    strategy = window.scene.strategy
+    assert not window._guarded(window.scene.set_strategy, "rrt")  # refused while running
+    assert window.scene.strategy == strategy
+    qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    assert window.run_button.text() == "Run" and not window.run_button.isChecked()
+    enabled = [c for c in window.scene_controls() if c is not window.learn_button]
+    assert all(control.isEnabled() for control in enabled)
+
+
+def test_controls_show_the_command_line_settings(qtbot, known_library, settings):
+    scene = Scene("vase_1", seed=4, library=PriorLibrary(list(known_library)),
+                  strategy="rrt", preset="fast")
+    window = _open(qtbot, scene, settings)
+    assert window.strategy_box.currentText() == "rrt"
+    assert window.preset_box.currentText() == "fast"
+    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 4
+    for name, box in window.parameter_boxes.items():
+        assert box.value() == pytest.approx(scene.parameter(name), abs=1e-3)
+    window.close()
+
+
+def test_controls_show_a_loaded_session(qtbot, window, known_library, tmp_path):
+    other = Scene("vase_1", seed=3, library=PriorLibrary(list(known_library)), strategy="rrt")
+    other.set_parameter("eps", 0.8)
+    other.step()
+    other.step()
+    path = other.save_session(tmp_path / "session.npz")
+    assert window.load_session(path)
+    qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
+    assert window.strategy_box.currentText() == "rrt"
+    assert window.parameter_boxes["eps"].value() == pytest.approx(0.8)
+    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 3
+    assert window.step_label.text().startswith("step 2")
+
+
+def _legend_labels(layers):
+    legend = layers.legend
+    if not legend.GetVisibility():
+        return []
+    return [legend.GetEntryString(i) for i in range(legend.GetNumberOfEntries())]
+
+
+def test_legend_lists_only_present_and_visible_layers(qtbot, window):
+    from tactile_viz.gui.layers import LAYERS
+
+    assert _legend_labels(window.layers) == [LAYERS["truth"][0]]
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    expected = [LAYERS[n][0] for n in LAYERS if window.layers.shown(n)]
+    assert _legend_labels(window.layers) == expected and LAYERS["contacts"][0] in expected
+    assert LAYERS["gpis"][0] not in expected  # a known object has no reconstruction yet
+    window.layer_boxes["contacts"].setChecked(False)
+    assert LAYERS["contacts"][0] not in _legend_labels(window.layers)
+    window.layer_boxes["contacts"].setChecked(True)
+    assert LAYERS["contacts"][0] in _legend_labels(window.layers)
