@@ -13,17 +13,18 @@ import os
 import threading
 import time
 from collections import deque
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
 from pyvistaqt import QtInteractor
-from PySide6.QtCore import QByteArray, QSettings, Qt, Signal
+from PySide6.QtCore import QByteArray, QSettings, QSignalBlocker, Qt, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDockWidget, QDoubleSpinBox,
                                QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
                                QListWidget, QListWidgetItem, QMainWindow, QMessageBox,
                                QProgressBar, QProgressDialog, QPushButton, QScrollArea,
-                               QSizePolicy, QSpinBox, QVBoxLayout, QWidget)
+                               QSizePolicy, QSlider, QSpinBox, QVBoxLayout, QWidget)
 from superqt.utils import thread_worker
 
 from ..engine.errors import TactileVizError
@@ -389,7 +390,13 @@ class MainWindow(QMainWindow):
         self.status_label = QLabel()
         self.status_label.setWordWrap(True)
         self.status_label.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
+        self.history_slider = QSlider(Qt.Horizontal)
+        self.history_slider.setRange(0, 0)
+        self.history_slider.setToolTip("Scrub through the steps taken so far (not while "
+                                       "running); the next step continues from the last")
+        self.history_slider.valueChanged.connect(self._on_scrub)
         layout.addWidget(self.step_label)
+        layout.addWidget(self.history_slider)
         layout.addWidget(self.status_label)
         return group
 
@@ -540,6 +547,7 @@ class MainWindow(QMainWindow):
             toggle.setText("Pause" if running else "Run")
             toggle.blockSignals(False)
         self._set_controls_enabled(not running and not self.loading)
+        self.history_slider.setEnabled(not running and not self.loading)
         self.run_button.setEnabled(not self.loading)
         self.actions["run"].setEnabled(not self.loading)
 
@@ -608,16 +616,30 @@ class MainWindow(QMainWindow):
         self._show_truth_choice()
 
     def _on_session_reset(self):
+        with _blocked(self.history_slider):
+            self.history_slider.setRange(0, 0)
         self.layers.clear_session(render=False)
         self.plotter.schedule_render()
         self.plots.update_plots([])
         self._update_status(None)
 
     def _on_stepped(self, snapshot):
+        self._show_step(snapshot)
+        with _blocked(self.history_slider):
+            self.history_slider.setRange(1, snapshot.step)
+            self.history_slider.setValue(snapshot.step)
+
+    def _show_step(self, snapshot):
         self.layers.show_snapshot(snapshot, render=False)
         self.plotter.schedule_render()
         self.plots.update_plots(self.scene.snapshots[:snapshot.step])
         self._update_status(snapshot)
+
+    def _on_scrub(self, step):
+        """Show step ``step`` of the current session (1 is the first)."""
+        snapshots = self.scene.snapshots
+        if not self.running and 1 <= step <= len(snapshots):
+            self._show_step(snapshots[step - 1])
 
     def _update_status(self, snapshot):
         eps = self.scene.parameter("eps")
@@ -629,6 +651,7 @@ class MainWindow(QMainWindow):
             self.learn_button.setEnabled(False)
             self._set_progress(0, self.scene.params.max_steps_known)
             self.dhd_label.setText(f"DHD - / eps {eps:.2f}")
+            self.plots.set_eps(eps)
             return
         recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
         seconds = sum(snapshot.timings.values())
@@ -643,6 +666,7 @@ class MainWindow(QMainWindow):
         cap = params.max_steps_novel if snapshot.novel else params.max_steps_known
         self._set_progress(snapshot.step, max(cap, snapshot.step))
         self.dhd_label.setText(f"DHD {snapshot.dhd:.2f} / eps {params.eps:.2f}")
+        self.plots.set_eps(params.eps)
         self.learn_button.setEnabled(not self.running and self.scene.can_learn())
 
     def _set_progress(self, value, maximum):
@@ -806,11 +830,12 @@ class MainWindow(QMainWindow):
             self._load_cancel.set()
 
     def _on_load_progress(self, done, total):
-        if self._load_dialog is not None:
-            self._load_dialog.setMaximum(total)
-            self._load_dialog.setValue(done)
-            self._load_dialog.setLabelText(f"Replaying step {done} of {total}..."
-                                           if total else "Replaying...")
+        dialog = self._load_dialog
+        if dialog is not None:
+            dialog.setLabelText(f"Replaying step {done} of {total}..." if total
+                                else "Replaying...")
+            dialog.setMaximum(total)
+            dialog.setValue(done)  # last: a modal dialog's setValue processes events
 
     def _on_session_loaded(self, path, session):
         if self.loader is None:
@@ -891,15 +916,10 @@ class MainWindow(QMainWindow):
         QMessageBox.critical(self, "tactile_viz", str(error))
 
 
-class _blocked:
-    """Block the signals of some widgets within a ``with`` block."""
-
-    def __init__(self, *widgets):
-        self.widgets = widgets
-
-    def __enter__(self):
-        self.previous = [widget.blockSignals(True) for widget in self.widgets]
-
-    def __exit__(self, *exc):
-        for widget, previous in zip(self.widgets, self.previous):
-            widget.blockSignals(previous)
+@contextmanager
+def _blocked(*widgets):
+    """Block the signals of some widgets within a ``with`` block (QSignalBlocker each)."""
+    with ExitStack() as stack:
+        for widget in widgets:
+            stack.enter_context(QSignalBlocker(widget))
+        yield

@@ -20,7 +20,7 @@ ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
 
 class PlotsWidget(FigureCanvasQTAgg):
     """Two axes: the class posterior (bars) and pose error, reconstruction error and DHD
-    against the step, with the 0.6 thresholds drawn."""
+    against the step, with the 0.6 error threshold and the DHD stop (eps) drawn."""
 
     def __init__(self, parent=None):
         self.figure = Figure(figsize=(4.2, 5.0))
@@ -36,6 +36,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._steps = []
         self.last_draw_seconds = 0.0
         self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
+        self.eps = 0.6
         self._setup_errors()
         self.update_plots([])
         self._relayout()
@@ -47,6 +48,8 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes.set_xlabel("step", fontsize=8)
         axes.axhline(THRESHOLD, color="tab:red", linestyle="--", linewidth=1,
                      label="0.6 threshold")
+        self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1,
+                                     label="DHD stop (eps)")
         for key, label in ERROR_SERIES:
             (self._lines[key],) = axes.plot([], [], label=label)
         axes.set_yscale("log")
@@ -76,6 +79,14 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.draw_idle()
 
     # ------------------------------------------------------------------ updates
+    def set_eps(self, eps):
+        """Move the DHD stop line to ``eps`` (the session's termination threshold)."""
+        eps = float(eps)
+        if eps != self.eps:
+            self.eps = eps
+            self.eps_line.set_ydata([eps, eps])
+            self.draw_idle()
+
     def update_plots(self, snapshots):
         """Show a list of snapshots (empty clears); the artists are updated in place."""
         self._show_posterior(snapshots[-1] if snapshots else None)
@@ -127,5 +138,5 @@ class PlotsWidget(FigureCanvasQTAgg):
             values.append(series[np.isfinite(series) & (series > 0)])
         axes = self.error_axes
         axes.set_xlim(0, max(10, self._steps[-1] + 1) if self._steps else 10)
-        values = np.concatenate(values + [np.array([THRESHOLD])])
+        values = np.concatenate(values + [np.array([THRESHOLD, self.eps])])
         axes.set_ylim(max(1e-3, values.min() / 1.5), values.max() * 1.5)

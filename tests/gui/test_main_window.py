@@ -223,3 +223,33 @@ def test_legend_lists_only_present_and_visible_layers(qtbot, window):
     assert LAYERS["contacts"][0] not in _legend_labels(window.layers)
     window.layer_boxes["contacts"].setChecked(True)
     assert LAYERS["contacts"][0] in _legend_labels(window.layers)
+
+
+def test_history_slider_shows_earlier_steps(qtbot, window):
+    for _ in range(3):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    slider = window.history_slider
+    assert (slider.minimum(), slider.maximum(), slider.value()) == (1, 3, 3)
+    points = window.layers.actors["contacts"].mapper.dataset.n_points
+    first, last = (len(window.scene.snapshots[i].contacts) for i in (0, 2))
+    slider.setValue(1)
+    assert window.step_label.text().startswith("step 1")
+    assert window.layers.latest.step == 1 and window.plots._steps == [1]
+    assert window.layers.actors["contacts"].mapper.dataset.n_points * last == points * first
+    slider.setValue(3)
+    assert window.layers.latest is window.scene.latest and window.plots._steps == [1, 2, 3]
+    window.run_button.setChecked(True)
+    assert not slider.isEnabled()
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    window.reset_button.click()
+    assert (slider.minimum(), slider.maximum()) == (0, 0)
+
+
+def test_dhd_stop_line_follows_eps(window):
+    assert window.plots.eps_line.get_ydata()[0] == pytest.approx(window.scene.parameter("eps"))
+    window.parameter_boxes["eps"].setValue(0.8)
+    assert window.scene.parameter("eps") == pytest.approx(0.8)
+    assert window.plots.eps_line.get_ydata()[0] == pytest.approx(0.8)
+    assert "eps 0.80" in window.dhd_label.text()
