@@ -32,6 +32,7 @@ from ..engine.exploration import STRATEGIES
 from ..engine.session import Session
 from .layers import LAYERS, ViewportLayers
 from .plots import PlotsWidget
+from .recording import Recorder, widget_frame
 from .runner import StepRunner
 
 OPEN_FILE = "Open mesh file..."
@@ -71,6 +72,8 @@ ACTIONS = {
     "xz": ("Front view", "Ctrl+2", "Look along the y axis"),
     "yz": ("Side view", "Ctrl+3", "Look along the x axis"),
     "screenshot": ("Save screenshot...", "F12", "Save a PNG of the whole window"),
+    "record": ("Record steps...", "Ctrl+Shift+R", "Record the window at every drawn step to "
+               "a GIF or MP4; press again to stop"),
     "open_truth": ("Open ground-truth mesh...", QKeySequence.StandardKey.Open, None),
     "load_library": ("Load prior library...", None, None),
     "save_library": ("Save prior library...", None, None),
@@ -189,6 +192,7 @@ class MainWindow(QMainWindow):
         self.loader = None
         self._load_cancel = None
         self._load_dialog = None
+        self.recorder = None
         self.setWindowTitle("tactile_viz")
         self.resize(1500, 900)
         self.plotter = Viewport(self, auto_update=False)
@@ -235,6 +239,7 @@ class MainWindow(QMainWindow):
             "camera": self.frame_truth, "iso": lambda: self._view("view_isometric"),
             "xy": lambda: self._view("view_xy"), "xz": lambda: self._view("view_xz"),
             "yz": lambda: self._view("view_yz"), "screenshot": self._on_save_screenshot,
+            "record": self._on_record_toggled,
             "open_truth": self._open_truth_file, "load_library": self._on_load_library,
             "save_library": self._on_save_library, "load_session": self._on_load_session,
             "save_session": self._on_save_session, "quit": self.close,
@@ -248,7 +253,7 @@ class MainWindow(QMainWindow):
             if tip:
                 action.setToolTip(f"{tip} ({action.shortcut().toString()})"
                                   if shortcut else tip)
-            if name == "run":
+            if name in ("run", "record"):
                 action.setCheckable(True)
                 action.toggled.connect(slots[name])
             else:
@@ -428,7 +433,7 @@ class MainWindow(QMainWindow):
     def _build_menu(self):
         file_menu = self.menuBar().addMenu("&File")
         for name in ("open_truth", "load_library", "save_library", None, "load_session",
-                     "save_session", None, "screenshot", None, "quit"):
+                     "save_session", None, "screenshot", "record", None, "quit"):
             if name is None:
                 file_menu.addSeparator()
             else:
@@ -450,7 +455,7 @@ class MainWindow(QMainWindow):
         toolbar = self.addToolBar("Main")
         toolbar.setObjectName("toolbar")
         for name in ("step", "run", "finish", "reset", None, "camera", "iso", "xy", "xz",
-                     "yz", None, "screenshot"):
+                     "yz", None, "screenshot", "record"):
             if name is None:
                 toolbar.addSeparator()
             else:
@@ -577,6 +582,7 @@ class MainWindow(QMainWindow):
         return True
 
     def closeEvent(self, event):
+        self.stop_recording()
         self._save_settings()
         self.wait_for_worker()
         self.plots.close()
@@ -625,6 +631,8 @@ class MainWindow(QMainWindow):
 
     def _on_stepped(self, snapshot):
         self._show_step(snapshot)
+        if self.recorder is not None:
+            self.recorder.add(widget_frame(self))
         with _blocked(self.history_slider):
             self.history_slider.setRange(1, snapshot.step)
             self.history_slider.setValue(snapshot.step)
@@ -880,6 +888,44 @@ class MainWindow(QMainWindow):
             return True
         self.show_error(OSError(f"cannot write the screenshot {path}"))
         return False
+
+    def _on_record_toggled(self, checked):
+        if not checked:
+            self.stop_recording()
+            return
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Record steps", os.path.join(self._folder("screenshots"), "tactile_viz.gif"),
+            "Animated GIF (*.gif);;MP4 video (*.mp4)")
+        if path:
+            self._remember("screenshots", path)
+        if not (path and self.start_recording(path)):
+            self._show_recording(False)
+
+    def start_recording(self, path):
+        """Record the whole window at every drawn step to ``path`` (.gif or .mp4)."""
+        self.stop_recording()
+        try:
+            self.recorder = Recorder(path)
+        except OSError as error:
+            self.show_error(error)
+            return False
+        self._show_recording(True)
+        self.statusBar().showMessage(f"recording the drawn steps to {path}", STATUS_SECONDS)
+        return True
+
+    def stop_recording(self):
+        """Finish the recording, if any; returns its path."""
+        recorder, self.recorder = self.recorder, None
+        self._show_recording(False)
+        if recorder is None:
+            return None
+        path = recorder.close()
+        self.statusBar().showMessage(f"saved {recorder.frames} frames to {path}", STATUS_SECONDS)
+        return path
+
+    def _show_recording(self, recording):
+        with _blocked(self.actions["record"]):
+            self.actions["record"].setChecked(recording)
 
     def _view(self, method):
         getattr(self.plotter, method)(render=False)

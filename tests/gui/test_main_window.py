@@ -253,3 +253,40 @@ def test_dhd_stop_line_follows_eps(window):
     assert window.scene.parameter("eps") == pytest.approx(0.8)
     assert window.plots.eps_line.get_ydata()[0] == pytest.approx(0.8)
     assert "eps 0.80" in window.dhd_label.text()
+
+
+def test_recording_writes_a_frame_per_drawn_step(qtbot, window, errors, tmp_path):
+    import imageio.v2 as imageio
+
+    path = tmp_path / "steps.gif"
+    assert window.start_recording(path) and window.actions["record"].isChecked()
+    for _ in range(2):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    assert window.stop_recording() == path and not window.actions["record"].isChecked()
+    frames = imageio.mimread(path)
+    assert len(frames) == 2 and frames[0].shape[0] > 300
+    assert not window.start_recording(tmp_path / "steps.avi") and errors
+    assert window.recorder is None
+
+
+def test_screenshot_is_the_whole_window(window, tmp_path):
+    from PySide6.QtGui import QImage
+
+    path = tmp_path / "window.png"
+    assert window.save_screenshot(path)
+    image = QImage(str(path))
+    assert (image.width(), image.height()) == (window.width(), window.height())
+
+
+def test_dropped_mesh_goes_through_the_scene(qtbot, window, errors, tmp_path):
+    path = tmp_path / "dropped_vase.obj"
+    load_bundled("vase_1").mesh.export(path)
+    window.run_button.setChecked(True)
+    window.plotter.files_dropped.emit([str(path)])  # refused while running
+    assert window.scene.truth_model.name == "mug_1"
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    window.plotter.files_dropped.emit([str(path)])
+    assert window.scene.truth_model.name == "dropped_vase" and window.scene.session is None
+    assert window.object_box.currentText() == "dropped_vase" and not errors
