@@ -28,6 +28,7 @@ import sys
 import tempfile
 import time
 
+from ..cli import ExtendList
 from ..engine.exploration import STRATEGIES
 
 TARGET_OVERHEAD = 0.15
@@ -38,7 +39,7 @@ TARGET_PAUSE = 0.150
 def _parser():
     parser = argparse.ArgumentParser(prog="python -m tactile_viz bench gui",
                                      description=__doc__.split("\n\n")[0])
-    parser.add_argument("--objects", nargs="+", default=["mug_1", "vase_2"],
+    parser.add_argument("--objects", action=ExtendList, default=["mug_1", "vase_2"],
                         help="bundled objects to run (default: mug_1 known, vase_2 novel)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--preset", default="paper")
