@@ -10,10 +10,13 @@ import numpy as np
 import pyvista as pv
 import vtk
 
+from ..engine.transforms import transform_points
+
 # name -> (legend label, colour)
 LAYERS = {
     "truth": ("ground truth", "lightsteelblue"),
     "map": ("MAP shape", "salmon"),
+    "hypotheses": ("other hypotheses (opacity: weight)", "mediumpurple"),
     "gpis": ("GPIS (colour: variance)", "viridis"),
     "contacts": ("contacts", "red"),
     "noncontacts": ("non-contacts", "green"),
@@ -24,6 +27,7 @@ CONTACT_RADIUS = 0.07
 LEGEND_ROW_PIXELS = 18  # height of one legend entry, whatever the viewport's size
 LEGEND_WIDTH_PIXELS = 190
 SCALAR_BAR = "variance"
+HIDDEN_AT_START = ("hypotheses",)
 
 
 def faces_to_polydata(vertices, faces, normals=False):
@@ -109,7 +113,8 @@ class ViewportLayers:
 
     def __init__(self, plotter):
         self.plotter = plotter
-        self.visible = {name: True for name in LAYERS}
+        self.visible = {name: name not in HIDDEN_AT_START for name in LAYERS}
+        self.models = None  # class name -> ObjectModel, for the hypotheses' shapes
         self.present = {name: False for name in LAYERS}
         self.actors = {}
         self.latest = None
@@ -168,8 +173,9 @@ class ViewportLayers:
         self._sync_overlays()
 
     # ------------------------------------------------------------------ layers
-    @staticmethod
-    def _has(name, snapshot):
+    def _has(self, name, snapshot):
+        if name == "hypotheses":
+            return bool(snapshot.hypotheses) and self.models is not None
         if name == "map":
             return snapshot.map_faces is not None and len(snapshot.map_faces) > 0
         if name == "gpis":
@@ -190,6 +196,9 @@ class ViewportLayers:
                 self._put("map", faces_to_polydata(snapshot.map_vertices, snapshot.map_faces,
                                                    normals=True),
                           color=LAYERS["map"][1], opacity=0.55, smooth=True)
+            elif name == "hypotheses":
+                self._put("hypotheses", self._ghosts(snapshot.hypotheses), scalars="rgba",
+                          rgba=True, smooth=True)
             elif name == "gpis":
                 surface = faces_to_polydata(snapshot.gpis_vertices, snapshot.gpis_faces,
                                             normals=True)
@@ -213,6 +222,23 @@ class ViewportLayers:
                 self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1],
                           line_width=2)
         self._apply_visibility(name)
+
+    def _ghosts(self, hypotheses):
+        """The hypotheses' shapes as one mesh, each point coloured with an opacity that grows
+        with its hypothesis' weight."""
+        colour = np.array(pv.Color(LAYERS["hypotheses"][1]).int_rgb, dtype=np.uint8)
+        heaviest = max(weight for *_, weight in hypotheses)
+        vertices, faces, rgba, offset = [], [], [], 0
+        for name, rotation, translation, weight in hypotheses:
+            mesh = self.models[name].mesh
+            vertices.append(transform_points(mesh.vertices, rotation, translation))
+            faces.append(np.asarray(mesh.faces) + offset)
+            alpha = int(255 * (0.08 + 0.32 * weight / heaviest))
+            rgba.append(np.tile(np.r_[colour, alpha].astype(np.uint8), (len(mesh.vertices), 1)))
+            offset += len(mesh.vertices)
+        ghosts = faces_to_polydata(np.vstack(vertices), np.vstack(faces), normals=True)
+        ghosts.point_data["rgba"] = np.vstack(rgba)
+        return ghosts
 
     def _put(self, name, mesh, smooth=False, **style):
         """Create the layer's actor once, then swap its data set in place."""

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from pyvistaqt import QtInteractor
-from PySide6.QtCore import QByteArray, QSettings, QSignalBlocker, Qt, Signal
+from PySide6.QtCore import QByteArray, QSettings, QSignalBlocker, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDockWidget, QDoubleSpinBox,
                                QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
@@ -41,6 +41,9 @@ MESH_FILTER = "Meshes (*.obj *.ply *.stl *.off *.glb *.gltf);;All files (*)"
 SETTINGS_ORGANIZATION = "tactile_viz"
 SETTINGS_APPLICATION = "tactile_viz"
 STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
+# During a run the plots are drawn this long after the viewport's paint, so that the event
+# loop runs in between instead of blocking for both.
+PLOTS_DELAY_MS = 30
 
 # name -> (label, minimum, maximum, step, decimals, tooltip)
 PARAMETERS = {
@@ -193,6 +196,11 @@ class MainWindow(QMainWindow):
         self._load_cancel = None
         self._load_dialog = None
         self.recorder = None
+        self._plots_step = None
+        self._plots_timer = QTimer(self)
+        self._plots_timer.setSingleShot(True)
+        self._plots_timer.setInterval(PLOTS_DELAY_MS)
+        self._plots_timer.timeout.connect(self._flush_plots)
         self.setWindowTitle("tactile_viz")
         self.resize(1500, 900)
         self.plotter = Viewport(self, auto_update=False)
@@ -413,7 +421,7 @@ class MainWindow(QMainWindow):
         self.layer_boxes = {}
         for name, (label, color) in LAYERS.items():
             box = QCheckBox(label)
-            box.setChecked(True)
+            box.setChecked(self.layers.visible[name])
             shown = {"truth": "steelblue", "gpis": "teal"}.get(name, color)
             box.setStyleSheet(f"QCheckBox {{ color: {shown}; }}")
             box.toggled.connect(lambda checked, n=name: self.layers.set_visible(n, checked))
@@ -626,6 +634,8 @@ class MainWindow(QMainWindow):
             self.history_slider.setRange(0, 0)
         self.layers.clear_session(render=False)
         self.plotter.schedule_render()
+        self._plots_timer.stop()
+        self._plots_step = None
         self.plots.update_plots([])
         self._update_status(None)
 
@@ -638,10 +648,21 @@ class MainWindow(QMainWindow):
             self.history_slider.setValue(snapshot.step)
 
     def _show_step(self, snapshot):
+        self.layers.models = self.scene.session.library
         self.layers.show_snapshot(snapshot, render=False)
         self.plotter.schedule_render()
-        self.plots.update_plots(self.scene.snapshots[:snapshot.step])
+        self._plots_step = snapshot.step
+        if self.running:
+            self._plots_timer.start()
+        else:
+            self._flush_plots()
         self._update_status(snapshot)
+
+    def _flush_plots(self):
+        self._plots_timer.stop()
+        step, self._plots_step = self._plots_step, None
+        if step is not None:
+            self.plots.update_plots(self.scene.snapshots[:step])
 
     def _on_scrub(self, step):
         """Show step ``step`` of the current session (1 is the first)."""

@@ -290,3 +290,29 @@ def test_dropped_mesh_goes_through_the_scene(qtbot, window, errors, tmp_path):
     window.plotter.files_dropped.emit([str(path)])
     assert window.scene.truth_model.name == "dropped_vase" and window.scene.session is None
     assert window.object_box.currentText() == "dropped_vase" and not errors
+
+
+def test_belief_ghosts_show_the_other_hypotheses_by_weight(qtbot, window):
+    from tactile_viz.gui.layers import LAYERS
+
+    for _ in range(3):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    box = window.layer_boxes["hypotheses"]
+    assert not box.isChecked() and "hypotheses" not in window.layers.actors  # off at start
+    hypotheses = window.scene.latest.hypotheses
+    assert 1 <= len(hypotheses) <= 4
+    box.setChecked(True)
+    actor = window.layers.actors["hypotheses"]
+    assert actor.GetVisibility() and LAYERS["hypotheses"][0] in _legend_labels(window.layers)
+    models = window.scene.session.library
+    sizes = [len(models[name].mesh.vertices) for name, *_ in hypotheses]
+    rgba = np.asarray(actor.mapper.dataset.point_data["rgba"])
+    assert len(rgba) == sum(sizes)
+    starts = np.cumsum([0] + sizes[:-1])
+    weights = np.array([weight for *_, weight in hypotheses])
+    alphas = rgba[starts, 3].astype(float)
+    assert alphas[np.argmax(weights)] == alphas.max()
+    assert np.all(np.diff(alphas[np.argsort(weights)]) >= 0)  # heavier: more opaque
+    box.setChecked(False)
+    assert not actor.GetVisibility()
