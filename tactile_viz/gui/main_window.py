@@ -44,6 +44,7 @@ STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
 # During a run the plots are drawn this long after the viewport's paint, so that the event
 # loop runs in between instead of blocking for both.
 PLOTS_DELAY_MS = 30
+PLOTS_WIDTH = 320  # the plots dock's width at first start, pixels
 
 # name -> (label, minimum, maximum, step, decimals, tooltip)
 PARAMETERS = {
@@ -488,6 +489,8 @@ class MainWindow(QMainWindow):
         state = self.settings.value("window/state")
         if isinstance(state, QByteArray) and not state.isEmpty():
             self.restoreState(state)
+        else:  # the viewport gets the room the docks do not need
+            self.resizeDocks([self.plots_dock], [PLOTS_WIDTH], Qt.Horizontal)
 
     def _save_settings(self):
         self.settings.setValue("window/geometry", self.saveGeometry())

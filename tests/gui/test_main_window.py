@@ -316,3 +316,12 @@ def test_belief_ghosts_show_the_other_hypotheses_by_weight(qtbot, window):
     assert np.all(np.diff(alphas[np.argsort(weights)]) >= 0)  # heavier: more opaque
     box.setChecked(False)
     assert not actor.GetVisibility()
+
+
+def test_fits_1280_by_720(qtbot, window):
+    window.resize(1280, 720)
+    qtbot.waitUntil(lambda: window.width() == 1280, timeout=5_000)
+    qtbot.wait(50)
+    assert window.plotter.width() >= 480  # the docks leave the viewport room
+    assert window.controls_dock.geometry().bottom() <= window.height()
+    assert not window.run_button.visibleRegion().isEmpty()  # the loop is above the fold
