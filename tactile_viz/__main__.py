@@ -45,6 +45,10 @@ def _bench(args):
 
         module = importlib.import_module(f".experiments.{args.what}", __package__)
         return module.main(args.rest)
+    if args.what == "gui":
+        from .experiments.gui_bench import main as gui_bench
+
+        return gui_bench(args.rest)
     if args.what == "realmesh":
         from .experiments.real_meshes import main as real_meshes
 
@@ -74,17 +78,18 @@ def build_parser():
     trial.set_defaults(run=_trial)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
-                                              "scaling, noise, realmesh)",
+                                              "scaling, noise, realmesh, gui)",
                                 description="Benchmarks; each has its own --help.")
     bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise",
-                                        "realmesh"],
+                                        "realmesh", "gui"],
                        help="sdf: grid SDF vs exact queries per second; step: time of each "
                             "part of a step at 50/200/400 contacts, full vs incremental GPIS; "
                             "paper: the paper's protocol, tables and plots; tradeoff: time "
                             "per trial vs errors over presets and knobs, Pareto front; "
                             "scaling: time per step vs contacts and vs number of priors; "
                             "noise: recognition and pose error vs sensor noise; realmesh: "
-                            "known/novel trials on meshes pybullet ships (extra realmesh)")
+                            "known/novel trials on meshes pybullet ships (extra realmesh); "
+                            "gui: does the desktop app keep up with the engine (under Xvfb)")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
     bench.set_defaults(run=_bench)
     return parser

@@ -5,6 +5,12 @@ filter uses, strategy, preset and parameter overrides) and the current :class:`S
 Views subscribe to its :class:`Signal` s; every change that makes the running session
 stale resets it. Bad input (a broken mesh, an unreadable library, an invalid parameter)
 raises the project's error and changes nothing.
+
+The scene is the one source of truth of a view: a view shows what the scene holds (its
+controls are filled from it after every change, whatever made the change: the command line,
+a loaded session, a preset) and never keeps settings of its own. Each session gets a new
+:attr:`Scene.generation`, so a view that steps a session in another thread can drop the
+snapshots of a session that is no longer current.
 """
 
 import logging
@@ -15,12 +21,13 @@ from ..engine.errors import LibraryError
 from ..engine.exploration import STRATEGIES
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.session import Session, SessionError, make_truth, session_preset
+from ..engine.session import SESSION_PRESETS, Session, SessionError, make_truth, session_preset
 
 log = logging.getLogger(__name__)
 
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
 SESSION_KNOBS = ("eps",)
+LOADED_PRESET = "loaded session"  # the base parameters of a loaded session that match no preset
 
 
 class Signal:
@@ -66,16 +73,32 @@ class Scene:
         self.truth_model = load_bundled(truth_name)
         self.seed = int(seed)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        if strategy not in STRATEGIES:
+            raise ValueError(f"unknown strategy {strategy!r}")
         self.strategy = strategy
+        self.presets = dict(SESSION_PRESETS)
+        session_preset(preset)  # raises for an unknown name
         self.preset = preset
         self.overrides = {}
         self.session = None
+        self.generation = 0
+
+    # ------------------------------------------------------------------ presets
+    def preset_names(self):
+        """The presets a view offers (the bundled ones, and a loaded session's own)."""
+        return list(self.presets)
+
+    def _base_params(self, name):
+        try:
+            return self.presets[name]
+        except KeyError:
+            return session_preset(name)  # raises the project's error for an unknown name
 
     # ------------------------------------------------------------------ settings
     @property
     def params(self):
         """The session parameters: the preset with the user's overrides."""
-        params = session_preset(self.preset)
+        params = self._base_params(self.preset)
         filter_changes = {k: v for k, v in self.overrides.items() if k in FILTER_KNOBS}
         session_changes = {k: v for k, v in self.overrides.items() if k in SESSION_KNOBS}
         return replace(params, filter=replace(params.filter, **filter_changes), **session_changes)
@@ -107,7 +130,7 @@ class Scene:
         self._settings_changed()
 
     def set_preset(self, preset):
-        session_preset(preset)  # raises for an unknown name
+        self._base_params(preset)  # raises for an unknown name
         self.preset = preset
         self.overrides = {}
         log.info("preset %s", preset)
@@ -226,8 +249,13 @@ class Scene:
     def announce(self, snapshot):
         self.stepped.emit(snapshot)
 
+    def is_current(self, generation):
+        """True while ``generation`` (see :attr:`generation`) names the current session."""
+        return generation == self.generation
+
     def reset(self):
         self.session = None
+        self.generation += 1
         self.session_reset.emit()
 
     def _settings_changed(self):
@@ -241,19 +269,51 @@ class Scene:
         log.info("session saved to %s (%d steps)", saved, self.session.step_count)
         return saved
 
-    def load_session(self, path):
-        """Load a saved session (its truth, priors and steps replace the current ones)."""
-        session = Session.load(path)
+    def load_session(self, path, callback=None):
+        """Load a saved session (its truth, priors, settings and steps replace the current
+        ones). ``callback(snapshot)`` sees each replayed step (it may raise to cancel)."""
+        session = Session.load(path, callback=callback)
         log.info("session loaded from %s (%d steps)", path, session.step_count)
+        return self.adopt_session(session)
+
+    def adopt_session(self, session):
+        """Make ``session`` (e.g. loaded in another thread) the current one, with its truth,
+        priors, strategy, seed and parameters; emits every signal once and ``stepped`` with
+        its latest snapshot. Returns True when the prior library was replaced (its names
+        differ from the current ones)."""
+        replaced = session.library.names != self.library.names
+        preset, overrides = self._match_params(session.params)
         self.truth_model, self.truth = session.truth.model, session.truth
         self.library = session.library
         self.enabled = {name: True for name in self.library.names}
-        self.strategy, self.seed, self.session = session.strategy, session.seed, session
+        self.strategy, self.seed = session.strategy, session.seed
+        self.preset, self.overrides = preset, overrides
+        self.session = session
+        self.generation += 1
+        self.session_reset.emit()
         self.truth_changed.emit(self.truth)
         self.library_changed.emit(self.library)
-        for snapshot in session.snapshots:
-            self.stepped.emit(snapshot)
-        return session
+        self.settings_changed.emit()
+        if session.latest is not None:
+            self.stepped.emit(session.latest)
+        return replaced
+
+    def _match_params(self, params):
+        """(preset, overrides) that give ``params``: a bundled preset with some main knobs
+        changed if one does, else ``params`` itself as the preset :data:`LOADED_PRESET`."""
+        knobs = {name: getattr(params.filter, name) for name in FILTER_KNOBS}
+        knobs.update({name: getattr(params, name) for name in SESSION_KNOBS})
+        self.presets.pop(LOADED_PRESET, None)
+        for name, base in self.presets.items():
+            candidate = replace(base, filter=replace(base.filter, **{
+                k: v for k, v in knobs.items() if k in FILTER_KNOBS}),
+                **{k: v for k, v in knobs.items() if k in SESSION_KNOBS})
+            if candidate == params:
+                base_knobs = {k: (getattr(base.filter, k) if k in FILTER_KNOBS
+                                  else getattr(base, k)) for k in knobs}
+                return name, {k: v for k, v in knobs.items() if base_knobs[k] != v}
+        self.presets[LOADED_PRESET] = params
+        return LOADED_PRESET, {}
 
 
 __all__ = ["Scene", "Signal"]

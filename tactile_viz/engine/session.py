@@ -41,6 +41,7 @@ class SessionError(TactileVizError):
 
 
 GPIS_KERNELS = ("wendland", "thin-plate")
+HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 
 
 @dataclass(frozen=True)
@@ -264,6 +265,7 @@ class Snapshot:
     recon_error: object
     terminated: bool
     timings: dict
+    hypotheses: tuple = ()
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -274,6 +276,26 @@ class Snapshot:
                 "step_seconds": float(sum(self.timings.values())),
                 "timings": {k: float(v) for k, v in self.timings.items()},
                 "gpis_scale": self.gpis_scale}
+
+
+def _hypotheses(state, count=HYPOTHESES):
+    """The ``count`` heaviest distinct poses of the filter after its MAP, as
+    ``(class name, rotation, translation, weight)`` (weights of the duplicates summed)."""
+    particles = getattr(state, "particles", None)
+    if particles is None or len(particles) < 2:
+        return ()
+    weights = np.exp(particles.log_weights)
+    keys = np.column_stack([particles.classes, particles.translations.round(3),
+                            particles.rotations.reshape(len(particles), -1).round(3)])
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    totals = np.bincount(inverse, weights, minlength=len(first))
+    map_group = inverse[np.argmax(particles.log_weights)]  # drawn on its own
+    order = [k for k in np.argsort(-totals) if k != map_group][:count]
+    return tuple((state.class_names[particles.classes[first[k]]],
+                  _frozen(particles.rotations[first[k]]),
+                  _frozen(particles.translations[first[k]]), float(totals[k]))
+                 for k in order)
 
 
 class Session:
@@ -459,7 +481,7 @@ class Session:
             dhd=float(dhd), truth_coverage=directed_hausdorff(self._truth_samples, contacts),
             pose_error=float(pose_error),
             recon_error=None if recon_error is None else float(recon_error),
-            terminated=terminated, timings=timings)
+            terminated=terminated, timings=timings, hypotheses=_hypotheses(state))
         self.snapshots.append(snapshot)
         return snapshot
 

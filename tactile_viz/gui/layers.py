@@ -1,37 +1,81 @@
 """Viewport layers: one pyvista actor per kind of thing shown, each with a visibility toggle.
 
-All methods touch VTK and must run on the GUI thread. Actors are replaced by name with
-``reset_camera=False``, so the camera keeps its position across steps.
+All methods touch VTK and must run on the GUI thread. Each layer's actor is created once and
+then updated in place (its mapper's data set is swapped with ``copy_from``), nothing renders
+while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a single
+render. The camera is never moved by a step.
 """
 
 import numpy as np
 import pyvista as pv
+import vtk
+
+from ..engine.transforms import transform_points
 
 # name -> (legend label, colour)
 LAYERS = {
     "truth": ("ground truth", "lightsteelblue"),
     "map": ("MAP shape", "salmon"),
-    "gpis": ("GPIS (colour: variance)", "mediumseagreen"),
+    "hypotheses": ("other hypotheses (opacity: weight)", "mediumpurple"),
+    "gpis": ("GPIS (colour: variance)", "viridis"),
     "contacts": ("contacts", "red"),
     "noncontacts": ("non-contacts", "green"),
     "target": ("target", "gold"),
     "path": ("sensor path", "dimgray"),
 }
 CONTACT_RADIUS = 0.07
+LEGEND_ROW_PIXELS = 18  # height of one legend entry, whatever the viewport's size
+LEGEND_WIDTH_PIXELS = 190
+SCALAR_BAR = "variance"
+HIDDEN_AT_START = ("hypotheses",)
 
 
-def faces_to_polydata(vertices, faces):
-    """A ``pv.PolyData`` from (n, 3) vertices and (m, 3) triangle indices."""
+def faces_to_polydata(vertices, faces, normals=False):
+    """A ``pv.PolyData`` from (n, 3) vertices and (m, 3) triangle indices, with vertex
+    normals for smooth shading if ``normals``."""
+    vertices = np.asarray(vertices, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
     cells = np.hstack([np.full((len(faces), 1), 3, dtype=np.int64), faces]).ravel()
-    return pv.PolyData(np.asarray(vertices, dtype=float), cells)
+    mesh = pv.PolyData(vertices, cells)
+    if normals:
+        mesh.point_data.active_normals = vertex_normals(vertices, faces)
+    return mesh
+
+
+def vertex_normals(vertices, faces):
+    """Area-weighted unit vertex normals of a triangle mesh.
+
+    The layers' meshes carry their own normals (rather than pyvista's ``smooth_shading``,
+    which puts a filter between the mesh and the mapper) so that a layer's data set can be
+    swapped in place.
+    """
+    triangles = vertices[faces]
+    face_normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    normals = np.zeros_like(vertices)
+    for axis in range(3):
+        weights = np.repeat(face_normals[:, axis], 3)
+        normals[:, axis] = np.bincount(faces.ravel(), weights, minlength=len(vertices))
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return normals / np.where(length > 0, length, 1.0)
+
+
+_SPHERE = None
 
 
 def spheres(points, radius=CONTACT_RADIUS):
     """Small spheres at (k, 3) points, as one mesh."""
-    cloud = pv.PolyData(np.asarray(points, dtype=float).reshape(-1, 3))
-    return cloud.glyph(geom=pv.Sphere(radius=radius, theta_resolution=10, phi_resolution=10),
-                       scale=False, orient=False)
+    global _SPHERE
+    if _SPHERE is None:
+        _SPHERE = pv.Sphere(radius=1.0, theta_resolution=10, phi_resolution=10)
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    unit = np.asarray(_SPHERE.points)
+    cells = _SPHERE.faces.reshape(-1, 4)
+    vertices = (points[:, None, :] + radius * unit[None]).reshape(-1, 3)
+    offsets = (np.arange(len(points)) * len(unit))[:, None, None]
+    faces = (cells[None, :, 1:] + offsets).reshape(-1, 3)
+    mesh = faces_to_polydata(vertices, faces)
+    mesh.point_data.active_normals = np.tile(unit, (len(points), 1))
+    return mesh
 
 
 def polylines(paths):
@@ -45,6 +89,20 @@ def polylines(paths):
     return pv.PolyData(np.vstack(points), lines=np.concatenate(cells))
 
 
+def _viridis_icon(width=24, height=12):
+    """A small image of the viridis ramp, the GPIS layer's legend symbol."""
+    from matplotlib import colormaps
+
+    ramp = (colormaps["viridis"](np.linspace(0, 1, width))[:, :3] * 255).astype(np.uint8)
+    pixels = np.repeat(ramp[None], height, axis=0)  # (height, width, 3)
+    image = vtk.vtkImageData()
+    image.SetDimensions(width, height, 1)
+    array = pv.convert_array(pixels.reshape(-1, 3))
+    array.SetName("rgb")
+    image.GetPointData().SetScalars(array)
+    return image
+
+
 class ViewportLayers:
     """The actors of a plotter, by layer name.
 
@@ -55,78 +113,225 @@ class ViewportLayers:
 
     def __init__(self, plotter):
         self.plotter = plotter
-        self.visible = {name: True for name in LAYERS}
+        self.visible = {name: name not in HIDDEN_AT_START for name in LAYERS}
+        self.models = None  # class name -> ObjectModel, for the hypotheses' shapes
+        self.present = {name: False for name in LAYERS}
         self.actors = {}
-        plotter.add_legend(labels=[[label, color] for label, color in LAYERS.values()],
-                           bcolor="white", face="circle", size=(0.22, 0.24), loc="upper left")
+        self.latest = None
+        self._legend_key = None
+        self._variance_range = None
 
+    # ------------------------------------------------------------------ public
     def set_visible(self, name, visible):
         self.visible[name] = bool(visible)
-        if name in self.actors:
-            self.actors[name].SetVisibility(bool(visible))
-            if name == "gpis":
-                self._show_scalar_bar(bool(visible))
+        if visible and self.latest is not None and name not in ("truth",):
+            self._update(name, self.latest)  # hidden layers are not kept up to date
+        self._apply_visibility(name)
+        self._sync_overlays()
         self.plotter.render()
 
-    def show_truth(self, truth):
+    def shown(self, name):
+        """True when the layer has something to show and is switched on."""
+        return self.present[name] and self.visible[name]
+
+    def show_truth(self, truth, render=True):
         """The ground truth at its pose, translucent."""
         vertices = truth.to_world(truth.model.mesh.vertices)
-        self._put("truth", faces_to_polydata(vertices, truth.model.mesh.faces),
-                  color=LAYERS["truth"][1], opacity=0.35, smooth_shading=True)
+        self._put("truth", faces_to_polydata(vertices, truth.model.mesh.faces, normals=True),
+                  color=LAYERS["truth"][1], opacity=0.35, smooth=True)
+        self._sync_overlays()
+        if render:
+            self.plotter.render()
 
-    def show_snapshot(self, snapshot):
-        """MAP shape, GPIS, contacts, non-contacts, target and path of one step."""
-        self._put("map", faces_to_polydata(snapshot.map_vertices, snapshot.map_faces),
-                  color=LAYERS["map"][1], opacity=0.55, smooth_shading=True)
-        if snapshot.gpis_faces is not None and len(snapshot.gpis_faces):
-            surface = faces_to_polydata(snapshot.gpis_vertices, snapshot.gpis_faces)
-            surface["variance"] = np.asarray(snapshot.gpis_variance)
-            self._put("gpis", surface, scalars="variance", cmap="viridis", smooth_shading=True,
-                      scalar_bar_args={"title": "variance", "vertical": True,
-                                       "position_x": 0.88, "position_y": 0.1})
-            self._show_scalar_bar(self.visible["gpis"])
-        else:
-            self._remove("gpis")
-        self._points("contacts", snapshot.contacts)
-        self._points("noncontacts", snapshot.noncontacts)
-        if snapshot.target is not None:
-            self._put("target", spheres(np.asarray(snapshot.target)[None], 1.6 * CONTACT_RADIUS),
-                      color=LAYERS["target"][1])
-        else:
-            self._remove("target")
-        if snapshot.paths:
-            self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1], line_width=2)
-        self.plotter.render()
+    def show_snapshot(self, snapshot, render=True):
+        """MAP shape, GPIS, contacts, non-contacts, target and path of one step (one render)."""
+        self.latest = snapshot
+        for name in LAYERS:
+            if name != "truth" and self.visible[name]:
+                self._update(name, snapshot)
+            elif name != "truth":
+                self.present[name] = self._has(name, snapshot)
+                self._apply_visibility(name)
+        self._sync_overlays()
+        if render:
+            self.plotter.render()
 
-    def clear_session(self):
-        """Remove everything but the ground truth."""
-        for name in list(self.actors):
+    def clear_session(self, render=True):
+        """Hide everything but the ground truth."""
+        self.latest = None
+        for name in LAYERS:
             if name != "truth":
-                self._remove(name)
-        self.plotter.render()
+                self.present[name] = False
+                self._apply_visibility(name)
+        self._sync_overlays()
+        if render:
+            self.plotter.render()
 
-    def _points(self, name, points):
-        if len(points):
-            self._put(name, spheres(points), color=LAYERS[name][1])
+    def relayout(self):
+        """Size the legend for the current viewport (call on resize)."""
+        self._legend_key = None
+        self._sync_overlays()
+
+    # ------------------------------------------------------------------ layers
+    def _has(self, name, snapshot):
+        if name == "hypotheses":
+            return bool(snapshot.hypotheses) and self.models is not None
+        if name == "map":
+            return snapshot.map_faces is not None and len(snapshot.map_faces) > 0
+        if name == "gpis":
+            return snapshot.gpis_faces is not None and len(snapshot.gpis_faces) > 0
+        if name in ("contacts", "noncontacts"):
+            return len(getattr(snapshot, name)) > 0
+        if name == "target":
+            return snapshot.target is not None
+        if name == "path":
+            return bool(snapshot.paths)
+        return True
+
+    def _update(self, name, snapshot):
+        present = self._has(name, snapshot)
+        self.present[name] = present
+        if present:
+            if name == "map":
+                self._put("map", faces_to_polydata(snapshot.map_vertices, snapshot.map_faces,
+                                                   normals=True),
+                          color=LAYERS["map"][1], opacity=0.55, smooth=True)
+            elif name == "hypotheses":
+                self._put("hypotheses", self._ghosts(snapshot.hypotheses), scalars="rgba",
+                          rgba=True, smooth=True)
+            elif name == "gpis":
+                surface = faces_to_polydata(snapshot.gpis_vertices, snapshot.gpis_faces,
+                                            normals=True)
+                variance = np.asarray(snapshot.gpis_variance, dtype=float)
+                surface.point_data["variance"] = variance
+                surface.set_active_scalars("variance")
+                finite = variance[np.isfinite(variance)]
+                low, high = (float(finite.min()), float(finite.max())) if len(finite) else (0, 1)
+                if high <= low:
+                    high = low + 1e-12
+                self._variance_range = (low, high)
+                self._put("gpis", surface, scalars="variance", cmap="viridis", smooth=True,
+                          clim=[low, high])
+                self.actors["gpis"].mapper.scalar_range = (low, high)
+            elif name in ("contacts", "noncontacts"):
+                self._put(name, spheres(getattr(snapshot, name)), color=LAYERS[name][1])
+            elif name == "target":
+                self._put("target", spheres(np.asarray(snapshot.target)[None],
+                                            1.6 * CONTACT_RADIUS), color=LAYERS["target"][1])
+            elif name == "path":
+                self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1],
+                          line_width=2)
+        self._apply_visibility(name)
+
+    def _ghosts(self, hypotheses):
+        """The hypotheses' shapes as one mesh, each point coloured with an opacity that grows
+        with its hypothesis' weight."""
+        colour = np.array(pv.Color(LAYERS["hypotheses"][1]).int_rgb, dtype=np.uint8)
+        heaviest = max(weight for *_, weight in hypotheses)
+        vertices, faces, rgba, offset = [], [], [], 0
+        for name, rotation, translation, weight in hypotheses:
+            mesh = self.models[name].mesh
+            vertices.append(transform_points(mesh.vertices, rotation, translation))
+            faces.append(np.asarray(mesh.faces) + offset)
+            alpha = int(255 * (0.08 + 0.32 * weight / heaviest))
+            rgba.append(np.tile(np.r_[colour, alpha].astype(np.uint8), (len(mesh.vertices), 1)))
+            offset += len(mesh.vertices)
+        ghosts = faces_to_polydata(np.vstack(vertices), np.vstack(faces), normals=True)
+        ghosts.point_data["rgba"] = np.vstack(rgba)
+        return ghosts
+
+    def _put(self, name, mesh, smooth=False, **style):
+        """Create the layer's actor once, then swap its data set in place."""
+        actor = self.actors.get(name)
+        if actor is None:
+            actor = self.plotter.add_mesh(mesh, name=name, reset_camera=False, render=False,
+                                          show_scalar_bar=False, **style)
+            if smooth:
+                actor.prop.interpolation = "gouraud"  # with the mesh's own normals
+            self.actors[name] = actor
         else:
-            self._remove(name)
+            actor.mapper.dataset.copy_from(mesh, deep=False)
+        self.present[name] = True
+        self._apply_visibility(name)
 
-    def _put(self, name, mesh, **style):
-        actor = self.plotter.add_mesh(mesh, name=name, reset_camera=False,
-                                      show_scalar_bar=False, **style)
-        actor.SetVisibility(self.visible[name])
-        self.actors[name] = actor
-
-    def _remove(self, name):
+    def _apply_visibility(self, name):
         if name in self.actors:
-            self.plotter.remove_actor(self.actors.pop(name), reset_camera=False, render=False)
-            if name == "gpis":
-                self._show_scalar_bar(False)
+            self.actors[name].SetVisibility(self.shown(name))
 
-    def _show_scalar_bar(self, visible):
+    # ------------------------------------------------------------------ overlays
+    def _sync_overlays(self):
+        self._sync_scalar_bar()
+        self._sync_legend()
+
+    def _sync_scalar_bar(self):
         bars = getattr(self.plotter, "scalar_bars", {})
-        if visible and "gpis" in self.actors and "variance" not in bars:
-            self.plotter.add_scalar_bar(title="variance", mapper=self.actors["gpis"].mapper,
-                                        vertical=True, position_x=0.88, position_y=0.1)
-        elif not visible and "variance" in bars:
-            self.plotter.remove_scalar_bar("variance", render=False)
+        if self.shown("gpis") and SCALAR_BAR not in bars:
+            # Inside the viewport: the bar and its labels end before the right edge.
+            self.plotter.add_scalar_bar(title=SCALAR_BAR, mapper=self.actors["gpis"].mapper,
+                                        vertical=True, position_x=0.84, position_y=0.12,
+                                        width=0.06, height=0.5, n_labels=4, fmt="%.1e",
+                                        label_font_size=11, title_font_size=12,
+                                        render=False)
+        elif not self.shown("gpis") and SCALAR_BAR in bars:
+            self.plotter.remove_scalar_bar(SCALAR_BAR, render=False)
+
+    def _viewport_pixels(self):
+        try:
+            width, height = self.plotter.window_size
+        except (AttributeError, TypeError, ValueError):
+            width, height = 800, 600
+        return max(int(width), 100), max(int(height), 100)
+
+    def _make_legend(self):
+        """One legend actor for the life of the view; its entries are rewritten in place."""
+        legend = vtk.vtkLegendBoxActor()
+        legend.SetNumberOfEntries(len(LAYERS))
+        legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+        legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
+        legend.UseBackgroundOn()
+        legend.SetBackgroundColor(1.0, 1.0, 1.0)
+        legend.SetBackgroundOpacity(0.85)
+        legend.BorderOff()
+        legend.SetPadding(2)
+        legend.GetEntryTextProperty().SetColor(0.1, 0.1, 0.1)
+        legend.GetEntryTextProperty().SetFontSize(12)
+        square = vtk.vtkPolyData()
+        points = vtk.vtkPoints()
+        for x, y in ((0, 0), (1, 0), (1, 1), (0, 1)):
+            points.InsertNextPoint(x, y, 0)
+        square.SetPoints(points)
+        cells = vtk.vtkCellArray()
+        cells.InsertNextCell(4, [0, 1, 2, 3])
+        square.SetPolys(cells)
+        self._square = square
+        self._icon = _viridis_icon()
+        self.plotter.renderer.AddViewProp(legend)
+        self.legend = legend
+
+    def _sync_legend(self):
+        """A legend of the layers that exist and are switched on, sized in pixels (readable
+        whatever the window's size); GPIS is shown as a viridis ramp, as it is drawn."""
+        names = [name for name in LAYERS if self.shown(name)]
+        pixels = self._viewport_pixels()
+        key = (tuple(names), pixels)
+        if key == self._legend_key:
+            return
+        self._legend_key = key
+        if getattr(self, "legend", None) is None:
+            self._make_legend()
+        legend = self.legend
+        legend.SetVisibility(bool(names))
+        if not names:
+            return
+        legend.SetNumberOfEntries(len(names))
+        for index, name in enumerate(names):
+            label, colour = LAYERS[name]
+            if name == "gpis":
+                legend.SetEntry(index, None, self._icon, label, (1.0, 1.0, 1.0))
+            else:
+                legend.SetEntry(index, self._square, label, pv.Color(colour).float_rgb)
+        width, height = pixels
+        box_w = min(0.6, LEGEND_WIDTH_PIXELS / width)
+        box_h = min(0.9, LEGEND_ROW_PIXELS * len(names) / height)
+        legend.SetPosition(0.01, 0.99 - box_h)
+        legend.SetPosition2(box_w, box_h)

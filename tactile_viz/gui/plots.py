@@ -1,4 +1,12 @@
-"""Plots beside the viewport: class posterior bars and errors over the steps."""
+"""Plots beside the viewport: class posterior bars and errors over the steps.
+
+The artists are made once per session and updated in place (bar heights, line data); the
+layout is computed once and again only when the widget is resized, and drawing is left to
+``draw_idle`` so it happens in its own pass of the event loop.
+"""
+
+import time
+from collections import deque
 
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
@@ -6,53 +14,129 @@ from matplotlib.figure import Figure
 
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 
+ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
+                ("recon_error", "reconstruction error"))
+
 
 class PlotsWidget(FigureCanvasQTAgg):
     """Two axes: the class posterior (bars) and pose error, reconstruction error and DHD
-    against the step, with the 0.6 thresholds drawn."""
+    against the step, with the 0.6 error threshold and the DHD stop (eps) drawn."""
 
     def __init__(self, parent=None):
-        self.figure = Figure(figsize=(4.2, 5.0), tight_layout=True)
+        self.figure = Figure(figsize=(4.2, 5.0))
         super().__init__(self.figure)
         self.setParent(parent)
         self.posterior_axes = self.figure.add_subplot(2, 1, 1)
         self.error_axes = self.figure.add_subplot(2, 1, 2)
+        self._names = None
+        self._bars = None
+        self._map_class = None
+        self._lines = {}
+        self._series = {key: [] for key, _ in ERROR_SERIES}
+        self._steps = []
+        self.last_draw_seconds = 0.0
+        self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
+        self.eps = 0.6
+        self._setup_errors()
         self.update_plots([])
+        self._relayout()
 
-    def update_plots(self, snapshots):
-        """Redraw from a list of snapshots (empty clears)."""
-        self._draw_posterior(snapshots[-1] if snapshots else None)
-        self._draw_errors(snapshots)
-        self.draw_idle()
-
-    def _draw_posterior(self, snapshot):
-        axes = self.posterior_axes
-        axes.clear()
-        axes.set_title("class posterior", fontsize=9)
-        axes.set_ylim(0, 1)
-        if snapshot is None:
-            return
-        names = list(snapshot.class_posterior)
-        values = [snapshot.class_posterior[name] for name in names]
-        colours = ["tab:red" if name == snapshot.map_class else "tab:blue" for name in names]
-        axes.bar(range(len(names)), values, color=colours)
-        axes.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
-        axes.tick_params(axis="y", labelsize=7)
-
-    def _draw_errors(self, snapshots):
+    # ------------------------------------------------------------------ layout
+    def _setup_errors(self):
         axes = self.error_axes
-        axes.clear()
         axes.set_title("errors over steps", fontsize=9)
         axes.set_xlabel("step", fontsize=8)
         axes.axhline(THRESHOLD, color="tab:red", linestyle="--", linewidth=1,
                      label="0.6 threshold")
-        if snapshots:
-            steps = [s.step for s in snapshots]
-            axes.plot(steps, [s.pose_error for s in snapshots], label="pose error")
-            axes.plot(steps, [s.dhd for s in snapshots], label="DHD")
-            recon = [np.nan if s.recon_error is None else s.recon_error for s in snapshots]
-            if not np.all(np.isnan(recon)):
-                axes.plot(steps, recon, label="reconstruction error")
+        self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1,
+                                     label="DHD stop (eps)")
+        for key, label in ERROR_SERIES:
+            (self._lines[key],) = axes.plot([], [], label=label)
         axes.set_yscale("log")
+        axes.set_xlim(0, 10)
+        axes.set_ylim(0.05, 10)
         axes.tick_params(labelsize=7)
         axes.legend(fontsize=7, loc="upper right")
+        self.posterior_axes.set_title("class posterior", fontsize=9)
+        self.posterior_axes.set_ylim(0, 1)
+        self.posterior_axes.tick_params(axis="y", labelsize=7)
+
+    def _relayout(self):
+        try:
+            self.figure.tight_layout(pad=0.6)
+        except (ValueError, np.linalg.LinAlgError):  # a widget too small to lay out
+            pass
+
+    def draw(self):
+        began = time.perf_counter()
+        super().draw()
+        self.last_draw_seconds = time.perf_counter() - began
+        self.draw_log.append((began, self.last_draw_seconds))
+
+    def resizeEvent(self, event):
+        super().resizeEvent(event)
+        self._relayout()
+        self.draw_idle()
+
+    # ------------------------------------------------------------------ updates
+    def set_eps(self, eps):
+        """Move the DHD stop line to ``eps`` (the session's termination threshold)."""
+        eps = float(eps)
+        if eps != self.eps:
+            self.eps = eps
+            self.eps_line.set_ydata([eps, eps])
+            self.draw_idle()
+
+    def update_plots(self, snapshots):
+        """Show a list of snapshots (empty clears); the artists are updated in place."""
+        self._show_posterior(snapshots[-1] if snapshots else None)
+        self._show_errors(snapshots)
+        self.draw_idle()
+
+    def _show_posterior(self, snapshot):
+        axes = self.posterior_axes
+        names = None if snapshot is None else list(snapshot.class_posterior)
+        if names != self._names:
+            if self._bars is not None:
+                self._bars.remove()
+                self._bars = None
+            self._names = names
+            self._map_class = None
+            if names:
+                self._bars = axes.bar(range(len(names)), np.zeros(len(names)), color="tab:blue")
+                axes.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
+                axes.set_xlim(-0.6, len(names) - 0.4)
+                self._relayout()
+            else:
+                axes.set_xticks([])
+        if snapshot is None:
+            return
+        for bar, name in zip(self._bars, names):
+            bar.set_height(snapshot.class_posterior[name])
+        if snapshot.map_class != self._map_class:
+            self._map_class = snapshot.map_class
+            for bar, name in zip(self._bars, names):
+                bar.set_color("tab:red" if name == snapshot.map_class else "tab:blue")
+
+    def _show_errors(self, snapshots):
+        # Append only the steps not seen yet; a shorter or different history starts over.
+        if not snapshots or (self._steps and (len(snapshots) < len(self._steps)
+                                              or snapshots[len(self._steps) - 1].step
+                                              != self._steps[-1])):
+            self._steps = []
+            self._series = {key: [] for key, _ in ERROR_SERIES}
+        for snapshot in snapshots[len(self._steps):]:
+            self._steps.append(snapshot.step)
+            for key, _ in ERROR_SERIES:
+                value = getattr(snapshot, key)
+                self._series[key].append(np.nan if value is None else float(value))
+        values = []
+        for key, _ in ERROR_SERIES:
+            series = np.asarray(self._series[key], dtype=float)
+            self._lines[key].set_data(self._steps, series)
+            self._lines[key].set_visible(bool(len(series)) and not np.all(np.isnan(series)))
+            values.append(series[np.isfinite(series) & (series > 0)])
+        axes = self.error_axes
+        axes.set_xlim(0, max(10, self._steps[-1] + 1) if self._steps else 10)
+        values = np.concatenate(values + [np.array([THRESHOLD, self.eps])])
+        axes.set_ylim(max(1e-3, values.min() / 1.5), values.max() * 1.5)

@@ -1,5 +1,6 @@
 """The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes nothing."""
 
+import numpy as np
 import pytest
 
 from tactile_viz.engine import LibraryError, MeshError, PriorLibrary
@@ -83,7 +84,8 @@ def test_save_and_load_session(scene, tmp_path):
     seen = []
     other.stepped.connect(seen.append)
     other.load_session(tmp_path / "s.npz")
-    assert other.truth_model.name == "vase_1" and [s.step for s in seen] == [1, 2]
+    # The view is told the latest state once, not every replayed step.
+    assert other.truth_model.name == "vase_1" and [s.step for s in seen] == [2]
 
 
 def test_library_folders_round_trip_and_corrupt_ones_change_nothing(scene, tmp_path):
@@ -107,3 +109,17 @@ def test_prior_from_file_is_added_and_enabled(scene, bundled, tmp_path):
     with pytest.raises(LibraryError, match="already"):
         scene.add_prior_file(path)
     assert scene.active_library().names[-1] == "sofa"
+
+
+def test_snapshots_carry_the_heaviest_other_hypotheses(scene):
+    for _ in range(3):
+        snapshot = scene.step()
+    hypotheses = snapshot.hypotheses
+    assert 1 <= len(hypotheses) <= 4
+    weights = [weight for *_, weight in hypotheses]
+    assert weights == sorted(weights, reverse=True) and 0 < sum(weights) <= 1
+    for name, rotation, translation, _ in hypotheses:
+        assert name in scene.library.names and rotation.shape == (3, 3)
+        assert not (name == snapshot.map_class
+                    and np.allclose(translation, snapshot.map_translation, atol=1e-3)
+                    and np.allclose(rotation, snapshot.map_rotation, atol=1e-3))

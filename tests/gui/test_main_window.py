@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PySide6.QtCore import QSettings
 from PySide6.QtWidgets import QMessageBox
 
 from tactile_viz.app.scene import Scene
@@ -23,10 +24,15 @@ def known_library():
 
 
 @pytest.fixture
-def window(qtbot, known_library):
+def settings(tmp_path):
+    return QSettings(str(tmp_path / "settings.ini"), QSettings.IniFormat)
+
+
+@pytest.fixture
+def window(qtbot, known_library, settings):
     library = PriorLibrary(list(known_library))  # a fresh container per test
     scene = Scene("mug_1", seed=0, library=library)
-    window = MainWindow(scene)
+    window = MainWindow(scene, settings=settings)
     qtbot.addWidget(window)
     window.show()
     qtbot.waitExposed(window)
@@ -145,3 +151,177 @@ def test_headless_screenshot_mode(qapp, tmp_path):
     assert out.stat().st_size > 10_000
     assert sys.excepthook is hook  # the app's hook is gone again
     assert "app started" in log_file.read_text()
+
+
+def _open(qtbot, scene, settings):
+    window = MainWindow(scene, settings=settings)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    return window
+
+
+def test_scene_changing_controls_are_disabled_during_run(qtbot, window):
+    window.run_button.setChecked(True)
+    assert window.running and window.run_button.text() == "Pause"
+    assert window.run_button.isEnabled()
+    assert all(not control.isEnabled() for control in window.scene_controls())
+    strategy = window.scene.strategy
+    assert not window._guarded(window.scene.set_strategy, "rrt")  # refused while running
+    assert window.scene.strategy == strategy
+    qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    assert window.run_button.text() == "Run" and not window.run_button.isChecked()
+    enabled = [c for c in window.scene_controls() if c is not window.learn_button]
+    assert all(control.isEnabled() for control in enabled)
+
+
+def test_controls_show_the_command_line_settings(qtbot, known_library, settings):
+    scene = Scene("vase_1", seed=4, library=PriorLibrary(list(known_library)),
+                  strategy="rrt", preset="fast")
+    window = _open(qtbot, scene, settings)
+    assert window.strategy_box.currentText() == "rrt"
+    assert window.preset_box.currentText() == "fast"
+    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 4
+    for name, box in window.parameter_boxes.items():
+        assert box.value() == pytest.approx(scene.parameter(name), abs=1e-3)
+    window.close()
+
+
+def test_controls_show_a_loaded_session(qtbot, window, known_library, tmp_path):
+    other = Scene("vase_1", seed=3, library=PriorLibrary(list(known_library)), strategy="rrt")
+    other.set_parameter("eps", 0.8)
+    other.step()
+    other.step()
+    path = other.save_session(tmp_path / "session.npz")
+    assert window.load_session(path)
+    qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
+    assert window.strategy_box.currentText() == "rrt"
+    assert window.parameter_boxes["eps"].value() == pytest.approx(0.8)
+    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 3
+    assert window.step_label.text().startswith("step 2")
+
+
+def _legend_labels(layers):
+    legend = layers.legend
+    if not legend.GetVisibility():
+        return []
+    return [legend.GetEntryString(i) for i in range(legend.GetNumberOfEntries())]
+
+
+def test_legend_lists_only_present_and_visible_layers(qtbot, window):
+    from tactile_viz.gui.layers import LAYERS
+
+    assert _legend_labels(window.layers) == [LAYERS["truth"][0]]
+    window.step_button.click()
+    _wait_idle(qtbot, window)
+    expected = [LAYERS[n][0] for n in LAYERS if window.layers.shown(n)]
+    assert _legend_labels(window.layers) == expected and LAYERS["contacts"][0] in expected
+    assert LAYERS["gpis"][0] not in expected  # a known object has no reconstruction yet
+    window.layer_boxes["contacts"].setChecked(False)
+    assert LAYERS["contacts"][0] not in _legend_labels(window.layers)
+    window.layer_boxes["contacts"].setChecked(True)
+    assert LAYERS["contacts"][0] in _legend_labels(window.layers)
+
+
+def test_history_slider_shows_earlier_steps(qtbot, window):
+    for _ in range(3):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    slider = window.history_slider
+    assert (slider.minimum(), slider.maximum(), slider.value()) == (1, 3, 3)
+    points = window.layers.actors["contacts"].mapper.dataset.n_points
+    first, last = (len(window.scene.snapshots[i].contacts) for i in (0, 2))
+    slider.setValue(1)
+    assert window.step_label.text().startswith("step 1")
+    assert window.layers.latest.step == 1 and window.plots._steps == [1]
+    assert window.layers.actors["contacts"].mapper.dataset.n_points * last == points * first
+    slider.setValue(3)
+    assert window.layers.latest is window.scene.latest and window.plots._steps == [1, 2, 3]
+    window.run_button.setChecked(True)
+    assert not slider.isEnabled()
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    window.reset_button.click()
+    assert (slider.minimum(), slider.maximum()) == (0, 0)
+
+
+def test_dhd_stop_line_follows_eps(window):
+    assert window.plots.eps_line.get_ydata()[0] == pytest.approx(window.scene.parameter("eps"))
+    window.parameter_boxes["eps"].setValue(0.8)
+    assert window.scene.parameter("eps") == pytest.approx(0.8)
+    assert window.plots.eps_line.get_ydata()[0] == pytest.approx(0.8)
+    assert "eps 0.80" in window.dhd_label.text()
+
+
+def test_recording_writes_a_frame_per_drawn_step(qtbot, window, errors, tmp_path):
+    import imageio.v2 as imageio
+
+    path = tmp_path / "steps.gif"
+    assert window.start_recording(path) and window.actions["record"].isChecked()
+    for _ in range(2):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    assert window.stop_recording() == path and not window.actions["record"].isChecked()
+    frames = imageio.mimread(path)
+    assert len(frames) == 2 and frames[0].shape[0] > 300
+    assert not window.start_recording(tmp_path / "steps.avi") and errors
+    assert window.recorder is None
+
+
+def test_screenshot_is_the_whole_window(window, tmp_path):
+    from PySide6.QtGui import QImage
+
+    path = tmp_path / "window.png"
+    assert window.save_screenshot(path)
+    image = QImage(str(path))
+    assert (image.width(), image.height()) == (window.width(), window.height())
+
+
+def test_dropped_mesh_goes_through_the_scene(qtbot, window, errors, tmp_path):
+    path = tmp_path / "dropped_vase.obj"
+    load_bundled("vase_1").mesh.export(path)
+    window.run_button.setChecked(True)
+    window.plotter.files_dropped.emit([str(path)])  # refused while running
+    assert window.scene.truth_model.name == "mug_1"
+    window.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    window.plotter.files_dropped.emit([str(path)])
+    assert window.scene.truth_model.name == "dropped_vase" and window.scene.session is None
+    assert window.object_box.currentText() == "dropped_vase" and not errors
+
+
+def test_belief_ghosts_show_the_other_hypotheses_by_weight(qtbot, window):
+    from tactile_viz.gui.layers import LAYERS
+
+    for _ in range(3):
+        window.step_button.click()
+        _wait_idle(qtbot, window)
+    box = window.layer_boxes["hypotheses"]
+    assert not box.isChecked() and "hypotheses" not in window.layers.actors  # off at start
+    hypotheses = window.scene.latest.hypotheses
+    assert 1 <= len(hypotheses) <= 4
+    box.setChecked(True)
+    actor = window.layers.actors["hypotheses"]
+    assert actor.GetVisibility() and LAYERS["hypotheses"][0] in _legend_labels(window.layers)
+    models = window.scene.session.library
+    sizes = [len(models[name].mesh.vertices) for name, *_ in hypotheses]
+    rgba = np.asarray(actor.mapper.dataset.point_data["rgba"])
+    assert len(rgba) == sum(sizes)
+    starts = np.cumsum([0] + sizes[:-1])
+    weights = np.array([weight for *_, weight in hypotheses])
+    alphas = rgba[starts, 3].astype(float)
+    assert alphas[np.argmax(weights)] == alphas.max()
+    assert np.all(np.diff(alphas[np.argsort(weights)]) >= 0)  # heavier: more opaque
+    box.setChecked(False)
+    assert not actor.GetVisibility()
+
+
+def test_fits_1280_by_720(qtbot, window):
+    window.resize(1280, 720)
+    qtbot.waitUntil(lambda: window.width() == 1280, timeout=5_000)
+    qtbot.wait(50)
+    assert window.plotter.width() >= 480  # the docks leave the viewport room
+    assert window.controls_dock.geometry().bottom() <= window.height()
+    assert not window.run_button.visibleRegion().isEmpty()  # the loop is above the fold

@@ -51,3 +51,29 @@ def test_scene_is_not_blank_and_shows_layer_colours(snapshot):
     assert _fraction(hidden, (255, 0, 0), 150) < red / 3
     salmon = _fraction(image, (250, 128, 114), 90)
     assert salmon > _fraction(hidden, (250, 128, 114), 90)
+
+
+def _with_surface(snapshot, variance_scale):
+    from dataclasses import replace
+
+    sphere = pv.Sphere(radius=1.0, center=tuple(snapshot.contacts[0]))
+    faces = sphere.faces.reshape(-1, 4)[:, 1:]
+    variance = variance_scale * (1.0 + np.asarray(sphere.points)[:, 2] - sphere.points[:, 2].min())
+    return replace(snapshot, gpis_vertices=np.asarray(sphere.points), gpis_faces=faces,
+                   gpis_variance=variance)
+
+
+def test_colour_bar_range_follows_the_current_surface(snapshot):
+    plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
+    layers = ViewportLayers(plotter)
+    layers.show_truth(snapshot.truth)
+    for scale in (1e-3, 5e-2):
+        step = _with_surface(snapshot.latest, scale)
+        layers.show_snapshot(step)
+        bar = plotter.scalar_bars["variance"]
+        low, high = bar.GetLookupTable().GetRange()
+        assert (low, high) == pytest.approx((step.gpis_variance.min(), step.gpis_variance.max()))
+        assert bar.GetPositionCoordinate().GetValue()[0] + bar.GetWidth() <= 1.0
+    layers.set_visible("gpis", False)
+    assert "variance" not in plotter.scalar_bars
+    plotter.close()

@@ -1,0 +1,262 @@
+"""``python -m tactile_viz bench gui``: does the desktop app keep up with the engine?
+
+For each object (default: mug_1, a known object, and vase_2, a novel one) at one seed:
+
+1. **engine**: the session stepped headless to termination (or ``--max-steps``), wall time
+   (the mean of a run before and one after the app's run, against a changing machine load);
+2. **gui**: the same session run with *Run to termination* in the main window: wall time
+   from the click to the last step shown, steps drawn, seconds of drawing per drawn step
+   (the scene update, the viewport's render in the paint after it, and the plots' own draw
+   pass), the longest single drawing pass, and the largest gap of a 5 ms QTimer (the event
+   loop's longest block from any cause, including the engine's thread holding the
+   interpreter);
+3. **pause**: *Run*, then *Pause* after a few steps: time from the click to the run's end
+   being handled, and the part of it after the step in progress ended;
+4. **close**: *Run*, then close the window after a few steps: how long ``close()`` takes,
+   and the part of it after the step in progress ended.
+
+Needs a display: run it under Xvfb (``xvfb-run -a python -m tactile_viz bench gui``).
+The targets (issue 15): drawing adds at most 15% to the engine's wall time, no drawing pass
+over 150 ms, pause acts within the step in progress plus 150 ms.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+from ..cli import ExtendList
+from ..engine.exploration import STRATEGIES
+
+TARGET_OVERHEAD = 0.15
+TARGET_BLOCK = 0.150
+TARGET_PAUSE = 0.150
+
+
+def _parser():
+    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench gui",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--objects", action=ExtendList, default=["mug_1", "vase_2"],
+                        help="bundled objects to run (default: mug_1 known, vase_2 novel)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--preset", default="paper")
+    parser.add_argument("--strategy", default="gpis-dhd", choices=STRATEGIES)
+    parser.add_argument("--max-steps", type=int, default=0,
+                        help="cap the runs at this many steps (default 0: to termination)")
+    parser.add_argument("--pause-after", type=int, default=5,
+                        help="steps before Pause / close in the latency runs (default 5)")
+    parser.add_argument("--size", default="1500x900", help="window size (default 1500x900)")
+    parser.add_argument("--json", metavar="OUT", help="also write the results as JSON")
+    return parser
+
+
+class _LoopProbe:
+    """A 5 ms QTimer recording the largest gap between its ticks (event-loop blocks)."""
+
+    def __init__(self):
+        from PySide6.QtCore import QTimer
+
+        self.timer = QTimer()
+        self.timer.setInterval(5)
+        self.timer.timeout.connect(self._tick)
+        self.last = None
+        self.gaps = []
+
+    def _tick(self):
+        now = time.perf_counter()
+        if self.last is not None:
+            self.gaps.append(now - self.last)
+        self.last = now
+
+    def start(self):
+        self.last, self.gaps = None, []
+        self.timer.start()
+
+    def stop(self):
+        self.timer.stop()
+        return sorted(self.gaps, reverse=True)
+
+
+def _wait(app, condition, timeout):
+    deadline = time.perf_counter() + timeout
+    while not condition():
+        if time.perf_counter() > deadline:
+            raise TimeoutError("the GUI run did not finish in time")
+        app.processEvents()
+        time.sleep(0.001)
+
+
+def _scene(args, name):
+    from ..app.scene import Scene
+
+    return Scene(name, seed=args.seed, strategy=args.strategy, preset=args.preset)
+
+
+def _window(args, scene, settings):
+    from ..gui.main_window import MainWindow
+
+    window = MainWindow(scene, settings=settings)
+    width, height = (int(v) for v in args.size.lower().split("x"))
+    window.resize(width, height)
+    window.show()
+    return window
+
+
+def _engine_run(args, name):
+    scene = _scene(args, name)
+    session = scene.ensure_session()
+    began = time.perf_counter()
+    session.run(max_steps=args.max_steps or None)
+    return time.perf_counter() - began, session.step_count
+
+
+def _since(log, began):
+    return [seconds for start, seconds in list(log) if start >= began]
+
+
+def _gui_run(app, args, name, settings):
+    window = _window(args, _scene(args, name), settings)
+    app.processEvents()
+    probe = _LoopProbe()
+    probe.start()
+    began = time.perf_counter()
+    window.start(args.max_steps or None)
+    _wait(app, lambda: not window.running, 3600)
+    wall = time.perf_counter() - began
+    gaps = probe.stop()
+    runner = window.runner
+    steps = window.scene.latest.step
+    shown = window.step_label.text()
+    viewport = list(runner.draw_seconds)  # scene update of the drawn steps
+    paints = _since(window.plotter.paint_log, began)  # the render, in the paint after it
+    plots = _since(window.plots.draw_log, began)
+    window.close()
+    app.processEvents()
+    passes = viewport + paints + plots
+    drawn = max(runner.drawn, 1)
+    return {"gui_seconds": wall, "steps": steps, "drawn": runner.drawn,
+            "shown_last_step": shown.startswith(f"step {steps}"),
+            "draw_per_step": sum(passes) / drawn,
+            "drawing_seconds": sum(passes),
+            "viewport_median": statistics.median(viewport) if viewport else 0.0,
+            "paint_median": statistics.median(paints) if paints else 0.0,
+            "plots_median": statistics.median(plots) if plots else 0.0,
+            "longest_draw_pass": max(passes, default=0.0),
+            "largest_loop_gap": gaps[0] if gaps else 0.0, "loop_gaps_top5": gaps[:5],
+            "loop_gaps_over_150ms": sum(gap > TARGET_BLOCK for gap in gaps)}
+
+
+def _interrupt_run(app, args, name, settings, how):
+    """Run, then Pause (or close the window) once ``--pause-after`` steps have been taken."""
+    window = _window(args, _scene(args, name), settings)
+    app.processEvents()
+    window.run_button.setChecked(True)
+    runner = window.runner
+    _wait(app, lambda: len(runner.step_ends) >= args.pause_after or not window.running, 600)
+    clicked = time.perf_counter()
+    if how == "pause":
+        window.run_button.setChecked(False)
+        _wait(app, lambda: not window.running, 600)
+        done = runner.finished_at
+        window.close()
+    else:
+        window.close()
+        done = time.perf_counter()
+    app.processEvents()
+    # The step in progress at the click ends at the first step end after it (none: the
+    # worker was between steps).
+    ends_after = [t for t in runner.step_ends if t >= clicked]
+    step_end = ends_after[0] if ends_after else clicked
+    return {f"{how}_latency": done - clicked, f"{how}_after_step": max(0.0, done - step_end),
+            f"{how}_extra_steps": max(0, len(ends_after) - 1)}
+
+
+def run(args):
+    os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
+    from PySide6.QtCore import QSettings
+    from PySide6.QtWidgets import QApplication
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    folder = tempfile.mkdtemp(prefix="tactile_viz-bench-gui-")
+    settings = QSettings(os.path.join(folder, "settings.ini"), QSettings.IniFormat)
+    rows = []
+    for name in args.objects:
+        _scene(args, name).ensure_session().step()  # warm the caches for both runs
+        before, steps = _engine_run(args, name)
+        row = {"object": name, "engine_steps": steps, "load_average": os.getloadavg()[0],
+               "cpus": os.cpu_count()}
+        row.update(_gui_run(app, args, name, settings))
+        after, _ = _engine_run(args, name)  # the machine's load may change during the runs
+        row["engine_runs"] = [before, after]
+        row["engine_seconds"] = engine_seconds = (before + after) / 2
+        row["overhead"] = row["gui_seconds"] / engine_seconds - 1.0
+        row.update(_interrupt_run(app, args, name, settings, "pause"))
+        row.update(_interrupt_run(app, args, name, settings, "close"))
+        rows.append(row)
+        print(f"{name}: done", file=sys.stderr, flush=True)
+    return rows
+
+
+def format_table(rows):
+    head = ("object", "steps", "engine s (2 runs)", "gui s", "overhead", "drawn",
+            "draw/step s", "longest draw s", "loop gap s (>150 ms)", "pause s (after step)",
+            "close s (after step)")
+    lines = [" | ".join(head), " | ".join("---" for _ in head)]
+    for r in rows:
+        lines.append(" | ".join([
+            r["object"], str(r["steps"]),
+            f"{r['engine_seconds']:.1f} ({' / '.join(f'{v:.1f}' for v in r['engine_runs'])})",
+            f"{r['gui_seconds']:.1f}",
+            f"{100 * r['overhead']:+.1f}%", f"{r['drawn']}", f"{r['draw_per_step']:.3f}",
+            f"{r['longest_draw_pass']:.3f}",
+            f"{r['largest_loop_gap']:.3f} ({r['loop_gaps_over_150ms']})",
+            f"{r['pause_latency']:.2f} ({r['pause_after_step']:.3f})",
+            f"{r['close_latency']:.2f} ({r['close_after_step']:.3f})"]))
+    return "\n".join(lines)
+
+
+def verdicts(rows):
+    """The issue's targets, one line each."""
+    lines = []
+    for r in rows:
+        lines.append(f"{r['object']}: overhead {100 * r['overhead']:+.1f}% "
+                     f"({'ok' if r['overhead'] <= TARGET_OVERHEAD else 'over'} 15%), "
+                     f"longest draw pass {1000 * r['longest_draw_pass']:.0f} ms "
+                     f"({'ok' if r['longest_draw_pass'] <= TARGET_BLOCK else 'over'} 150 ms), "
+                     f"pause after the step {1000 * r['pause_after_step']:.0f} ms "
+                     f"({'ok' if r['pause_after_step'] <= TARGET_PAUSE else 'over'} 150 ms)")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                 or os.environ.get("WAYLAND_DISPLAY")):
+        print("error: bench gui needs a display; run it under Xvfb: "
+              "xvfb-run -a python -m tactile_viz bench gui", file=sys.stderr)
+        return 2
+    try:
+        import PySide6  # noqa: F401
+        import pyvistaqt  # noqa: F401
+    except ImportError as error:
+        print(f"error: {error}; bench gui needs the gui extra: pip install -e '.[gui]'",
+              file=sys.stderr)
+        return 2
+    rows = run(args)
+    print(format_table(rows))
+    print(f"{rows[0]['cpus']} CPUs; 1-minute load average at the start of each object: "
+          + ", ".join(f"{r['load_average']:.1f}" for r in rows))
+    print(verdicts(rows))
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump({"command": "python -m tactile_viz bench gui " + " ".join(argv or
+                                                                               sys.argv[3:]),
+                       "rows": rows}, handle, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

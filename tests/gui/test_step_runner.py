@@ -1,0 +1,99 @@
+"""StepRunner with a fake session: coalescing, stale sessions, pause after the step."""
+
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from tactile_viz.gui.runner import StepRunner
+
+pytestmark = pytest.mark.gui
+
+
+class FakeSession:
+    """Steps that take ``seconds`` each (sleeping, so the GIL is free)."""
+
+    def __init__(self, seconds=0.0, limit=1000):
+        self.seconds = seconds
+        self.limit = limit
+        self.step_count = 0
+        self.stepping = False
+
+    @property
+    def terminated(self):
+        return self.step_count >= self.limit
+
+    def step(self):
+        self.stepping = True
+        time.sleep(self.seconds)
+        self.step_count += 1
+        self.stepping = False
+        return SimpleNamespace(step=self.step_count)
+
+
+class FakeScene:
+    def __init__(self):
+        self.generation = 0
+
+    def is_current(self, generation):
+        return generation == self.generation
+
+
+@pytest.fixture
+def runner(qtbot):
+    drawn = []
+    scene = FakeScene()
+    runner = StepRunner(scene, drawn.append)
+    runner.drawn_snapshots = drawn
+    yield runner
+    runner.shutdown()
+
+
+def _wait_done(qtbot, runner, timeout=10_000):
+    qtbot.waitUntil(lambda: not runner.running, timeout=timeout)
+
+
+def test_slow_drawing_draws_only_the_newest_snapshot(qtbot, runner):
+    def slow_draw(snapshot):
+        time.sleep(0.05)
+        runner.drawn_snapshots.append(snapshot)
+
+    runner.draw = slow_draw
+    runner.start(FakeSession(seconds=0.002, limit=60), runner.scene.generation)
+    _wait_done(qtbot, runner)
+    steps = [snapshot.step for snapshot in runner.drawn_snapshots]
+    assert runner.received == 60
+    assert len(steps) < 30  # snapshots in between were skipped, not queued
+    assert steps == sorted(set(steps)) and steps[-1] == 60  # the last step is always shown
+
+
+def test_snapshots_of_a_stale_session_are_dropped(qtbot, runner):
+    session = FakeSession(seconds=0.01, limit=20)
+    runner.start(session, runner.scene.generation)
+    runner.scene.generation += 1  # e.g. Reset while the worker is in a step
+    _wait_done(qtbot, runner)
+    assert session.step_count > 0
+    assert runner.drawn_snapshots == [] and runner.received == 0
+
+
+def test_pause_acts_after_the_step_in_progress(qtbot, runner):
+    session = FakeSession(seconds=0.3)
+    runner.start(session, runner.scene.generation)
+    qtbot.waitUntil(lambda: session.step_count >= 2 and session.stepping, timeout=10_000)
+    at_stop = session.step_count
+    began = time.perf_counter()
+    runner.stop()
+    _wait_done(qtbot, runner)
+    assert time.perf_counter() - began < 0.3 + 0.5
+    assert session.step_count == at_stop + 1  # the step in progress, and no other
+    assert runner.drawn_snapshots[-1].step == session.step_count
+
+
+def test_shutdown_waits_for_the_step_in_progress_only(qtbot, runner):
+    session = FakeSession(seconds=0.3)
+    runner.start(session, runner.scene.generation)
+    qtbot.waitUntil(lambda: session.step_count >= 1 and session.stepping, timeout=10_000)
+    began = time.perf_counter()
+    assert runner.shutdown()
+    assert time.perf_counter() - began < 0.3 + 0.5 and not runner.running
+    assert not runner.start(session, runner.scene.generation)  # closed for good
