@@ -31,6 +31,12 @@ def _trial(args):
     return run_trial_command(args)
 
 
+def _replay(args):
+    from .experiments.replay import run_replay_command
+
+    return run_replay_command(args)
+
+
 def _bench(args):
     if args.what == "sdf":
         from .experiments.sdf_speed import main as sdf_speed
@@ -76,6 +82,16 @@ def build_parser():
                     "random pose (from --seed) and write one JSON record per step.")
     add_trial_arguments(trial)
     trial.set_defaults(run=_trial)
+
+    from .experiments.replay import add_replay_arguments
+
+    replay = commands.add_parser(
+        "replay", help="replay recorded touches (CSV) through the filter and the GPIS",
+        description="Replay an observation file (header kind,x,y,z,nx,ny,nz, optional step "
+                    "column; kind contact, noncontact or free) through the filter and the "
+                    "GPIS and write the trial command's per-step JSON (truth metrics null).")
+    add_replay_arguments(replay)
+    replay.set_defaults(run=_replay)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
                                               "scaling, noise, realmesh, gui)",

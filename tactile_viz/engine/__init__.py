@@ -17,16 +17,21 @@ from .observations import Contact, NonContact
 from .params import FilterParams, preset
 from .particle_filter import ParticleFilter
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
-from .session import (SESSION_PRESETS, Session, SessionError, SessionParams, Snapshot, make_truth,
-                      session_preset)
+from .export import export_session
+from .observation_file import (ObservationFileError, RecordedStep, read_observations,
+                               write_observations)
+from .session import (SESSION_PRESETS, Reconstruction, Session, SessionError, SessionParams,
+                      Snapshot, Target, make_truth, session_preset)
 from .simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
     "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact",
-    "ObjectModel", "ObservationError", "ParameterError", "ParticleFilter", "PriorLibrary",
-    "SDFGrid", "SESSION_PRESETS", "STRATEGIES", "Session", "SessionError", "SessionParams",
-    "Snapshot", "TactileVizError", "build_sdf_grid", "bundled_names", "load_bundled",
-    "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose", "session_preset",
+    "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
+    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedStep", "SDFGrid",
+    "SESSION_PRESETS", "STRATEGIES", "Session", "SessionError", "SessionParams", "Snapshot",
+    "Target", "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
+    "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",
+    "read_observations", "session_preset", "write_observations",
 ]

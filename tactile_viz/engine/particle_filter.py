@@ -160,6 +160,24 @@ class ParticleFilter:
         self.step_count = 0
         self.state = None
 
+    _STATE = ("particles", "contact_positions", "contact_normals", "noncontact_positions",
+              "step_count", "state")
+
+    def checkpoint(self):
+        """What :meth:`restore` needs to undo later updates.
+
+        An update replaces the filter's arrays rather than writing into them, so references
+        (and the generator's state) are enough.
+        """
+        return {name: getattr(self, name) for name in self._STATE}, self.rng.bit_generator.state
+
+    def restore(self, saved):
+        """Return to a :meth:`checkpoint`."""
+        state, generator = saved
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.rng.bit_generator.state = generator
+
     # ----------------------------------------------------------------- likelihood
     def log_likelihood(self, particles, contacts=None, normals=None, noncontacts=None):
         """Log-likelihood of observations under each particle.

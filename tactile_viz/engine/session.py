@@ -1,35 +1,34 @@
 """The inference session: Algorithm 2 of the paper, one step at a time.
 
-A :class:`Session` couples a ground truth (through the simulator), a prior library, the
-particle filter, the GPIS and an exploration strategy. Each :meth:`Session.step` touches
-once (after the random first contact: reach for the target chosen last step, or an RRT
-step), updates the belief, reconstructs the surface when the object is judged novel,
-measures coverage (DHD) and errors against the truth, picks the next target and returns an
-immutable :class:`Snapshot`.
+A :class:`Session` couples a prior library, the particle filter, the GPIS and an
+exploration strategy with a source of touches. Each :meth:`Session.step` touches a
+simulated object once (after the random first contact: reach for the target chosen last
+step, or an RRT step); :meth:`Session.observe` takes the touches of a real sensor or a
+recording instead, after :meth:`Session.propose` said where to touch. Either way the step
+updates the belief, reconstructs the surface when the object is judged novel, measures
+coverage (DHD) and, with a simulated object, the errors against it, picks the next target
+and returns an immutable :class:`Snapshot`. Parameters live in :mod:`.params`, saving and
+loading in :mod:`.persistence`.
 """
 
-import io
-import json
 import time
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from .files import write_atomic
-from .errors import ParameterError, TactileVizError
+from .errors import TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
                           next_sweep_direction, rrt_step, sweep_line)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
-from .library import PriorLibrary
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
 from .metrics import pose_error as metric_pose_error
 from .objects import ObjectModel
-from .meshes import check_arrays
-from .observations import Contact
-from .params import FilterParams, _check_integer, _check_real, preset
+from .observation_file import RecordedStep
+from .observations import Contact, NonContact
+from .params import SESSION_PRESETS, SessionParams, session_preset
 from .particle_filter import ParticleFilter
 from .sdf import normalise_rows
 from .simulator import ContactSimulator, GroundTruth
@@ -40,188 +39,7 @@ class SessionError(TactileVizError):
     """A session cannot be run, saved or loaded as asked."""
 
 
-GPIS_KERNELS = ("wendland", "thin-plate")
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
-
-
-@dataclass(frozen=True)
-class SessionParams:
-    """Knobs of a session beyond the filter's (paper, Table I and Section III-H).
-
-    Attributes
-    ----------
-    filter : FilterParams
-    eps : float
-        Termination threshold on the DHD from the estimated surface (and, with
-        ``cover_prior``, the MAP prior of a novel object) to the contacts; the surface near
-        targets the sensor could not reach and near missed probes' paths is left out.
-    max_steps_known, max_steps_novel : int
-        Step caps while the object is judged known / novel (paper 300 / 400).
-    gpis_noise : float
-        Observation noise variance of the GPIS (paper 1e-4).
-    gpis_scale : float
-        Initial kernel scale ``a_0``.
-    gpis_resolution : int
-        Marching-cubes cells along the longest side of the reconstruction box.
-    gpis_margin : float
-        Margin of the reconstruction box around the MAP shape and the contacts.
-    gpis_kernel : {"thin-plate", "wendland"}
-        ``thin-plate``: the paper's kernel, whose correction reaches the whole box (the
-        default: with the carved prior and prior coverage it reconstructed 10 novel trials
-        to a mean TWD of 0.80 against the Wendland kernel's 1.08, in 33 s against 55 s per
-        trial, docs/benchmarks.md); ``wendland``: compactly supported, a contact corrects
-        the prior only within ``gpis_support``.
-    gpis_support : float
-        Support radius ``c`` of the Wendland kernel.
-    gpis_radius_factor : float
-        Thin-plate ``R`` over the reconstruction box's diagonal (which bounds every
-        distance involved): 1.0 is the paper's "largest distance" (the indefinite Gram
-        matrix is projected on the PSD cone), 1.2 makes it positive definite.
-    gpis_noncontacts : bool
-        Beyond the paper: non-contacts where the prior puts the inside observe
-        ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
-        a probe passed through it.
-    gpis_noncontact_value : float
-    gpis_carve_radius : float
-        Beyond the paper: the GPIS prior mean has a ball of this radius (at most the
-        distance to the nearest contact) cut out of the MAP shape around every non-contact
-        and every sample of a missed probe's path, so a probe through a phantom part of a
-        wrong prior removes it there; 0 keeps the prior whole.
-    cover_prior : bool
-        Beyond the paper: a novel object's exploration also has to cover the MAP prior's
-        surface (within ``eps`` of a contact, or refuted by a missed probe), so that a
-        reconstruction that shrank away from the untouched prior cannot pass the stop.
-    target_uncovered : bool
-        Beyond the paper: the GPIS-DHD target is the largest variance among the surface
-        vertices still farther than ``eps`` from every contact (the paper's, the default:
-        among all; restricting it stopped home_chair and noisy_dino earlier with less of
-        the object touched, seed 0).
-    check_lines : int
-        Beyond the paper: once a novel object's estimate is covered, this many straight
-        lines (from directions spread over the sphere, each through a random contact moved
-        by about ``eps``) must each touch nothing farther than ``eps`` from the estimate and from every
-        contact before the session stops; a line that does restarts the count, since part of
-        the object was never predicted. 0: stop as soon as the estimate is covered (paper).
-    variance_points : int
-        Surface vertices at which the GPIS variance is evaluated (a random subset).
-    learned_resolution : int
-        Marching-cubes cells along the longest side when a reconstruction is kept as a new
-        prior: the same posterior mean as the step's surface, sampled finer, since a learned
-        shape is extracted once and matched against every later contact.
-    probe_depth : float
-        How deep contact enforcement reaches at most (the estimate's deepest point within
-        it is probed).
-    follow_step : float
-        Length of one in-contact surface-following step of contact enforcement.
-    contact_spacing : float
-        Surface following stops at a contact this far from every earlier one; a target
-        whose procedure ends nearer is given up.
-    max_follow : float
-        Longest surface-following path of one step.
-    rrt_step : float
-    metric_samples : int
-        Surface samples per shape for the error metrics (TWD).
-    """
-
-    filter: FilterParams = field(default_factory=FilterParams)
-    eps: float = 0.6
-    max_steps_known: int = 300
-    max_steps_novel: int = 400
-    gpis_noise: float = 1e-4
-    gpis_scale: float = 1.0
-    gpis_resolution: int = 32
-    gpis_margin: float = 0.6
-    gpis_kernel: str = "thin-plate"
-    gpis_support: float = 4.0
-    gpis_radius_factor: float = 1.2
-    gpis_noncontacts: bool = False
-    gpis_noncontact_value: float = 0.1
-    gpis_carve_radius: float = 0.6
-    cover_prior: bool = True
-    target_uncovered: bool = False
-    check_lines: int = 0
-    variance_points: int = 1500
-    learned_resolution: int = 64
-    probe_depth: float = 1.0
-    follow_step: float = 0.1
-    contact_spacing: float = 0.3
-    max_follow: float = 3.0
-    rrt_step: float = 0.3
-    metric_samples: int = 3000
-
-    def __post_init__(self):
-        if not isinstance(self.filter, FilterParams):
-            raise ParameterError(f"filter must be FilterParams, got {type(self.filter).__name__}")
-        if self.gpis_kernel not in GPIS_KERNELS:
-            raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
-                                 f"got {self.gpis_kernel!r}")
-        for name in ("gpis_noncontacts", "cover_prior", "target_uncovered"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ParameterError(f"{name} must be True or False, "
-                                     f"got {getattr(self, name)!r}")
-        for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
-                     "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
-                     "follow_step", "contact_spacing", "max_follow", "rrt_step"):
-            value = getattr(self, name)
-            _check_real(name, value)
-            if not (np.isfinite(value) and value > 0):
-                raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
-        _check_real("gpis_carve_radius", self.gpis_carve_radius)
-        if not (np.isfinite(self.gpis_carve_radius) and self.gpis_carve_radius >= 0):
-            raise ParameterError("gpis_carve_radius must be a finite number >= 0, "
-                                 f"got {self.gpis_carve_radius!r}")
-        object.__setattr__(self, "check_lines", _check_integer("check_lines", self.check_lines))
-        if self.check_lines < 0:
-            raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")
-        for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
-                     "gpis_resolution", "learned_resolution"):
-            object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
-            if getattr(self, name) < 1:
-                raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
-        for name in ("gpis_resolution", "learned_resolution"):
-            if getattr(self, name) < 8:
-                raise ParameterError(f"{name} must be at least 8, got {getattr(self, name)!r}")
-
-    def to_dict(self):
-        values = asdict(self)
-        values["filter"] = self.filter.to_dict()
-        return values
-
-    @classmethod
-    def from_dict(cls, values):
-        if not isinstance(values, dict):
-            raise ParameterError(f"session parameters must be a dict, got {type(values).__name__}")
-        values = dict(values)
-        known = {f.name for f in fields(cls)}
-        unknown = set(values) - known
-        if unknown:
-            raise ParameterError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
-        values["filter"] = FilterParams.from_dict(values.get("filter", {}))
-        return cls(**values)
-
-
-SESSION_PRESETS = {
-    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, variance_points=800,
-                          metric_samples=2000),
-    "paper": SessionParams(),
-    # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
-    # only (the shape-transfer shortfall of the README comes from it).
-    "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                              gpis_noncontacts=False, gpis_carve_radius=0.0,
-                              cover_prior=False, check_lines=0),
-    "refined": SessionParams(filter=preset("refined")),
-    "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
-                              variance_points=3000, metric_samples=5000),
-}
-
-
-def session_preset(name, **overrides):
-    """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`)."""
-    try:
-        return replace(SESSION_PRESETS[name], **overrides)
-    except KeyError:
-        raise ParameterError(f"unknown preset {name!r}; choose from "
-                             f"{', '.join(SESSION_PRESETS)}") from None
 
 
 def _frozen(array):
@@ -234,7 +52,8 @@ def _frozen(array):
 class Snapshot:
     """Everything a viewer or a benchmark needs after one step (arrays are read-only).
 
-    Frames: everything is in the world frame.
+    Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
+    ``recon_error`` are None in a session without a simulated object.
     """
 
     step: int
@@ -260,8 +79,8 @@ class Snapshot:
     gpis_scale: object
     target: object
     dhd: float
-    truth_coverage: float
-    pose_error: float
+    truth_coverage: object
+    pose_error: object
     recon_error: object
     terminated: bool
     timings: dict
@@ -270,12 +89,15 @@ class Snapshot:
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
         return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
-                "dhd": self.dhd, "truth_coverage": self.truth_coverage, "novel": self.novel, "recon_error": self.recon_error,
+                "dhd": self.dhd, "truth_coverage": self.truth_coverage, "novel": self.novel,
+                "recon_error": self.recon_error,
                 "n_particles": self.n_particles, "n_contacts": int(len(self.contacts)),
                 "n_noncontacts": int(len(self.noncontacts)),
                 "step_seconds": float(sum(self.timings.values())),
                 "timings": {k: float(v) for k, v in self.timings.items()},
-                "gpis_scale": self.gpis_scale}
+                "gpis_scale": self.gpis_scale,
+                "map_rotation": self.map_rotation.tolist(),
+                "map_translation": self.map_translation.tolist()}
 
 
 def _hypotheses(state, count=HYPOTHESES):
@@ -298,12 +120,64 @@ def _hypotheses(state, count=HYPOTHESES):
                  for k in order)
 
 
+@dataclass(frozen=True)
+class Reconstruction:
+    """The GPIS estimate of a novel object in one step.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float
+        The zero level set of the posterior mean (marching cubes), world frame.
+    faces : (f, 3) int
+    variance : (v,) float
+        Posterior variance at the vertices (evaluated at ``subset``, nearest elsewhere).
+    subset : (k,) int or None
+        The vertices where the variance was evaluated.
+    fit : GPISFit
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    variance: np.ndarray
+    subset: object
+    fit: object
+
+    @property
+    def empty(self):
+        return len(self.vertices) == 0
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where the session wants the next touch.
+
+    Attributes
+    ----------
+    position : (3,) float
+        The point to touch, world frame.
+    normal : (3,) float
+        The estimated outward normal there: approach along ``-normal``.
+    depth : float
+        How far beyond ``position`` to probe (the estimate's deepest point within the
+        probe depth).
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    depth: float
+
+
 class Session:
-    """Active exploration of one ground truth with one prior library.
+    """Active exploration of one object with one prior library: Algorithm 2, step by step.
+
+    The touches come from the simulator (``truth`` given: :meth:`step`) or from the caller
+    (a real sensor, a recording: :meth:`propose` the next target, :meth:`observe` what was
+    touched). Without a truth the error metrics of the snapshots are None.
 
     Parameters
     ----------
-    truth : GroundTruth
+    truth : GroundTruth or None
+        The simulated object; None for a session fed by :meth:`observe`.
     library : PriorLibrary
     strategy : {"gpis-dhd", "rrt"}
     params : SessionParams, optional
@@ -326,9 +200,15 @@ class Session:
         self.seed = int(seed)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
         self.rng = np.random.default_rng([self.seed, 1])
-        self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
-                                          normal_noise_deg=self.sensor_noise[1],
-                                          rng=np.random.default_rng([self.seed, 2]))
+        self.simulator = None
+        self._truth_samples = None
+        if truth is not None:
+            self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
+                                              normal_noise_deg=self.sensor_noise[1],
+                                              rng=np.random.default_rng([self.seed, 2]))
+            self._truth_samples = transform_points(
+                surface_samples(truth.model, self.params.metric_samples), truth.rotation,
+                truth.translation)
         self.filter = ParticleFilter(library, self.params.filter, rng=np.random.default_rng([self.seed, 3]))
         self.snapshots = []
         self._scale = self.params.gpis_scale
@@ -338,9 +218,6 @@ class Session:
         self._check = None  # the estimate's vertices while a check line is due
         self._check_directions = []
         self._checks_passed = 0
-        self._truth_samples = transform_points(
-            surface_samples(truth.model, self.params.metric_samples), truth.rotation,
-            truth.translation)
 
     @property
     def step_count(self):
@@ -365,26 +242,97 @@ class Session:
         return self.latest
 
     def step(self):
-        """One time step of Algorithm 2; returns its :class:`Snapshot`.
+        """One time step of Algorithm 2 with the simulated sensor; returns its
+        :class:`Snapshot`.
 
         A step that fails leaves the session exactly as it was before it.
         """
+        if self.simulator is None:
+            raise SessionError("this session has no simulated object: give it what the "
+                               "sensor touched with observe()")
         if self.terminated:
             raise SessionError("the session has terminated; start a new one")
         saved = self._checkpoint()
         try:
-            return self._step()
+            clock = time.perf_counter()
+            paths, observations = self._touch()
+            return self._update(paths, observations, {"simulator": time.perf_counter() - clock})
         except BaseException:
             self._restore(saved)
             raise
 
-    _FILTER_STATE = ("particles", "contact_positions", "contact_normals",
-                     "noncontact_positions", "step_count", "state")
+    def propose(self):
+        """Where to touch next, or None: before the first contact (touch the object
+        anywhere), with the RRT strategy, while a check line is due, after termination.
+
+        Returns
+        -------
+        Target or None
+        """
+        if self.terminated or self._target is None or self.strategy == "rrt":
+            return None
+        position, normal, estimate = self._target
+        depth = deepest_inside(estimate, position, normal, self.params.probe_depth)
+        return Target(_frozen(position), _frozen(normal), depth)
+
+    def observe(self, observations, free_space=None):
+        """One time step with touches made by the caller; returns its :class:`Snapshot`.
+
+        Parameters
+        ----------
+        observations : sequence of Contact or NonContact
+            What the sensor found in this step, in time order (at least one).
+        free_space : (k, 3) float, optional
+            Points the sensor moved through without touching; they cut the prior of the
+            reconstruction (``gpis_carve_radius``) and are not observations of the filter.
+
+        Notes
+        -----
+        A step without a contact, or whose contact repeats an earlier one, gives the
+        proposed target up, as the simulated contact enforcement does. The session keeps
+        accepting observations after it would have stopped (``terminated``).
+        A step that fails leaves the session exactly as it was before it.
+        """
+        observations = list(observations)
+        if not observations:
+            raise SessionError("a step needs at least one observation")
+        for observation in observations:
+            if not isinstance(observation, (Contact, NonContact)):
+                raise SessionError(f"not an observation: {observation!r} (use Contact or "
+                                   "NonContact)")
+        points = np.asarray(np.zeros((0, 3)) if free_space is None else free_space, float)
+        if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
+            raise SessionError("free_space must be a finite (k, 3) array of points")
+        saved = self._checkpoint()
+        try:
+            contacts = [o for o in observations if isinstance(o, Contact)]
+            if self._target is not None and (not contacts or self._repeats_contact(contacts[-1])):
+                self._given_up_targets.append(self._target[0])
+            if len(points):
+                self._free_space = thin_points(np.vstack([self._free_space, points]),
+                                               self.params.contact_spacing)
+            return self._update([], observations, {})
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    def recorded_steps(self):
+        """What was observed in each step so far: replaying them through :meth:`observe` of
+        a session with the same library, parameters and seed gives the same estimates.
+
+        Returns
+        -------
+        list of RecordedStep
+        """
+        steps, before = [], 0
+        for snapshot in self.snapshots:
+            free = snapshot.free_space
+            steps.append(RecordedStep(list(snapshot.new_observations), np.array(free[before:])))
+            before = len(free)
+        return steps
 
     def _checkpoint(self):
-        # The filter replaces its arrays on update rather than writing into them, so keeping
-        # references (and the generators' states) is enough to roll a step back.
-        return ({name: getattr(self.filter, name) for name in self._FILTER_STATE},
+        return (self.filter.checkpoint(),
                 [g.bit_generator.state for g in self._generators()],
                 (self._scale, self._target, list(self._given_up_targets), self._free_space,
                  len(self.snapshots)),
@@ -393,8 +341,7 @@ class Session:
     def _restore(self, saved):
         filter_state, generator_states, (scale, target, given_up, free, count), check = saved
         self._check, self._check_directions, self._checks_passed = check
-        for name, value in filter_state.items():
-            setattr(self.filter, name, value)
+        self.filter.restore(filter_state)
         for generator, state in zip(self._generators(), generator_states):
             generator.bit_generator.state = state
         self._scale, self._target, self._given_up_targets = scale, target, given_up
@@ -402,14 +349,11 @@ class Session:
         del self.snapshots[count:]
 
     def _generators(self):
-        return (self.rng, self.simulator.rng, self.filter.rng)
+        return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
 
-    def _step(self):
-        timings = {}
-        clock = time.perf_counter()
-        paths, observations = self._touch()
-        timings["simulator"] = time.perf_counter() - clock
-
+    def _update(self, paths, observations, timings):
+        """Lines 5-15 of Algorithm 2 after the touch: the filter's update, the estimate
+        (MAP shape; GPIS when novel), the stop test and the next target."""
         clock = time.perf_counter()
         state = self.filter.update(observations)
         timings["filter"] = time.perf_counter() - clock
@@ -418,24 +362,57 @@ class Session:
         rotation, translation = state.map_rotation, state.map_translation
         map_vertices = transform_points(model.mesh.vertices, rotation, translation)
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        gpis = None
+        recon = None
         if state.novel:
-            gpis = self._reconstruct(model, rotation, translation, map_vertices, timings)
+            recon = self._reconstruct(model, rotation, translation, map_vertices, timings)
         clock = time.perf_counter()
-        surface = gpis[0] if gpis is not None and len(gpis[0]) else map_vertices
+        dhd, terminated = self._stop_and_target(state, model, rotation, translation,
+                                                map_vertices, recon, contacts)
+        timings["target"] = time.perf_counter() - clock
+
+        clock = time.perf_counter()
+        pose_error, recon_error, truth_coverage = self._truth_metrics(
+            model, rotation, translation, recon, contacts)
+        timings["metrics"] = time.perf_counter() - clock
+
+        snapshot = Snapshot(
+            step=self.step_count + 1, new_observations=tuple(observations),
+            paths=tuple(_frozen(p) for p in paths), contacts=_frozen(contacts),
+            normals=_frozen(normals), noncontacts=_frozen(self.filter.noncontact_positions),
+            free_space=_frozen(self._free_space),
+            map_class=state.map_class, map_rotation=_frozen(rotation),
+            map_translation=_frozen(translation), map_vertices=_frozen(map_vertices),
+            map_faces=model.mesh.faces, class_posterior=dict(state.class_posterior),
+            n_particles=state.n_particles, log_evidence=float(state.log_evidence),
+            log_threshold=float(state.log_threshold), novel=bool(state.novel),
+            gpis_vertices=None if recon is None else _frozen(recon.vertices),
+            gpis_faces=None if recon is None else _frozen(recon.faces),
+            gpis_variance=None if recon is None else _frozen(recon.variance),
+            gpis_scale=float(self._scale) if recon is not None else None,
+            target=None if self._target is None else _frozen(self._target[0]),
+            dhd=float(dhd), truth_coverage=truth_coverage, pose_error=pose_error,
+            recon_error=recon_error, terminated=terminated, timings=timings,
+            hypotheses=_hypotheses(state))
+        self.snapshots.append(snapshot)
+        return snapshot
+
+    def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
+                         contacts):
+        """The DHD of the estimate, whether to stop, and the next target (kept in
+        ``self._target``); returns ``(dhd, terminated)``."""
+        surface = recon.vertices if recon is not None and not recon.empty else map_vertices
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if gpis is not None and self.params.cover_prior:
+        if recon is not None and self.params.cover_prior:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self.params.contact_spacing,
                                                            self.params.gpis_carve_radius))
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
-        step = self.step_count + 1
         covered = max(dhd, prior_dhd) <= self.params.eps
         checking = covered and state.novel and self._checks_passed < self.params.check_lines
-        terminated = bool((covered and not checking) or step >= cap)
+        terminated = bool((covered and not checking) or self.step_count + 1 >= cap)
         self._check = None
         if terminated:
             self._target = None
@@ -448,42 +425,24 @@ class Session:
             self._target = self._next_target(map_vertices, prior_open, None, model, rotation,
                                              translation, contacts)
         else:
-            self._target = self._next_target(surface, reachable, gpis, model, rotation,
+            self._target = self._next_target(surface, reachable, recon, model, rotation,
                                              translation, contacts)
-        dhd = max(dhd, prior_dhd)
-        timings["target"] = time.perf_counter() - clock
+        return max(dhd, prior_dhd), terminated
 
-        clock = time.perf_counter()
+    def _truth_metrics(self, model, rotation, translation, recon, contacts):
+        """Pose error, reconstruction error and truth coverage against the simulated
+        object (None without one; the reconstruction error also while known)."""
+        if self.truth is None:
+            return None, None, None
         pose_error = metric_pose_error(model, rotation, translation, self.truth,
                                        self.params.metric_samples)
         recon_error = None
-        if gpis is not None and len(gpis[1]):
-            recon = trimesh.Trimesh(gpis[0], gpis[1], process=False)
-            samples, _ = trimesh.sample.sample_surface(recon, self.params.metric_samples, seed=0)
-            recon_error = two_way_hausdorff(samples, self._truth_samples)
-        timings["metrics"] = time.perf_counter() - clock
-
-        snapshot = Snapshot(
-            step=step, new_observations=tuple(observations),
-            paths=tuple(_frozen(p) for p in paths), contacts=_frozen(contacts),
-            normals=_frozen(normals), noncontacts=_frozen(self.filter.noncontact_positions),
-            free_space=_frozen(self._free_space),
-            map_class=state.map_class, map_rotation=_frozen(rotation),
-            map_translation=_frozen(translation), map_vertices=_frozen(map_vertices),
-            map_faces=model.mesh.faces, class_posterior=dict(state.class_posterior),
-            n_particles=state.n_particles, log_evidence=float(state.log_evidence),
-            log_threshold=float(state.log_threshold), novel=bool(state.novel),
-            gpis_vertices=None if gpis is None else _frozen(gpis[0]),
-            gpis_faces=None if gpis is None else _frozen(gpis[1]),
-            gpis_variance=None if gpis is None else _frozen(gpis[2]),
-            gpis_scale=float(self._scale) if gpis is not None else None,
-            target=None if self._target is None else _frozen(self._target[0]),
-            dhd=float(dhd), truth_coverage=directed_hausdorff(self._truth_samples, contacts),
-            pose_error=float(pose_error),
-            recon_error=None if recon_error is None else float(recon_error),
-            terminated=terminated, timings=timings, hypotheses=_hypotheses(state))
-        self.snapshots.append(snapshot)
-        return snapshot
+        if recon is not None and len(recon.faces):
+            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
+            samples, _ = trimesh.sample.sample_surface(mesh, self.params.metric_samples, seed=0)
+            recon_error = float(two_way_hausdorff(samples, self._truth_samples))
+        return (float(pose_error), recon_error,
+                directed_hausdorff(self._truth_samples, contacts))
 
     # ---------------------------------------------------------------- pieces
     def _touch(self):
@@ -619,11 +578,11 @@ class Session:
                 nearest = cKDTree(vertices[subset]).query(vertices)[1]
                 variance = variance[subset][nearest]
         timings["surface"] = time.perf_counter() - clock
-        return vertices, faces, variance, subset if len(vertices) else None, fit
+        return Reconstruction(vertices, faces, variance, subset if len(vertices) else None, fit)
 
-    def _next_target(self, surface, reachable, gpis, model, rotation, translation, contacts):
-        if gpis is not None and len(gpis[0]):
-            vertices, _, variance, subset, fit = gpis
+    def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
+        if recon is not None and not recon.empty:
+            vertices, variance, subset, fit = recon.vertices, recon.variance, recon.subset, recon.fit
             score = variance[subset]
             distance = cKDTree(contacts).query(vertices[subset])[0]
             # Only vertices that keep the stop from holding are worth a touch (beyond the
@@ -684,71 +643,19 @@ class Session:
 
     # ---------------------------------------------------------------- persistence
     def save(self, path):
-        """Save the session (its set-up and its observation history) to an ``.npz`` file."""
-        config = {"format": "tactile_viz-session", "version": 1, "strategy": self.strategy,
-                  "seed": self.seed, "params": self.params.to_dict(),
-                  "sensor_noise": list(self.sensor_noise), "steps": self.step_count,
-                  "truth_name": self.truth.model.name, "library": self.library.names}
-        arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
-                  "truth_rotation": self.truth.rotation, "truth_translation": self.truth.translation,
-                  "truth_vertices": self.truth.model.mesh.vertices,
-                  "truth_faces": self.truth.model.mesh.faces,
-                  "contacts": self.filter.contact_positions,
-                  "noncontacts": self.filter.noncontact_positions}
-        for index, model in enumerate(self.library):
-            arrays[f"prior{index}_vertices"] = model.mesh.vertices
-            arrays[f"prior{index}_faces"] = model.mesh.faces
-        buffer = io.BytesIO()
-        np.savez_compressed(buffer, **arrays)
-        try:
-            write_atomic(path, buffer.getvalue())
-        except OSError as error:
-            raise SessionError(f"cannot save the session to {path}: {error}") from error
-        return path
+        """Save the session (its set-up and its observation history) to an ``.npz`` file;
+        see :func:`tactile_viz.engine.persistence.save_session`."""
+        from .persistence import save_session
+
+        return save_session(self, path)
 
     @classmethod
     def load(cls, path, callback=None):
-        """Rebuild a saved session by replaying its steps (deterministic from its seed)."""
-        try:
-            with np.load(path, allow_pickle=False) as stored:
-                arrays = {name: stored[name] for name in stored.files}
-            config = json.loads(arrays["config"].tobytes().decode())
-            if config.get("format") != "tactile_viz-session":
-                raise ValueError("not a tactile_viz session file")
-            truth_model = _model_from_arrays(config["truth_name"], arrays["truth_vertices"],
-                                             arrays["truth_faces"], "the truth mesh")
-            library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
-                                                      arrays[f"prior{i}_faces"],
-                                                      f"the mesh of prior {name!r}")
-                                   for i, name in enumerate(config["library"]))
-            rotation, translation = _checked_pose(arrays["truth_rotation"],
-                                                  arrays["truth_translation"])
-            truth = GroundTruth(truth_model, rotation, translation)
-            session = cls(truth, library, config["strategy"],
-                          SessionParams.from_dict(config["params"]), config["seed"],
-                          tuple(config["sensor_noise"]))
-            steps = _check_integer("steps", config["steps"])
-            cap = max(session.params.max_steps_known, session.params.max_steps_novel)
-            if not 0 <= steps <= cap:
-                raise ValueError(f"steps must lie in [0, {cap}], got {steps}")
-            contacts = np.asarray(arrays["contacts"], dtype=float)
-        except (OSError, ValueError, KeyError, TypeError, EOFError) as error:
-            raise SessionError(f"{path}: not a readable session file ({error})") from error
-        except Exception as error:  # zipfile.BadZipFile and friends from a truncated file
-            raise SessionError(f"{path}: not a readable session file ({error!r})") from error
-        for _ in range(steps):
-            try:
-                snapshot = session.step()
-            except (TactileVizError, ValueError, TypeError, IndexError, ArithmeticError,
-                    np.linalg.LinAlgError) as error:
-                raise SessionError(f"{path}: replaying step {session.step_count + 1} failed "
-                                   f"({error!r})") from error
-            if callback is not None:
-                callback(snapshot)
-        if (contacts.shape != session.filter.contact_positions.shape
-                or not np.allclose(session.filter.contact_positions, contacts)):
-            raise SessionError(f"{path}: replaying the session did not reproduce its contacts")
-        return session
+        """Rebuild a saved session by replaying its steps; see
+        :func:`tactile_viz.engine.persistence.load_session`."""
+        from .persistence import load_session
+
+        return load_session(path, callback)
 
 
 def free_space_points(points, path, spacing):
@@ -781,31 +688,6 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
 
 
-def _model_from_arrays(name, vertices, faces, what="the mesh"):
-    """A model from stored (already normalised) arrays, checked but not re-processed."""
-    if not isinstance(name, str):
-        raise TypeError(f"the name of {what} must be a string, got {name!r}")
-    vertices, faces = check_arrays(vertices, faces, what)
-    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False))
-
-
-def _checked_pose(rotation, translation):
-    """A stored ``object_to_world`` pose: a proper rotation and a finite translation."""
-    rotation = np.asarray(rotation, dtype=float)
-    translation = np.asarray(translation, dtype=float)
-    if rotation.shape != (3, 3) or translation.shape != (3,):
-        raise ValueError(f"the truth pose has shapes {rotation.shape} and {translation.shape}, "
-                         "not (3, 3) and (3,)")
-    if not (np.isfinite(rotation).all() and np.isfinite(translation).all()):
-        raise ValueError("the truth pose is not finite")
-    if (np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-6
-            or not abs(np.linalg.det(rotation) - 1) < 1e-6):
-        raise ValueError("the truth rotation is not a rotation matrix")
-    if np.abs(translation).max() > 1e6:
-        raise ValueError("the truth translation is out of range")
-    return rotation, translation
-
-
 def learned_model_from_surface(vertices, faces, name, params=None):
     """An :class:`ObjectModel` from a reconstructed surface (largest connected piece).
 
@@ -827,5 +709,5 @@ def make_truth(model, rng=None, max_translation=1.0):
     return GroundTruth(model, rotation, translation)
 
 
-__all__ = ["Session", "SessionError", "SessionParams", "Snapshot", "session_preset",
-           "SESSION_PRESETS", "learned_model_from_surface", "make_truth"]
+__all__ = ["Reconstruction", "Session", "SessionError", "SessionParams", "Snapshot", "Target",
+           "session_preset", "SESSION_PRESETS", "learned_model_from_surface", "make_truth"]

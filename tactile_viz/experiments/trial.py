@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 from ..cli import ExtendList
-from ..engine.errors import TactileVizError
 from ..engine.exploration import STRATEGIES
+from ..engine.export import export_session
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
@@ -39,6 +39,9 @@ def add_trial_arguments(parser):
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
     parser.add_argument("--json", metavar="OUT", help="write the JSON here (default stdout)")
+    parser.add_argument("--export", metavar="DIR",
+                        help="write observations.csv, map_shape.ply, reconstruction.ply "
+                             "(when novel) and estimate.json of the last step to DIR")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
@@ -120,14 +123,16 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
 
 
 def run_trial_command(args):
-    try:
-        truth_model = (load_bundled(args.object) if args.object
-                       else ObjectModel.from_file(args.object_file))
-        library = load_priors(args)
-        result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
-                           args.max_steps, progress=not args.no_progress)
-    except TactileVizError:
-        raise
+    truth_model = (load_bundled(args.object) if args.object
+                   else ObjectModel.from_file(args.object_file))
+    library = load_priors(args)
+    def finish(session):
+        export_session(session, args.export)
+        return {}
+
+    result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
+                       args.max_steps, progress=not args.no_progress,
+                       finish=finish if args.export else None)
     text = json.dumps(result, indent=1)
     if args.json:
         Path(args.json).write_text(text)

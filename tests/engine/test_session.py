@@ -333,3 +333,117 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
     checks = [s.step for s in snapshots if s.novel and s.target is None and not s.terminated]
     assert checks[0] == plain.step and len(checks) >= 4
     assert checked.terminated and checked.step > checks[3]
+
+
+# ------------------------------------------------------------- recorded touches (issue 16)
+def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
+    from tactile_viz.engine.export import export_session
+    from tactile_viz.engine.observation_file import read_observations
+    from tactile_viz.experiments.replay import replay
+
+    # vase_2 is judged novel from step 10 on at this seed (missed probes give free rows).
+    novel_session = Session(make_truth(bundled["vase_2"], rng=[1, 0]), known, seed=1)
+    novel_session.run(max_steps=30)
+    written = export_session(novel_session, tmp_path / "export")
+    assert sorted(p.name for p in written) == ["estimate.json", "map_shape.ply",
+                                              "observations.csv", "reconstruction.ply"]
+    replayed, records = replay(read_observations(tmp_path / "export" / "observations.csv"),
+                               known, seed=novel_session.seed)
+    before, after = novel_session.latest, replayed.latest
+    assert after.map_class == before.map_class and after.novel and before.novel
+    np.testing.assert_allclose(after.map_rotation, before.map_rotation, atol=1e-6)
+    np.testing.assert_allclose(after.map_translation, before.map_translation, atol=1e-6)
+    np.testing.assert_allclose(after.gpis_vertices, before.gpis_vertices, atol=1e-6)
+    np.testing.assert_array_equal(after.gpis_faces, before.gpis_faces)
+    assert [r["dhd"] for r in records] == [s.dhd for s in novel_session.snapshots]
+    assert records[-1]["pose_error"] is None and records[-1]["recon_error"] is None
+    estimate = json.loads((tmp_path / "export" / "estimate.json").read_text())
+    assert estimate["map_class"] == before.map_class and estimate["novel"] is True
+    np.testing.assert_allclose(estimate["rotation"], before.map_rotation)
+    mesh = trimesh.load(tmp_path / "export" / "reconstruction.ply")
+    np.testing.assert_allclose(mesh.vertices, before.gpis_vertices, atol=1e-6)
+
+
+def test_trial_and_replay_commands_export_the_same_estimate(tmp_path):
+    trial_json, replay_json = tmp_path / "trial.json", tmp_path / "replay.json"
+    assert main(["trial", "--object", "bottle_1", "--seed", "2", "--max-steps", "8",
+                 "--json", str(trial_json), "--export", str(tmp_path / "a"),
+                 "--no-progress"]) == 0
+    assert main(["replay", "--observations", str(tmp_path / "a" / "observations.csv"),
+                 "--seed", "2", "--json", str(replay_json), "--export", str(tmp_path / "b"),
+                 "--no-progress"]) == 0
+    first, second = (json.loads((tmp_path / d / "estimate.json").read_text()) for d in "ab")
+    assert first["map_class"] == second["map_class"]
+    np.testing.assert_allclose(first["translation"], second["translation"], atol=1e-6)
+    assert not (tmp_path / "a" / "reconstruction.ply").exists()  # known: nothing to export
+    trial, replayed = (json.loads(p.read_text()) for p in (trial_json, replay_json))
+    assert len(replayed["steps"]) == 8 and replayed["object"] is None
+    # Every step records the MAP pose (issue 16).
+    for a, b in zip(trial["steps"], replayed["steps"]):
+        np.testing.assert_allclose(a["map_rotation"], b["map_rotation"], atol=1e-6)
+        assert b["truth_coverage"] is None and a["truth_coverage"] is not None
+
+
+def _robot(truth, seed=0):
+    """A stand-in for a real robot: the simulator behind a callable that takes a target
+    (or None) and the contacts so far and returns what the sensor touched (after a miss it
+    slides to the nearest contact and along the surface, as the paper's robot does)."""
+    from tactile_viz.engine import ContactSimulator
+    from tactile_viz.engine.exploration import enforce_contact, first_contact
+
+    simulator = ContactSimulator(truth)
+    rng = np.random.default_rng(seed)
+
+    def touch(target, contacts, normals):
+        if target is None:
+            return first_contact(simulator, np.zeros(3), rng)[1]
+        return enforce_contact(simulator, target.position, target.normal, contacts, normals,
+                               target.depth)[1]
+
+    return touch
+
+
+def test_a_session_driven_by_its_caller(bundled, known):
+    session = Session(None, known, seed=5)
+    with pytest.raises(SessionError, match="observe"):
+        session.step()
+    assert session.propose() is None
+    robot = _robot(make_truth(bundled["guitar_1"], rng=5))
+    for _ in range(40):
+        snapshot = session.observe(robot(session.propose(), session.filter.contact_positions,
+                                         session.filter.contact_normals))
+        if snapshot.terminated:
+            break
+    assert snapshot.map_class == "guitar_1" and not snapshot.novel
+    assert snapshot.pose_error is None and snapshot.truth_coverage is None
+    target = session.propose()
+    assert snapshot.terminated or (target.position.shape == (3,) and target.depth > 0)
+
+
+@pytest.mark.parametrize("observations, free_space, fault", [
+    ([], None, "at least one"),
+    (["contact"], None, "not an observation"),
+    ([NonContact([0.0, 0.0, 9.0])], np.zeros((2, 2)), "free_space"),
+    ([NonContact([0.0, 0.0, 9.0])], [[0.0, np.nan, 0.0]], "free_space"),
+])
+def test_bad_observations_leave_the_session_unchanged(known, observations, free_space, fault):
+    session = Session(None, known, seed=1)
+    session.observe([Contact([0.0, 0.0, 1.0], [0.0, 0.0, 1.0])])
+    before = session.filter.checkpoint()
+    with pytest.raises(SessionError, match=fault):
+        session.observe(observations, free_space)
+    assert session.step_count == 1
+    assert session.filter.checkpoint()[0]["contact_positions"] is before[0]["contact_positions"]
+
+
+def test_a_session_without_truth_saves_and_loads(bundled, known, tmp_path):
+    session = Session(None, known, seed=2)
+    robot = _robot(make_truth(bundled["bottle_1"], rng=2), seed=2)
+    for _ in range(6):
+        session.observe(robot(session.propose(), session.filter.contact_positions,
+                              session.filter.contact_normals), free_space=[[0.0, 0.0, 20.0]])
+    loaded = Session.load(session.save(tmp_path / "recorded.npz"))
+    assert loaded.truth is None and loaded.step_count == 6
+    np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
+    np.testing.assert_array_equal(loaded.latest.free_space, session.latest.free_space)
+    np.testing.assert_allclose(loaded.latest.map_translation, session.latest.map_translation)

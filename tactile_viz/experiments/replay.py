@@ -1,0 +1,100 @@
+"""Recorded touches through the filter and the GPIS: ``python -m tactile_viz replay ...``.
+
+The touches come from an observation file (see
+:mod:`tactile_viz.engine.observation_file`), made by a real sensor, another program or
+``trial --export``. Every step of the file is replayed, also after the session would have
+stopped; the JSON is the ``trial`` command's, with null truth metrics.
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..cli import ExtendList
+from ..engine.exploration import STRATEGIES
+from ..engine.export import export_session
+from ..engine.observation_file import read_observations
+from ..engine.session import SESSION_PRESETS, Session, session_preset
+from .trial import code_version, load_priors
+
+
+def add_replay_arguments(parser):
+    parser.add_argument("--observations", metavar="FILE", required=True,
+                        help="CSV of touches: header kind,x,y,z,nx,ny,nz (optional step "
+                             "column); kind contact, noncontact or free")
+    priors = parser.add_mutually_exclusive_group()
+    priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
+                        help="the filter's priors: a bundled set (default known)")
+    priors.add_argument("--prior-file", metavar="MESH", action=ExtendList,
+                        help="mesh files to use as the priors instead (repeats add up)")
+    priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
+    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
+                        help="speed/accuracy preset (default paper)")
+    parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
+                        help="recorded in the JSON; it only decides the proposed targets")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="filter seed (the trial's seed reproduces its estimate exactly)")
+    parser.add_argument("--json", metavar="OUT", help="write the JSON here (default stdout)")
+    parser.add_argument("--export", metavar="DIR",
+                        help="write observations.csv, map_shape.ply, reconstruction.ply "
+                             "(when novel) and estimate.json to DIR")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress=False,
+           params=None):
+    """Feed recorded steps to a new session without a simulated object.
+
+    Parameters
+    ----------
+    steps : list of RecordedStep
+    library : PriorLibrary
+    preset : str
+        Names the session parameters (``params`` replaces them when given).
+
+    Returns
+    -------
+    session : Session
+    records : list of dict
+        One :meth:`Snapshot.record` per step.
+    """
+    session = Session(None, library, strategy, params or session_preset(preset), seed=seed)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(steps), desc="replay", unit="step", file=sys.stderr, delay=2.0)
+    records = []
+    for step in steps:
+        snapshot = session.observe(step.observations, step.free_space)
+        records.append(snapshot.record())
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(cls=snapshot.map_class, novel=snapshot.novel,
+                            dhd=f"{snapshot.dhd:.2f}")
+    if bar is not None:
+        bar.close()
+    return session, records
+
+
+def run_replay_command(args):
+    steps = read_observations(args.observations)
+    library = load_priors(args)
+    start = time.perf_counter()
+    session, records = replay(steps, library, args.preset, args.strategy, args.seed,
+                              progress=not args.no_progress)
+    stop = next((r["t"] for r, s in zip(records, session.snapshots) if s.terminated), None)
+    result = {"object": None, "observations": str(args.observations), "seed": args.seed,
+              "strategy": args.strategy, "preset": args.preset,
+              "params": session.params.to_dict(), "library": library.names,
+              "truth_pose": None, "terminated_at": stop, "code_version": code_version(),
+              "seconds": time.perf_counter() - start, "steps": records}
+    if args.export:
+        export_session(session, args.export)
+    text = json.dumps(result, indent=1)
+    if args.json:
+        Path(args.json).write_text(text)
+    else:
+        print(text)
+    return 0
