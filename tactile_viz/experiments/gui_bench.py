@@ -129,7 +129,7 @@ def _gui_run(app, args, name, settings):
     gaps = probe.stop()
     runner = window.runner
     steps = window.scene.latest.step
-    shown = window.step_label.text()
+    shown = window.loop_panel.step_label.text()
     viewport = list(runner.draw_seconds)  # scene update of the drawn steps
     paints = _since(window.plotter.paint_log, began)  # the render, in the paint after it
     plots = _since(window.plots.draw_log, began)
@@ -153,12 +153,12 @@ def _interrupt_run(app, args, name, settings, how):
     """Run, then Pause (or close the window) once ``--pause-after`` steps have been taken."""
     window = _window(args, _scene(args, name), settings)
     app.processEvents()
-    window.run_button.setChecked(True)
+    window.loop_panel.run_button.setChecked(True)
     runner = window.runner
     _wait(app, lambda: len(runner.step_ends) >= args.pause_after or not window.running, 600)
     clicked = time.perf_counter()
     if how == "pause":
-        window.run_button.setChecked(False)
+        window.loop_panel.run_button.setChecked(False)
         _wait(app, lambda: not window.running, 600)
         done = runner.finished_at
         window.close()

@@ -1,11 +1,13 @@
-"""The main window: a pyvista viewport, a control panel and plots, on a :class:`Scene`.
+"""The main window: a pyvista viewport, the Controls dock's panels and plots, on a :class:`Scene`.
 
-The window owns no inference state and no settings of its own: it calls the scene's methods
-and, whenever one of the scene's signals fires, fills every control from the scene (so the
-command line, a loaded session and a preset all show the same way). Steps run in a worker
-thread (see :mod:`tactile_viz.gui.runner`) that yields one immutable snapshot per step; only
-the newest snapshot of the current session is drawn, and VTK is touched only on the GUI
-thread. While steps run, every control that would change the scene is disabled.
+The window owns no inference state and no settings of its own. The panels of
+:mod:`tactile_viz.gui.panels` build the controls; the window connects their signals to the
+scene's methods and, whenever one of the scene's signals fires, has the panels fill their
+widgets from the scene (so the command line, a loaded session and a preset all show the same
+way). Steps run in a worker thread (see :mod:`tactile_viz.gui.runner`) that yields one
+immutable snapshot per step; only the newest snapshot of the current session is drawn, and
+VTK is touched only on the GUI thread. While steps run, every control that would change the
+scene is disabled.
 """
 
 import json
@@ -13,29 +15,26 @@ import os
 import threading
 import time
 from collections import deque
-from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import numpy as np
 from pyvistaqt import QtInteractor
-from PySide6.QtCore import QByteArray, QSettings, QSignalBlocker, Qt, QTimer, Signal
+from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QDockWidget, QDoubleSpinBox,
-                               QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QListWidget, QListWidgetItem, QMainWindow, QMessageBox,
-                               QProgressBar, QProgressDialog, QPushButton, QScrollArea,
-                               QSizePolicy, QSlider, QSpinBox, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
+                               QProgressBar, QProgressDialog, QScrollArea, QVBoxLayout,
+                               QWidget)
 from superqt.utils import thread_worker
 
 from ..engine.errors import TactileVizError
-from ..engine.exploration import STRATEGIES
 from ..engine.session import Session
-from .layers import LAYERS, ViewportLayers
+from .layers import ViewportLayers
+from .panels import ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel, ScenePanel, status_text
+from .panels.base import blocked
 from .plots import PlotsWidget
 from .recording import Recorder, widget_frame
 from .runner import StepRunner
 
-OPEN_FILE = "Open mesh file..."
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 MESH_FILTER = "Meshes (*.obj *.ply *.stl *.off *.glb *.gltf);;All files (*)"
 SETTINGS_ORGANIZATION = "tactile_viz"
@@ -45,24 +44,6 @@ STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
 # loop runs in between instead of blocking for both.
 PLOTS_DELAY_MS = 30
 PLOTS_WIDTH = 320  # the plots dock's width at first start, pixels
-
-# name -> (label, minimum, maximum, step, decimals, tooltip)
-PARAMETERS = {
-    "sigma_d": ("sigma_d", 1e-3, 100.0, 0.05, 3,
-                "Std of the signed-distance likelihood. Larger forgives contacts off the "
-                "prior surface (noise, novel shapes) but separates classes less sharply."),
-    "sigma_n": ("sigma_n", 1e-3, 100.0, 0.1, 3,
-                "Std of the normal likelihood. Larger trusts measured normals less."),
-    "eps": ("eps (DHD)", 0.05, 10.0, 0.05, 2,
-            "Termination: stop when every point of the estimated surface is within eps of "
-            "a contact. Smaller covers the surface more densely at the cost of more steps."),
-    "n_s": ("n_s", 1, 500, 1, 0,
-            "Earlier contacts paired with each new one to propose particles. More pairs "
-            "find the pose sooner but cost time per step."),
-    "lam": ("lambda", 0.01, 1.0, 0.01, 2,
-            "Sampling gate: new particles are proposed while the MAP fit is below this "
-            "fraction of perfect. Higher samples more often (slower, more robust)."),
-}
 
 # action name -> (label, shortcut, tooltip); the shortcuts are listed in Help > Keys.
 ACTIONS = {
@@ -173,6 +154,26 @@ class _Progress(QWidget):
         self.changed.emit(int(done), int(total))
 
 
+def _scrolled(groups):
+    """A scroll area that stacks ``groups`` and never scrolls sideways."""
+    panel = QWidget()
+    layout = QVBoxLayout(panel)
+    layout.setContentsMargins(4, 0, 4, 4)
+    layout.setSpacing(4)
+    for group in groups:
+        layout.addWidget(group)
+    layout.addStretch(1)
+    scroll = QScrollArea()
+    scroll.setWidget(panel)
+    scroll.setWidgetResizable(True)
+    scroll.setFrameShape(QScrollArea.NoFrame)
+    scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)
+    # As wide as the panel wants plus a vertical scroll bar: nothing clipped sideways.
+    scroll.setMinimumWidth(panel.sizeHint().width()
+                           + scroll.verticalScrollBar().sizeHint().width() + 4)
+    return scroll
+
+
 class MainWindow(QMainWindow):
     """The tactile_viz desktop window.
 
@@ -221,7 +222,7 @@ class MainWindow(QMainWindow):
         self.runner.extra_seconds = lambda: (self.plots.last_draw_seconds
                                              + self.plotter.last_paint_seconds)
         scene.truth_changed.connect(self._on_truth_changed)
-        scene.library_changed.connect(lambda library: self._fill_priors())
+        scene.library_changed.connect(lambda library: self.priors_panel.sync(self.scene))
         scene.settings_changed.connect(self._sync_settings)
         scene.session_reset.connect(self._on_session_reset)
         scene.stepped.connect(self._on_stepped)
@@ -271,164 +272,54 @@ class MainWindow(QMainWindow):
             self.addAction(action)  # shortcuts work wherever the focus is in the window
 
     def _build_panel(self):
-        panel = QWidget()
-        layout = QVBoxLayout(panel)
-        layout.setContentsMargins(4, 4, 4, 4)
-        layout.setSpacing(4)
-        # The loop first: it is what one needs most, and never below the fold.
-        layout.addWidget(self._loop_group())
-        layout.addWidget(self._scene_group())
-        layout.addWidget(self._priors_group())
-        layout.addWidget(self._exploration_group())
-        layout.addWidget(self._layers_group())
-        layout.addStretch(1)
-        scroll = QScrollArea()
-        scroll.setWidget(panel)
-        scroll.setWidgetResizable(True)
-        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)
-        # As wide as the panel wants plus a vertical scroll bar: nothing clipped sideways.
-        scroll.setMinimumWidth(panel.sizeHint().width()
-                               + scroll.verticalScrollBar().sizeHint().width() + 4)
-        self.panel_scroll = scroll
+        tips = {name: self.actions[name].toolTip() for name in ("step", "run", "finish", "reset")}
+        self.loop_panel = LoopPanel(tips)
+        self.scene_panel = ScenePanel(self.scene.bundled_objects())
+        self.priors_panel = PriorsPanel()
+        self.exploration_panel = ExplorationPanel()
+        self.layers_panel = LayersPanel()
+        self.layers_panel.sync(self.layers.visible)
+        self._connect_panels()
+        self.panel_scroll = _scrolled([self.scene_panel, self.priors_panel,
+                                       self.exploration_panel, self.layers_panel])
+        # The loop stays above the scrolled groups: it is what one needs most.
+        controls = QWidget()
+        column = QVBoxLayout(controls)
+        column.setContentsMargins(4, 4, 4, 0)
+        column.setSpacing(4)
+        column.addWidget(self.loop_panel)
+        column.addWidget(self.panel_scroll, 1)
         dock = QDockWidget("Controls", self)
         dock.setObjectName("controls")
-        dock.setWidget(scroll)
+        dock.setWidget(controls)
         dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable)
         self.addDockWidget(Qt.LeftDockWidgetArea, dock)
         self.controls_dock = dock
 
-    def _scene_group(self):
-        group = QGroupBox("Scene")
-        form = QFormLayout(group)
-        form.setContentsMargins(6, 4, 6, 4)
-        self.object_box = QComboBox()
-        self.object_box.addItems(self.scene.bundled_objects() + [OPEN_FILE])
-        self.object_box.setToolTip("The ground-truth object the sensor touches")
-        self.object_box.activated.connect(self._on_object_chosen)
-        self.seed_box = QSpinBox()
-        self.seed_box.setRange(0, 1_000_000)
-        self.seed_box.setToolTip("Seed of the random pose and of the session: Place at seed "
-                                 "applies it")
-        self.random_button = QPushButton("Random pose")
-        self.random_button.clicked.connect(self._on_random_pose)
-        self.place_button = QPushButton("Place at seed")
-        self.place_button.clicked.connect(lambda: self._guarded(
-            self.scene.randomize_pose, self.seed_box.value()))
-        buttons = QHBoxLayout()
-        buttons.addWidget(self.random_button)
-        buttons.addWidget(self.place_button)
-        form.addRow("object", self.object_box)
-        form.addRow("seed", self.seed_box)
-        form.addRow(buttons)
-        return group
-
-    def _priors_group(self):
-        group = QGroupBox("Priors")
-        layout = QVBoxLayout(group)
-        layout.setContentsMargins(6, 4, 6, 4)
-        self.prior_list = QListWidget()
-        self.prior_list.setToolTip("Checked priors are the classes the filter considers")
-        self.prior_list.setMaximumHeight(150)
-        self.prior_list.itemChanged.connect(self._on_prior_toggled)
-        layout.addWidget(self.prior_list)
-        row = QHBoxLayout()
-        self.prior_buttons = []
-        for label, slot in (("Load mesh...", self._on_load_prior_mesh),
-                            ("Load library...", self._on_load_library),
-                            ("Save library...", self._on_save_library)):
-            button = QPushButton(label)
-            button.clicked.connect(slot)
-            row.addWidget(button)
-            self.prior_buttons.append(button)
-        layout.addLayout(row)
-        self.learn_button = QPushButton("Add learned shape")
-        self.learn_button.setToolTip("Add the reconstructed novel shape to the priors")
-        self.learn_button.clicked.connect(self._on_learn)
-        layout.addWidget(self.learn_button)
-        return group
-
-    def _exploration_group(self):
-        group = QGroupBox("Exploration")
-        form = QFormLayout(group)
-        form.setContentsMargins(6, 4, 6, 4)
-        self.strategy_box = QComboBox()
-        self.strategy_box.addItems(list(STRATEGIES))
-        self.strategy_box.setToolTip("gpis-dhd: aim where the estimate is least covered "
-                                     "(paper); rrt: random tangent steps (baseline)")
-        self.strategy_box.activated.connect(
-            lambda index: self._guarded(self.scene.set_strategy,
-                                        self.strategy_box.itemText(index)))
-        self.preset_box = QComboBox()
-        self.preset_box.setToolTip("fast: coarser grids, fewer features; paper: the paper's "
-                                   "values; refined: the paper's values plus MAP pose refinement; "
-                                   "accurate: finer grids, neighbour bins, refinement")
-        self.preset_box.activated.connect(
-            lambda index: self._guarded(self.scene.set_preset, self.preset_box.itemText(index)))
-        form.addRow("strategy", self.strategy_box)
-        form.addRow("preset", self.preset_box)
-        self.parameter_boxes = {}
-        for name, (label, low, high, step, decimals, tip) in PARAMETERS.items():
-            box = QSpinBox() if decimals == 0 else QDoubleSpinBox()
-            if decimals:
-                box.setDecimals(decimals)
-            box.setRange(low, high)
-            box.setSingleStep(step)
-            box.setToolTip(tip)
-            box.setKeyboardTracking(False)
-            box.valueChanged.connect(lambda value, n=name: self._guarded(
-                self.scene.set_parameter, n, value))
-            form.addRow(label, box)
-            self.parameter_boxes[name] = box
-        return group
-
-    def _loop_group(self):
-        group = QGroupBox("Loop")
-        layout = QVBoxLayout(group)
-        layout.setContentsMargins(6, 4, 6, 4)
-        row = QHBoxLayout()
-        self.step_button = QPushButton("Step")
-        self.step_button.clicked.connect(lambda: self.start(1))
-        self.run_button = QPushButton("Run")
-        self.run_button.setCheckable(True)
-        self.run_button.toggled.connect(self._on_run_toggled)
-        self.finish_button = QPushButton("Run to termination")
-        self.finish_button.clicked.connect(lambda: self.start(None))
-        self.reset_button = QPushButton("Reset")
-        self.reset_button.clicked.connect(self._on_reset)
-        for name, button in (("step", self.step_button), ("run", self.run_button),
-                             ("finish", self.finish_button), ("reset", self.reset_button)):
-            button.setToolTip(self.actions[name].toolTip())
-            row.addWidget(button)
-        layout.addLayout(row)
-        self.step_label = QLabel("step 0")
-        self.status_label = QLabel()
-        self.status_label.setWordWrap(True)
-        self.status_label.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
-        self.history_slider = QSlider(Qt.Horizontal)
-        self.history_slider.setRange(0, 0)
-        self.history_slider.setToolTip("Scrub through the steps taken so far (not while "
-                                       "running); the next step continues from the last")
-        self.history_slider.valueChanged.connect(self._on_scrub)
-        layout.addWidget(self.step_label)
-        layout.addWidget(self.history_slider)
-        layout.addWidget(self.status_label)
-        return group
-
-    def _layers_group(self):
-        group = QGroupBox("Layers")
-        layout = QVBoxLayout(group)
-        layout.setContentsMargins(6, 4, 6, 4)
-        layout.setSpacing(0)
-        self.layer_boxes = {}
-        for name, (label, color) in LAYERS.items():
-            box = QCheckBox(label)
-            box.setChecked(self.layers.visible[name])
-            shown = {"truth": "steelblue", "gpis": "teal"}.get(name, color)
-            box.setStyleSheet(f"QCheckBox {{ color: {shown}; }}")
-            box.toggled.connect(lambda checked, n=name: self.layers.set_visible(n, checked))
-            layout.addWidget(box)
-            self.layer_boxes[name] = box
-        return group
+    def _connect_panels(self):
+        loop = self.loop_panel
+        loop.step_requested.connect(lambda: self.start(1))
+        loop.run_toggled.connect(self._on_run_toggled)
+        loop.finish_requested.connect(lambda: self.start(None))
+        loop.reset_requested.connect(self._on_reset)
+        loop.scrubbed.connect(self._on_scrub)
+        truth = self.scene_panel
+        truth.object_chosen.connect(self._on_object_chosen)
+        truth.open_file_requested.connect(self._on_open_file_chosen)
+        truth.pose_requested.connect(lambda seed: self._guarded(self.scene.randomize_pose, seed))
+        priors = self.priors_panel
+        priors.prior_toggled.connect(self._on_prior_toggled)
+        priors.load_mesh_requested.connect(self._on_load_prior_mesh)
+        priors.load_library_requested.connect(self._on_load_library)
+        priors.save_library_requested.connect(self._on_save_library)
+        priors.learn_requested.connect(self._on_learn)
+        exploration = self.exploration_panel
+        exploration.strategy_chosen.connect(
+            lambda name: self._guarded(self.scene.set_strategy, name))
+        exploration.preset_chosen.connect(lambda name: self._guarded(self.scene.set_preset, name))
+        exploration.parameter_changed.connect(
+            lambda name, value: self._guarded(self.scene.set_parameter, name, value))
+        self.layers_panel.layer_toggled.connect(self.layers.set_visible)
 
     def _build_plots(self):
         self.plots = PlotsWidget()
@@ -557,22 +448,18 @@ class MainWindow(QMainWindow):
 
     def _show_running(self, running):
         """Buttons, actions and the run toggle as they are while (not) running."""
-        for toggle in (self.run_button, self.actions["run"]):
-            toggle.blockSignals(True)
-            toggle.setChecked(running)
-            toggle.setText("Pause" if running else "Run")
-            toggle.blockSignals(False)
+        run = self.actions["run"]
+        with blocked(run):
+            run.setChecked(running)
+            run.setText("Pause" if running else "Run")
         self._set_controls_enabled(not running and not self.loading)
-        self.history_slider.setEnabled(not running and not self.loading)
-        self.run_button.setEnabled(not self.loading)
-        self.actions["run"].setEnabled(not self.loading)
+        self.loop_panel.set_running(running, self.loading)
+        run.setEnabled(not self.loading)
 
     def scene_controls(self):
         """Every widget and action that changes the scene (disabled while steps run)."""
-        widgets = [self.step_button, self.finish_button, self.reset_button, self.object_box,
-                   self.seed_box, self.random_button, self.place_button, self.prior_list,
-                   *self.prior_buttons, self.learn_button, self.strategy_box, self.preset_box,
-                   *self.parameter_boxes.values()]
+        widgets = [control for panel in (self.loop_panel, self.scene_panel, self.priors_panel,
+                                         self.exploration_panel) for control in panel.controls()]
         actions = [self.actions[name] for name in ("step", "finish", "reset", "open_truth",
                                                    "load_library", "save_library",
                                                    "load_session", "save_session")]
@@ -582,7 +469,7 @@ class MainWindow(QMainWindow):
         for control in self.scene_controls():
             control.setEnabled(enabled)
         if enabled:
-            self.learn_button.setEnabled(self.scene.can_learn())
+            self.priors_panel.learn_button.setEnabled(self.scene.can_learn())
 
     def _idle(self, what="that"):
         """True when the scene may change; else says why in the status bar."""
@@ -603,38 +490,20 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ scene events
     def _sync_controls(self):
         """Fill every control from the scene."""
-        self._show_truth_choice()
-        self._fill_priors()
-        self._sync_settings()
-
-    def _show_truth_choice(self):
-        name = self.scene.truth_model.name
-        with _blocked(self.object_box, self.seed_box):
-            if self.object_box.findText(name) < 0:
-                self.object_box.insertItem(self.object_box.count() - 1, name)
-            self.object_box.setCurrentText(name)
-            self.seed_box.setValue(self.scene.seed)
+        self.scene_panel.sync(self.scene)
+        self.priors_panel.sync(self.scene)
+        self.exploration_panel.sync(self.scene)
 
     def _sync_settings(self):
-        """Strategy, preset and parameter boxes as the scene has them."""
-        with _blocked(self.strategy_box, self.preset_box, *self.parameter_boxes.values()):
-            self.strategy_box.setCurrentText(self.scene.strategy)
-            names = self.scene.preset_names()
-            if [self.preset_box.itemText(i) for i in range(self.preset_box.count())] != names:
-                self.preset_box.clear()
-                self.preset_box.addItems(names)
-            self.preset_box.setCurrentText(self.scene.preset)
-            for name, box in self.parameter_boxes.items():
-                box.setValue(self.scene.parameter(name))
+        self.exploration_panel.sync(self.scene)
 
     def _on_truth_changed(self, truth):
         self.layers.show_truth(truth, render=False)
         self.frame_truth()
-        self._show_truth_choice()
+        self.scene_panel.sync(self.scene)
 
     def _on_session_reset(self):
-        with _blocked(self.history_slider):
-            self.history_slider.setRange(0, 0)
+        self.loop_panel.set_history(0)
         self.layers.clear_session(render=False)
         self.plotter.schedule_render()
         self._plots_timer.stop()
@@ -646,9 +515,7 @@ class MainWindow(QMainWindow):
         self._show_step(snapshot)
         if self.recorder is not None:
             self.recorder.add(widget_frame(self))
-        with _blocked(self.history_slider):
-            self.history_slider.setRange(1, snapshot.step)
-            self.history_slider.setValue(snapshot.step)
+        self.loop_panel.set_history(snapshot.step)
 
     def _show_step(self, snapshot):
         self.layers.models = self.scene.session.library
@@ -674,32 +541,24 @@ class MainWindow(QMainWindow):
             self._show_step(snapshots[step - 1])
 
     def _update_status(self, snapshot):
-        eps = self.scene.parameter("eps")
+        self.loop_panel.show_snapshot(snapshot)
+        learn_button = self.priors_panel.learn_button
         if snapshot is None:
-            self.step_label.setText("step 0")
-            self.status_label.setText("Press Step or Run to start touching.")
+            eps = self.scene.parameter("eps")
             self.statusBar().showMessage("new session: press Step or Run to start touching",
                                          STATUS_SECONDS)
-            self.learn_button.setEnabled(False)
+            learn_button.setEnabled(False)
             self._set_progress(0, self.scene.params.max_steps_known)
             self.dhd_label.setText(f"DHD - / eps {eps:.2f}")
             self.plots.set_eps(eps)
             return
-        recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
-        seconds = sum(snapshot.timings.values())
-        self.step_label.setText(f"step {snapshot.step}" + (" (terminated)" if snapshot.terminated else ""))
-        text = (f"{'NOVEL' if snapshot.novel else 'known'} | MAP {snapshot.map_class} | "
-                f"DHD {snapshot.dhd:.2f} | pose error {snapshot.pose_error:.2f} | "
-                f"recon error {recon} | particles {snapshot.n_particles} | "
-                f"last step {seconds:.2f} s")
-        self.status_label.setText(text)
-        self.statusBar().showMessage(text)
+        self.statusBar().showMessage(status_text(snapshot))
         params = self.scene.session.params if self.scene.session is not None else self.scene.params
         cap = params.max_steps_novel if snapshot.novel else params.max_steps_known
         self._set_progress(snapshot.step, max(cap, snapshot.step))
         self.dhd_label.setText(f"DHD {snapshot.dhd:.2f} / eps {params.eps:.2f}")
         self.plots.set_eps(params.eps)
-        self.learn_button.setEnabled(not self.running and self.scene.can_learn())
+        learn_button.setEnabled(not self.running and self.scene.can_learn())
 
     def _set_progress(self, value, maximum):
         """Without QProgressBar's synchronous repaint, which repaints the whole window (the
@@ -711,27 +570,17 @@ class MainWindow(QMainWindow):
         self.progress.update()
 
     # ------------------------------------------------------------------ controls
-    def _fill_priors(self):
-        with _blocked(self.prior_list):
-            self.prior_list.clear()
-            for name in self.scene.library.names:
-                item = QListWidgetItem(name)
-                item.setFlags(item.flags() | Qt.ItemIsUserCheckable)
-                item.setCheckState(Qt.Checked if self.scene.enabled[name] else Qt.Unchecked)
-                self.prior_list.addItem(item)
+    def _on_prior_toggled(self, name, enabled):
+        if not self._guarded(self.scene.set_prior_enabled, name, enabled):
+            self.priors_panel.sync(self.scene)
 
-    def _on_prior_toggled(self, item):
-        if not self._guarded(self.scene.set_prior_enabled, item.text(),
-                             item.checkState() == Qt.Checked):
-            self._fill_priors()
+    def _on_object_chosen(self, name):
+        self._guarded(self.scene.set_truth_bundled, name)
+        self.scene_panel.sync(self.scene)
 
-    def _on_object_chosen(self, index):
-        text = self.object_box.itemText(index)
-        if text == OPEN_FILE:
-            self._open_truth_file()
-        else:
-            self._guarded(self.scene.set_truth_bundled, text)
-        self._show_truth_choice()
+    def _on_open_file_chosen(self):
+        self._open_truth_file()
+        self.scene_panel.sync(self.scene)
 
     def _open_truth_file(self):
         if self._idle("a new ground truth"):
@@ -740,7 +589,7 @@ class MainWindow(QMainWindow):
             if path:
                 self._remember("meshes", path)
                 self.load_truth_file(path)
-        self._show_truth_choice()
+        self.scene_panel.sync(self.scene)
 
     def load_truth_file(self, path):
         """Use a mesh file as the ground truth (an error box, and no change, if it is bad)."""
@@ -752,10 +601,6 @@ class MainWindow(QMainWindow):
             self.statusBar().showMessage(f"{len(paths)} files dropped: using the first",
                                          STATUS_SECONDS)
         self.load_truth_file(paths[0])
-
-    def _on_random_pose(self):
-        seed = int(np.random.default_rng().integers(1_000_000))
-        self._guarded(self.scene.randomize_pose, seed)
 
     def _on_reset(self):
         if self._idle("Reset"):
@@ -948,7 +793,7 @@ class MainWindow(QMainWindow):
         return path
 
     def _show_recording(self, recording):
-        with _blocked(self.actions["record"]):
+        with blocked(self.actions["record"]):
             self.actions["record"].setChecked(recording)
 
     def _view(self, method):
@@ -985,11 +830,3 @@ class MainWindow(QMainWindow):
     def show_error(self, error):
         QMessageBox.critical(self, "tactile_viz", str(error))
 
-
-@contextmanager
-def _blocked(*widgets):
-    """Block the signals of some widgets within a ``with`` block (QSignalBlocker each)."""
-    with ExitStack() as stack:
-        for widget in widgets:
-            stack.enter_context(QSignalBlocker(widget))
-        yield

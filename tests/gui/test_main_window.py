@@ -54,51 +54,52 @@ def _wait_idle(qtbot, window, timeout=60_000):
 
 def test_window_opens_with_default_scene(window):
     assert "truth" in window.layers.actors
-    assert window.prior_list.count() == 10
-    assert window.step_label.text() == "step 0"
-    assert window.object_box.currentText() == "mug_1"
+    assert window.priors_panel.prior_list.count() == 10
+    assert window.loop_panel.step_label.text() == "step 0"
+    assert window.scene_panel.object_box.currentText() == "mug_1"
 
 
 def test_step_adds_contacts_and_advances_counter(qtbot, window):
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
-    assert window.step_label.text().startswith("step 1")
+    assert window.loop_panel.step_label.text().startswith("step 1")
     contacts = window.layers.actors["contacts"]
     assert contacts.mapper.dataset.n_points > 0
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
-    assert window.step_label.text().startswith("step 2")
+    assert window.loop_panel.step_label.text().startswith("step 2")
     assert len(window.scene.latest.contacts) == 2
     assert "map" in window.layers.actors
 
 
 def test_run_then_pause_stops_within_one_step(qtbot, window):
-    window.run_button.setChecked(True)
+    window.loop_panel.run_button.setChecked(True)
     qtbot.waitUntil(lambda: window.scene.latest is not None and window.scene.latest.step >= 3,
                     timeout=60_000)
     at_pause = window.scene.latest.step
-    window.run_button.setChecked(False)
+    window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
     assert window.scene.latest.step <= at_pause + 1
-    assert not window.run_button.isChecked() and window.step_button.isEnabled()
+    loop = window.loop_panel
+    assert not loop.run_button.isChecked() and loop.step_button.isEnabled()
 
 
 def test_toggling_a_layer_hides_its_actor(qtbot, window):
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
-    window.layer_boxes["contacts"].setChecked(False)
+    window.layers_panel.layer_boxes["contacts"].setChecked(False)
     assert not window.layers.actors["contacts"].GetVisibility()
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
     assert not window.layers.actors["contacts"].GetVisibility()  # stays hidden across steps
-    window.layer_boxes["contacts"].setChecked(True)
+    window.layers_panel.layer_boxes["contacts"].setChecked(True)
     assert window.layers.actors["contacts"].GetVisibility()
-    window.layer_boxes["truth"].setChecked(False)
+    window.layers_panel.layer_boxes["truth"].setChecked(False)
     assert not window.layers.actors["truth"].GetVisibility()
 
 
 def test_broken_mesh_shows_error_and_changes_nothing(qtbot, window, errors, tmp_path):
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
     session, truth = window.scene.session, window.scene.truth
     bad = tmp_path / "broken.stl"
@@ -107,11 +108,11 @@ def test_broken_mesh_shows_error_and_changes_nothing(qtbot, window, errors, tmp_
     assert errors and "broken.stl" in errors[0]
     assert window.scene.truth is truth and window.scene.session is session
     window._guarded(window.scene.add_prior_file, str(bad))
-    assert len(errors) == 2 and window.prior_list.count() == 10
+    assert len(errors) == 2 and window.priors_panel.prior_list.count() == 10
 
 
 def test_invalid_parameter_is_refused(window, errors):
-    window.parameter_boxes["lam"].setValue(0.01)
+    window.exploration_panel.parameter_boxes["lam"].setValue(0.01)
     assert window.scene.parameter("lam") == pytest.approx(0.01)
     window.scene.set_parameter("lam", 0.97)
     with pytest.raises(ValueError):
@@ -120,18 +121,18 @@ def test_invalid_parameter_is_refused(window, errors):
 
 
 def test_unchecking_priors_restricts_the_filter(qtbot, window):
-    for index in range(window.prior_list.count()):
-        item = window.prior_list.item(index)
+    for index in range(window.priors_panel.prior_list.count()):
+        item = window.priors_panel.prior_list.item(index)
         if item.text() not in ("mug_1", "vase_1"):
             item.setCheckState(item.checkState().__class__.Unchecked)
     assert window.scene.active_library().names == ["mug_1", "vase_1"]
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
     assert set(window.scene.latest.class_posterior) == {"mug_1", "vase_1"}
 
 
 def test_closing_during_run_stops_the_worker(qtbot, window):
-    window.run_button.setChecked(True)
+    window.loop_panel.run_button.setChecked(True)
     qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
     window.close()
     assert not window.running
@@ -162,18 +163,19 @@ def _open(qtbot, scene, settings):
 
 
 def test_scene_changing_controls_are_disabled_during_run(qtbot, window):
-    window.run_button.setChecked(True)
-    assert window.running and window.run_button.text() == "Pause"
-    assert window.run_button.isEnabled()
+    window.loop_panel.run_button.setChecked(True)
+    assert window.running and window.loop_panel.run_button.text() == "Pause"
+    assert window.loop_panel.run_button.isEnabled()
     assert all(not control.isEnabled() for control in window.scene_controls())
     strategy = window.scene.strategy
     assert not window._guarded(window.scene.set_strategy, "rrt")  # refused while running
     assert window.scene.strategy == strategy
     qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
-    window.run_button.setChecked(False)
+    window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
-    assert window.run_button.text() == "Run" and not window.run_button.isChecked()
-    enabled = [c for c in window.scene_controls() if c is not window.learn_button]
+    run_button = window.loop_panel.run_button
+    assert run_button.text() == "Run" and not run_button.isChecked()
+    enabled = [c for c in window.scene_controls() if c is not window.priors_panel.learn_button]
     assert all(control.isEnabled() for control in enabled)
 
 
@@ -181,10 +183,11 @@ def test_controls_show_the_command_line_settings(qtbot, known_library, settings)
     scene = Scene("vase_1", seed=4, library=PriorLibrary(list(known_library)),
                   strategy="rrt", preset="fast")
     window = _open(qtbot, scene, settings)
-    assert window.strategy_box.currentText() == "rrt"
-    assert window.preset_box.currentText() == "fast"
-    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 4
-    for name, box in window.parameter_boxes.items():
+    assert window.exploration_panel.strategy_box.currentText() == "rrt"
+    assert window.exploration_panel.preset_box.currentText() == "fast"
+    truth = window.scene_panel
+    assert truth.object_box.currentText() == "vase_1" and truth.seed_box.value() == 4
+    for name, box in window.exploration_panel.parameter_boxes.items():
         assert box.value() == pytest.approx(scene.parameter(name), abs=1e-3)
     window.close()
 
@@ -197,10 +200,11 @@ def test_controls_show_a_loaded_session(qtbot, window, known_library, tmp_path):
     path = other.save_session(tmp_path / "session.npz")
     assert window.load_session(path)
     qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
-    assert window.strategy_box.currentText() == "rrt"
-    assert window.parameter_boxes["eps"].value() == pytest.approx(0.8)
-    assert window.object_box.currentText() == "vase_1" and window.seed_box.value() == 3
-    assert window.step_label.text().startswith("step 2")
+    assert window.exploration_panel.strategy_box.currentText() == "rrt"
+    assert window.exploration_panel.parameter_boxes["eps"].value() == pytest.approx(0.8)
+    truth = window.scene_panel
+    assert truth.object_box.currentText() == "vase_1" and truth.seed_box.value() == 3
+    assert window.loop_panel.step_label.text().startswith("step 2")
 
 
 def _legend_labels(layers):
@@ -214,42 +218,42 @@ def test_legend_lists_only_present_and_visible_layers(qtbot, window):
     from tactile_viz.gui.layers import LAYERS
 
     assert _legend_labels(window.layers) == [LAYERS["truth"][0]]
-    window.step_button.click()
+    window.loop_panel.step_button.click()
     _wait_idle(qtbot, window)
     expected = [LAYERS[n][0] for n in LAYERS if window.layers.shown(n)]
     assert _legend_labels(window.layers) == expected and LAYERS["contacts"][0] in expected
     assert LAYERS["gpis"][0] not in expected  # a known object has no reconstruction yet
-    window.layer_boxes["contacts"].setChecked(False)
+    window.layers_panel.layer_boxes["contacts"].setChecked(False)
     assert LAYERS["contacts"][0] not in _legend_labels(window.layers)
-    window.layer_boxes["contacts"].setChecked(True)
+    window.layers_panel.layer_boxes["contacts"].setChecked(True)
     assert LAYERS["contacts"][0] in _legend_labels(window.layers)
 
 
 def test_history_slider_shows_earlier_steps(qtbot, window):
     for _ in range(3):
-        window.step_button.click()
+        window.loop_panel.step_button.click()
         _wait_idle(qtbot, window)
-    slider = window.history_slider
+    slider = window.loop_panel.history_slider
     assert (slider.minimum(), slider.maximum(), slider.value()) == (1, 3, 3)
     points = window.layers.actors["contacts"].mapper.dataset.n_points
     first, last = (len(window.scene.snapshots[i].contacts) for i in (0, 2))
     slider.setValue(1)
-    assert window.step_label.text().startswith("step 1")
+    assert window.loop_panel.step_label.text().startswith("step 1")
     assert window.layers.latest.step == 1 and window.plots._steps == [1]
     assert window.layers.actors["contacts"].mapper.dataset.n_points * last == points * first
     slider.setValue(3)
     assert window.layers.latest is window.scene.latest and window.plots._steps == [1, 2, 3]
-    window.run_button.setChecked(True)
+    window.loop_panel.run_button.setChecked(True)
     assert not slider.isEnabled()
-    window.run_button.setChecked(False)
+    window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
-    window.reset_button.click()
+    window.loop_panel.reset_button.click()
     assert (slider.minimum(), slider.maximum()) == (0, 0)
 
 
 def test_dhd_stop_line_follows_eps(window):
     assert window.plots.eps_line.get_ydata()[0] == pytest.approx(window.scene.parameter("eps"))
-    window.parameter_boxes["eps"].setValue(0.8)
+    window.exploration_panel.parameter_boxes["eps"].setValue(0.8)
     assert window.scene.parameter("eps") == pytest.approx(0.8)
     assert window.plots.eps_line.get_ydata()[0] == pytest.approx(0.8)
     assert "eps 0.80" in window.dhd_label.text()
@@ -261,7 +265,7 @@ def test_recording_writes_a_frame_per_drawn_step(qtbot, window, errors, tmp_path
     path = tmp_path / "steps.gif"
     assert window.start_recording(path) and window.actions["record"].isChecked()
     for _ in range(2):
-        window.step_button.click()
+        window.loop_panel.step_button.click()
         _wait_idle(qtbot, window)
     assert window.stop_recording() == path and not window.actions["record"].isChecked()
     frames = imageio.mimread(path)
@@ -282,23 +286,23 @@ def test_screenshot_is_the_whole_window(window, tmp_path):
 def test_dropped_mesh_goes_through_the_scene(qtbot, window, errors, tmp_path):
     path = tmp_path / "dropped_vase.obj"
     load_bundled("vase_1").mesh.export(path)
-    window.run_button.setChecked(True)
+    window.loop_panel.run_button.setChecked(True)
     window.plotter.files_dropped.emit([str(path)])  # refused while running
     assert window.scene.truth_model.name == "mug_1"
-    window.run_button.setChecked(False)
+    window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
     window.plotter.files_dropped.emit([str(path)])
     assert window.scene.truth_model.name == "dropped_vase" and window.scene.session is None
-    assert window.object_box.currentText() == "dropped_vase" and not errors
+    assert window.scene_panel.object_box.currentText() == "dropped_vase" and not errors
 
 
 def test_belief_ghosts_show_the_other_hypotheses_by_weight(qtbot, window):
     from tactile_viz.gui.layers import LAYERS
 
     for _ in range(3):
-        window.step_button.click()
+        window.loop_panel.step_button.click()
         _wait_idle(qtbot, window)
-    box = window.layer_boxes["hypotheses"]
+    box = window.layers_panel.layer_boxes["hypotheses"]
     assert not box.isChecked() and "hypotheses" not in window.layers.actors  # off at start
     hypotheses = window.scene.latest.hypotheses
     assert 1 <= len(hypotheses) <= 4
@@ -324,4 +328,4 @@ def test_fits_1280_by_720(qtbot, window):
     qtbot.wait(50)
     assert window.plotter.width() >= 480  # the docks leave the viewport room
     assert window.controls_dock.geometry().bottom() <= window.height()
-    assert not window.run_button.visibleRegion().isEmpty()  # the loop is above the fold
+    assert not window.loop_panel.run_button.visibleRegion().isEmpty()  # the loop is above the fold

@@ -1,0 +1,94 @@
+"""The Exploration panel: strategy, preset and the main parameters of a session."""
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QSpinBox
+
+from ...engine.exploration import STRATEGIES
+from .base import MARGINS, blocked
+
+# name -> (label, minimum, maximum, step, decimals, tooltip)
+PARAMETERS = {
+    "sigma_d": ("sigma_d", 1e-3, 100.0, 0.05, 3,
+                "Std of the signed-distance likelihood. Larger forgives contacts off the "
+                "prior surface (noise, novel shapes) but separates classes less sharply."),
+    "sigma_n": ("sigma_n", 1e-3, 100.0, 0.1, 3,
+                "Std of the normal likelihood. Larger trusts measured normals less."),
+    "eps": ("eps (DHD)", 0.05, 10.0, 0.05, 2,
+            "Termination: stop when every point of the estimated surface is within eps of "
+            "a contact. Smaller covers the surface more densely at the cost of more steps."),
+    "n_s": ("n_s", 1, 500, 1, 0,
+            "Earlier contacts paired with each new one to propose particles. More pairs "
+            "find the pose sooner but cost time per step."),
+    "lam": ("lambda", 0.01, 1.0, 0.01, 2,
+            "Sampling gate: new particles are proposed while the MAP fit is below this "
+            "fraction of perfect. Higher samples more often (slower, more robust)."),
+}
+
+
+class ExplorationPanel(QGroupBox):
+    """Strategy, preset and one spin box per main parameter.
+
+    Signals
+    -------
+    strategy_chosen(str)
+    preset_chosen(str)
+    parameter_changed(str, object)
+        A parameter's name and its new value (an int for ``n_s``, else a float).
+    """
+
+    strategy_chosen = Signal(str)
+    preset_chosen = Signal(str)
+    parameter_changed = Signal(str, object)
+
+    def __init__(self, parent=None):
+        super().__init__("Exploration", parent)
+        form = QFormLayout(self)
+        form.setContentsMargins(*MARGINS)
+        self.strategy_box = QComboBox()
+        self.strategy_box.addItems(list(STRATEGIES))
+        self.strategy_box.setToolTip("gpis-dhd: aim where the estimate is least covered "
+                                     "(paper); rrt: random tangent steps (baseline)")
+        self.strategy_box.activated.connect(
+            lambda index: self.strategy_chosen.emit(self.strategy_box.itemText(index)))
+        self.preset_box = QComboBox()
+        self.preset_box.setToolTip("fast: coarser grids, fewer features; paper: the paper's "
+                                   "values; refined: the paper's values plus MAP pose refinement; "
+                                   "accurate: finer grids, neighbour bins, refinement")
+        self.preset_box.activated.connect(
+            lambda index: self.preset_chosen.emit(self.preset_box.itemText(index)))
+        form.addRow("strategy", self.strategy_box)
+        form.addRow("preset", self.preset_box)
+        self.parameter_boxes = {}
+        for name, spec in PARAMETERS.items():
+            box = _parameter_box(*spec[1:])
+            box.valueChanged.connect(
+                lambda value, n=name: self.parameter_changed.emit(n, value))
+            form.addRow(spec[0], box)
+            self.parameter_boxes[name] = box
+
+    def controls(self):
+        """The widgets that change the scene."""
+        return [self.strategy_box, self.preset_box, *self.parameter_boxes.values()]
+
+    def sync(self, scene):
+        """Show the scene's strategy, presets and parameters, without emitting."""
+        with blocked(self.strategy_box, self.preset_box, *self.parameter_boxes.values()):
+            self.strategy_box.setCurrentText(scene.strategy)
+            names = scene.preset_names()
+            if [self.preset_box.itemText(i) for i in range(self.preset_box.count())] != names:
+                self.preset_box.clear()
+                self.preset_box.addItems(names)
+            self.preset_box.setCurrentText(scene.preset)
+            for name, box in self.parameter_boxes.items():
+                box.setValue(scene.parameter(name))
+
+
+def _parameter_box(low, high, step, decimals, tip):
+    box = QSpinBox() if decimals == 0 else QDoubleSpinBox()
+    if decimals:
+        box.setDecimals(decimals)
+    box.setRange(low, high)
+    box.setSingleStep(step)
+    box.setToolTip(tip)
+    box.setKeyboardTracking(False)
+    return box

@@ -1,0 +1,46 @@
+"""The Layers panel: one check box per viewport layer."""
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout
+
+from ..layers import LAYERS
+from .base import MARGINS, blocked
+
+SHOWN_COLORS = {"truth": "steelblue", "gpis": "teal"}  # readable on a light panel
+
+
+class LayersPanel(QGroupBox):
+    """Which viewport layers are shown.
+
+    Signals
+    -------
+    layer_toggled(str, bool)
+        A layer's name and whether it is now shown.
+    """
+
+    layer_toggled = Signal(str, bool)
+
+    def __init__(self, parent=None):
+        super().__init__("Layers", parent)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(*MARGINS)
+        layout.setSpacing(0)
+        self.layer_boxes = {}
+        for name, (label, color) in LAYERS.items():
+            box = QCheckBox(label)
+            box.setStyleSheet(f"QCheckBox {{ color: {SHOWN_COLORS.get(name, color)}; }}")
+            box.toggled.connect(lambda checked, n=name: self.layer_toggled.emit(n, checked))
+            layout.addWidget(box)
+            self.layer_boxes[name] = box
+
+    def sync(self, visible):
+        """Check the boxes as ``visible`` (layer name -> bool) has them, without emitting.
+
+        Parameters
+        ----------
+        visible : mapping of str to bool
+            E.g. :attr:`tactile_viz.gui.layers.ViewportLayers.visible`.
+        """
+        with blocked(*self.layer_boxes.values()):
+            for name, box in self.layer_boxes.items():
+                box.setChecked(bool(visible[name]))

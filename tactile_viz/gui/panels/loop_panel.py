@@ -1,0 +1,113 @@
+"""The Loop panel: Step, Run, Run to termination, Reset, the step reached and the history."""
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QPushButton, QSizePolicy,
+                               QSlider, QVBoxLayout)
+
+from .base import MARGINS, blocked
+
+START_TEXT = "Press Step or Run to start touching."
+
+
+def status_text(snapshot):
+    """One line on a step: known or novel, MAP class, DHD, errors, particles, time."""
+    recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
+    seconds = sum(snapshot.timings.values())
+    return (f"{'NOVEL' if snapshot.novel else 'known'} | MAP {snapshot.map_class} | "
+            f"DHD {snapshot.dhd:.2f} | pose error {snapshot.pose_error:.2f} | "
+            f"recon error {recon} | particles {snapshot.n_particles} | "
+            f"last step {seconds:.2f} s")
+
+
+class LoopPanel(QGroupBox):
+    """The buttons that step the session, the step shown and a slider over the steps taken.
+
+    Parameters
+    ----------
+    tips : dict of str to str, optional
+        Tooltips of the buttons ``step``, ``run``, ``finish`` and ``reset``.
+
+    Signals
+    -------
+    step_requested(), finish_requested(), reset_requested()
+        Step, Run to termination, Reset.
+    run_toggled(bool)
+        Run pressed (True) or Pause pressed (False).
+    scrubbed(int)
+        The slider asks for step ``n`` of the session (1 is the first).
+    """
+
+    step_requested = Signal()
+    run_toggled = Signal(bool)
+    finish_requested = Signal()
+    reset_requested = Signal()
+    scrubbed = Signal(int)
+
+    def __init__(self, tips=None, parent=None):
+        super().__init__("Loop", parent)
+        tips = tips or {}
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(*MARGINS)
+        self.step_button = QPushButton("Step")
+        self.step_button.clicked.connect(self.step_requested)
+        self.run_button = QPushButton("Run")
+        self.run_button.setCheckable(True)
+        self.run_button.toggled.connect(self.run_toggled)
+        self.finish_button = QPushButton("Run to termination")
+        self.finish_button.clicked.connect(self.finish_requested)
+        self.reset_button = QPushButton("Reset")
+        self.reset_button.clicked.connect(self.reset_requested)
+        row = QHBoxLayout()
+        for name, button in (("step", self.step_button), ("run", self.run_button),
+                             ("finish", self.finish_button), ("reset", self.reset_button)):
+            button.setToolTip(tips.get(name, ""))
+            row.addWidget(button)
+        layout.addLayout(row)
+        self.step_label = QLabel("step 0")
+        self.status_label = QLabel()
+        self.status_label.setWordWrap(True)
+        self.status_label.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
+        self.history_slider = QSlider(Qt.Horizontal)
+        self.history_slider.setRange(0, 0)
+        self.history_slider.setToolTip("Scrub through the steps taken so far (not while "
+                                       "running); the next step continues from the last")
+        self.history_slider.valueChanged.connect(self.scrubbed)
+        layout.addWidget(self.step_label)
+        layout.addWidget(self.history_slider)
+        layout.addWidget(self.status_label)
+
+    def controls(self):
+        """The widgets that change the scene (Run is not one: it also pauses)."""
+        return [self.step_button, self.finish_button, self.reset_button]
+
+    def sync(self, scene):
+        """Show the scene's latest step and its history, without emitting."""
+        self.show_snapshot(scene.latest)
+        self.set_history(len(scene.snapshots))
+
+    def show_snapshot(self, snapshot):
+        """Show a step (None: a new session) in the labels."""
+        if snapshot is None:
+            self.step_label.setText("step 0")
+            self.status_label.setText(START_TEXT)
+            return
+        self.step_label.setText(f"step {snapshot.step}"
+                                + (" (terminated)" if snapshot.terminated else ""))
+        self.status_label.setText(status_text(snapshot))
+
+    def set_history(self, steps):
+        """Let the slider cover ``steps`` steps (0: none) and point at the last."""
+        with blocked(self.history_slider):
+            if steps:
+                self.history_slider.setRange(1, steps)
+                self.history_slider.setValue(steps)
+            else:
+                self.history_slider.setRange(0, 0)
+
+    def set_running(self, running, loading=False):
+        """Run becomes Pause while steps run; Run and the slider are off while a session loads."""
+        with blocked(self.run_button):
+            self.run_button.setChecked(running)
+            self.run_button.setText("Pause" if running else "Run")
+        self.history_slider.setEnabled(not running and not loading)
+        self.run_button.setEnabled(not loading)

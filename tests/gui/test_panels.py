@@ -1,0 +1,176 @@
+"""The Controls panels: each fills its widgets from the scene without emitting its signals,
+and the dock keeps the loop in view at 1280x720."""
+
+import pytest
+from PySide6.QtCore import QPoint, QSettings, Qt, Signal
+
+from tactile_viz.app.scene import Scene
+from tactile_viz.engine import PriorLibrary
+from tactile_viz.gui.layers import LAYERS
+from tactile_viz.gui.main_window import MainWindow
+from tactile_viz.gui.panels import (ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel,
+                                    ScenePanel)
+
+pytestmark = pytest.mark.gui
+
+
+@pytest.fixture(scope="module")
+def known_library():
+    return PriorLibrary.bundled("known")
+
+
+@pytest.fixture
+def scene(known_library):
+    return Scene("mug_1", seed=0, library=PriorLibrary(list(known_library)))
+
+
+def _record(panel):
+    """Every signal the panel's class declares, connected to one list of (name, args)."""
+    emitted = []
+    names = [name for name, value in vars(type(panel)).items() if isinstance(value, Signal)]
+    assert names
+    for name in names:
+        getattr(panel, name).connect(lambda *args, n=name: emitted.append((n, args)))
+    return emitted
+
+
+def _panel(qtbot, panel):
+    qtbot.addWidget(panel)
+    return panel
+
+
+def test_scene_panel_syncs_silently(qtbot, scene):
+    panel = _panel(qtbot, ScenePanel(scene.bundled_objects()))
+    emitted = _record(panel)
+    scene.randomize_pose(7)
+    scene.set_truth_bundled("vase_1")
+    panel.sync(scene)
+    assert panel.object_box.currentText() == "vase_1" and panel.seed_box.value() == 7
+    assert emitted == []
+    panel.place_button.click()
+    assert emitted == [("pose_requested", (7,))]
+
+
+def test_priors_panel_syncs_silently(qtbot, scene):
+    panel = _panel(qtbot, PriorsPanel())
+    emitted = _record(panel)
+    scene.set_prior_enabled("mug_1", False)
+    panel.sync(scene)
+    states = {panel.prior_list.item(i).text(): panel.prior_list.item(i).checkState()
+              for i in range(panel.prior_list.count())}
+    assert list(states) == scene.library.names
+    assert [name for name, state in states.items() if state == Qt.Unchecked] == ["mug_1"]
+    assert emitted == []
+    panel.prior_list.item(scene.library.names.index("mug_1")).setCheckState(Qt.Checked)
+    assert emitted == [("prior_toggled", ("mug_1", True))]
+
+
+def test_exploration_panel_syncs_silently(qtbot, scene):
+    panel = _panel(qtbot, ExplorationPanel())
+    emitted = _record(panel)
+    scene.set_strategy("rrt")
+    scene.set_preset("fast")
+    scene.set_parameter("eps", 0.8)
+    scene.set_parameter("n_s", 7)
+    panel.sync(scene)
+    assert panel.strategy_box.currentText() == "rrt"
+    assert panel.preset_box.currentText() == "fast"
+    for name, box in panel.parameter_boxes.items():
+        assert box.value() == pytest.approx(scene.parameter(name), abs=1e-3)
+    assert emitted == []
+    panel.parameter_boxes["eps"].setValue(0.9)
+    assert emitted == [("parameter_changed", ("eps", pytest.approx(0.9)))]
+
+
+def test_layers_panel_syncs_silently(qtbot):
+    panel = _panel(qtbot, LayersPanel())
+    emitted = _record(panel)
+    visible = {name: name != "contacts" for name in LAYERS}
+    panel.sync(visible)
+    assert {name: box.isChecked() for name, box in panel.layer_boxes.items()} == visible
+    assert emitted == []
+    panel.layer_boxes["contacts"].setChecked(True)
+    assert emitted == [("layer_toggled", ("contacts", True))]
+
+
+def test_loop_panel_syncs_silently(qtbot, scene):
+    panel = _panel(qtbot, LoopPanel())
+    emitted = _record(panel)
+    scene.step()
+    scene.step()
+    panel.sync(scene)
+    slider = panel.history_slider
+    assert panel.step_label.text().startswith("step 2")
+    assert (slider.minimum(), slider.maximum(), slider.value()) == (1, 2, 2)
+    assert "MAP" in panel.status_label.text()
+    panel.set_running(True)
+    assert panel.run_button.isChecked() and panel.run_button.text() == "Pause"
+    assert not slider.isEnabled()
+    panel.set_running(False)
+    scene.reset()
+    panel.sync(scene)
+    assert panel.step_label.text() == "step 0" and (slider.minimum(), slider.maximum()) == (0, 0)
+    assert emitted == []
+    panel.step_button.click()
+    assert emitted == [("step_requested", ())]
+
+
+@pytest.fixture
+def window(qtbot, scene, tmp_path):
+    window = MainWindow(scene, settings=QSettings(str(tmp_path / "s.ini"), QSettings.IniFormat))
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    yield window
+    window.wait_for_worker()
+
+
+def _panels(window):
+    return (window.loop_panel, window.scene_panel, window.priors_panel,
+            window.exploration_panel, window.layers_panel)
+
+
+def test_window_panels_follow_the_scene_without_echoing(window):
+    scene = window.scene
+    recorded = [_record(panel) for panel in _panels(window)]
+    changes = []
+    scene.settings_changed.connect(lambda: changes.append("settings"))
+    scene.set_parameter("eps", 0.8)
+    scene.set_prior_enabled("vase_1", False)
+    scene.randomize_pose(5)
+    assert window.exploration_panel.parameter_boxes["eps"].value() == pytest.approx(0.8)
+    assert window.scene_panel.seed_box.value() == 5
+    assert all(emitted == [] for emitted in recorded) and changes == ["settings"]
+
+
+def _at_1280_by_720(qtbot, window):
+    window.resize(1280, 720)
+    qtbot.waitUntil(lambda: window.width() == 1280, timeout=5_000)
+    qtbot.wait(50)
+
+
+def test_loop_stays_in_view_when_the_groups_scroll(qtbot, window):
+    _at_1280_by_720(qtbot, window)
+    dock = window.controls_dock
+    bar = window.panel_scroll.verticalScrollBar()
+    assert bar.maximum() > 0  # the other groups do scroll at this size
+    for position in (bar.minimum(), bar.maximum()):
+        bar.setValue(position)
+        qtbot.wait(20)
+        for button in (window.loop_panel.step_button, window.loop_panel.run_button,
+                       window.loop_panel.finish_button, window.loop_panel.reset_button):
+            assert not button.visibleRegion().isEmpty()
+            corner = button.mapTo(dock, QPoint(button.width() - 1, button.height() - 1))
+            assert dock.rect().contains(corner)
+
+
+def test_no_horizontal_scrolling_at_1280(qtbot, window):
+    _at_1280_by_720(qtbot, window)
+    scroll = window.panel_scroll
+    assert scroll.horizontalScrollBar().maximum() == 0
+    assert not scroll.horizontalScrollBar().isVisible()
+    assert scroll.widget().width() <= scroll.viewport().width()
+    dock = window.controls_dock
+    for panel in _panels(window):
+        assert panel.width() >= panel.minimumSizeHint().width()  # nothing clipped sideways
+        assert panel.mapTo(dock, QPoint(panel.width() - 1, 0)).x() < dock.width()
