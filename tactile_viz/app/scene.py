@@ -19,9 +19,12 @@ from pathlib import Path
 
 from ..engine.errors import LibraryError
 from ..engine.exploration import STRATEGIES
+from ..engine.export import export_session
 from ..engine.library import PriorLibrary
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.session import SESSION_PRESETS, Session, SessionError, make_truth, session_preset
+from ..engine.observation_file import read_observations
+from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
+                              make_truth, session_preset)
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +76,7 @@ class Scene:
         self.truth_model = load_bundled(truth_name)
         self.seed = int(seed)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        self.recording = None  # (source, recorded steps) while replaying a recording
         if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}")
         self.strategy = strategy
@@ -150,6 +154,7 @@ class Scene:
 
     def _set_truth(self, model):
         self.truth_model = model
+        self.recording = None
         self.truth = make_truth(model, rng=[self.seed, 0])
         log.info("ground truth %s at the pose of seed %d", model.name, self.seed)
         self.reset()
@@ -158,6 +163,7 @@ class Scene:
     def randomize_pose(self, seed):
         """Place the truth at the random pose of ``seed`` (also the session's seed)."""
         self.seed = int(seed)
+        self.recording = None
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
         log.info("ground truth %s at the pose of seed %d", self.truth_model.name, self.seed)
         self.reset()
@@ -236,8 +242,37 @@ class Scene:
             library = self.active_library()
             if len(library) == 0:
                 raise SessionError("no prior is selected: check at least one in the list")
-            self.session = Session(self.truth, library, self.strategy, self.params, self.seed)
+            if self.recording is not None:
+                source, steps = self.recording
+                self.session = RecordedSession(steps, library, self.strategy, self.params,
+                                               self.seed, source=source)
+            else:
+                self.session = Session(self.truth, library, self.strategy, self.params,
+                                       self.seed)
         return self.session
+
+    # ------------------------------------------------------------------ recordings
+    def open_observations(self, path):
+        """Step through recorded touches (an observation file) instead of the simulator,
+        with the current priors and settings; the truth is hidden (a recording has none).
+        A bad file raises ObservationFileError and changes nothing. Returns the number of
+        recorded steps."""
+        steps = read_observations(path)
+        self.recording = (str(path), steps)
+        self.truth = None
+        log.info("replaying %s (%d steps)", path, len(steps))
+        self.reset()
+        self.truth_changed.emit(None)
+        return len(steps)
+
+    def export(self, folder):
+        """Write the current estimate and the touches so far to ``folder`` (see
+        :func:`tactile_viz.engine.export_session`); returns the files written."""
+        if self.session is None or self.session.step_count == 0:
+            raise SessionError("nothing to export: the session has not started")
+        written = export_session(self.session, folder)
+        log.info("exported step %d to %s", self.session.step_count, folder)
+        return written
 
     def step(self):
         """One step in the calling thread (the app steps in a worker and calls
@@ -283,7 +318,13 @@ class Scene:
         differ from the current ones)."""
         replaced = session.library.names != self.library.names
         preset, overrides = self._match_params(session.params)
-        self.truth_model, self.truth = session.truth.model, session.truth
+        if session.truth is not None:
+            self.truth_model, self.truth = session.truth.model, session.truth
+            self.recording = None
+        else:
+            steps = getattr(session, "recording", None) or session.recorded_steps()
+            self.truth, self.recording = None, (getattr(session, "source", None) or
+                                                "a loaded session", steps)
         self.library = session.library
         self.enabled = {name: True for name in self.library.names}
         self.strategy, self.seed = session.strategy, session.seed

@@ -20,8 +20,8 @@ from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 from .export import export_session
 from .observation_file import (ObservationFileError, RecordedStep, read_observations,
                                write_observations)
-from .session import (SESSION_PRESETS, Reconstruction, Session, SessionError, SessionParams,
-                      Snapshot, Target, make_truth, session_preset)
+from .session import (SESSION_PRESETS, Reconstruction, RecordedSession, Session, SessionError,
+                      SessionParams, Snapshot, Target, make_truth, session_preset)
 from .simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
@@ -29,7 +29,7 @@ __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
     "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact",
     "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
-    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedStep", "SDFGrid",
+    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep", "SDFGrid",
     "SESSION_PRESETS", "STRATEGIES", "Session", "SessionError", "SessionParams", "Snapshot",
     "Target", "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
     "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",

@@ -658,6 +658,37 @@ class Session:
         return load_session(path, callback)
 
 
+class RecordedSession(Session):
+    """A session that steps through recorded touches: :meth:`step` gives the next recorded
+    step to :meth:`~Session.observe`, and the session ends with the recording (not at the
+    stop rule, which a recording may have passed long before).
+
+    Parameters
+    ----------
+    steps : list of RecordedStep
+        From :func:`~tactile_viz.engine.observation_file.read_observations`.
+    library, strategy, params, seed
+        As for :class:`Session` (the recording's seed reproduces its estimates exactly).
+    source : str, optional
+        Where the recording came from (shown by viewers).
+    """
+
+    def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None):
+        super().__init__(None, library, strategy, params, seed)
+        self.recording = list(steps)
+        self.source = source
+
+    @property
+    def terminated(self):
+        return self.step_count >= len(self.recording)
+
+    def step(self):
+        if self.terminated:
+            raise SessionError("the recording has been replayed to its end")
+        recorded = self.recording[self.step_count]
+        return self.observe(recorded.observations, recorded.free_space)
+
+
 def free_space_points(points, path, spacing):
     """``points`` plus samples of a missed probe ``path``, one per grid cell of ``spacing``.
 
@@ -709,5 +740,5 @@ def make_truth(model, rng=None, max_translation=1.0):
     return GroundTruth(model, rotation, translation)
 
 
-__all__ = ["Reconstruction", "Session", "SessionError", "SessionParams", "Snapshot", "Target",
+__all__ = ["Reconstruction", "RecordedSession", "Session", "SessionError", "SessionParams", "Snapshot", "Target",
            "session_preset", "SESSION_PRESETS", "learned_model_from_surface", "make_truth"]

@@ -15,7 +15,7 @@ from ..cli import ExtendList
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.observation_file import read_observations
-from ..engine.session import SESSION_PRESETS, Session, session_preset
+from ..engine.session import SESSION_PRESETS, RecordedSession, session_preset
 from .trial import code_version, load_priors
 
 
@@ -59,15 +59,15 @@ def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress
     records : list of dict
         One :meth:`Snapshot.record` per step.
     """
-    session = Session(None, library, strategy, params or session_preset(preset), seed=seed)
+    session = RecordedSession(steps, library, strategy, params or session_preset(preset), seed)
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=len(steps), desc="replay", unit="step", file=sys.stderr, delay=2.0)
     records = []
-    for step in steps:
-        snapshot = session.observe(step.observations, step.free_space)
+    while not session.terminated:
+        snapshot = session.step()
         records.append(snapshot.record())
         if bar is not None:
             bar.update(1)

@@ -135,7 +135,15 @@ class ViewportLayers:
         return self.present[name] and self.visible[name]
 
     def show_truth(self, truth, render=True):
-        """The ground truth at its pose, translucent."""
+        """The ground truth at its pose, translucent (hidden when ``truth`` is None: a
+        recording has no truth)."""
+        if truth is None:
+            self.present["truth"] = False
+            self._apply_visibility("truth")
+            self._sync_overlays()
+            if render:
+                self.plotter.render()
+            return
         vertices = truth.to_world(truth.model.mesh.vertices)
         self._put("truth", faces_to_polydata(vertices, truth.model.mesh.faces, normals=True),
                   color=LAYERS["truth"][1], opacity=0.35, smooth=True)

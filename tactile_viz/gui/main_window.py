@@ -63,6 +63,11 @@ ACTIONS = {
     "load_library": ("Load prior library...", None, None),
     "save_library": ("Save prior library...", None, None),
     "load_session": ("Load session...", "Ctrl+L", None),
+    "open_observations": ("Open observations...", "Ctrl+Shift+O",
+                          "Step through recorded touches (CSV: kind,x,y,z,nx,ny,nz) in this "
+                          "viewport"),
+    "export": ("Export estimate...", "Ctrl+E", "Write observations.csv, map_shape.ply, "
+               "reconstruction.ply and estimate.json of the current step to a folder"),
     "save_session": ("Save session...", QKeySequence.StandardKey.Save, None),
     "quit": ("Quit", QKeySequence.StandardKey.Quit, None),
     "keys": ("Keys", "F1", "The keyboard shortcuts"),
@@ -236,9 +241,12 @@ class MainWindow(QMainWindow):
             self._update_status(None)
 
     def frame_truth(self):
-        """Point the camera at the ground truth (on a new object or pose, never per step)."""
-        bounds = self.layers.actors["truth"].GetBounds()
-        self.plotter.reset_camera(bounds=bounds)
+        """Point the camera at the ground truth (on a new object or pose, never per step);
+        at everything shown when there is no truth (a recording)."""
+        if self.scene.truth is not None and "truth" in self.layers.actors:
+            self.plotter.reset_camera(bounds=self.layers.actors["truth"].GetBounds())
+        else:
+            self.plotter.reset_camera()
         self.plotter.render()
 
     # ------------------------------------------------------------------ building
@@ -252,6 +260,7 @@ class MainWindow(QMainWindow):
             "record": self._on_record_toggled,
             "open_truth": self._open_truth_file, "load_library": self._on_load_library,
             "save_library": self._on_save_library, "load_session": self._on_load_session,
+            "open_observations": self._on_open_observations, "export": self._on_export,
             "save_session": self._on_save_session, "quit": self.close,
             "keys": self._show_keys, "about": self._show_about,
         }
@@ -333,7 +342,8 @@ class MainWindow(QMainWindow):
     def _build_menu(self):
         file_menu = self.menuBar().addMenu("&File")
         for name in ("open_truth", "load_library", "save_library", None, "load_session",
-                     "save_session", None, "screenshot", "record", None, "quit"):
+                     "save_session", None, "open_observations", "export", None, "screenshot",
+                     "record", None, "quit"):
             if name is None:
                 file_menu.addSeparator()
             else:
@@ -462,7 +472,8 @@ class MainWindow(QMainWindow):
                                          self.exploration_panel) for control in panel.controls()]
         actions = [self.actions[name] for name in ("step", "finish", "reset", "open_truth",
                                                    "load_library", "save_library",
-                                                   "load_session", "save_session")]
+                                                   "load_session", "save_session",
+                                                   "open_observations", "export")]
         return widgets + actions
 
     def _set_controls_enabled(self, enabled):
@@ -600,7 +611,10 @@ class MainWindow(QMainWindow):
         if len(paths) > 1:
             self.statusBar().showMessage(f"{len(paths)} files dropped: using the first",
                                          STATUS_SECONDS)
-        self.load_truth_file(paths[0])
+        if str(paths[0]).lower().endswith(".csv"):
+            self.open_observations(paths[0])
+        else:
+            self.load_truth_file(paths[0])
 
     def _on_reset(self):
         if self._idle("Reset"):
@@ -666,6 +680,43 @@ class MainWindow(QMainWindow):
         if self._guarded(self.scene.save_session, path):
             self.statusBar().showMessage(f"saved the session ({self.scene.latest.step} steps) "
                                          f"to {path}", STATUS_SECONDS)
+
+    def _on_open_observations(self):
+        if not self._idle("opening observations"):
+            return
+        path, _ = QFileDialog.getOpenFileName(self, "Open observations",
+                                              self._folder("observations"),
+                                              "Observations (*.csv);;All files (*)")
+        if path:
+            self._remember("observations", path)
+            self.open_observations(path)
+
+    def open_observations(self, path):
+        """Step through a recording of touches (an error box, and no change, if it is bad)."""
+        if self._idle("opening observations") and self._guarded(self.scene.open_observations,
+                                                                path):
+            steps = len(self.scene.recording[1])
+            self.statusBar().showMessage(f"replaying {path}: {steps} recorded steps; Step or "
+                                         "Run to go through them", STATUS_SECONDS)
+            return True
+        return False
+
+    def _on_export(self):
+        if not self._idle("exporting"):
+            return
+        folder = QFileDialog.getExistingDirectory(self, "Export estimate to folder",
+                                                  self._folder("exports"))
+        if folder:
+            self._remember("exports", folder)
+            self.export(folder)
+
+    def export(self, folder):
+        """Write the current estimate and touches to ``folder``; says so in the status bar."""
+        if self._guarded(self.scene.export, folder):
+            self.statusBar().showMessage(f"exported step {self.scene.latest.step} to {folder}",
+                                         STATUS_SECONDS)
+            return True
+        return False
 
     def _on_load_session(self):
         if not self._idle("loading a session"):
@@ -807,7 +858,7 @@ class MainWindow(QMainWindow):
         QMessageBox.information(self, "Keys", "<table cellspacing=4>" + rows + "</table>"
                                 "<p>In the viewport: drag to rotate, shift-drag to pan, "
                                 "wheel to zoom; drop a mesh file to use it as the ground "
-                                "truth.</p>")
+                                "truth, or an observation file (.csv) to replay it.</p>")
 
     def _show_about(self):
         QMessageBox.about(self, "About tactile_viz",

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tactile_viz.engine import LibraryError, MeshError, PriorLibrary
+from tactile_viz.engine import LibraryError, MeshError, ObservationFileError, PriorLibrary
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine.session import SessionError
 
@@ -123,3 +123,26 @@ def test_snapshots_carry_the_heaviest_other_hypotheses(scene):
         assert not (name == snapshot.map_class
                     and np.allclose(translation, snapshot.map_translation, atol=1e-3)
                     and np.allclose(rotation, snapshot.map_rotation, atol=1e-3))
+
+
+def test_a_recording_replaces_the_simulator_until_the_truth_changes(scene, tmp_path):
+    for _ in range(3):
+        scene.step()
+    contacts = scene.latest.contacts
+    path = scene.export(tmp_path / "export")[0]
+    truths = []
+    scene.truth_changed.connect(truths.append)
+    (tmp_path / "broken.csv").write_text("step,kind,x,y,z,nx,ny,nz\n1,contact,0,0,0,,,\n")
+    with pytest.raises(ObservationFileError, match="broken.csv, line 2"):
+        scene.open_observations(tmp_path / "broken.csv")
+    assert scene.recording is None and scene.truth is not None and scene.latest.step == 3
+    assert scene.open_observations(path) == 3 and truths == [None]
+    for _ in range(3):
+        scene.step()
+    np.testing.assert_array_equal(scene.latest.contacts, contacts)
+    assert scene.session.terminated and scene.latest.pose_error is None
+    saved = scene.save_session(tmp_path / "replayed.npz")
+    scene.randomize_pose(4)
+    assert scene.recording is None and truths[-1] is scene.truth
+    scene.load_session(saved)  # a session without truth comes back as a recording
+    assert scene.truth is None and len(scene.recording[1]) == 3 and scene.latest.step == 3

@@ -329,3 +329,27 @@ def test_fits_1280_by_720(qtbot, window):
     assert window.plotter.width() >= 480  # the docks leave the viewport room
     assert window.controls_dock.geometry().bottom() <= window.height()
     assert not window.loop_panel.run_button.visibleRegion().isEmpty()  # the loop is above the fold
+
+
+def test_recorded_touches_step_like_a_session_and_export(qtbot, window, errors, tmp_path):
+    other = Scene("bottle_1", seed=2, library=PriorLibrary(list(window.scene.library)))
+    for _ in range(4):
+        other.step()
+    recording = other.export(tmp_path / "recorded")[0]
+    assert recording.name == "observations.csv"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("kind,x,y,z\n")
+    assert not window.open_observations(bad) and errors and "bad.csv, line 1" in errors[0]
+    assert window.scene.recording is None and "truth" in window.layers.actors
+    window.plotter.files_dropped.emit([str(recording)])  # a dropped CSV is replayed
+    assert window.scene.recording is not None and not window.layers.shown("truth")
+    window.actions["finish"].trigger()
+    _wait_idle(qtbot, window)
+    latest = window.scene.latest
+    assert latest.step == 4 and latest.pose_error is None and window.scene.session.terminated
+    np.testing.assert_array_equal(latest.contacts, other.latest.contacts)
+    assert "pose error -" in window.loop_panel.status_label.text()
+    assert window.export(tmp_path / "again")
+    assert (tmp_path / "again" / "estimate.json").exists() and len(errors) == 1
+    window.scene_panel.pose_requested.emit(5)  # a new pose goes back to the simulator
+    assert window.scene.recording is None and window.layers.shown("truth")

@@ -12,9 +12,10 @@ START_TEXT = "Press Step or Run to start touching."
 def status_text(snapshot):
     """One line on a step: known or novel, MAP class, DHD, errors, particles, time."""
     recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
+    pose = "-" if snapshot.pose_error is None else f"{snapshot.pose_error:.2f}"
     seconds = sum(snapshot.timings.values())
     return (f"{'NOVEL' if snapshot.novel else 'known'} | MAP {snapshot.map_class} | "
-            f"DHD {snapshot.dhd:.2f} | pose error {snapshot.pose_error:.2f} | "
+            f"DHD {snapshot.dhd:.2f} | pose error {pose} | "
             f"recon error {recon} | particles {snapshot.n_particles} | "
             f"last step {seconds:.2f} s")
 
