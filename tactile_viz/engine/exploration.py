@@ -21,6 +21,39 @@ def farthest_vertex(vertices, contacts):
     return int(np.argmax(distance))
 
 
+def variance_target(vertices, variance, subset, reachable, contacts, uncovered_beyond=None):
+    """Index of the GPIS-DHD target of a novel object: the surface vertex of largest
+    posterior variance (paper III-F).
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+    variance : (v,) float
+    subset : (k,) int
+        The vertices whose variance was evaluated (the candidates).
+    reachable : (v,) bool
+        Vertices away from given-up targets and missed probes (others only if none is).
+    contacts : (n, 3) float
+    uncovered_beyond : float, optional
+        Beyond the paper: prefer vertices farther than this from every contact.
+
+    Returns
+    -------
+    int
+    """
+    score = variance[subset]
+    distance = cKDTree(contacts).query(vertices[subset])[0]
+    uncovered = distance > (-1.0 if uncovered_beyond is None else uncovered_beyond)
+    for usable in (reachable[subset] & uncovered, reachable[subset]):
+        if usable.any():
+            score = np.where(usable, score, -np.inf)
+            break
+    # Beyond a compact kernel's support the variance is the prior's everywhere: the tie goes
+    # to the vertex farthest from the contacts.
+    best = score >= score.max() - 1e-9 * abs(score.max())
+    return int(subset[int(np.argmax(np.where(best, distance, -np.inf)))])
+
+
 def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
     """The random first touch: straight lines through the workspace from random directions.
 

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from .errors import TactileVizError
 from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
-                          next_sweep_direction, rrt_step, sweep_line)
+                          next_sweep_direction, rrt_step, sweep_line, variance_target)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
@@ -581,25 +581,15 @@ class Session:
         return Reconstruction(vertices, faces, variance, subset if len(vertices) else None, fit)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
+        """``(target, outward normal, estimate)``: the novel or the known rule of
+        :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
-            vertices, variance, subset, fit = recon.vertices, recon.variance, recon.subset, recon.fit
-            score = variance[subset]
-            distance = cKDTree(contacts).query(vertices[subset])[0]
-            # Only vertices that keep the stop from holding are worth a touch (beyond the
-            # paper, whose maximum variance can sit within eps of a contact while a vertex
-            # the sensor still has to reach has a lower one).
-            uncovered = distance > (self.params.eps if self.params.target_uncovered else -1.0)
-            for usable in (reachable[subset] & uncovered, reachable[subset]):
-                if usable.any():
-                    score = np.where(usable, score, -np.inf)
-                    break
-            # Beyond a compact kernel's support the variance is the prior's everywhere: the
-            # tie goes to the vertex farthest from the contacts.
-            best = score >= score.max() - 1e-9 * abs(score.max())
-            index = subset[int(np.argmax(np.where(best, distance, -np.inf)))]
-            target = vertices[index]
-            _, gradient = fit.mean(target[None])
-            return target, normalise_rows(gradient)[0], fit.mean_value
+            index = variance_target(recon.vertices, recon.variance, recon.subset, reachable,
+                                    contacts, self.params.eps if self.params.target_uncovered
+                                    else None)
+            target = recon.vertices[index]
+            _, gradient = recon.fit.mean(target[None])
+            return target, normalise_rows(gradient)[0], recon.fit.mean_value
         index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
         normal = model.mesh.vertex_normals[index] @ rotation.T
         estimate = self._prior(model, rotation, translation)
