@@ -30,6 +30,7 @@ from ..engine.exploration import STRATEGIES
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
+from .trial_files import read_trial, read_trials, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"
 LEARNED_NAME = "home_chair_learned"
@@ -194,10 +195,10 @@ def run(args):
         return [t for t in pending if not _reuse(t)]
 
     def _reuse(task):
-        path = trials_dir / f"{task_key(task)}.json"
+        path = trial_path(trials_dir, task_key(task))
         if not (args.resume and path.exists()):
             return False
-        return "error" not in json.loads(path.read_text())
+        return "error" not in read_trial(path)
 
     todo, followed = [t for t in tasks if not _reuse(t)], []
     learning = [t for t in tasks if t["learn_as"]]
@@ -210,14 +211,14 @@ def run(args):
     try:
         for task, result in run_tasks(followed + todo, pool, follow_up,
                                       progress=not args.no_progress):
-            write_json(trials_dir / f"{task_key(task)}.json", result)
+            write_trial(trials_dir, task_key(task), result)
     finally:
         pool.close()
 
 
 def load_results(folder):
     """Every trial result in ``folder/trials``."""
-    return [json.loads(path.read_text()) for path in sorted(Path(folder, "trials").glob("*.json"))]
+    return read_trials(Path(folder, "trials"))
 
 
 def machine_description():

@@ -43,6 +43,7 @@ from ..engine.errors import MeshError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.session import SESSION_PRESETS
 from .paper import split_names
+from .trial_files import read_trial, trial_files, write_trial
 
 INSTALL_HINT = "pip install -e '.[realmesh]'"
 CASES = ("novel", "known")
@@ -421,10 +422,10 @@ def report(folder, command=None):
     from .paper import machine_description
 
     folder = Path(folder)
-    paths = sorted((folder / "trials").glob("*.json"))
+    paths = trial_files(folder / "trials")
     if not paths:
         raise RealMeshError(f"no trial files in {folder / 'trials'}")
-    summaries = [summarise(json.loads(path.read_text())) for path in paths]
+    summaries = [summarise(read_trial(path)) for path in paths]
     summaries.sort(key=lambda s: (s["object"], CASES.index(s["case"]) if s["case"] in CASES
                                   else len(CASES), s["seed"]))
     (folder / "summary.json").write_text(json.dumps(summaries, indent=1))
@@ -549,7 +550,7 @@ def run(args):
     tasks = make_tasks(objects, files, cases, args.trials, args.seed, args.strategy,
                        args.preset, args.max_steps, args.bundled)
     for task, result in run_tasks(tasks, args.workers, progress=not args.no_progress):
-        write_json(out / "trials" / f"{task_key(task)}.json", result)
+        write_trial(out / "trials", task_key(task), result)
         state = "FAILED" if "error" in result else "done"
         print(f"{task_key(task)}: {state}", file=sys.stderr)
 

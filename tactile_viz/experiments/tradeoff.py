@@ -19,9 +19,9 @@ import numpy as np
 from ..cli import ExtendList
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
-from .paper import (machine_description, object_sets, recorded_command, split_names,
-                    write_json)
+from .paper import machine_description, object_sets, recorded_command, split_names
 from .runner import make_task, open_pool, run_tasks, task_key
+from .trial_files import read_trials, trial_path, write_trial
 
 PRESETS = tuple(SESSION_PRESETS)
 # name -> (base preset, session overrides, filter overrides): every preset, then one-knob
@@ -140,11 +140,11 @@ def run(args):
         raise SystemExit(f"unknown configuration(s): {', '.join(unknown)}")
     tasks = plan(split_names(args.objects), args.seeds, configs, args.max_steps)
     todo = [t for t in tasks
-            if not (args.resume and (out / "trials" / f"{task_key(t)}.json").exists())]
+            if not (args.resume and trial_path(out / "trials", task_key(t)).exists())]
     pool = open_pool(args.workers, args.scheduler)
     try:
         for task, result in run_tasks(todo, pool, progress=not args.no_progress):
-            write_json(out / "trials" / f"{task_key(task)}.json", result)
+            write_trial(out / "trials", task_key(task), result)
     finally:
         pool.close()
 
@@ -209,7 +209,7 @@ def plot(rows, path):
 
 def report(folder, command=None):
     folder = Path(folder)
-    results = [json.loads(p.read_text()) for p in sorted((folder / "trials").glob("*.json"))]
+    results = read_trials(folder / "trials")
     rows = rows_from_results(results, object_sets())
     plot(rows, folder / "tradeoff.png")
     header = ["configuration", "changes", "trials", "s/trial known", "pose error (known)",

@@ -1,12 +1,12 @@
 """``bench paper`` end to end on a tiny run, and its task planning."""
 
-import json
 
 import numpy as np
 import trimesh
 
 from tactile_viz.__main__ import main as cli
 from tactile_viz.experiments import paper
+from tactile_viz.experiments.trial_files import read_trial
 
 
 def test_tiny_run_writes_trials_table_and_plots(tmp_path):
@@ -14,9 +14,9 @@ def test_tiny_run_writes_trials_table_and_plots(tmp_path):
     argv = ["bench", "paper", "--trials", "1", "--objects", "mug_1", "--strategies",
             "gpis-dhd", "--max-steps", "3", "--no-learned", "--out", str(out), "--no-progress"]
     assert cli(argv) == 0
-    files = list((out / "trials").glob("*.json"))
-    assert len(files) == 1
-    result = json.loads(files[0].read_text())
+    files = list((out / "trials").glob("*"))
+    assert len(files) == 1 and files[0].name.endswith(".json.gz")  # compressed (issue 18)
+    result = read_trial(files[0])
     assert result["object"] == "mug_1" and len(result["steps"]) == 3
     summary = (out / "summary.md").read_text()
     assert "## Known objects" in summary and "| mug_1 | gpis-dhd | 1 |" in summary

@@ -12,6 +12,7 @@ from tactile_viz.__main__ import build_parser as cli_parser
 from tactile_viz.__main__ import main as cli_main
 from tactile_viz.engine.errors import TactileVizError
 from tactile_viz.experiments import real_meshes as rm
+from tactile_viz.experiments.trial_files import read_trial
 from tactile_viz.experiments.real_meshes import RealMesh, RealMeshError
 
 
@@ -205,13 +206,13 @@ def test_run_on_a_folder_of_meshes(mesh_dir, tmp_path, monkeypatch):
     assert rm.main(["--data-dir", str(mesh_dir), "--objects", "pill", "--trials", "1",
                     "--max-steps", "2", "--bundled", "none", "--out", str(out),
                     "--no-progress"]) == 0
-    trials = sorted(p.name for p in (out / "trials").glob("*.json"))
-    assert trials == ["pill__known__gpis-dhd__paper__s0__m2.json",
-                      "pill__novel__gpis-dhd__paper__s0__m2.json"]
-    novel = json.loads((out / "trials" / trials[1]).read_text())
+    trials = sorted(p.name for p in (out / "trials").glob("*"))
+    assert trials == ["pill__known__gpis-dhd__paper__s0__m2.json.gz",
+                      "pill__novel__gpis-dhd__paper__s0__m2.json.gz"]
+    novel = read_trial(out / "trials" / trials[1])
     assert "error" not in novel, novel.get("error")
     assert novel["library"] == ["block", "ball"] and len(novel["steps"]) == 2
-    known = json.loads((out / "trials" / trials[0]).read_text())
+    known = read_trial(out / "trials" / trials[0])
     assert known["library"] == ["block", "ball", "pill"]
     meshes = json.loads((out / "meshes.json").read_text())
     assert list(meshes["skipped"]) == ["hulls"]

@@ -60,3 +60,20 @@ def test_a_failing_trial_is_reported_not_raised():
 
 def test_process_pool_gives_the_serial_json(serial):
     assert _run(ProcessPool(2)) == serial
+
+
+def test_trial_files_are_compressed_and_older_plain_ones_still_read(tmp_path):
+    import gzip
+    import json
+
+    from tactile_viz.experiments.trial_files import (read_trials, trial_path, write_trial)
+
+    result = {"object": "mug_1", "steps": [{"t": t, "dhd": 1.0 / (t + 1)} for t in range(400)]}
+    (tmp_path / "a.json").write_text(json.dumps(result))  # an older run's file
+    assert trial_path(tmp_path, "a").name == "a.json"
+    written = write_trial(tmp_path, "b", result)
+    assert written.name == "b.json.gz" and json.loads(gzip.decompress(written.read_bytes())) == result
+    assert written.stat().st_size < len(json.dumps(result, indent=1)) / 4
+    assert read_trials(tmp_path) == [result, result]
+    write_trial(tmp_path, "a", result)  # rewriting an old trial replaces its plain file
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json.gz", "b.json.gz"]

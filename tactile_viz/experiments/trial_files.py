@@ -1,0 +1,55 @@
+"""Trial records of the benchmarks on disk: gzip-compressed JSON, one file per trial.
+
+A trial's per-step records take 50-150 kB as indented JSON and about a tenth of that
+compressed, so a 10-trial protocol run adds a few megabytes to ``results/`` instead of tens
+(issue 18). Readers take both ``.json`` (older runs) and ``.json.gz`` files.
+"""
+
+import gzip
+import json
+from pathlib import Path
+
+from ..engine.files import write_atomic
+
+SUFFIX = ".json.gz"
+
+
+def trial_path(folder, key):
+    """The file of trial ``key`` in ``folder``: an existing ``.json`` of an older run if
+    there is one, else the compressed name new trials get."""
+    folder = Path(folder)
+    plain = folder / f"{key}.json"
+    return plain if plain.exists() else folder / f"{key}{SUFFIX}"
+
+
+def write_trial(folder, key, result):
+    """Write one trial record compressed and atomically; returns its path."""
+    data = gzip.compress(json.dumps(result, indent=1).encode(), mtime=0)
+    path = Path(folder) / f"{key}{SUFFIX}"
+    written = write_atomic(path, data)
+    (Path(folder) / f"{key}.json").unlink(missing_ok=True)  # superseded
+    return written
+
+
+def read_trial(path):
+    """One trial record (``.json`` or ``.json.gz``)."""
+    path = Path(path)
+    data = path.read_bytes()
+    if path.name.endswith(".gz"):
+        data = gzip.decompress(data)
+    return json.loads(data)
+
+
+def trial_files(folder):
+    """Every trial file in ``folder``, sorted by name (without its suffix)."""
+    folder = Path(folder)
+    files = list(folder.glob("*.json")) + list(folder.glob(f"*{SUFFIX}"))
+    return sorted(files, key=lambda p: p.name.removesuffix(".gz").removesuffix(".json"))
+
+
+def read_trials(folder):
+    """Every trial record in ``folder``."""
+    return [read_trial(path) for path in trial_files(folder)]
+
+
+__all__ = ["SUFFIX", "read_trial", "read_trials", "trial_files", "trial_path", "write_trial"]
