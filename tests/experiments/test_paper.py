@@ -1,6 +1,5 @@
 """``bench paper`` end to end on a tiny run, and its task planning."""
 
-
 import numpy as np
 import trimesh
 
