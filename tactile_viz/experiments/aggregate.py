@@ -9,6 +9,7 @@ tested on synthetic trials.
 import math
 
 import numpy as np
+from scipy import stats
 
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 
@@ -94,10 +95,19 @@ def mean_std(values):
     return float(array.mean()), float(array.std(ddof=1)) if len(array) > 1 else 0.0, len(array)
 
 
+def t95(count):
+    """Student's t quantile of a two-sided 95% interval of a mean of ``count`` values
+    (2.26 for 10; 1.96 only as the count grows), 0 where ``count`` < 2. Scalar or array."""
+    count = np.asarray(count, dtype=float)
+    quantile = stats.t.ppf(0.975, np.maximum(count - 1, 1))
+    return np.where(count > 1, quantile, 0.0) if quantile.ndim else (
+        float(quantile) if count > 1 else 0.0)
+
+
 def ci95(values):
-    """Half-width of the normal 95% confidence interval of the mean."""
+    """Half-width of the t-based 95% confidence interval of the mean."""
     mean, std, n = mean_std(values)
-    return 1.96 * std / math.sqrt(n) if n > 1 else 0.0
+    return t95(n) * std / math.sqrt(n) if n > 1 else 0.0
 
 
 def curve(results, key, length=None):
@@ -130,7 +140,7 @@ def curve(results, key, length=None):
     mean = np.nanmean(table, axis=0)
     count = np.sum(np.isfinite(table), axis=0)
     std = np.nanstd(table, axis=0, ddof=1) if len(series) > 1 else np.zeros(length)
-    half = np.where(count > 1, 1.96 * np.nan_to_num(std) / np.sqrt(np.maximum(count, 1)), 0.0)
+    half = t95(count) * np.nan_to_num(std) / np.sqrt(np.maximum(count, 1))
     return np.arange(1, length + 1), mean, half
 
 

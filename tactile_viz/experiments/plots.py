@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .aggregate import THRESHOLD, curve, estimate_error, group, mean_std
+from .aggregate import THRESHOLD, curve, estimate_error, group, mean_std, t95
 
 COLOURS = {"gpis-dhd": "tab:orange", "rrt": "tab:blue", "before": "tab:gray",
            "after": "tab:green"}
@@ -50,7 +50,7 @@ def _bar_panel(axis, summaries, key, ylabel, title, strategies):
                       if s["object"] == name and s["strategy"] == strategy and "error" not in s]
             mean, std, n = mean_std(values)
             means.append(mean)
-            halves.append(1.96 * std / np.sqrt(n) if n > 1 else 0.0)
+            halves.append(t95(n) * std / np.sqrt(n) if n > 1 else 0.0)
         positions = np.arange(len(objects)) + (index - (len(strategies) - 1) / 2) * width
         axis.bar(positions, means, width, yerr=halves, label=strategy,
                  color=COLOURS.get(strategy), capsize=2)

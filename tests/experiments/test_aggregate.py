@@ -56,7 +56,7 @@ def test_curve_holds_the_last_value_and_has_a_band():
     steps, mean, half = aggregate.curve(trials, "pose_error")
     assert steps.tolist() == [1, 2, 3]
     assert mean.tolist() == pytest.approx([3.0, 2.0, 1.0])
-    assert half[0] == pytest.approx(1.96 * np.std([2.0, 4.0], ddof=1) / math.sqrt(2))
+    assert half[0] == pytest.approx(12.706 * np.std([2.0, 4.0], ddof=1) / math.sqrt(2), rel=1e-4)
     assert half[2] == 0.0
 
 
@@ -102,3 +102,14 @@ def test_learned_rows_count_recognition_of_the_learned_prior():
     # columns: library, trials, MAP class = learned, recognised, judged novel, ...
     assert rows[0][2:5] == ["0/1", "0/1", "1/1"] and rows[0][-1] == 5
     assert rows[1][2:5] == ["3/3", "2/3", "1/3"] and rows[1][-1] == 3
+
+
+def test_confidence_half_widths_use_students_t():
+    from tactile_viz.experiments.aggregate import ci95, curve, t95
+
+    assert t95(10) == pytest.approx(2.262, abs=1e-3) and t95(1) == 0.0
+    values = [1.0, 2.0, 4.0]
+    assert ci95(values) == pytest.approx(4.303 * np.std(values, ddof=1) / np.sqrt(3), rel=1e-3)
+    results = [{"steps": [{"e": v}, {"e": v}]} for v in values]
+    _, mean, half = curve(results, "e")
+    assert half[0] == pytest.approx(ci95(values)) and mean[1] == pytest.approx(7 / 3)
