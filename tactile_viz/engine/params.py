@@ -60,6 +60,9 @@ class FilterParams:
         Cap on particles sampled per class and step (a random subset beyond it).
     max_particles : int
         Cap on the number of draws of the resampling step.
+    max_new_particles : int
+        Particle budget (beyond the paper): at most this many of a step's new point-pair
+        particles are kept, the heaviest (those resampling would keep anyway); 0 keeps all.
     refine_map : bool
         Add a Gauss-Newton refinement of the MAP pose as a particle (beyond the paper).
     refine_iterations : int
@@ -81,6 +84,7 @@ class FilterParams:
     init_rotations: int = 1
     max_new_per_class: int = 2000
     max_particles: int = 20000
+    max_new_particles: int = 0
     refine_map: bool = False
     refine_iterations: int = 10
     n_features: int = 200
@@ -88,7 +92,8 @@ class FilterParams:
 
     def __post_init__(self):
         integers = ("n_s", "init_rotations", "max_new_per_class", "max_particles",
-                    "n_features", "refine_iterations", "neighbour_bins", "sdf_resolution")
+                    "max_new_particles", "n_features", "refine_iterations", "neighbour_bins",
+                    "sdf_resolution")
         for item in fields(self):
             value = getattr(self, item.name)
             if item.name in integers:
@@ -112,6 +117,9 @@ class FilterParams:
         for name in at_least_one:
             if int(getattr(self, name)) < 1:
                 raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
+        if self.max_new_particles < 0:
+            raise ParameterError("max_new_particles must be at least 0 (0: no budget), "
+                                 f"got {self.max_new_particles!r}")
         if self.neighbour_bins not in (0, 1):
             raise ParameterError(f"neighbour_bins must be 0 or 1, got {self.neighbour_bins!r}")
         if self.n_features < 3:

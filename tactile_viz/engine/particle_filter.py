@@ -360,7 +360,11 @@ class ParticleFilter:
             parts.append(Particles(candidates.classes, rotations, translations, log_w))
         if not parts:
             return None
-        return Particles.concatenate(parts)
+        new = Particles.concatenate(parts)
+        budget = self.params.max_new_particles
+        if budget and len(new) > budget:
+            new = new.take(np.sort(np.argpartition(-new.log_weights, budget - 1)[:budget]))
+        return new
 
     def _merged(self, new):
         combined = Particles.concatenate([self.particles, new])

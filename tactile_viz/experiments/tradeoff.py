@@ -38,6 +38,9 @@ CONFIGS = {
     "gpis48": ("paper", {"gpis_resolution": 48}, {}),
     "eps0.4": ("paper", {"eps": 0.4}, {}),
     "eps0.8": ("paper", {"eps": 0.8}, {}),
+    # Particle budget: keep the heaviest new point-pair particles of a step (issue 18).
+    "budget3000": ("paper", {}, {"max_new_particles": 3000}),
+    "budget1500": ("paper", {}, {"max_new_particles": 1500}),
     # The GPIS ablation (novel objects): the thin-plate kernel (the paper preset's) at the
     # paper's R and explicitly, the compact Wendland kernel with free space at three
     # supports (c = 4 was the paper preset at ef75223), free space with the thin-plate

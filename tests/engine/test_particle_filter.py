@@ -163,3 +163,27 @@ def test_weights_stay_finite_for_arbitrary_observations(bundled, steps, seed):
             assert np.all(np.isfinite(state.particles.log_weights))
             assert abs(logsumexp(state.particles.log_weights)) < 1e-9
             assert not np.isnan(state.log_evidence)
+
+
+def test_particle_budget_keeps_the_heaviest_new_particles(small_library):
+    from tactile_viz.engine import ContactSimulator, GroundTruth, ParticleFilter
+    from tactile_viz.engine.errors import ParameterError
+    from tactile_viz.engine.params import FilterParams
+    from tactile_viz.engine.simulator import random_touch
+
+    library, _ = small_library
+    truth = GroundTruth(library["box"], np.eye(3), np.zeros(3))
+    counts = {}
+    for budget in (0, 50):
+        simulator = ContactSimulator(truth, rng=0)
+        belief = ParticleFilter(library, FilterParams(max_new_particles=budget), rng=0)
+        rng = np.random.default_rng(1)
+        sizes = []
+        for _ in range(12):
+            state = belief.update(simulator.probe(random_touch(truth, rng)))
+            sizes.append(state.n_particles)
+        counts[budget] = max(sizes)
+        assert state.map_class == "box"
+    assert counts[50] < counts[0]
+    with pytest.raises(ParameterError, match="max_new_particles"):
+        FilterParams(max_new_particles=-1)
