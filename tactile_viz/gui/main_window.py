@@ -105,6 +105,17 @@ def load_session_worker(path, cancel, progress):
     return Session.load(path, callback=replayed)
 
 
+def _seconds_since(log, since):
+    """Total seconds of the ``(start, seconds)`` entries of ``log`` that started at or after
+    ``since`` (the newest are at the end)."""
+    total = 0.0
+    for began, seconds in reversed(log):
+        if began < since:
+            break
+        total += seconds
+    return total
+
+
 class Viewport(QtInteractor):
     """The 3D view: a QtInteractor whose file drops go to the window (and from there through
     the scene, checked like any file), not straight into the plotter as loose actors."""
@@ -224,8 +235,9 @@ class MainWindow(QMainWindow):
         self._build_toolbar()
         self._build_status_bar()
         self._restore_settings()
-        self.runner.extra_seconds = lambda: (self.plots.last_draw_seconds
-                                             + self.plotter.last_paint_seconds)
+        self.runner.extra_seconds = lambda since: (_seconds_since(self.plots.draw_log, since)
+                                                   + _seconds_since(self.plotter.paint_log,
+                                                                    since))
         scene.truth_changed.connect(self._on_truth_changed)
         scene.library_changed.connect(lambda library: self.priors_panel.sync(self.scene))
         scene.settings_changed.connect(self._sync_settings)

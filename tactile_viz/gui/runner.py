@@ -66,9 +66,11 @@ class StepRunner(QObject):
         self.stop_requested_at = None
         self.step_ends = []  # perf_counter() at the end of each step of the current run
         self.finished_at = None  # perf_counter() when the run's end was handled
-        # Time of drawing done later in its own pass of the event loop (the plots'
-        # draw_idle), counted in the pacing: a callable returning seconds.
-        self.extra_seconds = lambda: 0.0
+        # Drawing that a draw() leaves to later passes of the event loop (the viewport's
+        # paint, the plots' draw_idle), counted in the pacing: a callable taking a
+        # perf_counter() time and returning the seconds of such drawing begun since then.
+        self.extra_seconds = lambda since: 0.0
+        self._last_draw_began = None
 
     @property
     def running(self):
@@ -144,12 +146,16 @@ class StepRunner(QObject):
             return
         if not self.scene.is_current(self.generation):
             return
+        deferred = (0.0 if self._last_draw_began is None
+                    else float(self.extra_seconds(self._last_draw_began)))
         began = time.perf_counter()
         self.draw(snapshot)
         ended = time.perf_counter()
+        self._last_draw_began = began
         self.drawn += 1
         self.draw_seconds.append(ended - began)
-        # Pace the next draw so that drawing (this one and the deferred part of the previous
-        # one) stays within `duty` of the time.
-        seconds = ended - began + float(self.extra_seconds())
+        # Pace the next draw so that drawing (this one and everything the previous one left
+        # to later passes: every paint and plot redraw since it) stays within `duty` of the
+        # time; the worker waits for the interpreter while the GUI thread draws.
+        seconds = ended - began + deferred
         self._next_draw = ended + seconds * (1.0 / self.duty - 1.0)

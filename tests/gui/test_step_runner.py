@@ -97,3 +97,24 @@ def test_shutdown_waits_for_the_step_in_progress_only(qtbot, runner):
     assert runner.shutdown()
     assert time.perf_counter() - began < 0.3 + 0.5 and not runner.running
     assert not runner.start(session, runner.scene.generation)  # closed for good
+
+
+def test_deferred_drawing_counts_in_the_pacing(qtbot, runner):
+    """Work a draw leaves to later event-loop passes (paints, plot redraws) is logged with
+    its start time; the runner counts all of it since the previous draw."""
+    log = []
+
+    def draw(snapshot):
+        runner.drawn_snapshots.append(snapshot)
+        log.append((time.perf_counter(), 0.05))  # as if a 50 ms paint followed the draw
+
+    runner.draw = draw
+    runner.extra_seconds = lambda since: sum(s for b, s in log if b >= since)
+    began = time.perf_counter()
+    runner.start(FakeSession(seconds=0.01, limit=150), runner.scene.generation)
+    _wait_done(qtbot, runner)
+    elapsed = time.perf_counter() - began
+    # Each draw costs 50 ms counted, so with duty 0.1 at most one draw per 0.45 s (plus the
+    # first and the last); counting only the draw calls would draw nearly every step.
+    assert 2 <= runner.drawn <= elapsed / 0.45 + 2
+    assert runner.drawn_snapshots[-1].step == 150
