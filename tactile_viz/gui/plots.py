@@ -1,10 +1,14 @@
 """Plots beside the viewport: class posterior bars and errors over the steps.
 
 The artists are made once per session and updated in place (bar heights, line data); the
-layout is computed once and again only when the widget is resized, and drawing is left to
-``draw_idle`` so it happens in its own pass of the event loop.
+layout is computed once and again only when the widget is resized. The axes' limits move in
+steps (the step axis by 50, the error axis by decades), so most updates change only the bars
+and the lines: those are blitted onto a saved background (a few milliseconds) instead of
+redrawing the axes, ticks and text (over 100 ms, which would block the event loop). A full
+draw is left to ``draw_idle`` so that it happens in its own pass of the event loop.
 """
 
+import math
 import time
 from collections import deque
 
@@ -37,6 +41,9 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.last_draw_seconds = 0.0
         self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
         self.eps = 0.6
+        self.blits = 0  # updates drawn by blitting (the rest are full draws)
+        self._background = None  # the figure without the bars and lines, after a full draw
+        self._layout_key = None
         self._setup_errors()
         self.update_plots([])
         self._relayout()
@@ -51,7 +58,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1,
                                      label="DHD stop (eps)")
         for key, label in ERROR_SERIES:
-            (self._lines[key],) = axes.plot([], [], label=label)
+            (self._lines[key],) = axes.plot([], [], label=label, animated=True)
         axes.set_yscale("log")
         axes.set_xlim(0, 10)
         axes.set_ylim(0.05, 10)
@@ -68,13 +75,44 @@ class PlotsWidget(FigureCanvasQTAgg):
             pass
 
     def draw(self):
+        """Full draw: axes, ticks, text, then the bars and lines over a saved copy."""
         began = time.perf_counter()
         super().draw()
+        self._background = self.copy_from_bbox(self.figure.bbox)
+        self._layout_key = self._current_layout()
+        self._draw_dynamic()
+        self._log(began)
+
+    def _log(self, began):
         self.last_draw_seconds = time.perf_counter() - began
         self.draw_log.append((began, self.last_draw_seconds))
 
+    def _dynamic_artists(self):
+        return list(self._bars or []) + list(self._lines.values())
+
+    def _draw_dynamic(self):
+        for artist in self._dynamic_artists():
+            self.figure.draw_artist(artist)
+
+    def _current_layout(self):
+        return (self.error_axes.get_xlim(), self.error_axes.get_ylim(), self._names, self.eps,
+                self.width(), self.height())
+
+    def _refresh(self):
+        """Blit the bars and lines when nothing else changed, else ask for a full draw."""
+        if self._background is None or self._layout_key != self._current_layout():
+            self.draw_idle()
+            return
+        began = time.perf_counter()
+        self.restore_region(self._background)
+        self._draw_dynamic()
+        self.blit(self.figure.bbox)
+        self.blits += 1
+        self._log(began)
+
     def resizeEvent(self, event):
         super().resizeEvent(event)
+        self._background = None
         self._relayout()
         self.draw_idle()
 
@@ -91,7 +129,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         """Show a list of snapshots (empty clears); the artists are updated in place."""
         self._show_posterior(snapshots[-1] if snapshots else None)
         self._show_errors(snapshots)
-        self.draw_idle()
+        self._refresh()
 
     def _show_posterior(self, snapshot):
         axes = self.posterior_axes
@@ -104,6 +142,8 @@ class PlotsWidget(FigureCanvasQTAgg):
             self._map_class = None
             if names:
                 self._bars = axes.bar(range(len(names)), np.zeros(len(names)), color="tab:blue")
+                for bar in self._bars:
+                    bar.set_animated(True)
                 axes.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
                 axes.set_xlim(-0.6, len(names) - 0.4)
                 self._relayout()
@@ -137,6 +177,8 @@ class PlotsWidget(FigureCanvasQTAgg):
             self._lines[key].set_visible(bool(len(series)) and not np.all(np.isnan(series)))
             values.append(series[np.isfinite(series) & (series > 0)])
         axes = self.error_axes
-        axes.set_xlim(0, max(10, self._steps[-1] + 1) if self._steps else 10)
+        last = self._steps[-1] if self._steps else 0
+        axes.set_xlim(0, 10 if last < 10 else 50 * math.ceil((last + 1) / 50))
         values = np.concatenate(values + [np.array([THRESHOLD, self.eps])])
-        axes.set_ylim(max(1e-3, values.min() / 1.5), values.max() * 1.5)
+        low = max(1e-3, 10.0 ** math.floor(math.log10(values.min() / 1.5)))
+        axes.set_ylim(low, 10.0 ** math.ceil(math.log10(values.max() * 1.5)))

@@ -1,0 +1,45 @@
+"""The plots: most updates are blitted over a saved background, a changed layout is drawn
+in full."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tactile_viz.gui.plots import PlotsWidget
+
+pytestmark = pytest.mark.gui
+NAMES = ["mug_1", "vase_1", "bottle_1"]
+
+
+def _snapshots(count, rng):
+    snapshots = []
+    for step in range(1, count + 1):
+        posterior = dict(zip(NAMES, rng.dirichlet(np.ones(len(NAMES)))))
+        snapshots.append(SimpleNamespace(step=step, class_posterior=posterior,
+                                         map_class=max(posterior, key=posterior.get),
+                                         pose_error=1.0 / step + 0.3, dhd=2.0 / step ** 0.5,
+                                         recon_error=None))
+    return snapshots
+
+
+def test_updates_blit_until_the_layout_changes(qtbot):
+    plots = PlotsWidget()
+    qtbot.addWidget(plots)
+    plots.resize(320, 600)
+    plots.show()
+    qtbot.waitExposed(plots)
+    snapshots = _snapshots(120, np.random.default_rng(0))
+    plots.update_plots(snapshots[:12])
+    qtbot.waitUntil(lambda: plots._background is not None)  # the first, full draw
+    full_draws = len(plots.draw_log) - plots.blits
+    for count in range(13, 40):  # the step axis stays at 0-50, the error axis' decades too
+        plots.update_plots(snapshots[:count])
+    assert plots.blits == 27 and len(plots.draw_log) - plots.blits == full_draws
+    np.testing.assert_array_equal(plots._lines["dhd"].get_xdata(), np.arange(1, 40))
+    plots.update_plots(snapshots[:60])  # past 50: the step axis grows, a full draw follows
+    assert plots.error_axes.get_xlim() == (0, 100) and plots.blits == 27
+    qtbot.waitUntil(lambda: len(plots.draw_log) - plots.blits == full_draws + 1)
+    plots.set_eps(0.8)  # the stop line moves: drawn in full again
+    plots.update_plots(snapshots[:61])
+    assert plots.blits == 27
