@@ -58,6 +58,7 @@ CONFIGS = {
     "carve1.0": ("paper", {"gpis_carve_radius": 1.0}, {}),
     "target-uncovered": ("paper", {"target_uncovered": True}, {}),
     "check-lines8": ("paper", {"check_lines": 8}, {}),
+    "check-lines24": ("paper", {"check_lines": 24}, {}),
 }
 
 
