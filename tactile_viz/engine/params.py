@@ -278,6 +278,11 @@ class SessionParams:
     probe_depth : float
         How deep contact enforcement reaches at most (the estimate's deepest point within
         it is probed).
+    approach_clearance : float
+        How far outside a target the probe starts, along the estimated normal, at most: the
+        approach stops short of where the estimate predicts the object again. A long
+        approach bumps into parts that nothing predicted (beyond the paper, which leaves the
+        start open; the ``faithful`` preset starts 0.5 outside).
     follow_step : float
         Length of one in-contact surface-following step of contact enforcement.
     contact_spacing : float
@@ -310,6 +315,7 @@ class SessionParams:
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
+    approach_clearance: float = 2.0
     follow_step: float = 0.1
     contact_spacing: float = 0.3
     max_follow: float = 3.0
@@ -328,6 +334,7 @@ class SessionParams:
                                      f"got {getattr(self, name)!r}")
         for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
                      "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
+                     "approach_clearance",
                      "follow_step", "contact_spacing", "max_follow", "rrt_step"):
             value = getattr(self, name)
             _check_real(name, value)
@@ -375,7 +382,7 @@ SESSION_PRESETS = {
     # only (the shape-transfer shortfall of the README comes from it).
     "faithful": SessionParams(gpis_kernel="thin-plate", gpis_radius_factor=1.0,
                               gpis_noncontacts=False, gpis_carve_radius=0.0,
-                              cover_prior=False, check_lines=0),
+                              cover_prior=False, check_lines=0, approach_clearance=0.5),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),

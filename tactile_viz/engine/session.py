@@ -160,11 +160,15 @@ class Target:
     depth : float
         How far beyond ``position`` to probe (the estimate's deepest point within the
         probe depth).
+    clearance : float
+        How far outside ``position`` the approach starts (short of any part the estimate
+        predicts on the way).
     """
 
     position: np.ndarray
     normal: np.ndarray
     depth: float
+    clearance: float = 0.5
 
 
 class Session:
@@ -273,7 +277,8 @@ class Session:
             return None
         position, normal, estimate = self._target
         depth = deepest_inside(estimate, position, normal, self.params.probe_depth)
-        return Target(_frozen(position), _frozen(normal), depth)
+        clearance = free_approach(estimate, position, normal, self.params.approach_clearance)
+        return Target(_frozen(position), _frozen(normal), depth, clearance)
 
     def observe(self, observations, free_space=None):
         """One time step with touches made by the caller; returns its :class:`Snapshot`.
@@ -458,9 +463,10 @@ class Session:
             return self._check_line(contacts)
         target, normal, estimate = self._target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        clearance = free_approach(estimate, target, normal, p.approach_clearance)
         paths, observations, reached = enforce_contact(
             self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
-            follow_step=p.follow_step, spacing=p.contact_spacing, max_follow=p.max_follow)
+            clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing, max_follow=p.max_follow)
         if not reached or self._repeats_contact(observations[-1]):
             self._given_up_targets.append(target)
         if not isinstance(observations[0], Contact):
@@ -707,6 +713,23 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     depths = np.linspace(0.0, max_depth, samples)
     values = estimate(target - depths[:, None] * normal)
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
+
+
+def free_approach(estimate, target, normal, longest, shortest=0.5, samples=32):
+    """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
+    less where the estimate predicts the object on the way (the approach then starts a
+    sample short of it), but at least ``shortest``.
+
+    A long approach meets parts of the object that the estimate does not predict; the
+    ones it predicts are not passed through.
+    """
+    if longest <= shortest:
+        return float(longest)
+    distances = np.linspace(shortest, longest, samples)
+    inside = np.flatnonzero(estimate(target + distances[:, None] * normal) < 0)
+    if len(inside) == 0:
+        return float(longest)
+    return float(max(shortest, distances[max(inside[0] - 1, 0)]))
 
 
 def learned_model_from_surface(vertices, faces, name, params=None):

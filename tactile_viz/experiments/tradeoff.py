@@ -59,6 +59,10 @@ CONFIGS = {
     "target-uncovered": ("paper", {"target_uncovered": True}, {}),
     "check-lines8": ("paper", {"check_lines": 8}, {}),
     "check-lines24": ("paper", {"check_lines": 24}, {}),
+    # How far outside a target the approach starts (2.0 in the paper preset; 0.5 before).
+    "approach0.5": ("paper", {"approach_clearance": 0.5}, {}),
+    "approach1": ("paper", {"approach_clearance": 1.0}, {}),
+    "approach4": ("paper", {"approach_clearance": 4.0}, {}),
 }
 
 

@@ -7,7 +7,7 @@ from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContac
 from tactile_viz.engine.exploration import (enforce_contact, farthest_vertex, first_contact,
                                             follow_surface, next_sweep_direction, rrt_step,
                                             sweep_directions, sweep_line)
-from tactile_viz.engine.session import deepest_inside
+from tactile_viz.engine.session import deepest_inside, free_approach
 
 
 @pytest.fixture
@@ -113,3 +113,32 @@ def test_a_sweep_line_records_the_first_surface_it_meets(simulator):
     paths, observations = sweep_line(simulator, np.array([0.0, 4.0, 0.0]),
                                       np.array([1.0, 0.0, 0.0]))
     assert isinstance(observations[0], NonContact)
+
+
+def test_a_long_approach_stops_short_of_what_the_estimate_predicts():
+    # Estimate: two slabs, z in [-1, 0] and z in [1.2, 2]; from the top of the lower one the
+    # approach may start at most just below the upper one.
+    estimate = lambda points: np.maximum(np.minimum(  # noqa: E731
+        np.abs(points[:, 2] + 0.5) - 0.5, np.abs(points[:, 2] - 1.6) - 0.4), -10.0)
+    target, normal = np.zeros(3), np.array([0.0, 0.0, 1.0])
+    clearance = free_approach(estimate, target, normal, 3.0)
+    assert 1.0 <= clearance < 1.2
+    assert free_approach(lambda p: np.ones(len(p)), target, normal, 3.0) == 3.0
+    assert free_approach(estimate, target, normal, 0.5) == 0.5  # never longer than asked
+    assert free_approach(lambda p: -np.ones(len(p)), target, normal, 3.0) == 0.5
+
+
+def test_a_long_approach_meets_a_part_the_estimate_does_not_predict(simulator):
+    # The estimate has a surface facing up at (2.9, 0, -1.5); the sphere (radius 3) crosses
+    # the vertical line x = 2.9 at |z| < 0.77, above the target. An approach from 0.5 above
+    # misses everything; one from 2.5 above starts outside the sphere, passes through it on
+    # the way down and touches it there: a part nothing predicted.
+    target, normal = np.array([2.9, 0.0, -1.5]), np.array([0.0, 0.0, 1.0])
+    contacts, normals = np.array([[3.0, 0, 0]]), np.array([[1.0, 0, 0]])
+    _, short, _ = enforce_contact(simulator, target, normal, contacts, normals, depth=0.2,
+                                  clearance=0.5, max_follow=0.05)
+    assert isinstance(short[0], NonContact)
+    _, long, reached = enforce_contact(simulator, target, normal, contacts, normals, depth=0.2,
+                                       clearance=2.5)
+    assert reached and len(long) == 1 and _on_sphere(long[0])
+    assert long[0].position[2] == pytest.approx(0.77, abs=0.03)

@@ -293,6 +293,7 @@ def test_faithful_preset_is_the_papers_gpis():
     assert not params.gpis_noncontacts and params.filter == session_preset("paper").filter
     assert params.gpis_carve_radius == 0 and not params.cover_prior
     assert not params.target_uncovered and params.check_lines == 0
+    assert params.approach_clearance == 0.5
 
 
 def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known,
@@ -341,8 +342,8 @@ def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
     from tactile_viz.engine.observation_file import read_observations
     from tactile_viz.experiments.replay import replay
 
-    # vase_2 is judged novel from step 10 on at this seed (missed probes give free rows).
-    novel_session = Session(make_truth(bundled["vase_2"], rng=[1, 0]), known, seed=1)
+    # dragon is judged novel from step 5 on at this seed (missed probes give free rows).
+    novel_session = Session(make_truth(bundled["dragon"], rng=[1, 0]), known, seed=1)
     novel_session.run(max_steps=30)
     written = export_session(novel_session, tmp_path / "export")
     assert sorted(p.name for p in written) == ["estimate.json", "map_shape.ply",
