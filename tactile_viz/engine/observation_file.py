@@ -105,12 +105,24 @@ def _observation(kind, position, normal, path, line):
         raise ObservationFileError(path, line, str(error)) from None
 
 
+def _rows(reader, path):
+    """The reader's rows; a line the CSV module cannot split (an overlong field, a NUL)
+    is an ObservationFileError naming it."""
+    while True:
+        try:
+            yield next(reader)
+        except StopIteration:
+            return
+        except csv.Error as error:
+            raise ObservationFileError(path, reader.line_num, f"not CSV: {error}") from None
+
+
 def parse_observations(text, path="<text>"):
     """The steps of a recording given as CSV text; see :func:`read_observations`."""
     reader = csv.reader(io.StringIO(text))
     columns, steps, keys = None, [], []
     pending_free = []
-    for row in reader:
+    for row in _rows(reader, path):
         line = reader.line_num
         if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
             continue
@@ -176,7 +188,7 @@ def read_observations(path):
         file, the line and the fault.
     """
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as error:
         raise ObservationFileError(path, None, f"cannot read the file ({error})") from None
     return parse_observations(text, path)

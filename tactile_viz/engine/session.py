@@ -40,6 +40,7 @@ class SessionError(TactileVizError):
 
 
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
+SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 
 
 def _frozen(array):
@@ -219,7 +220,7 @@ class Session:
         self._target = None
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
-        self._check = None  # the estimate's vertices while a check line is due
+        self._check = None  # (estimate's vertices, point, direction) while a check line is due
         self._check_directions = []
         self._checks_passed = 0
 
@@ -267,13 +268,21 @@ class Session:
 
     def propose(self):
         """Where to touch next, or None: before the first contact (touch the object
-        anywhere), with the RRT strategy, while a check line is due, after termination.
+        anywhere), with the RRT strategy and after termination.
+
+        A check line (``check_lines``) is proposed as a target whose approach and depth
+        reach :data:`SWEEP_RADIUS` on either side of it: the line the sensor should sweep.
 
         Returns
         -------
         Target or None
         """
-        if self.terminated or self._target is None or self.strategy == "rrt":
+        if self.terminated or self.strategy == "rrt":
+            return None
+        if self._check is not None:
+            _, through, direction = self._check
+            return Target(_frozen(through), _frozen(direction), SWEEP_RADIUS, SWEEP_RADIUS)
+        if self._target is None:
             return None
         position, normal, estimate = self._target
         depth = deepest_inside(estimate, position, normal, self.params.probe_depth)
@@ -293,8 +302,10 @@ class Session:
 
         Notes
         -----
-        A step without a contact, or whose contact repeats an earlier one, gives the
-        proposed target up, as the simulated contact enforcement does. The session keeps
+        The proposed target is given up as the simulated contact enforcement does: when no
+        contact was made, when the first touch missed and the last contact lies within
+        ``contact_spacing`` of an earlier one, or when a contact repeats an earlier one.
+        While a check line was proposed, the first observation is its outcome. The session keeps
         accepting observations after it would have stopped (``terminated``).
         A step that fails leaves the session exactly as it was before it.
         """
@@ -311,7 +322,9 @@ class Session:
         saved = self._checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
-            if self._target is not None and (not contacts or self._repeats_contact(contacts[-1])):
+            if self._check is not None:
+                self._count_check(observations[0])
+            elif self._target is not None and not self._reached(observations, contacts):
                 self._given_up_targets.append(self._target[0])
             if len(points):
                 self._free_space = thin_points(np.vstack([self._free_space, points]),
@@ -423,7 +436,7 @@ class Session:
             self._target = None
         elif checking:
             self._target = None
-            self._check = surface
+            self._check = self._plan_check_line(surface, contacts)
         elif dhd <= self.params.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
@@ -460,7 +473,7 @@ class Session:
             return rrt_step(self.simulator, contacts, self.filter.contact_normals, (low, high),
                             self.rng, p.rrt_step, p.probe_depth)
         if self._check is not None:
-            return self._check_line(contacts)
+            return self._check_line()
         target, normal, estimate = self._target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
         clearance = free_approach(estimate, target, normal, p.approach_clearance)
@@ -474,24 +487,45 @@ class Session:
                                                  p.contact_spacing)
         return paths, observations
 
-    def _check_line(self, contacts):
-        """One check line (``check_lines``); counts it as passed unless it touched the
-        object farther than ``eps`` from the estimate and from every contact."""
-        estimate = self._check
+    def _plan_check_line(self, estimate, contacts):
+        """The next check line: ``(estimate's vertices, a point on it, its direction)``,
+        from the least used of the spread directions through a random contact moved by
+        about ``eps``."""
         direction = next_sweep_direction(self._check_directions, self.rng)
         self._check_directions.append(direction)
         through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
             0.0, self.params.eps, size=3)
-        paths, observations = sweep_line(self.simulator, through, direction)
-        touched = observations[0]
-        surprise = isinstance(touched, Contact) and min(
-            cKDTree(contacts).query(touched.position)[0],
-            cKDTree(estimate).query(touched.position)[0]) > self.params.eps
-        self._checks_passed = 0 if surprise else self._checks_passed + 1
-        if not isinstance(touched, Contact):
+        return estimate, through, direction
+
+    def _check_line(self):
+        """Sweep the planned check line with the simulated sensor and count it."""
+        _, through, direction = self._check
+        paths, observations = sweep_line(self.simulator, through, direction, SWEEP_RADIUS)
+        self._count_check(observations[0])
+        if not isinstance(observations[0], Contact):
             self._free_space = free_space_points(self._free_space, paths[0],
                                                  self.params.contact_spacing)
         return paths, observations
+
+    def _count_check(self, touched):
+        """Count the check line as passed unless it touched the object farther than ``eps``
+        from the estimate and from every contact (a part nothing predicted: the count
+        restarts)."""
+        known = [points for points in (self._check[0], self.filter.contact_positions)
+                 if len(points)]
+        surprise = isinstance(touched, Contact) and min(
+            cKDTree(points).query(touched.position)[0] for points in known) > self.params.eps
+        self._checks_passed = 0 if surprise else self._checks_passed + 1
+
+    def _reached(self, observations, contacts):
+        """Whether touches made for the proposed target reached it (the rule of
+        :func:`~.exploration.enforce_contact`)."""
+        if not contacts or self._repeats_contact(contacts[-1]):
+            return False
+        if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
+            return True
+        distance = cKDTree(self.filter.contact_positions).query(contacts[-1].position)[0]
+        return bool(distance >= self.params.contact_spacing)
 
     def _repeats_contact(self, observation):
         """Whether a contact lands where an earlier one did (within the sensor noise).

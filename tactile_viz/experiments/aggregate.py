@@ -197,9 +197,9 @@ def known_rows(summaries):
     return rows
 
 
-KNOWN_HEADER = ["object", "strategy", "trials", "correct class", "pose < 0.6 at end",
-                "final pose error", "steps to pose < 0.6", "never < 0.6", "termination step",
-                "max particles", "seconds"]
+KNOWN_HEADER = ["object", "strategy", "trials", "correct class", f"pose < {THRESHOLD:g} at end",
+                "final pose error", f"steps to pose < {THRESHOLD:g}", f"never < {THRESHOLD:g}",
+                "termination step", "max particles", "seconds"]
 
 
 def novel_rows(summaries):
@@ -221,7 +221,7 @@ def novel_rows(summaries):
 
 NOVEL_HEADER = ["object", "strategy", "trials", "judged novel", "PF-MAP mean", "PF-MAP std",
                 "PF-MAP-GPIS mean", "PF-MAP-GPIS std", "Poisson mean", "Poisson std",
-                "truth coverage", "steps to error < 0.6", "termination step", "seconds"]
+                "truth coverage", f"steps to error < {THRESHOLD:g}", "termination step", "seconds"]
 
 
 def reconstruction_comparison(summaries):
@@ -286,5 +286,5 @@ def learned_rows(before, after):
 
 
 LEARNED_HEADER = ["library", "trials", "MAP class = learned prior", "recognised", "judged novel",
-                  "pose < 0.6 within 50",
-                  "steps to pose < 0.6", "final pose error", "termination step"]
+                  f"pose < {THRESHOLD:g} within 50",
+                  f"steps to pose < {THRESHOLD:g}", "final pose error", "termination step"]

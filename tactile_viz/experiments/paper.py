@@ -53,8 +53,9 @@ def build_parser():
                         help="trials per object and strategy (paper 10; 1 = quick version)")
     parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
                         help="bundled objects to run (default all 20); comma lists work too")
-    parser.add_argument("--strategies", default=",".join(STRATEGIES),
-                        help="comma-separated exploration strategies (default %(default)s)")
+    parser.add_argument("--strategies", action=ExtendList, default=list(STRATEGIES),
+                        metavar="NAME", help="exploration strategies, comma lists work too; "
+                        f"repeats add up (default {','.join(STRATEGIES)})")
     parser.add_argument("--workers", type=int, default=1,
                         help="local worker processes (default 1 = serial in this process, "
                              "with a per-step progress bar)")
@@ -168,7 +169,7 @@ def run(args):
     unknown = [name for name in objects if name not in sets]
     if unknown:
         raise SystemExit(f"unknown object(s): {', '.join(unknown)}; see `python -m tactile_viz objects`")
-    strategies = split_names([args.strategies])
+    strategies = split_names(args.strategies)
     if set(strategies) - set(STRATEGIES):
         raise SystemExit(f"unknown strategy in {args.strategies!r}; choose from "
                          f"{', '.join(STRATEGIES)}")

@@ -79,14 +79,14 @@ def overview_figure(results, summaries, path, strategies):
     novel = {s: [r for r in results["novel"] if r["strategy"] == s] for s in strategies}
     _curve_panel(axes[0, 0], known, "pose_error", "pose error (TWD)", "(a) known: pose error")
     _bar_panel(axes[0, 1], summaries["known"], "steps_to_pose", "steps",
-               "(b) known: steps to pose error < 0.6", strategies)
+               f"(b) known: steps to pose error < {THRESHOLD:g}", strategies)
     _curve_panel(axes[0, 2], known, "dhd", "DHD", "(c) known: DHD estimate -> contacts")
     _bar_panel(axes[0, 3], summaries["known"], "steps", "steps",
                "(d) known: termination step", strategies)
     _curve_panel(axes[1, 0], novel, estimate_error, "reconstruction error (TWD)",
                  "(e) novel: reconstruction error")
     _bar_panel(axes[1, 1], summaries["novel"], "steps_to_recon", "steps",
-               "(f) novel: steps to error < 0.6", strategies)
+               f"(f) novel: steps to error < {THRESHOLD:g}", strategies)
     _curve_panel(axes[1, 2], novel, "dhd", "DHD", "(g) novel: DHD estimate -> contacts")
     _bar_panel(axes[1, 3], summaries["novel"], "steps", "steps",
                "(h) novel: termination step", strategies)

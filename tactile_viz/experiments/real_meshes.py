@@ -458,8 +458,8 @@ def build_parser():
     parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
                         help="real meshes to use as the truth (default every usable one); "
                              "all usable ones are priors either way; comma lists work too")
-    parser.add_argument("--cases", default=",".join(CASES),
-                        help="comma-separated cases (default novel,known)")
+    parser.add_argument("--cases", action=ExtendList, default=list(CASES), metavar="CASE",
+                        help="cases, comma lists work too; repeats add up (default novel known)")
     parser.add_argument("--trials", type=int, default=3,
                         help="trials per object and case; trial i uses seed --seed + i "
                              "(default 3)")
@@ -537,7 +537,7 @@ def run(args):
         print(f"skipped {name}: {reason}", file=sys.stderr)
     objects = choose_objects(args.objects, models, skipped)
     check_names(models, args.bundled)
-    cases = split_names([args.cases])
+    cases = split_names(args.cases)
     bad = [c for c in cases if c not in CASES]
     if bad:
         raise RealMeshError(f"unknown case(s) {', '.join(bad)}; choose from {', '.join(CASES)}")

@@ -107,8 +107,9 @@ def build_parser():
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
     parser.add_argument("--seeds", type=int, default=2, help="trials (seeds 0..N-1) per object")
-    parser.add_argument("--configs", default=",".join(CONFIGS),
-                        help=f"comma-separated configurations (default all: {', '.join(CONFIGS)})")
+    parser.add_argument("--configs", action=ExtendList, default=list(CONFIGS), metavar="NAME",
+                        help="configurations, comma lists work too; repeats add up "
+                             f"(default all: {', '.join(CONFIGS)})")
     parser.add_argument("--max-steps", type=int, default=None,
                         help="cap every trial (default: the paper's caps)")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes")
@@ -142,7 +143,7 @@ def plan(objects, seeds, configs, max_steps):
 def run(args):
     out = Path(args.out)
     (out / "trials").mkdir(parents=True, exist_ok=True)
-    configs = split_names([args.configs])
+    configs = split_names(args.configs)
     unknown = [c for c in configs if c not in CONFIGS]
     if unknown:
         raise SystemExit(f"unknown configuration(s): {', '.join(unknown)}")

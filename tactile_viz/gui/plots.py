@@ -17,6 +17,7 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
+from ..engine.params import SessionParams
 
 ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
                 ("recon_error", "reconstruction error"))
@@ -24,7 +25,7 @@ ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
 
 class PlotsWidget(FigureCanvasQTAgg):
     """Two axes: the class posterior (bars) and pose error, reconstruction error and DHD
-    against the step, with the 0.6 error threshold and the DHD stop (eps) drawn."""
+    against the step, with the error threshold and the DHD stop (eps) drawn."""
 
     def __init__(self, parent=None):
         self.figure = Figure(figsize=(4.2, 5.0))
@@ -40,7 +41,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._steps = []
         self.last_draw_seconds = 0.0
         self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
-        self.eps = 0.6
+        self.eps = SessionParams().eps
         self.blits = 0  # updates drawn by blitting (the rest are full draws)
         self._background = None  # the figure without the bars and lines, after a full draw
         self._layout_key = None
@@ -54,7 +55,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes.set_title("errors over steps", fontsize=9)
         axes.set_xlabel("step", fontsize=8)
         axes.axhline(THRESHOLD, color="tab:red", linestyle="--", linewidth=1,
-                     label="0.6 threshold")
+                     label=f"{THRESHOLD:g} threshold")
         self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1,
                                      label="DHD stop (eps)")
         for key, label in ERROR_SERIES:

@@ -94,6 +94,17 @@ def test_benchmark_list_options_add_up(monkeypatch):
     assert parsed[0].objects == ["mug_1", "armadillo", "vase_2"]
 
 
+def test_comma_list_options_add_up_too():
+    from tactile_viz.experiments import paper, tradeoff
+    from tactile_viz.experiments.paper import split_names
+
+    args = paper.build_parser().parse_args(["--strategies", "gpis-dhd", "--strategies", "rrt"])
+    assert split_names(args.strategies) == ["gpis-dhd", "rrt"]
+    args = tradeoff.build_parser().parse_args(["--configs", "paper,fast", "--configs", "faithful"])
+    assert split_names(args.configs) == ["paper", "fast", "faithful"]
+    assert split_names(tradeoff.build_parser().parse_args([]).configs) == list(tradeoff.CONFIGS)
+
+
 @pytest.fixture
 def reset_logging():
     """Remove the handlers setup_logging attaches, so later tests log nowhere new."""

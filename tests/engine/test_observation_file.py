@@ -60,6 +60,7 @@ def test_written_file_reads_back_bit_for_bit(tmp_path, rng):
      "must not decrease"),
     ("step,kind,x,y,z,nx,ny,nz\n1.5,contact,0,0,0,0,0,1\n", 2, "step is not an integer"),
     ("step,kind,x,y,z,nx,ny,nz\n1,contact,0,0,1e9,0,0,1\n", 2, "out of range"),
+    ("step,kind,x,y,z,nx,ny,nz\n1,contact,0,0," + "1" * 200_000 + ",0,0,1\n", 2, "not CSV"),
 ])
 def test_each_fault_is_one_error_naming_file_line_and_fault(tmp_path, text, line, fault):
     path = tmp_path / "bad.csv"
@@ -81,6 +82,12 @@ def test_files_without_usable_steps_are_refused(tmp_path, text, fault):
     path.write_text(text)
     with pytest.raises(ObservationFileError, match=fault):
         read_observations(path)
+
+
+def test_a_byte_order_mark_is_not_part_of_the_header(tmp_path):
+    path = tmp_path / "bom.csv"
+    path.write_bytes("\ufeffkind,x,y,z,nx,ny,nz\ncontact,0,0,1,0,0,1\n".encode("utf-8"))
+    assert len(read_observations(path)) == 1
 
 
 def test_missing_or_binary_file(tmp_path):

@@ -10,7 +10,7 @@ from tactile_viz.engine.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.objects import ObjectModel
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.session import (Session, SessionError, SessionParams,
+from tactile_viz.engine.session import (SWEEP_RADIUS, Session, SessionError, SessionParams,
                                         free_space_points, learned_model_from_surface,
                                         make_truth, session_preset)
 
@@ -312,10 +312,12 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     lines = iter([-axis, axis])  # a line starts at through + 10 direction
     monkeypatch.setattr("tactile_viz.engine.session.next_sweep_direction",
                         lambda used, rng: next(lines))
-    session._check, session._checks_passed = top, 2
-    session._check_line(inside[None])  # the path starts below and runs up
+    session._checks_passed = 2
+    session._check = session._plan_check_line(top, inside[None])
+    session._check_line()  # the path starts below and runs up
     assert session._checks_passed == 0
-    session._check_line(inside[None])  # from above
+    session._check = session._plan_check_line(top, inside[None])
+    session._check_line()  # from above
     assert session._checks_passed == 1
 
 
@@ -399,7 +401,7 @@ def _robot(truth, seed=0):
         if target is None:
             return first_contact(simulator, np.zeros(3), rng)[1]
         return enforce_contact(simulator, target.position, target.normal, contacts, normals,
-                               target.depth)[1]
+                               target.depth, clearance=target.clearance)[1]
 
     return touch
 
@@ -419,6 +421,51 @@ def test_a_session_driven_by_its_caller(bundled, known):
     assert snapshot.pose_error is None and snapshot.truth_coverage is None
     target = session.propose()
     assert snapshot.terminated or (target.position.shape == (3,) and target.depth > 0)
+
+
+def _sphere_against_a_box(sphere_model, check_lines):
+    """A session on a sphere with only a box as prior (novel), with a loose eps so its
+    estimate is covered early and the check lines decide the stop."""
+    box = trimesh.creation.box((6.0, 3.0, 3.0))
+    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
+                                                    cache=sphere_model.cache)])
+    params = session_preset("paper", check_lines=check_lines, eps=2.0)
+    return Session(make_truth(sphere_model, rng=0), library, seed=0, params=params), library
+
+
+def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model):
+    simulated, library = _sphere_against_a_box(sphere_model, 4)
+    simulated.run(max_steps=60)
+    session = Session(None, library, seed=0, params=simulated.params)
+    simulator = simulated.simulator
+    lines = 0
+    for _ in range(60):
+        target = session.propose()
+        if target is not None and target.depth == SWEEP_RADIUS:
+            lines += 1
+            start = target.position + target.clearance * target.normal
+            observations = [simulator.probe([start, target.position - target.depth * target.normal])]
+        else:
+            observations = _robot(simulated.truth)(target, session.filter.contact_positions,
+                                                   session.filter.contact_normals)
+        if session.observe(observations).terminated:
+            break
+    assert simulated.terminated and session.terminated and lines >= 4
+
+
+def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path):
+    from tactile_viz.engine.export import export_session
+    from tactile_viz.engine.observation_file import read_observations
+    from tactile_viz.experiments.replay import replay
+
+    simulated, library = _sphere_against_a_box(sphere_model, 4)
+    simulated.run(max_steps=60)
+    assert simulated.terminated and simulated.latest.novel
+    export_session(simulated, tmp_path)
+    replayed, records = replay(read_observations(tmp_path / "observations.csv"), library,
+                               seed=0, params=simulated.params)
+    assert [s.terminated for s in replayed.snapshots] == [s.terminated for s in simulated.snapshots]
+    assert [r["dhd"] for r in records] == [s.dhd for s in simulated.snapshots]
 
 
 @pytest.mark.parametrize("observations, free_space, fault", [
