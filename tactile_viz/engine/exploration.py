@@ -6,7 +6,7 @@ simulator (the only thing that touches the ground truth) and an ``rng``.
 """
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .errors import TactileVizError
 from .observations import Contact
@@ -94,6 +94,83 @@ def next_sweep_direction(used, rng, count=64):
     if len(used) == 0:
         return candidates[rng.integers(count)]
     return candidates[int(np.argmin((candidates @ used.T).max(axis=1)))]
+
+
+def widest_gap(contacts, explored, surface, outside, margin=0.3, shell=0.6, max_points=8000):
+    """The point inside the contacts' convex hull or in a shell just outside the estimated
+    surface that lies farthest from everything observed and from the estimated surface:
+    where a part that nothing predicted could still hide (between touched parts, or
+    beyond the end of a part that the estimate closes off).
+
+    Parameters
+    ----------
+    contacts : (n, 3) float
+    explored : (m, 3) float
+        Points known to be free or touched (contacts, non-contacts, swept paths).
+    surface : (v, 3) float
+        Vertices of the estimated surface.
+    outside : callable
+        ``(k, 3) -> (k,)`` positive outside the estimate (its signed distance or GPIS mean).
+    margin : float
+        Points nearer than this to the estimated surface are not candidates.
+    shell : float
+        Points up to this far from the estimated surface are candidates outside the hull
+        (0: the hull alone).
+    max_points : int
+        Grid points over the bounding box at most.
+
+    Returns
+    -------
+    point : (3,) float or None
+        None when no grid point is a candidate.
+    gap : float
+        Its distance to the nearest observed point or surface vertex (0 without one).
+    """
+    everything = np.vstack([contacts, surface]) if shell > 0 else contacts
+    low, high = everything.min(axis=0) - shell, everything.max(axis=0) + shell
+    spacing = max(float(np.prod(high - low) / max_points) ** (1 / 3), 0.05)
+    axes = [np.arange(a, b + spacing / 2, spacing) for a, b in zip(low, high)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    try:
+        in_hull = Delaunay(contacts).find_simplex(grid) >= 0
+    except (QhullError, ValueError):  # fewer than 4 contacts, or all in a plane
+        in_hull = np.zeros(len(grid), bool)
+    distance = np.full(len(grid), np.inf)
+    if len(surface):
+        distance = cKDTree(surface).query(grid)[0]
+        if shell > 0:
+            in_hull |= distance <= shell
+    keep = in_hull & (distance > margin)
+    grid, distance = grid[keep], distance[keep]
+    if len(grid):
+        free = outside(grid) > 0
+        grid, distance = grid[free], distance[free]
+    if len(grid) == 0:
+        return None, 0.0
+    if len(explored):
+        distance = np.minimum(distance, cKDTree(explored).query(grid)[0])
+    best = int(np.argmax(distance))
+    return grid[best], float(distance[best]) if np.isfinite(distance[best]) else 0.0
+
+
+def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0.5):
+    """Of ``count`` spread directions, one along which a line comes in to ``through``
+    from ``reach`` away without passing within ``wanted`` of the estimated surface (the
+    least used of those, else the clearest): a line that can reach the point.
+
+    Returns
+    -------
+    (3,) float
+    """
+    candidates = sweep_directions(count)
+    distances = np.linspace(0.3, reach, 40)
+    samples = through + distances[None, :, None] * candidates[:, None, :]
+    clearance = np.full(count, np.inf)
+    if len(surface):
+        clearance = cKDTree(surface).query(samples.reshape(-1, 3))[0].reshape(count, -1).min(1)
+    used = np.reshape(used, (-1, 3))
+    novelty = -(candidates @ used.T).max(axis=1) if len(used) else np.zeros(count)
+    return candidates[int(np.argmax(np.minimum(clearance, wanted) + 1e-3 * novelty))]
 
 
 def sweep_line(simulator, through, direction, radius=10.0):

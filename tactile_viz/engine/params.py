@@ -205,6 +205,7 @@ def noise_matched(params, position_noise, normal_noise_deg):
 
 
 GPIS_KERNELS = ("wendland", "thin-plate")
+CHECK_LINE_AIMS = ("gap", "contact")
 
 
 @dataclass(frozen=True)
@@ -269,6 +270,11 @@ class SessionParams:
         trials stopped with a large part untouched (home_chair, dragon, neptune, 10 seeds
         each) it lowered the mean reconstruction TWD from 1.31 to 0.93 and the truth
         coverage from 1.38 to 1.02 for 15% more time (docs/benchmarks.md).
+    check_line_aim : {"gap", "contact"}
+        ``gap``: each check line runs through the widest gap inside the contacts' convex
+        hull, outside the estimate, that no path, contact or estimated surface is near,
+        from a direction with a clear way in; ``contact``: through a random contact moved
+        by about ``eps``, from the least used direction.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int
@@ -312,6 +318,7 @@ class SessionParams:
     cover_prior: bool = True
     target_uncovered: bool = False
     check_lines: int = 24
+    check_line_aim: str = "gap"
     variance_points: int = 1500
     learned_resolution: int = 64
     probe_depth: float = 1.0
@@ -325,6 +332,9 @@ class SessionParams:
     def __post_init__(self):
         if not isinstance(self.filter, FilterParams):
             raise ParameterError(f"filter must be FilterParams, got {type(self.filter).__name__}")
+        if self.check_line_aim not in CHECK_LINE_AIMS:
+            raise ParameterError(f"check_line_aim must be one of {', '.join(CHECK_LINE_AIMS)}, "
+                                 f"got {self.check_line_aim!r}")
         if self.gpis_kernel not in GPIS_KERNELS:
             raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
                                  f"got {self.gpis_kernel!r}")

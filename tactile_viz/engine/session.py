@@ -19,8 +19,9 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from .errors import TactileVizError
-from .exploration import (STRATEGIES, enforce_contact, farthest_vertex, first_contact,
-                          next_sweep_direction, rrt_step, sweep_line, variance_target)
+from .exploration import (STRATEGIES, clearest_direction, enforce_contact, farthest_vertex,
+                          first_contact, next_sweep_direction, rrt_step, sweep_line,
+                          variance_target, widest_gap)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
@@ -41,6 +42,7 @@ class SessionError(TactileVizError):
 
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
+SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 
 
 def _frozen(array):
@@ -220,6 +222,7 @@ class Session:
         self._target = None
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
+        self._swept = np.zeros((0, 3))  # approach paths up to their first touch
         self._check = None  # (estimate's vertices, point, direction) while a check line is due
         self._check_directions = []
         self._checks_passed = 0
@@ -322,6 +325,7 @@ class Session:
         saved = self._checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
+            self._record_sweep(observations[0])
             if self._check is not None:
                 self._count_check(observations[0])
             elif self._target is not None and not self._reached(observations, contacts):
@@ -353,17 +357,17 @@ class Session:
         return (self.filter.checkpoint(),
                 [g.bit_generator.state for g in self._generators()],
                 (self._scale, self._target, list(self._given_up_targets), self._free_space,
-                 len(self.snapshots)),
+                 self._swept, len(self.snapshots)),
                 (self._check, list(self._check_directions), self._checks_passed))
 
     def _restore(self, saved):
-        filter_state, generator_states, (scale, target, given_up, free, count), check = saved
+        filter_state, generator_states, (scale, target, given_up, free, swept, count), check = saved
         self._check, self._check_directions, self._checks_passed = check
         self.filter.restore(filter_state)
         for generator, state in zip(self._generators(), generator_states):
             generator.bit_generator.state = state
         self._scale, self._target, self._given_up_targets = scale, target, given_up
-        self._free_space = free
+        self._free_space, self._swept = free, swept
         del self.snapshots[count:]
 
     def _generators(self):
@@ -429,14 +433,20 @@ class Session:
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         covered = max(dhd, prior_dhd) <= self.params.eps
-        checking = covered and state.novel and self._checks_passed < self.params.check_lines
+        checking = (covered and state.novel and self.strategy != "rrt"
+                    and self._checks_passed < self.params.check_lines)
         terminated = bool((covered and not checking) or self.step_count + 1 >= cap)
         self._check = None
         if terminated:
             self._target = None
         elif checking:
             self._target = None
-            self._check = self._plan_check_line(surface, contacts)
+            if recon is not None and not recon.empty:
+                outside = recon.fit.mean_value
+            else:
+                prior = self._prior(model, rotation, translation)
+                outside = lambda points: prior(points)[0]  # noqa: E731
+            self._check = self._plan_check_line(surface, contacts, outside)
         elif dhd <= self.params.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
@@ -479,7 +489,9 @@ class Session:
         clearance = free_approach(estimate, target, normal, p.approach_clearance)
         paths, observations, reached = enforce_contact(
             self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
-            clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing, max_follow=p.max_follow)
+            clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing,
+            max_follow=p.max_follow)
+        self._record_sweep(observations[0])
         if not reached or self._repeats_contact(observations[-1]):
             self._given_up_targets.append(target)
         if not isinstance(observations[0], Contact):
@@ -487,20 +499,58 @@ class Session:
                                                  p.contact_spacing)
         return paths, observations
 
-    def _plan_check_line(self, estimate, contacts):
-        """The next check line: ``(estimate's vertices, a point on it, its direction)``,
-        from the least used of the spread directions through a random contact moved by
-        about ``eps``."""
-        direction = next_sweep_direction(self._check_directions, self.rng)
+    def _plan_check_line(self, estimate, contacts, outside=None):
+        """The next check line: ``(estimate's vertices, a point on it, its direction)``.
+
+        ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): through
+        the widest unobserved gap, alternately inside the contacts' hull and in a shell of
+        ``eps`` outside the estimate, from a direction with a clear way in
+        (:func:`~.exploration.widest_gap`); otherwise, or without a gap, through a random
+        contact moved by about ``eps``, from the least used of the spread directions.
+        """
+        through = None
+        if self.params.check_line_aim == "gap" and outside is not None:
+            explored = np.vstack([contacts, self.filter.noncontact_positions,
+                                  self._free_space, self._swept])
+            # Lines alternate between gaps inside the contacts' hull and the shell just
+            # outside the estimate (beyond the ends of parts it closes off).
+            shell = self.params.eps if len(self._check_directions) % 2 else 0.0
+            through, _ = widest_gap(contacts, explored, estimate, outside, shell=shell)
+        if through is None:
+            direction = next_sweep_direction(self._check_directions, self.rng)
+            through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
+                0.0, self.params.eps, size=3)
+        else:
+            direction = clearest_direction(through, estimate, self._check_directions,
+                                           reach=SWEEP_RADIUS)
         self._check_directions.append(direction)
-        through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
-            0.0, self.params.eps, size=3)
         return estimate, through, direction
+
+    def _approach_start(self):
+        """Where the sensor starts for the current check line or target (None before the
+        first contact and with RRT)."""
+        if self._check is not None:
+            _, through, direction = self._check
+            return through + SWEEP_RADIUS * direction
+        if self._target is None or self.strategy == "rrt":
+            return None
+        position, normal, estimate = self._target
+        return position + free_approach(estimate, position, normal,
+                                        self.params.approach_clearance) * normal
+
+    def _record_sweep(self, touched):
+        """Keep samples of the path from the approach's start to its first touch: space the
+        sensor passed through, which check lines need not visit again."""
+        start = self._approach_start()
+        if start is not None:
+            self._swept = free_space_points(self._swept, np.stack([start, touched.position]),
+                                            SWEPT_SPACING)
 
     def _check_line(self):
         """Sweep the planned check line with the simulated sensor and count it."""
         _, through, direction = self._check
         paths, observations = sweep_line(self.simulator, through, direction, SWEEP_RADIUS)
+        self._record_sweep(observations[0])
         self._count_check(observations[0])
         if not isinstance(observations[0], Contact):
             self._free_space = free_space_points(self._free_space, paths[0],
