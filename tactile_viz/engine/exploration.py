@@ -11,6 +11,7 @@ from scipy.spatial import Delaunay, QhullError, cKDTree
 from .errors import TactileVizError
 from .observations import Contact
 from .sdf import normalise_rows
+from .simulator import sample_path
 
 STRATEGIES = ("gpis-dhd", "rrt")
 
@@ -171,6 +172,53 @@ def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0
     used = np.reshape(used, (-1, 3))
     novelty = -(candidates @ used.T).max(axis=1) if len(used) else np.zeros(count)
     return candidates[int(np.argmax(np.minimum(clearance, wanted) + 1e-3 * novelty))]
+
+
+def raster_path(centre, radius, direction, spacing=0.2, reach=10.0):
+    """A sweep of the free space around a gap: in along ``-direction`` from ``reach``
+    away, then rows ``spacing`` apart through the cube of half-size ``0.7 radius`` about
+    ``centre`` (inside the ball of ``radius``), plane by plane from the near face.
+
+    Any part thicker than ``spacing`` that crosses the cube is touched.
+
+    Returns
+    -------
+    (k, 3) float
+        The waypoints, the first ``reach`` outside ``centre``.
+    """
+    direction = normalise_rows(np.asarray(direction, float)[None])[0]
+    helper = np.eye(3)[int(np.argmin(np.abs(direction)))]
+    across = normalise_rows(np.cross(direction, helper)[None])[0]
+    up = np.cross(direction, across)
+    half = max(0.7 * radius, spacing / 2)
+    offsets = np.linspace(-half, half, max(2, int(np.ceil(2 * half / spacing)) + 1))
+    waypoints = [centre + reach * direction]
+    row = 0
+    for depth in offsets[::-1]:
+        for height in offsets:
+            ends = (-half, half) if row % 2 == 0 else (half, -half)
+            base = centre + depth * direction + height * up
+            waypoints += [base + ends[0] * across, base + ends[1] * across]
+            row += 1
+    return np.array(waypoints)
+
+
+def path_until(path, point, spacing, tolerance=0.05):
+    """Samples ``spacing`` apart of the polyline ``path`` up to its first pass within
+    ``tolerance`` of ``point`` (where the sensor touched), all of it if it never does.
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    fine = sample_path(path, tolerance / 2)
+    near = np.flatnonzero(np.linalg.norm(fine - point, axis=1) <= tolerance)
+    if len(near):
+        fine = fine[:max(near[0], 1)]
+    keep = np.unique(np.floor(np.cumsum(np.r_[0.0, np.linalg.norm(np.diff(fine, axis=0),
+                                                                  axis=1)]) / spacing),
+                     return_index=True)[1]
+    return fine[keep]
 
 
 def sweep_line(simulator, through, direction, radius=10.0):

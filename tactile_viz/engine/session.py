@@ -20,8 +20,8 @@ from scipy.spatial import cKDTree
 
 from .errors import TactileVizError
 from .exploration import (STRATEGIES, clearest_direction, enforce_contact, farthest_vertex,
-                          first_contact, next_sweep_direction, rrt_step, sweep_line,
-                          variance_target, widest_gap)
+                          first_contact, next_sweep_direction, path_until, raster_path,
+                          rrt_step, variance_target, widest_gap)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
@@ -43,6 +43,7 @@ class SessionError(TactileVizError):
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
+MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
 
 
 def _frozen(array):
@@ -166,12 +167,16 @@ class Target:
     clearance : float
         How far outside ``position`` the approach starts (short of any part the estimate
         predicts on the way).
+    path : (k, 3) float or None
+        A check (``check_lines``): the polyline to sweep instead of an approach; the first
+        touch along it is the step's first observation.
     """
 
     position: np.ndarray
     normal: np.ndarray
     depth: float
     clearance: float = 0.5
+    path: object = None
 
 
 class Session:
@@ -223,7 +228,7 @@ class Session:
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
         self._swept = np.zeros((0, 3))  # approach paths up to their first touch
-        self._check = None  # (estimate's vertices, point, direction) while a check line is due
+        self._check = None  # (estimate's vertices, point, direction, path) while a check is due
         self._check_directions = []
         self._checks_passed = 0
 
@@ -273,8 +278,8 @@ class Session:
         """Where to touch next, or None: before the first contact (touch the object
         anywhere), with the RRT strategy and after termination.
 
-        A check line (``check_lines``) is proposed as a target whose approach and depth
-        reach :data:`SWEEP_RADIUS` on either side of it: the line the sensor should sweep.
+        A check (``check_lines``) is proposed as a target with a ``path``: the polyline
+        the sensor should sweep, reporting the first thing it touches.
 
         Returns
         -------
@@ -283,8 +288,9 @@ class Session:
         if self.terminated or self.strategy == "rrt":
             return None
         if self._check is not None:
-            _, through, direction = self._check
-            return Target(_frozen(through), _frozen(direction), SWEEP_RADIUS, SWEEP_RADIUS)
+            _, through, direction, path = self._check
+            return Target(_frozen(through), _frozen(direction), SWEEP_RADIUS, SWEEP_RADIUS,
+                          _frozen(path))
         if self._target is None:
             return None
         position, normal, estimate = self._target
@@ -512,26 +518,29 @@ class Session:
         if self.params.check_line_aim == "gap" and outside is not None:
             explored = np.vstack([contacts, self.filter.noncontact_positions,
                                   self._free_space, self._swept])
-            # Lines alternate between gaps inside the contacts' hull and the shell just
+            # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
             shell = self.params.eps if len(self._check_directions) % 2 else 0.0
-            through, _ = widest_gap(contacts, explored, estimate, outside, shell=shell)
+            through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell)
         if through is None:
             direction = next_sweep_direction(self._check_directions, self.rng)
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
                 0.0, self.params.eps, size=3)
+            path = np.stack([through + SWEEP_RADIUS * direction,
+                             through - SWEEP_RADIUS * direction])
         else:
             direction = clearest_direction(through, estimate, self._check_directions,
                                            reach=SWEEP_RADIUS)
+            path = raster_path(through, min(gap, MAX_RASTER_RADIUS), direction,
+                               reach=SWEEP_RADIUS)
         self._check_directions.append(direction)
-        return estimate, through, direction
+        return estimate, through, direction, path
 
     def _approach_start(self):
         """Where the sensor starts for the current check line or target (None before the
         first contact and with RRT)."""
         if self._check is not None:
-            _, through, direction = self._check
-            return through + SWEEP_RADIUS * direction
+            return self._check[3][0]
         if self._target is None or self.strategy == "rrt":
             return None
         position, normal, estimate = self._target
@@ -541,20 +550,25 @@ class Session:
     def _record_sweep(self, touched):
         """Keep samples of the path from the approach's start to its first touch: space the
         sensor passed through, which check lines need not visit again."""
+        if self._check is not None:
+            samples = path_until(self._check[3], touched.position, SWEPT_SPACING)
+            self._swept = thin_points(np.vstack([self._swept, samples]), SWEPT_SPACING)
+            return
         start = self._approach_start()
         if start is not None:
             self._swept = free_space_points(self._swept, np.stack([start, touched.position]),
                                             SWEPT_SPACING)
 
     def _check_line(self):
-        """Sweep the planned check line with the simulated sensor and count it."""
-        _, through, direction = self._check
-        paths, observations = sweep_line(self.simulator, through, direction, SWEEP_RADIUS)
+        """Sweep the planned check path with the simulated sensor and count it."""
+        path = self._check[3]
+        paths, observations = [path], [self.simulator.probe(path)]
         self._record_sweep(observations[0])
         self._count_check(observations[0])
         if not isinstance(observations[0], Contact):
-            self._free_space = free_space_points(self._free_space, paths[0],
-                                                 self.params.contact_spacing)
+            spacing = self.params.contact_spacing
+            self._free_space = thin_points(
+                np.vstack([self._free_space, path_until(path, path[-1], spacing)]), spacing)
         return paths, observations
 
     def _count_check(self, touched):

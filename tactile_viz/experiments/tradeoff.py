@@ -63,6 +63,7 @@ CONFIGS = {
     "approach0.5": ("paper", {"approach_clearance": 0.5}, {}),
     "approach1": ("paper", {"approach_clearance": 1.0}, {}),
     "approach4": ("paper", {"approach_clearance": 4.0}, {}),
+    "lines-at-contacts": ("paper", {"check_line_aim": "contact"}, {}),
 }
 
 

@@ -10,7 +10,7 @@ from tactile_viz.engine.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.objects import ObjectModel
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.session import (SWEEP_RADIUS, Session, SessionError, SessionParams,
+from tactile_viz.engine.session import (Session, SessionError, SessionParams,
                                         free_space_points, learned_model_from_surface,
                                         make_truth, session_preset)
 
@@ -441,10 +441,9 @@ def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model
     lines = 0
     for _ in range(60):
         target = session.propose()
-        if target is not None and target.depth == SWEEP_RADIUS:
+        if target is not None and target.path is not None:
             lines += 1
-            start = target.position + target.clearance * target.normal
-            observations = [simulator.probe([start, target.position - target.depth * target.normal])]
+            observations = [simulator.probe(target.path)]
         else:
             observations = _robot(simulated.truth)(target, session.filter.contact_positions,
                                                    session.filter.contact_normals)
