@@ -25,7 +25,15 @@ LAYERS = {
 }
 CONTACT_RADIUS = 0.07
 LEGEND_ROW_PIXELS = 18  # height of one legend entry, whatever the viewport's size
-LEGEND_WIDTH_PIXELS = 190
+LEGEND_WIDTH_PIXELS = 230
+# The legend: dark labels on a light box, each beside a framed marker of its layer's colour
+# (WCAG contrast of the labels against the box: about 17, where text needs 4.5).
+LEGEND_BACKGROUND = (1.0, 1.0, 1.0)
+LEGEND_BACKGROUND_OPACITY = 0.9
+LEGEND_TEXT = (0.1, 0.1, 0.1)
+LEGEND_OUTLINE = (0.25, 0.25, 0.25)
+LEGEND_MARKER_ASPECT = 2.0  # a marker's width over its height
+LEGEND_RAMP_STRIPS = 8  # colours of the GPIS layer's viridis marker
 SCALAR_BAR = "variance"
 HIDDEN_AT_START = ("hypotheses",)
 
@@ -89,18 +97,59 @@ def polylines(paths):
     return pv.PolyData(np.vstack(points), lines=np.concatenate(cells))
 
 
-def _viridis_icon(width=24, height=12):
-    """A small image of the viridis ramp, the GPIS layer's legend symbol."""
-    from matplotlib import colormaps
+def relative_luminance(rgb):
+    """WCAG 2 relative luminance of an RGB colour with components in [0, 1]."""
+    rgb = np.asarray(rgb, dtype=float)
+    linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return float(linear @ [0.2126, 0.7152, 0.0722])
 
-    ramp = (colormaps["viridis"](np.linspace(0, 1, width))[:, :3] * 255).astype(np.uint8)
-    pixels = np.repeat(ramp[None], height, axis=0)  # (height, width, 3)
-    image = vtk.vtkImageData()
-    image.SetDimensions(width, height, 1)
-    array = pv.convert_array(pixels.reshape(-1, 3))
-    array.SetName("rgb")
-    image.GetPointData().SetScalars(array)
-    return image
+
+def contrast_ratio(first, second):
+    """WCAG 2 contrast ratio of two RGB colours (1 to 21; text wants at least 4.5)."""
+    light, dark = sorted((relative_luminance(first), relative_luminance(second)), reverse=True)
+    return (light + 0.05) / (dark + 0.05)
+
+
+def legend_fill(name):
+    """The RGB colours (0-255) that fill a layer's legend marker, left to right: one for a
+    plain colour, a viridis ramp for the GPIS layer (drawn in viridis)."""
+    colour = LAYERS[name][1]
+    if colour == "viridis":
+        from matplotlib import colormaps
+
+        ramp = colormaps["viridis"](np.linspace(0.0, 1.0, LEGEND_RAMP_STRIPS))[:, :3]
+        return (ramp * 255).round().astype(np.uint8)
+    return np.array([pv.Color(colour).int_rgb], dtype=np.uint8)
+
+
+def legend_marker(fill, outline=LEGEND_OUTLINE):
+    """A legend marker: a dark frame around a rectangle filled with the colours ``fill``
+    ((k, 3) RGB, 0-255; k vertical strips, left to right), as a ``vtkPolyData`` whose cells
+    carry their colours (the legend draws them as they are, whatever the entry's colour, which
+    is then the label's).
+
+    The frame keeps light colours (gold, light steel blue) visible on the legend's light
+    background; the label beside the marker is dark.
+    """
+    fill = np.asarray(fill, dtype=np.uint8).reshape(-1, 3)
+    width, height, frame = LEGEND_MARKER_ASPECT, 1.0, 0.14
+    # The legend draws a symbol at half its column's width, from the column's middle (x = 0):
+    # shifted left like this, it ends a few pixels before the label instead of touching it.
+    left = -0.35 * width
+    xs = np.linspace(left + frame, left + width - frame, len(fill) + 1)
+    corners = [(left, 0), (left + width, 0), (left + width, height), (left, height)]
+    points = [(x, y, 0.0) for x, y in corners]
+    quads = [[0, 1, 2, 3]]  # the frame, drawn first, under the fill
+    for x0, x1 in zip(xs[:-1], xs[1:]):
+        start = len(points)
+        points += [(x0, frame, 0.0), (x1, frame, 0.0), (x1, height - frame, 0.0),
+                   (x0, height - frame, 0.0)]
+        quads.append([start, start + 1, start + 2, start + 3])
+    marker = pv.PolyData(np.array(points), faces=np.hstack([[4, *quad] for quad in quads]))
+    outline = (np.asarray(pv.Color(outline).float_rgb) * 255).round().astype(np.uint8)
+    marker.cell_data["colours"] = np.vstack([outline[None], fill])
+    marker.cell_data.active_scalars_name = "colours"
+    return marker
 
 
 class ViewportLayers:
@@ -297,28 +346,21 @@ class ViewportLayers:
         legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
         legend.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
         legend.UseBackgroundOn()
-        legend.SetBackgroundColor(1.0, 1.0, 1.0)
-        legend.SetBackgroundOpacity(0.85)
+        legend.SetBackgroundColor(*LEGEND_BACKGROUND)
+        legend.SetBackgroundOpacity(LEGEND_BACKGROUND_OPACITY)
         legend.BorderOff()
-        legend.SetPadding(2)
-        legend.GetEntryTextProperty().SetColor(0.1, 0.1, 0.1)
+        legend.SetPadding(3)
+        legend.ScalarVisibilityOn()  # the markers' own cell colours
+        legend.GetEntryTextProperty().SetColor(*LEGEND_TEXT)
         legend.GetEntryTextProperty().SetFontSize(12)
-        square = vtk.vtkPolyData()
-        points = vtk.vtkPoints()
-        for x, y in ((0, 0), (1, 0), (1, 1), (0, 1)):
-            points.InsertNextPoint(x, y, 0)
-        square.SetPoints(points)
-        cells = vtk.vtkCellArray()
-        cells.InsertNextCell(4, [0, 1, 2, 3])
-        square.SetPolys(cells)
-        self._square = square
-        self._icon = _viridis_icon()
+        self.markers = {name: legend_marker(legend_fill(name)) for name in LAYERS}
         self.plotter.renderer.AddViewProp(legend)
         self.legend = legend
 
     def _sync_legend(self):
         """A legend of the layers that exist and are switched on, sized in pixels (readable
-        whatever the window's size); GPIS is shown as a viridis ramp, as it is drawn."""
+        whatever the window's size): a dark label beside a framed marker of the layer's
+        colour each (GPIS: a viridis ramp, as it is drawn)."""
         names = [name for name in LAYERS if self.shown(name)]
         pixels = self._viewport_pixels()
         key = (tuple(names), pixels)
@@ -333,13 +375,24 @@ class ViewportLayers:
             return
         legend.SetNumberOfEntries(len(names))
         for index, name in enumerate(names):
-            label, colour = LAYERS[name]
-            if name == "gpis":
-                legend.SetEntry(index, None, self._icon, label, (1.0, 1.0, 1.0))
-            else:
-                legend.SetEntry(index, self._square, label, pv.Color(colour).float_rgb)
+            # The entry's colour is its label's; the marker keeps its own colours.
+            legend.SetEntry(index, self.markers[name], LAYERS[name][0], LEGEND_TEXT)
         width, height = pixels
         box_w = min(0.6, LEGEND_WIDTH_PIXELS / width)
         box_h = min(0.9, LEGEND_ROW_PIXELS * len(names) / height)
         legend.SetPosition(0.01, 0.99 - box_h)
         legend.SetPosition2(box_w, box_h)
+
+    def legend_entries(self):
+        """``(label, label colour, marker fill colours)`` of each legend entry, top to
+        bottom (none while the legend is hidden); colours are RGB in [0, 1]."""
+        legend = getattr(self, "legend", None)
+        if legend is None or not legend.GetVisibility():
+            return []
+        entries = []
+        for index in range(legend.GetNumberOfEntries()):
+            marker = pv.wrap(legend.GetEntrySymbol(index))
+            fill = np.asarray(marker.cell_data["colours"][1:], dtype=float) / 255
+            entries.append((legend.GetEntryString(index), tuple(legend.GetEntryColor(index)),
+                            fill))
+        return entries

@@ -36,6 +36,7 @@ from .recording import Recorder, widget_frame
 from .runner import StepRunner
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+OBSERVATION_SUFFIXES = (".csv",)  # recorded touches (kind,x,y,z,nx,ny,nz)
 MESH_FILTER = "Meshes (*.obj *.ply *.stl *.off *.glb *.gltf);;All files (*)"
 SETTINGS_ORGANIZATION = "tactile_viz"
 SETTINGS_APPLICATION = "tactile_viz"
@@ -90,10 +91,11 @@ def saved_step_count(path):
         return None
 
 
-@thread_worker(start_thread=False)
+@thread_worker(start_thread=False, ignore_errors=True)
 def load_session_worker(path, cancel, progress):
     """Load (replay) a saved session in a worker; ``progress(done, total)`` after each
-    step, :class:`LoadCancelled` once ``cancel`` is set."""
+    step, :class:`LoadCancelled` once ``cancel`` is set. Errors (a cancel included) go to
+    the worker's ``errored`` signal only, never re-raised in the GUI thread."""
     total = saved_step_count(path)
     progress(0, total or 0)
 
@@ -118,14 +120,33 @@ def _seconds_since(log, since):
 
 class Viewport(QtInteractor):
     """The 3D view: a QtInteractor whose file drops go to the window (and from there through
-    the scene, checked like any file), not straight into the plotter as loose actors."""
+    the scene, checked like any file), not straight into the plotter as loose actors.
 
-    files_dropped = Signal(list)
+    A mesh file (:data:`MESH_SUFFIXES`) or recorded touches (:data:`OBSERVATION_SUFFIXES`)
+    may be dropped; anything else is refused while it is dragged. Holding Shift at the drop
+    asks for a mesh to be added as a prior instead of becoming the ground truth. While
+    ``drops_enabled`` is False (steps running) every drag is refused.
+
+    Signals
+    -------
+    files_dropped(list, bool)
+        The droppable paths, and whether Shift was held (a mesh becomes a prior).
+    drag_entered(list, bool)
+        A drag entered carrying these droppable paths (none: refused); the bool says
+        whether a drop would be accepted now.
+    resized()
+        The view's size changed (the overlays sized in pixels follow).
+    """
+
+    files_dropped = Signal(list, bool)
+    drag_entered = Signal(list, bool)
+    resized = Signal()
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.last_paint_seconds = 0.0
         self.paint_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per paint
+        self.drops_enabled = True
 
     def schedule_render(self):
         """Render once, in the next paint (a synchronous render would be followed by a
@@ -138,27 +159,47 @@ class Viewport(QtInteractor):
         self.last_paint_seconds = time.perf_counter() - began
         self.paint_log.append((began, self.last_paint_seconds))
 
+    def resizeEvent(self, event):
+        super().resizeEvent(event)
+        self.resized.emit()
+
+    @staticmethod
+    def droppable_paths(mime_data):
+        """The local files of a drag's data that may be dropped here, in order."""
+        paths = [url.toLocalFile() for url in mime_data.urls()] if mime_data.hasUrls() else []
+        return [path for path in paths if _is_droppable(path)]
+
     def dragEnterEvent(self, event):
-        if any(_is_mesh_path(url.toLocalFile()) for url in event.mimeData().urls()):
+        paths = self.droppable_paths(event.mimeData())
+        if paths and self.drops_enabled:
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+        self.drag_entered.emit(paths, bool(paths) and self.drops_enabled)
+
+    def dragMoveEvent(self, event):
+        if self.drops_enabled and self.droppable_paths(event.mimeData()):
             event.acceptProposedAction()
         else:
             event.ignore()
 
-    def dragMoveEvent(self, event):
-        self.dragEnterEvent(event)
-
     def dropEvent(self, event):
-        paths = [url.toLocalFile() for url in event.mimeData().urls()]
-        paths = [path for path in paths if _is_mesh_path(path)]
-        if paths:
+        paths = self.droppable_paths(event.mimeData())
+        if paths and self.drops_enabled:
             event.acceptProposedAction()
-            self.files_dropped.emit(paths)
+            as_prior = bool(event.modifiers() & Qt.KeyboardModifier.ShiftModifier)
+            self.files_dropped.emit(paths, as_prior)
         else:
             event.ignore()
 
 
 def _is_mesh_path(path):
-    return bool(path) and os.path.isfile(path) and path.lower().endswith(MESH_SUFFIXES)
+    return str(path).lower().endswith(MESH_SUFFIXES)
+
+
+def _is_droppable(path):
+    return (bool(path) and os.path.isfile(path)
+            and str(path).lower().endswith(MESH_SUFFIXES + OBSERVATION_SUFFIXES))
 
 
 class _Progress(QWidget):
@@ -226,8 +267,10 @@ class MainWindow(QMainWindow):
         if getattr(self.plotter, "iren", None) is not None:
             self.plotter.clear_events_for_key("q")  # pyvista's 'q' would finalise the view
         self.plotter.files_dropped.connect(self._on_files_dropped)
+        self.plotter.drag_entered.connect(self._on_drag_entered)
         self.setCentralWidget(self.plotter)
         self.layers = ViewportLayers(self.plotter)
+        self.plotter.resized.connect(self.layers.relayout)
         self._build_actions()
         self._build_panel()
         self._build_plots()
@@ -313,7 +356,9 @@ class MainWindow(QMainWindow):
         dock = QDockWidget("Controls", self)
         dock.setObjectName("controls")
         dock.setWidget(controls)
-        dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable)
+        # Closable too: View > Controls / Plots hides and shows it (else greyed out).
+        dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable
+                         | QDockWidget.DockWidgetClosable)
         self.addDockWidget(Qt.LeftDockWidgetArea, dock)
         self.controls_dock = dock
 
@@ -347,7 +392,9 @@ class MainWindow(QMainWindow):
         dock = QDockWidget("Plots", self)
         dock.setObjectName("plots")
         dock.setWidget(self.plots)
-        dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable)
+        # Closable too: View > Controls / Plots hides and shows it (else greyed out).
+        dock.setFeatures(QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable
+                         | QDockWidget.DockWidgetClosable)
         self.addDockWidget(Qt.RightDockWidgetArea, dock)
         self.plots_dock = dock
 
@@ -491,6 +538,7 @@ class MainWindow(QMainWindow):
     def _set_controls_enabled(self, enabled):
         for control in self.scene_controls():
             control.setEnabled(enabled)
+        self.plotter.drops_enabled = enabled  # a dropped file changes the scene too
         if enabled:
             self.priors_panel.learn_button.setEnabled(self.scene.can_learn())
 
@@ -618,15 +666,52 @@ class MainWindow(QMainWindow):
         """Use a mesh file as the ground truth (an error box, and no change, if it is bad)."""
         if self._idle("a new ground truth") and self._guarded(self.scene.set_truth_file, path):
             self.statusBar().showMessage(f"ground truth: {path}", STATUS_SECONDS)
+            return True
+        return False
 
-    def _on_files_dropped(self, paths):
-        if len(paths) > 1:
-            self.statusBar().showMessage(f"{len(paths)} files dropped: using the first",
+    def add_prior_file(self, path):
+        """Add a mesh file as a new prior (an error box, and no change, if it is bad or its
+        name is taken)."""
+        if self._idle("a new prior") and self._guarded(self.scene.add_prior_file, path):
+            self.statusBar().showMessage(f"added the prior {self.scene.library.names[-1]!r}",
                                          STATUS_SECONDS)
-        if str(paths[0]).lower().endswith(".csv"):
-            self.open_observations(paths[0])
+            return True
+        return False
+
+    def _on_drag_entered(self, paths, accepted):
+        """Say in the status bar what a drop would do (or why it is refused)."""
+        if not paths:
+            self.statusBar().showMessage("only mesh files (" + " ".join(MESH_SUFFIXES)
+                                         + ") and recorded touches (.csv) can be dropped here",
+                                         STATUS_SECONDS)
+        elif not accepted:
+            self._idle("a dropped file")  # says: Pause first
+        elif not _is_mesh_path(paths[0]):
+            self.statusBar().showMessage(f"drop to replay the touches recorded in "
+                                         f"{Path(paths[0]).name}", STATUS_SECONDS)
         else:
-            self.load_truth_file(paths[0])
+            self.statusBar().showMessage(f"drop to use {Path(paths[0]).name} as the object; "
+                                         "hold Shift to add it as a prior", STATUS_SECONDS)
+
+    def _on_files_dropped(self, paths, as_prior=False):
+        """Files dropped on the viewport, through the scene like the File menu's: recorded
+        touches (.csv) are replayed; a mesh becomes the ground truth, or with ``as_prior``
+        (Shift held) every dropped mesh is added as a prior."""
+        if not paths or not self._idle("a dropped file"):
+            return
+        paths = [str(path) for path in paths]
+        if as_prior and _is_mesh_path(paths[0]):
+            for path in paths:
+                if not (_is_mesh_path(path) and self.add_prior_file(path)):
+                    break
+            return
+        if _is_mesh_path(paths[0]):
+            done = self.load_truth_file(paths[0])
+        else:
+            done = self.open_observations(paths[0])
+        if done and len(paths) > 1:
+            self.statusBar().showMessage(f"{len(paths)} files dropped: used the first, "
+                                         f"{Path(paths[0]).name}", STATUS_SECONDS)
 
     def _on_reset(self):
         if self._idle("Reset"):
@@ -649,9 +734,7 @@ class MainWindow(QMainWindow):
                                               self._folder("meshes"), MESH_FILTER)
         if path:
             self._remember("meshes", path)
-            if self._guarded(self.scene.add_prior_file, path):
-                self.statusBar().showMessage(f"added the prior {self.scene.library.names[-1]!r}",
-                                             STATUS_SECONDS)
+            self.add_prior_file(path)
 
     def _on_load_library(self):
         if not self._idle("a new library"):
@@ -870,7 +953,8 @@ class MainWindow(QMainWindow):
         QMessageBox.information(self, "Keys", "<table cellspacing=4>" + rows + "</table>"
                                 "<p>In the viewport: drag to rotate, shift-drag to pan, "
                                 "wheel to zoom; drop a mesh file to use it as the ground "
-                                "truth, or an observation file (.csv) to replay it.</p>")
+                                "truth (hold Shift to add it as a prior instead), or an "
+                                "observation file (.csv) to replay it.</p>")
 
     def _show_about(self):
         QMessageBox.about(self, "About tactile_viz",

@@ -16,14 +16,24 @@ from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 from superqt.utils import thread_worker
 
 
-@thread_worker(start_thread=False)
+class StepFailed(Exception):
+    """A step raised a RuntimeError. superqt's generator worker takes a RuntimeError for its
+    own deletion and drops it without reporting it or finishing, so it is passed on as this
+    (same message, the original as its cause)."""
+
+
+@thread_worker(start_thread=False, ignore_errors=True)
 def step_worker(session, count, stop, generation, step_ends=None):
     """Step ``session`` ``count`` times (None: until it terminates) unless ``stop`` is set,
     yielding ``(generation, snapshot)`` after each step (and appending the time each step
-    ended to ``step_ends``, if given)."""
+    ended to ``step_ends``, if given). A failed step goes to the worker's ``errored`` signal
+    only (superqt would also re-raise it in the GUI thread as an uncaught exception)."""
     done = 0
     while not stop.is_set() and not session.terminated and (count is None or done < count):
-        snapshot = session.step()
+        try:
+            snapshot = session.step()
+        except RuntimeError as error:
+            raise StepFailed(str(error)) from error
         done += 1
         if step_ends is not None:
             step_ends.append(time.perf_counter())

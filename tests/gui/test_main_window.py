@@ -6,12 +6,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QSettings
-from PySide6.QtWidgets import QMessageBox
+from PySide6.QtCore import QByteArray, QMimeData, QPointF, QSettings, Qt, QUrl
+from PySide6.QtGui import QDragEnterEvent, QDropEvent
+from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox, QPushButton
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.cli import stop_logging
 from tactile_viz.engine import PriorLibrary, load_bundled
+from tactile_viz.engine.session import session_preset
 from tactile_viz.gui.main_window import MainWindow
 
 pytestmark = pytest.mark.gui
@@ -205,6 +207,8 @@ def test_controls_show_a_loaded_session(qtbot, window, known_library, tmp_path):
     truth = window.scene_panel
     assert truth.object_box.currentText() == "vase_1" and truth.seed_box.value() == 3
     assert window.loop_panel.step_label.text().startswith("step 2")
+    message = window.statusBar().currentMessage()
+    assert "loaded" in message and "replaced" not in message  # the same priors
 
 
 def _legend_labels(layers):
@@ -227,6 +231,72 @@ def test_legend_lists_only_present_and_visible_layers(qtbot, window):
     assert LAYERS["contacts"][0] not in _legend_labels(window.layers)
     window.layers_panel.layer_boxes["contacts"].setChecked(True)
     assert LAYERS["contacts"][0] in _legend_labels(window.layers)
+
+
+def _with_every_layer(snapshot):
+    """``snapshot`` with a GPIS surface (a sphere at its first contact, as a novel step has),
+    a non-contact and a sensor path, so that every layer has something to show."""
+    from dataclasses import replace
+
+    import pyvista as pv
+
+    contact = np.asarray(snapshot.contacts[0])
+    sphere = pv.Sphere(radius=1.0, center=tuple(contact))
+    points = np.asarray(sphere.points)
+    return replace(snapshot, gpis_vertices=points, gpis_faces=sphere.faces.reshape(-1, 4)[:, 1:],
+                   gpis_variance=1.0 + points[:, 2] - points[:, 2].min(),
+                   noncontacts=(contact + 2.0)[None], paths=[np.stack([contact + 3.0, contact])])
+
+
+def test_legend_is_readable_at_1280_by_720(qtbot, window):
+    from matplotlib import colormaps
+
+    from tactile_viz.gui import layers as layers_module
+    from tactile_viz.gui.layers import LAYERS, LEGEND_BACKGROUND, contrast_ratio
+
+    window.loop_panel.step_button.click()
+    _wait_idle(qtbot, window)
+    window.layers_panel.layer_boxes["hypotheses"].setChecked(True)
+    window.layers.show_snapshot(_with_every_layer(window.scene.latest))
+    window.resize(1280, 720)  # the legend follows the viewport's new size
+    qtbot.waitUntil(lambda: window.width() == 1280, timeout=5_000)
+    qtbot.wait(50)
+    entries = window.layers.legend_entries()
+    assert [label for label, *_ in entries] == [label for label, _ in LAYERS.values()]
+    for (label, text, fill), name in zip(entries, LAYERS):
+        assert contrast_ratio(text, LEGEND_BACKGROUND) >= 4.5, label  # WCAG AA for text
+        if name == "gpis":  # a viridis ramp, as the surface is drawn; never white
+            ramp = colormaps["viridis"]([0.0, 1.0])[:, :3]
+            np.testing.assert_allclose(fill[[0, -1]], ramp, atol=1 / 255)
+            assert len(fill) > 2 and all(contrast_ratio(c, (1, 1, 1)) > 1.2 for c in fill)
+        else:  # the layer's own colour
+            np.testing.assert_allclose(fill, [pv_color(LAYERS[name][1])], atol=1 / 255)
+    outline = layers_module.LEGEND_OUTLINE
+    assert contrast_ratio(outline, LEGEND_BACKGROUND) >= 3  # light markers stay visible
+
+    # As drawn: every row of the box has dark text on the light box, and is tall enough.
+    image = window.plotter.screenshot(return_img=True)[..., :3].astype(float) / 255
+    height, width = image.shape[:2]
+    legend = window.layers.legend
+    left, bottom = legend.GetPosition()
+    box_w, box_h = legend.GetPosition2()
+    top, rows = round((1 - bottom - box_h) * height), len(entries)
+    row_pixels = box_h * height / rows
+    assert row_pixels >= 16  # about a 12 px font; the box is not a few pixels high
+    x0, x1 = round(left * width), round((left + box_w) * width)
+    for row in range(rows):
+        strip = image[round(top + row * row_pixels) + 2:round(top + (row + 1) * row_pixels) - 2,
+                      x0 + (x1 - x0) // 6:x1]  # the labels' part of the row
+        luminance = strip @ [0.2126, 0.7152, 0.0722]
+        darkest = strip.reshape(-1, 3)[np.argmin(luminance)]
+        background = strip.reshape(-1, 3)[np.argmax(luminance)]
+        assert contrast_ratio(darkest, background) >= 4.5, entries[row][0]
+
+
+def pv_color(name):
+    import pyvista as pv
+
+    return pv.Color(name).float_rgb
 
 
 def test_history_slider_shows_earlier_steps(qtbot, window):
@@ -283,17 +353,83 @@ def test_screenshot_is_the_whole_window(window, tmp_path):
     assert (image.width(), image.height()) == (window.width(), window.height())
 
 
-def test_dropped_mesh_goes_through_the_scene(qtbot, window, errors, tmp_path):
+def _drop(viewport, *paths, shift=False):
+    """Drag ``paths`` onto the viewport and drop them there, as Qt's drag and drop does (a
+    QDragEnterEvent, then a QDropEvent, Shift held or not); returns whether each was accepted."""
+    mime = QMimeData()
+    mime.setUrls([QUrl.fromLocalFile(str(path)) for path in paths])
+    modifiers = Qt.ShiftModifier if shift else Qt.NoModifier
+    middle = QPointF(viewport.width() / 2, viewport.height() / 2)
+    enter = QDragEnterEvent(middle, Qt.CopyAction, mime, Qt.LeftButton, modifiers)
+    QApplication.sendEvent(viewport, enter)
+    drop = QDropEvent(middle, Qt.CopyAction, mime, Qt.LeftButton, modifiers)
+    QApplication.sendEvent(viewport, drop)
+    return enter.isAccepted(), drop.isAccepted()
+
+
+@pytest.fixture
+def vase_file(tmp_path):
     path = tmp_path / "dropped_vase.obj"
     load_bundled("vase_1").mesh.export(path)
+    return path
+
+
+def test_dropped_mesh_becomes_the_truth_through_the_scene(qtbot, window, errors, vase_file):
     window.loop_panel.run_button.setChecked(True)
-    window.plotter.files_dropped.emit([str(path)])  # refused while running
+    assert _drop(window.plotter, vase_file) == (False, False)  # refused while running
+    assert "Pause first" in window.statusBar().currentMessage()
     assert window.scene.truth_model.name == "mug_1"
     window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
-    window.plotter.files_dropped.emit([str(path)])
+    assert _drop(window.plotter, vase_file) == (True, True)
     assert window.scene.truth_model.name == "dropped_vase" and window.scene.session is None
     assert window.scene_panel.object_box.currentText() == "dropped_vase" and not errors
+    assert window.priors_panel.prior_list.count() == 10  # not a prior
+    assert "ground truth" in window.statusBar().currentMessage()
+
+
+def test_shift_drop_adds_a_mesh_as_a_prior(qtbot, window, errors, vase_file, tmp_path):
+    assert _drop(window.plotter, vase_file, shift=True) == (True, True)
+    assert window.scene.library.names[-1] == "dropped_vase" and window.scene.enabled[
+        "dropped_vase"]
+    assert window.priors_panel.prior_list.count() == 11
+    assert window.priors_panel.prior_list.item(10).checkState() == Qt.Checked
+    assert window.scene.truth_model.name == "mug_1" and not errors
+    assert "added the prior 'dropped_vase'" in window.statusBar().currentMessage()
+    _drop(window.plotter, vase_file, shift=True)  # checked like Load mesh: the name is taken
+    assert errors and "dropped_vase" in errors[0] and len(window.scene.library) == 11
+    bad = tmp_path / "broken.stl"
+    bad.write_bytes(b"\x00garbage" * 7)
+    _drop(window.plotter, bad, shift=True)
+    assert len(errors) == 2 and "broken.stl" in errors[1] and len(window.scene.library) == 11
+    window.loop_panel.run_button.setChecked(True)
+    assert _drop(window.plotter, vase_file, shift=True) == (False, False)
+    window.loop_panel.run_button.setChecked(False)
+    _wait_idle(qtbot, window)
+    assert len(window.scene.library) == 11 and len(errors) == 2
+
+
+def test_dropped_csv_replays_the_recorded_touches(window, errors, tmp_path):
+    path = tmp_path / "touches.csv"
+    path.write_text("kind,x,y,z,nx,ny,nz\ncontact,0.5,0.0,1.0,0.0,0.0,1.0\n"
+                    "noncontact,2.0,0.4,0.1,,,\n")
+    assert _drop(window.plotter, path) == (True, True)
+    assert window.scene.recording is not None and window.scene.recording[0] == str(path)
+    assert not window.layers.shown("truth") and not errors
+    assert "replaying" in window.statusBar().currentMessage()
+
+
+def test_other_dropped_files_are_refused(window, errors, tmp_path):
+    text = tmp_path / "notes.txt"
+    text.write_text("not a mesh")
+    missing = tmp_path / "missing.obj"
+    session, truth = window.scene.session, window.scene.truth
+    for path in (text, missing, tmp_path):
+        for shift in (False, True):
+            assert _drop(window.plotter, path, shift=shift) == (False, False)
+    assert "only mesh files" in window.statusBar().currentMessage()
+    assert window.scene.truth is truth and window.scene.session is session
+    assert window.scene.recording is None and len(window.scene.library) == 10 and not errors
 
 
 def test_belief_ghosts_show_the_other_hypotheses_by_weight(qtbot, window):
@@ -341,7 +477,7 @@ def test_recorded_touches_step_like_a_session_and_export(qtbot, window, errors, 
     bad.write_text("kind,x,y,z\n")
     assert not window.open_observations(bad) and errors and "bad.csv, line 1" in errors[0]
     assert window.scene.recording is None and "truth" in window.layers.actors
-    window.plotter.files_dropped.emit([str(recording)])  # a dropped CSV is replayed
+    assert _drop(window.plotter, recording) == (True, True)  # a dropped CSV is replayed
     assert window.scene.recording is not None and not window.layers.shown("truth")
     window.actions["finish"].trigger()
     _wait_idle(qtbot, window)
@@ -353,3 +489,263 @@ def test_recorded_touches_step_like_a_session_and_export(qtbot, window, errors, 
     assert (tmp_path / "again" / "estimate.json").exists() and len(errors) == 1
     window.scene_panel.pose_requested.emit(5)  # a new pose goes back to the simulator
     assert window.scene.recording is None and window.layers.shown("truth")
+
+
+# ---------------------------------------------------------------------- toolbar, keys, status
+LOOP_AND_VIEW_KEYS = {"step": "F6", "run": "F5", "finish": "Shift+F5", "reset": "Ctrl+R",
+                      "camera": "Home", "iso": "Ctrl+0", "xy": "Ctrl+1", "xz": "Ctrl+2",
+                      "yz": "Ctrl+3", "screenshot": "F12"}
+
+
+def _cap_steps(scene, steps):
+    """A preset like the paper's whose sessions stop after ``steps`` steps."""
+    scene.presets["tiny"] = session_preset("paper", max_steps_known=steps, max_steps_novel=steps)
+    scene.set_preset("tiny")
+
+
+def _activate(qtbot, window):
+    """Make the window the active one (window shortcuts fire only in the active window)."""
+    window.activateWindow()
+    qtbot.waitUntil(lambda: QApplication.activeWindow() is window, timeout=5_000)
+
+
+def _view_direction(window):
+    camera = window.plotter.camera
+    direction = np.subtract(camera.position, camera.focal_point)
+    return direction / np.linalg.norm(direction)
+
+
+def test_toolbar_holds_the_loop_view_and_screenshot_actions(window):
+    toolbar = window.toolbar
+    assert toolbar.isVisible()
+    in_toolbar = [action for action in toolbar.actions() if not action.isSeparator()]
+    assert [action.text() for action in in_toolbar[:4]] == ["Step", "Run", "Run to termination",
+                                                             "Reset"]
+    for name, keys in LOOP_AND_VIEW_KEYS.items():
+        action = window.actions[name]
+        assert action in in_toolbar, name
+        assert action.shortcut().toString() == keys and keys in action.toolTip()
+    assert window.actions["record"] in in_toolbar and window.actions["run"].isCheckable()
+    texts = [action.text() for action in in_toolbar]
+    assert {"Reset camera", "Isometric view", "Top view", "Front view", "Side view",
+            "Save screenshot..."} <= set(texts)
+
+
+def test_shortcuts_drive_the_loop_the_views_and_screenshots(qtbot, window, monkeypatch,
+                                                            tmp_path):
+    scene = window.scene
+    _cap_steps(scene, 3)
+    _activate(qtbot, window)
+    qtbot.keyClick(window, Qt.Key_F6)  # Step
+    _wait_idle(qtbot, window)
+    assert scene.latest.step == 1
+    qtbot.keyClick(window, Qt.Key_F5)  # Run: the toolbar's Run reads Pause
+    assert window.running and window.actions["run"].text() == "Pause"
+    assert window.actions["run"].isChecked() and window.loop_panel.run_button.isChecked()
+    qtbot.keyClick(window, Qt.Key_F5)  # Pause, after the step in progress
+    _wait_idle(qtbot, window)
+    assert window.actions["run"].text() == "Run" and not window.actions["run"].isChecked()
+    qtbot.keyClick(window, Qt.Key_R, Qt.ControlModifier)  # Reset
+    assert scene.latest is None and window.loop_panel.step_label.text() == "step 0"
+    qtbot.keyClick(window, Qt.Key_F5, Qt.ShiftModifier)  # Run to termination
+    _wait_idle(qtbot, window)
+    assert scene.latest.step == 3 and scene.session.terminated
+
+    for key, axis in ((Qt.Key_1, 2), (Qt.Key_2, 1), (Qt.Key_3, 0)):  # top, front, side
+        qtbot.keyClick(window, key, Qt.ControlModifier)
+        assert abs(_view_direction(window)[axis]) == pytest.approx(1.0, abs=1e-6)
+    qtbot.keyClick(window, Qt.Key_0, Qt.ControlModifier)  # isometric
+    np.testing.assert_allclose(np.abs(_view_direction(window)), np.full(3, 3 ** -0.5), atol=1e-6)
+    window.plotter.camera.zoom(3.0)
+    window.plotter.camera.focal_point = (50.0, 50.0, 50.0)
+    qtbot.keyClick(window, Qt.Key_Home)  # camera reset: back on the ground truth
+    bounds = np.reshape(window.layers.actors["truth"].GetBounds(), (3, 2))
+    np.testing.assert_allclose(window.plotter.camera.focal_point, bounds.mean(axis=1), atol=1e-6)
+
+    path = tmp_path / "shot.png"
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *args: (str(path), ""))
+    qtbot.keyClick(window, Qt.Key_F12)  # screenshot of the whole window
+    assert path.stat().st_size > 10_000
+    assert window.statusBar().currentMessage() == f"saved a screenshot to {path}"
+
+
+def test_help_keys_lists_the_shortcuts(qtbot, window, monkeypatch):
+    shown = []
+    monkeypatch.setattr(QMessageBox, "information",
+                        lambda parent, title, text, *a, **k: shown.append((title, text)))
+    help_menu = next(action.menu() for action in window.menuBar().actions()
+                     if action.text() == "&Help")
+    assert window.actions["keys"] in help_menu.actions()
+    _activate(qtbot, window)
+    qtbot.keyClick(window, Qt.Key_F1)
+    (title, text), = shown
+    assert title == "Keys"
+    for name, keys in LOOP_AND_VIEW_KEYS.items():
+        action = window.actions[name]
+        assert f"<b>{keys}</b></td><td>{action.text()}</td>" in text, name
+    for name in ("record", "open_observations", "export", "load_session"):
+        assert f"<b>{window.actions[name].shortcut().toString()}</b>" in text
+    assert "Shift" in text and ".csv" in text  # drops: Shift adds a mesh as a prior
+
+
+def test_progress_shows_the_step_of_the_cap_and_dhd_against_eps(qtbot, window):
+    scene = window.scene
+    _cap_steps(scene, 5)
+    scene.set_parameter("eps", 0.8)
+    assert window.progress.text() == "step 0 of 5" and window.dhd_label.text() == (
+        "DHD - / eps 0.80")
+    window.loop_panel.step_button.click()
+    _wait_idle(qtbot, window)
+    assert (window.progress.value(), window.progress.maximum()) == (1, 5)
+    assert window.progress.text() == "step 1 of 5"
+    assert window.dhd_label.text() == f"DHD {scene.latest.dhd:.2f} / eps 0.80"
+    window.loop_panel.step_button.click()
+    _wait_idle(qtbot, window)
+    assert window.progress.text() == "step 2 of 5"
+    assert window.dhd_label.text() == f"DHD {scene.latest.dhd:.2f} / eps 0.80"
+    window.loop_panel.reset_button.click()
+    assert window.progress.text() == "step 0 of 5" and window.dhd_label.text().startswith("DHD -")
+
+
+# ---------------------------------------------------------------------- sessions and saves
+def _saved_session(tmp_path, library, steps):
+    other = Scene("vase_1", seed=3, library=library)
+    for _ in range(steps):
+        other.step()
+    return other.save_session(tmp_path / "session.npz")
+
+
+def test_cancelling_load_session_changes_nothing(qtbot, window, known_library, tmp_path):
+    path = _saved_session(tmp_path, PriorLibrary(list(known_library)), 3)
+    scene = window.scene
+    before = (scene.session, scene.truth, scene.library, scene.generation)
+    assert window.load_session(path)
+    assert window.loading and all(not control.isEnabled() for control in window.scene_controls())
+    dialog = window._load_dialog
+    assert dialog.isVisible() and dialog.windowTitle() == "Load session"
+    dialog.findChild(QPushButton).click()  # Cancel
+    qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
+    assert window.statusBar().currentMessage() == (
+        "loading the session was cancelled; nothing changed")
+    assert (scene.session, scene.truth, scene.library, scene.generation) == before
+    assert window.scene_panel.object_box.currentText() == "mug_1"
+    assert window._load_dialog is None  # closed and deleted
+    enabled = [c for c in window.scene_controls() if c is not window.priors_panel.learn_button]
+    assert all(control.isEnabled() for control in enabled)
+
+
+def test_loading_a_session_says_it_replaced_the_priors(qtbot, window, known_library, tmp_path):
+    library = PriorLibrary([known_library["mug_1"], known_library["vase_1"]])
+    path = _saved_session(tmp_path, library, 1)
+    assert window.load_session(path)
+    qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
+    message = window.statusBar().currentMessage()
+    assert message.startswith(f"loaded {path} (1 steps)")
+    assert message.endswith("; the priors were replaced by the session's 2: mug_1, vase_1")
+    assert window.priors_panel.prior_list.count() == 2
+
+
+class _Dialogs:
+    """QFileDialog's static functions answering with preset paths, recording where each
+    dialog started."""
+
+    def __init__(self, monkeypatch):
+        self.answer, self.started = "", []
+        for name in ("getSaveFileName", "getOpenFileName"):
+            monkeypatch.setattr(QFileDialog, name, self._file)
+        monkeypatch.setattr(QFileDialog, "getExistingDirectory", self._folder)
+
+    def _file(self, parent, caption, start, filter_=""):
+        self.started.append(start)
+        return str(self.answer), ""
+
+    def _folder(self, parent, caption, start):
+        self.started.append(start)
+        return str(self.answer)
+
+
+def test_saves_confirm_in_the_status_bar(qtbot, window, settings, monkeypatch, tmp_path):
+    dialogs = _Dialogs(monkeypatch)
+    status = window.statusBar()
+    window.loop_panel.step_button.click()
+    _wait_idle(qtbot, window)
+    (tmp_path / "sessions").mkdir()
+    dialogs.answer = tmp_path / "sessions" / "run.npz"
+    window.actions["save_session"].trigger()
+    assert dialogs.answer.exists()
+    assert status.currentMessage() == f"saved the session (1 steps) to {dialogs.answer}"
+    dialogs.answer = tmp_path / "library"
+    window.actions["save_library"].trigger()
+    assert status.currentMessage() == f"saved 10 priors to {dialogs.answer}"
+    dialogs.answer = tmp_path / "export"
+    window.actions["export"].trigger()
+    assert status.currentMessage() == f"exported step 1 to {dialogs.answer}"
+    assert (dialogs.answer / "estimate.json").exists()
+    dialogs.answer = tmp_path / "window.png"
+    window.actions["screenshot"].trigger()
+    assert status.currentMessage() == f"saved a screenshot to {dialogs.answer}"
+    # Each dialog starts in the folder last used for its kind of file.
+    assert settings.value("folders/sessions") == str(tmp_path / "sessions")
+    dialogs.answer = ""  # cancelled: nothing saved, nothing said
+    window.actions["save_session"].trigger()
+    assert dialogs.started[-1] == str(tmp_path / "sessions" / "session.npz")
+    assert status.currentMessage() == f"saved a screenshot to {tmp_path / 'window.png'}"
+
+
+def test_window_geometry_docks_and_folders_are_restored(qtbot, known_library, settings,
+                                                        monkeypatch, tmp_path):
+    dialogs = _Dialogs(monkeypatch)
+    first = _open(qtbot, Scene("mug_1", library=PriorLibrary(list(known_library))), settings)
+    first.resize(760, 560)  # within pytest-xvfb's 800x600 screen (Qt keeps windows on it)
+    qtbot.waitUntil(lambda: first.width() == 760, timeout=5_000)
+    first.addDockWidget(Qt.RightDockWidgetArea, first.controls_dock)
+    first.plots_dock.toggleViewAction().trigger()  # View > Plots: hidden
+    assert not first.plots_dock.isVisible()
+    (tmp_path / "recorded").mkdir()
+    dialogs.answer = tmp_path / "recorded" / "none.csv"  # a bad file: an error, but remembered
+    monkeypatch.setattr(QMessageBox, "critical", lambda *args, **kwargs: None)
+    first.actions["open_observations"].trigger()
+    first.close()
+    assert isinstance(settings.value("window/geometry"), QByteArray)
+
+    second = _open(qtbot, Scene("mug_1", library=PriorLibrary(list(known_library))), settings)
+    assert (second.width(), second.height()) == (760, 560)  # not the default 1500x900
+    assert second.dockWidgetArea(second.controls_dock) == Qt.RightDockWidgetArea
+    assert not second.plots_dock.isVisible() and second.controls_dock.isVisible()
+    dialogs.answer = ""
+    second.actions["open_observations"].trigger()
+    assert dialogs.started[-1] == str(tmp_path / "recorded")
+    second.close()
+
+
+def test_one_render_per_drawn_step(qtbot, window):
+    renders = []
+    ren_win = window.plotter.ren_win
+    tag = ren_win.AddObserver("StartEvent", lambda *args: renders.append(1))
+
+    def settle(at_least=0):  # at least that many renders, then none for 200 ms
+        qtbot.waitUntil(lambda: len(renders) >= at_least, timeout=10_000)
+        count = None
+        while count != len(renders):
+            count = len(renders)
+            qtbot.wait(200)
+
+    try:
+        _cap_steps(window.scene, 4)
+        settle()
+        renders.clear()
+        drawn = window.runner.drawn
+        window.loop_panel.step_button.click()
+        _wait_idle(qtbot, window)
+        settle(at_least=1)  # the paint after the draw may wait behind the plots' draw
+        assert window.runner.drawn - drawn == 1 and len(renders) == 1
+        renders.clear()
+        drawn = window.runner.drawn
+        window.actions["finish"].trigger()  # three more steps, some may be coalesced
+        _wait_idle(qtbot, window)
+        settle(at_least=1)
+        assert window.scene.latest.step == 4
+        # Draws that follow each other before the next paint share its render.
+        assert 1 <= len(renders) <= window.runner.drawn - drawn
+    finally:
+        ren_win.RemoveObserver(tag)

@@ -118,3 +118,22 @@ def test_deferred_drawing_counts_in_the_pacing(qtbot, runner):
     # first two and the last); counting only the draw calls would draw nearly every step.
     assert 2 <= runner.drawn <= elapsed / 0.45 + 3  # the first draw's cost counts at the second
     assert runner.drawn_snapshots[-1].step == 150
+
+
+class FailingSession(FakeSession):
+    """Its third step raises, as a failed engine step does."""
+
+    def step(self):
+        if self.step_count == 2:
+            raise RuntimeError("the step failed")
+        return super().step()
+
+
+def test_a_failed_step_is_reported_once_and_not_raised(qtbot, runner):
+    errors = []
+    runner.errored.connect(errors.append)
+    runner.start(FailingSession(), runner.scene.generation)
+    _wait_done(qtbot, runner)
+    qtbot.wait(50)  # pytest-qt fails the test if the error is re-raised in the event loop
+    assert [str(error) for error in errors] == ["the step failed"]
+    assert [snapshot.step for snapshot in runner.drawn_snapshots][-1] == 2

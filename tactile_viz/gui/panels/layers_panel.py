@@ -6,7 +6,8 @@ from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout
 from ..layers import LAYERS
 from .base import MARGINS, blocked
 
-SHOWN_COLORS = {"truth": "steelblue", "gpis": "teal"}  # readable on a light panel
+# Label colours readable on a light panel, where a layer's own colour is too light.
+SHOWN_COLORS = {"truth": "steelblue", "gpis": "teal", "target": "darkgoldenrod"}
 
 
 class LayersPanel(QGroupBox):
