@@ -176,10 +176,10 @@ def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0
 
 def raster_path(centre, radius, direction, spacing=0.2, reach=10.0):
     """A sweep of the free space around a gap: in along ``-direction`` from ``reach``
-    away, then rows ``spacing`` apart through the cube of half-size ``0.7 radius`` about
-    ``centre`` (inside the ball of ``radius``), plane by plane from the near face.
-
-    Any part thicker than ``spacing`` that crosses the cube is touched.
+    away, then along rows ``spacing`` apart in each of three perpendicular directions
+    through the cube of half-size ``0.55 radius`` about ``centre`` (inside the ball of
+    ``radius``): a lattice that any bar crossing the cube meets if it is thicker than
+    ``spacing``, whatever its direction.
 
     Returns
     -------
@@ -190,16 +190,18 @@ def raster_path(centre, radius, direction, spacing=0.2, reach=10.0):
     helper = np.eye(3)[int(np.argmin(np.abs(direction)))]
     across = normalise_rows(np.cross(direction, helper)[None])[0]
     up = np.cross(direction, across)
-    half = max(0.7 * radius, spacing / 2)
+    half = max(0.55 * radius, spacing / 2)
     offsets = np.linspace(-half, half, max(2, int(np.ceil(2 * half / spacing)) + 1))
     waypoints = [centre + reach * direction]
     row = 0
-    for depth in offsets[::-1]:
-        for height in offsets:
-            ends = (-half, half) if row % 2 == 0 else (half, -half)
-            base = centre + depth * direction + height * up
-            waypoints += [base + ends[0] * across, base + ends[1] * across]
-            row += 1
+    for along, first, second in ((across, direction, up), (up, direction, across),
+                                 (direction, across, up)):
+        for a in offsets[::-1]:
+            for b in offsets:
+                ends = (-half, half) if row % 2 == 0 else (half, -half)
+                base = centre + a * first + b * second
+                waypoints += [base + ends[0] * along, base + ends[1] * along]
+                row += 1
     return np.array(waypoints)
 
 

@@ -228,6 +228,8 @@ class Session:
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
         self._swept = np.zeros((0, 3))  # approach paths up to their first touch
+        self._frontier = []  # (position, normal) beside contacts on unpredicted parts
+        self._frontier_target = False  # whether the current target came from it
         self._check = None  # (estimate's vertices, point, direction, path) while a check is due
         self._check_directions = []
         self._checks_passed = 0
@@ -334,8 +336,10 @@ class Session:
             self._record_sweep(observations[0])
             if self._check is not None:
                 self._count_check(observations[0])
-            elif self._target is not None and not self._reached(observations, contacts):
-                self._given_up_targets.append(self._target[0])
+            elif self._target is not None:
+                if not self._reached(observations, contacts):
+                    self._given_up_targets.append(self._target[0])
+                self._follow_frontier(observations[-1])
             if len(points):
                 self._free_space = thin_points(np.vstack([self._free_space, points]),
                                                self.params.contact_spacing)
@@ -364,11 +368,13 @@ class Session:
                 [g.bit_generator.state for g in self._generators()],
                 (self._scale, self._target, list(self._given_up_targets), self._free_space,
                  self._swept, len(self.snapshots)),
-                (self._check, list(self._check_directions), self._checks_passed))
+                (self._check, list(self._check_directions), self._checks_passed,
+                 list(self._frontier), self._frontier_target))
 
     def _restore(self, saved):
         filter_state, generator_states, (scale, target, given_up, free, swept, count), check = saved
-        self._check, self._check_directions, self._checks_passed = check
+        (self._check, self._check_directions, self._checks_passed, self._frontier,
+         self._frontier_target) = check
         self.filter.restore(filter_state)
         for generator, state in zip(self._generators(), generator_states):
             generator.bit_generator.state = state
@@ -439,19 +445,29 @@ class Session:
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
         covered = max(dhd, prior_dhd) <= self.params.eps
-        checking = (covered and state.novel and self.strategy != "rrt"
+        exploring = state.novel and self.strategy != "rrt"
+        frontier = exploring and bool(self._frontier)
+        checking = (covered and exploring and not frontier
                     and self._checks_passed < self.params.check_lines)
-        terminated = bool((covered and not checking) or self.step_count + 1 >= cap)
-        self._check = None
+        terminated = bool((covered and not checking and not frontier)
+                          or self.step_count + 1 >= cap)
+        self._check, self._frontier_target = None, False
+        if recon is not None and not recon.empty:
+            outside = recon.fit.mean_value
+        else:
+            prior = self._prior(model, rotation, translation)
+            outside = lambda points: prior(points)[0]  # noqa: E731
         if terminated:
             self._target = None
+        elif frontier:
+            position, normal = self._frontier.pop(0)
+            # Probe the full depth across the tangent plane (the estimate has no surface
+            # here), but approach short of what the estimate does predict.
+            self._target = (position, normal, lambda points: np.minimum(
+                (points - position) @ normal, outside(points)))
+            self._frontier_target = True
         elif checking:
             self._target = None
-            if recon is not None and not recon.empty:
-                outside = recon.fit.mean_value
-            else:
-                prior = self._prior(model, rotation, translation)
-                outside = lambda points: prior(points)[0]  # noqa: E731
             self._check = self._plan_check_line(surface, contacts, outside)
         elif dhd <= self.params.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
@@ -500,6 +516,7 @@ class Session:
         self._record_sweep(observations[0])
         if not reached or self._repeats_contact(observations[-1]):
             self._given_up_targets.append(target)
+        self._follow_frontier(observations[-1])
         if not isinstance(observations[0], Contact):
             self._free_space = free_space_points(self._free_space, paths[0],
                                                  p.contact_spacing)
@@ -520,7 +537,7 @@ class Session:
                                   self._free_space, self._swept])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
-            shell = self.params.eps if len(self._check_directions) % 2 else 0.0
+            shell = 2 * self.params.eps if len(self._check_directions) % 2 else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell)
         if through is None:
             direction = next_sweep_direction(self._check_directions, self.rng)
@@ -578,8 +595,35 @@ class Session:
         known = [points for points in (self._check[0], self.filter.contact_positions)
                  if len(points)]
         surprise = isinstance(touched, Contact) and min(
-            cKDTree(points).query(touched.position)[0] for points in known) > self.params.eps
+            cKDTree(points).query(touched.position)[0]
+            for points in known) > self.params.contact_spacing
         self._checks_passed = 0 if surprise else self._checks_passed + 1
+        if surprise:
+            self._grow_frontier(touched)
+
+    def _follow_frontier(self, touched):
+        """After a frontier target: a contact on new ground grows the frontier from it."""
+        contacts = self.filter.contact_positions
+        if (self._frontier_target and isinstance(touched, Contact) and len(contacts)
+                and cKDTree(contacts).query(touched.position)[0] > self.params.contact_spacing):
+            self._grow_frontier(touched)
+
+    def _grow_frontier(self, contact):
+        """Queue targets ``eps`` from a contact on a part that nothing predicted, along
+        four tangent directions: following them maps the part out, as a hand runs along a
+        rail it bumped into (beyond the paper). Places within ``contact_spacing`` of a
+        contact, a given-up target or a queued target are skipped."""
+        normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
+        helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+        first = normalise_rows(np.cross(normal, helper)[None])[0]
+        second = np.cross(normal, first)
+        for tangent in (first, -first, second, -second):
+            point = contact.position + self.params.eps * tangent
+            taken = np.vstack([self.filter.contact_positions, contact.position[None],
+                               np.reshape(self._given_up_targets, (-1, 3)),
+                               np.reshape([p for p, _ in self._frontier], (-1, 3))])
+            if cKDTree(taken).query(point)[0] > self.params.contact_spacing:
+                self._frontier.append((point, normal))
 
     def _reached(self, observations, contacts):
         """Whether touches made for the proposed target reached it (the rule of

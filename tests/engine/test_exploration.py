@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
-from tactile_viz.engine.exploration import (enforce_contact, farthest_vertex, first_contact,
-                                            follow_surface, next_sweep_direction, rrt_step,
-                                            sweep_directions, sweep_line)
+from tactile_viz.engine.exploration import (clearest_direction, enforce_contact,
+                                            farthest_vertex, first_contact, follow_surface,
+                                            next_sweep_direction, path_until, raster_path,
+                                            rrt_step, sweep_directions, sweep_line,
+                                            widest_gap)
 from tactile_viz.engine.session import deepest_inside, free_approach
 
 
@@ -142,3 +144,70 @@ def test_a_long_approach_meets_a_part_the_estimate_does_not_predict(simulator):
                                        clearance=2.5)
     assert reached and len(long) == 1 and _on_sphere(long[0])
     assert long[0].position[2] == pytest.approx(0.77, abs=0.03)
+
+
+def _cube_contacts(half=2.0, count=6):
+    """Contacts on the faces of a cube of half-size ``half`` (the estimate's surface)."""
+    axis = np.linspace(-half, half, count)
+    a, b = np.meshgrid(axis, axis)
+    faces = []
+    for dim in range(3):
+        for sign in (-1.0, 1.0):
+            face = np.zeros((a.size, 3))
+            face[:, dim] = sign * half
+            face[:, (dim + 1) % 3], face[:, (dim + 2) % 3] = a.ravel(), b.ravel()
+            faces.append(face)
+    return np.unique(np.vstack(faces), axis=0)
+
+
+def test_the_widest_gap_is_where_nothing_was_observed():
+    # A hollow cube of contacts, nothing estimated inside: every inside point is a candidate
+    # and the one farthest from the observed points is chosen; with the corner (1, 1, 1)
+    # region observed, the gap moves away from it.
+    contacts = _cube_contacts()
+    outside = lambda points: np.ones(len(points))  # noqa: E731 (nothing predicted inside)
+    point, gap = widest_gap(contacts, contacts, np.zeros((0, 3)), outside)
+    assert np.linalg.norm(point) < 0.3 and gap == pytest.approx(2.0, abs=0.2)
+    observed = np.vstack([contacts, np.zeros((1, 3))])
+    point, gap = widest_gap(contacts, observed, np.zeros((0, 3)), outside)
+    assert 0.6 < gap < 1.6 and np.linalg.norm(point) > 0.6
+    # Inside the estimate nothing is a candidate.
+    assert widest_gap(contacts, contacts, contacts, lambda p: -np.ones(len(p)))[0] is None
+
+
+def test_a_gap_beyond_the_end_of_a_part_is_found_in_the_shell():
+    # A rod's estimate along z ends at z = 2 (its contacts stop there): the shell reaches
+    # beyond the end, the widest gap lies there.
+    z = np.linspace(-2.0, 2.0, 21)
+    ring = np.array([[np.cos(t), np.sin(t)] for t in np.linspace(0, 2 * np.pi, 8, endpoint=False)])
+    surface = np.array([[0.2 * c, 0.2 * s, h] for h in z for c, s in ring])
+    outside = lambda points: np.linalg.norm(points[:, :2], axis=1) - 0.2  # noqa: E731
+    # The sides were approached along their normals, from 2 away: that space is swept.
+    radial = np.column_stack([surface[:, :2] / 0.2, np.zeros(len(surface))])
+    swept = np.vstack([surface + t * radial for t in np.arange(0.0, 2.01, 0.25)])
+    point, gap = widest_gap(surface, swept, surface, outside, shell=0.6)
+    assert point is not None and abs(point[2]) > 2.0 and gap >= 0.3
+
+
+def test_a_clear_direction_avoids_the_estimate():
+    # The estimate is a wall at x = 1 in front of the point: the line must not come in
+    # through it.
+    y, z = np.meshgrid(np.linspace(-5, 5, 41), np.linspace(-5, 5, 41))
+    wall = np.column_stack([np.ones(y.size), y.ravel(), z.ravel()])
+    direction = clearest_direction(np.zeros(3), wall)
+    assert direction[0] < 0.2
+
+
+def test_a_raster_sweeps_a_cube_and_finds_a_thin_bar(sphere_model):
+    path = raster_path(np.zeros(3), 1.0, np.array([0.0, 0.0, 1.0]), spacing=0.2, reach=5.0)
+    np.testing.assert_allclose(path[0], [0, 0, 5.0])
+    assert np.abs(path[1:]).max() <= 0.7 + 1e-9 and len(path) > 30
+    # Any point of the cube lies within half a row spacing (and a bit) of the path.
+    samples = path_until(path, np.full(3, 99.0), 0.05)
+    probe = np.random.default_rng(0).uniform(-0.6, 0.6, size=(200, 3))
+    from scipy.spatial import cKDTree
+    assert cKDTree(samples).query(probe)[0].max() < 0.16
+    # A sweep stops at its first touch: the samples end there.
+    touched = path[5]
+    until = path_until(path, touched, 0.25)
+    assert np.linalg.norm(until[-1] - touched) < 0.3 and len(until) < len(samples) / 4
