@@ -261,20 +261,19 @@ class SessionParams:
         among all; restricting it stopped home_chair and noisy_dino earlier with less of
         the object touched, seed 0).
     check_lines : int
-        Beyond the paper: once a novel object's estimate is covered, this many straight
-        lines (from directions spread over the sphere, each through a random contact moved
-        by about ``eps``) must each touch nothing farther than ``eps`` from the estimate and
-        from every contact before the session stops; a line that does restarts the count,
-        since part of the object was never predicted. 0: stop as soon as the estimate is
-        covered (the paper, the ``faithful`` preset). Default 24: on the three objects whose
-        trials stopped with a large part untouched (home_chair, dragon, neptune, 10 seeds
-        each) it lowered the mean reconstruction TWD from 1.31 to 0.93 and the truth
-        coverage from 1.38 to 1.02 for 15% more time (docs/benchmarks.md).
+        Beyond the paper: once a novel object's estimate is covered, this many checks must
+        each touch nothing farther than ``contact_spacing`` from the estimate and from every
+        contact before the session stops; a check that does restarts the count (part of
+        the object was never predicted) and grows a frontier from the contact: targets
+        ``eps`` along four tangents, each contact on new ground growing it again, and the
+        session does not stop while one is queued. 0: stop as soon as the estimate is
+        covered (the paper, the ``faithful`` preset).
     check_line_aim : {"gap", "contact"}
-        ``gap``: each check line runs through the widest gap inside the contacts' convex
-        hull, outside the estimate, that no path, contact or estimated surface is near,
-        from a direction with a clear way in; ``contact``: through a random contact moved
-        by about ``eps``, from the least used direction.
+        ``gap``: each check sweeps the widest gap that no contact, swept path or estimated
+        surface is near, alternately inside the contacts' convex hull and in a shell of
+        ``2 eps`` around the estimate: in from a direction with a clear way, then a lattice
+        of rows 0.2 apart through the cube inside the gap's ball; ``contact``: a straight
+        line through a random contact moved by about ``eps``, from the least used direction.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     learned_resolution : int

@@ -321,6 +321,31 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     assert session._checks_passed == 1
 
 
+def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
+    # A touch on a part nothing predicted queues targets eps along four tangents (not
+    # where a contact already is), and the session does not stop while one is queued.
+    session, _ = _sphere_against_a_box(sphere_model, 4)
+    session.run(max_steps=3)
+    contact = Contact(np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0]))
+    session._grow_frontier(contact)
+    queued = np.array([position for position, _ in session._frontier])
+    assert len(queued) == 4
+    np.testing.assert_allclose(np.linalg.norm(queued - contact.position, axis=1), 2.0)
+    np.testing.assert_allclose(queued[:, 2], 3.0)
+    session._grow_frontier(contact)  # the same places again: nothing new
+    assert len(session._frontier) == 4
+    targets = []
+    for _ in range(12):
+        snapshot = session.step()
+        if snapshot.novel and session._frontier:
+            assert not snapshot.terminated
+        if snapshot.terminated:
+            break
+        targets.append(snapshot.target)
+    # The queued places are the next targets, in order, while the object is novel.
+    assert any(np.allclose(target, queued[0]) for target in targets if target is not None)
+
+
 def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
     # A sphere against a box prior is novel; with a loose eps its estimate is covered early.
     box = trimesh.creation.box((6.0, 3.0, 3.0))
