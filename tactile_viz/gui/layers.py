@@ -329,6 +329,8 @@ class ViewportLayers:
                                         width=0.06, height=0.5, n_labels=4, fmt="%.1e",
                                         label_font_size=11, title_font_size=12,
                                         render=False)
+            # The title stands clear of the top label (they overlapped by default).
+            self.plotter.scalar_bars[SCALAR_BAR].SetVerticalTitleSeparation(12)
         elif not self.shown("gpis") and SCALAR_BAR in bars:
             self.plotter.remove_scalar_bar(SCALAR_BAR, render=False)
 
