@@ -316,7 +316,7 @@ class Session:
         The proposed target is given up as the simulated contact enforcement does: when no
         contact was made, when the first touch missed and the last contact lies within
         ``contact_spacing`` of an earlier one, or when a contact repeats an earlier one.
-        While a check line was proposed, the first observation is its outcome. The session keeps
+        After a proposed check the first observation is where its sweep first touched. The session keeps
         accepting observations after it would have stopped (``terminated``).
         A step that fails leaves the session exactly as it was before it.
         """
@@ -333,7 +333,7 @@ class Session:
         saved = self._checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
-            self._record_sweep(observations[0])
+            self._record_sweep(observations[0], self._approach_start())
             if self._check is not None:
                 self._count_check(observations[0])
             elif self._target is not None:
@@ -513,7 +513,7 @@ class Session:
             self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
             clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing,
             max_follow=p.max_follow)
-        self._record_sweep(observations[0])
+        self._record_sweep(observations[0], target + clearance * normal)
         if not reached or self._repeats_contact(observations[-1]):
             self._given_up_targets.append(target)
         self._follow_frontier(observations[-1])
@@ -523,13 +523,15 @@ class Session:
         return paths, observations
 
     def _plan_check_line(self, estimate, contacts, outside=None):
-        """The next check line: ``(estimate's vertices, a point on it, its direction)``.
+        """The next check: ``(estimate's vertices, its point, its direction, the path to
+        sweep)``.
 
-        ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): through
-        the widest unobserved gap, alternately inside the contacts' hull and in a shell of
-        ``eps`` outside the estimate, from a direction with a clear way in
-        (:func:`~.exploration.widest_gap`); otherwise, or without a gap, through a random
-        contact moved by about ``eps``, from the least used of the spread directions.
+        ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): a
+        lattice through the widest unobserved gap, alternately inside the contacts' hull
+        and in a shell of ``2 eps`` around the estimate, in from a direction with a clear
+        way (:func:`~.exploration.widest_gap`, :func:`~.exploration.raster_path`);
+        otherwise, or without a gap, a straight line through a random contact moved by
+        about ``eps``, from the least used of the spread directions.
         """
         through = None
         if self.params.check_line_aim == "gap" and outside is not None:
@@ -554,25 +556,22 @@ class Session:
         return estimate, through, direction, path
 
     def _approach_start(self):
-        """Where the sensor starts for the current check line or target (None before the
-        first contact and with RRT)."""
-        if self._check is not None:
-            return self._check[3][0]
+        """Where the approach to the current target starts (None without a target, and
+        with RRT)."""
         if self._target is None or self.strategy == "rrt":
             return None
         position, normal, estimate = self._target
         return position + free_approach(estimate, position, normal,
                                         self.params.approach_clearance) * normal
 
-    def _record_sweep(self, touched):
-        """Keep samples of the path from the approach's start to its first touch: space the
-        sensor passed through, which check lines need not visit again."""
+    def _record_sweep(self, touched, start=None):
+        """Keep samples of the path the sensor swept up to its first touch: the planned
+        check's path, else the straight approach from ``start`` (None: nothing to keep).
+        Checks need not visit that space again."""
         if self._check is not None:
             samples = path_until(self._check[3], touched.position, SWEPT_SPACING)
             self._swept = thin_points(np.vstack([self._swept, samples]), SWEPT_SPACING)
-            return
-        start = self._approach_start()
-        if start is not None:
+        elif start is not None:
             self._swept = free_space_points(self._swept, np.stack([start, touched.position]),
                                             SWEPT_SPACING)
 
@@ -589,9 +588,9 @@ class Session:
         return paths, observations
 
     def _count_check(self, touched):
-        """Count the check line as passed unless it touched the object farther than ``eps``
-        from the estimate and from every contact (a part nothing predicted: the count
-        restarts)."""
+        """Count the check as passed unless it touched the object farther than
+        ``contact_spacing`` from the estimate and from every contact (a part nothing
+        predicted: the count restarts and the frontier grows from the touch)."""
         known = [points for points in (self._check[0], self.filter.contact_positions)
                  if len(points)]
         surprise = isinstance(touched, Contact) and min(

@@ -268,6 +268,7 @@ def report(folder, command=None):
                      f"{summary['error'].strip().splitlines()[-1]}")
     lines += _known_section(by_set["known"])
     lines += _novel_section(by_set["novel"])
+    lines += _step_time_section([r for r, _ in protocol if "steps" in r])
     before = [s for s in summaries if s["object"] == LEARN_OBJECT and s["strategy"] == "gpis-dhd"
               and s["kind"] in ("protocol", "learn")]
     after = [s for s in summaries if s["kind"] == "learned"]
@@ -316,6 +317,22 @@ def _novel_section(summaries):
             f"{beats_poisson[1]} novel objects",
             f"- PF-MAP-GPIS better than PF-MAP on {beats_map[0]} of {beats_map[1]} novel objects "
             "judged novel in every trial"]
+
+
+def _step_time_section(results):
+    """Median (and 90th percentile) seconds of the protocol's steps, while judged novel and
+    while known (each step's ``step_seconds``)."""
+    seconds = {True: [], False: []}
+    for result in results:
+        for step in result["steps"]:
+            seconds[bool(step["novel"])].append(step["step_seconds"])
+    lines = []
+    for novel, label in ((True, "novel"), (False, "known")):
+        if seconds[novel]:
+            values = np.asarray(seconds[novel])
+            lines.append(f"- step time while {label}: median {np.median(values):.3f} s, 90th "
+                         f"percentile {np.percentile(values, 90):.3f} s ({len(values)} steps)")
+    return ["", "## Step time", "", *lines] if lines else []
 
 
 def _learned_section(before, after, results):

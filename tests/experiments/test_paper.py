@@ -66,3 +66,16 @@ def test_learned_surface_is_saved_and_becomes_a_prior(tmp_path):
     assert [t["seed"] for t in tasks] == [1000, 1001, 1002]
     assert tasks[0]["extra_priors"][0]["name"] == "home_chair_learned"
     assert paper.save_learned({"learned": {"error": "not novel"}}, tmp_path) is None
+
+
+def test_step_time_section_splits_novel_and_known_steps():
+    from tactile_viz.experiments.paper import _step_time_section
+
+    results = [{"steps": [{"novel": False, "step_seconds": 0.01},
+                          {"novel": True, "step_seconds": 0.3},
+                          {"novel": True, "step_seconds": 0.1}]},
+               {"steps": [{"novel": True, "step_seconds": 0.2}]}]
+    lines = _step_time_section(results)
+    assert "while novel: median 0.200 s" in lines[3] and "(3 steps)" in lines[3]
+    assert "while known: median 0.010 s" in lines[4] and "(1 steps)" in lines[4]
+    assert _step_time_section([]) == []
