@@ -276,6 +276,12 @@ class SessionParams:
         line through a random contact moved by about ``eps``, from the least used direction.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
+    final_resolution : int
+        Marching-cubes cells along the longest side of the reconstruction reported when a
+        novel session stops: the same posterior mean as the steps' surfaces, sampled finer
+        (at 32 cells across a chair a leg or rung thinner than a cell can fall between the
+        samples and vanish from the surface; 64 cells, ``bench paper``: PF-MAP-GPIS TWD
+        0.59 -> see docs/benchmarks.md). Exploration keeps ``gpis_resolution``.
     learned_resolution : int
         Marching-cubes cells along the longest side when a reconstruction is kept as a new
         prior: the same posterior mean as the step's surface, sampled finer, since a learned
@@ -319,6 +325,7 @@ class SessionParams:
     check_lines: int = 24
     check_line_aim: str = "gap"
     variance_points: int = 1500
+    final_resolution: int = 64
     learned_resolution: int = 64
     probe_depth: float = 1.0
     approach_clearance: float = 2.0
@@ -357,11 +364,11 @@ class SessionParams:
         if self.check_lines < 0:
             raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")
         for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
-                     "gpis_resolution", "learned_resolution"):
+                     "gpis_resolution", "final_resolution", "learned_resolution"):
             object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
             if getattr(self, name) < 1:
                 raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
-        for name in ("gpis_resolution", "learned_resolution"):
+        for name in ("gpis_resolution", "final_resolution", "learned_resolution"):
             if getattr(self, name) < 8:
                 raise ParameterError(f"{name} must be at least 8, got {getattr(self, name)!r}")
 
@@ -384,8 +391,8 @@ class SessionParams:
 
 
 SESSION_PRESETS = {
-    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, variance_points=800,
-                          metric_samples=2000),
+    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, final_resolution=48,
+                          variance_points=800, metric_samples=2000),
     "paper": SessionParams(),
     # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
     # only (the shape-transfer shortfall of the README comes from it).

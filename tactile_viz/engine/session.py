@@ -403,6 +403,8 @@ class Session:
         dhd, terminated = self._stop_and_target(state, model, rotation, translation,
                                                 map_vertices, recon, contacts)
         timings["target"] = time.perf_counter() - clock
+        if terminated:
+            recon = self._final_surface(recon, map_vertices, contacts, timings)
 
         clock = time.perf_counter()
         pose_error, recon_error, truth_coverage = self._truth_metrics(
@@ -714,18 +716,37 @@ class Session:
         self._scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
-        vertices, faces = zero_level_surface(fit, (low, high), p.gpis_resolution)
-        variance = np.zeros(len(vertices))
+        recon = self._surface(fit, (low, high), p.gpis_resolution)
+        timings["surface"] = time.perf_counter() - clock
+        return recon
+
+    def _surface(self, fit, bounds, resolution):
+        """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
+        cells of the box ``bounds``, with the variance at up to ``variance_points``
+        vertices."""
+        vertices, faces = zero_level_surface(fit, bounds, resolution)
+        variance, subset = np.zeros(len(vertices)), None
         if len(vertices):
-            count = min(p.variance_points, len(vertices))
+            count = min(self.params.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             variance[subset] = fit.variance(vertices[subset])
             if count < len(vertices):
                 # Other vertices show the variance of the nearest evaluated one.
                 nearest = cKDTree(vertices[subset]).query(vertices)[1]
                 variance = variance[subset][nearest]
-        timings["surface"] = time.perf_counter() - clock
-        return Reconstruction(vertices, faces, variance, subset if len(vertices) else None, fit)
+        return Reconstruction(vertices, faces, variance, subset, fit)
+
+    def _final_surface(self, recon, map_vertices, contacts, timings):
+        """The reconstruction a stopping session reports: the same fit at
+        ``final_resolution`` (thin parts between the exploration grid's samples appear)."""
+        if recon is None or recon.empty or (self.params.final_resolution
+                                             == self.params.gpis_resolution):
+            return recon
+        clock = time.perf_counter()
+        low, high, _ = self._gpis_box(map_vertices, contacts)
+        final = self._surface(recon.fit, (low, high), self.params.final_resolution)
+        timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
+        return recon if final.empty else final
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
         """``(target, outward normal, estimate)``: the novel or the known rule of
@@ -747,7 +768,8 @@ class Session:
         """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
 
         The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
-        extracted again at ``resolution`` (default ``params.learned_resolution``); the
+        extracted at ``resolution`` (default ``params.learned_resolution``; a stopped
+        session's last surface is already at ``params.final_resolution``); the
         largest connected piece of the zero level set is kept, and the model is checked and
         normalised like any loaded mesh.
         """
@@ -757,7 +779,9 @@ class Session:
                                "judged novel in this step")
         resolution = resolution or self.params.learned_resolution
         vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
-        if resolution != self.params.gpis_resolution:
+        extracted_at = (self.params.final_resolution if snapshot.terminated
+                        else self.params.gpis_resolution)
+        if resolution != extracted_at:
             vertices, faces = self._surface_at(snapshot, resolution)
         return learned_model_from_surface(vertices, faces, name,
                                           params=self.library[snapshot.map_class].params

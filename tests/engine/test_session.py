@@ -128,6 +128,25 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     assert gap.max() < 2 * spacing
 
 
+def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monkeypatch):
+    params = session_preset("paper", max_steps_novel=40)
+    session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", params,
+                      seed=0)
+    last = session.run()
+    before = session.snapshots[-2]
+    assert last.terminated and last.novel and before.novel and not before.terminated
+    # The same posterior mean as the steps', on the finer grid.
+    vertices, faces = session._surface_at(last, params.final_resolution)
+    np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
+    np.testing.assert_array_equal(faces, last.gpis_faces)
+    assert len(last.gpis_vertices) > 2 * len(before.gpis_vertices)
+    assert len(last.gpis_variance) == len(last.gpis_vertices)
+    # Learning from it takes that surface as it is.
+    monkeypatch.setattr(session, "_surface_at", lambda *args: pytest.fail("extracted again"))
+    learned = session.learned_model("dino_learned", last)
+    assert len(learned.mesh.vertices) <= len(last.gpis_vertices)
+
+
 def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tmp_path):
     source = _last_reconstruction(novel_session)
     learned = novel_session.learned_model("vase_2_learned", source)
