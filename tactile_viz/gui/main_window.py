@@ -45,6 +45,11 @@ STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
 # loop runs in between instead of blocking for both.
 PLOTS_DELAY_MS = 30
 PLOTS_WIDTH = 320  # the plots dock's width at first start, pixels
+# Multisampling of the viewport when idle and while steps run: with Mesa's software
+# renderer 4x multisampling doubles a render (0.13 s against 0.06 s for a novel scene at
+# 1500x900), so a run draws without it and the view is smoothed again when it stops.
+IDLE_MULTISAMPLES = 4
+RUNNING_MULTISAMPLES = 0
 
 # action name -> (label, shortcut, tooltip); the shortcuts are listed in Help > Keys.
 ACTIONS = {
@@ -256,6 +261,7 @@ class MainWindow(QMainWindow):
         self._load_dialog = None
         self.recorder = None
         self._plots_step = None
+        self._drawing_run = False  # a draw of the runner's in progress
         self._plots_timer = QTimer(self)
         self._plots_timer.setSingleShot(True)
         self._plots_timer.setInterval(PLOTS_DELAY_MS)
@@ -504,7 +510,11 @@ class MainWindow(QMainWindow):
         return done
 
     def _draw(self, snapshot):
-        self.scene.announce(snapshot)
+        self._drawing_run = True
+        try:
+            self.scene.announce(snapshot)
+        finally:
+            self._drawing_run = False
 
     def _on_run_finished(self):
         self._show_running(False)
@@ -524,6 +534,14 @@ class MainWindow(QMainWindow):
         self._set_controls_enabled(not running and not self.loading)
         self.loop_panel.set_running(running, self.loading)
         run.setEnabled(not self.loading)
+        self._set_multisamples(RUNNING_MULTISAMPLES if running else IDLE_MULTISAMPLES)
+
+    def _set_multisamples(self, samples):
+        window = getattr(self.plotter, "render_window", None)
+        if window is not None and window.GetMultiSamples() != samples:
+            window.SetMultiSamples(samples)
+            # Repaint in the next paint; Qt merges this with a pending step's paint.
+            QWidget.update(self.plotter)
 
     def scene_controls(self):
         """Every widget and action that changes the scene (disabled while steps run)."""
@@ -593,7 +611,10 @@ class MainWindow(QMainWindow):
         self.layers.show_snapshot(snapshot, render=False)
         self.plotter.schedule_render()
         self._plots_step = snapshot.step
-        if self.running:
+        if self.running or self._drawing_run:
+            # In a later pass of the event loop (also for the run's last step, which the
+            # run's end draws at once), so the loop is not blocked for the viewport and
+            # the plots together.
             self._plots_timer.start()
         else:
             self._flush_plots()

@@ -14,7 +14,7 @@ from tactile_viz.app.scene import Scene
 from tactile_viz.cli import stop_logging
 from tactile_viz.engine import PriorLibrary, load_bundled
 from tactile_viz.engine.session import session_preset
-from tactile_viz.gui.main_window import MainWindow
+from tactile_viz.gui.main_window import IDLE_MULTISAMPLES, RUNNING_MULTISAMPLES, MainWindow
 
 pytestmark = pytest.mark.gui
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -750,3 +750,14 @@ def test_one_render_per_drawn_step(qtbot, window, monkeypatch):
         assert all(after - before <= 1 for before, after in zip(drawing[::2], drawing[1::2]))
     finally:
         ren_win.RemoveObserver(tag)
+
+
+def test_run_draws_without_multisampling(qtbot, window):
+    # Multisampling doubles a software render: a run draws without it, idle views have it.
+    samples = window.plotter.render_window.GetMultiSamples
+    assert samples() == IDLE_MULTISAMPLES > RUNNING_MULTISAMPLES
+    _cap_steps(window.scene, 3)
+    window.actions["finish"].trigger()
+    assert window.running and samples() == RUNNING_MULTISAMPLES
+    _wait_idle(qtbot, window)
+    assert window.scene.latest.step == 3 and samples() == IDLE_MULTISAMPLES
