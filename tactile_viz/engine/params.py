@@ -205,7 +205,7 @@ def noise_matched(params, position_noise, normal_noise_deg):
 
 
 GPIS_KERNELS = ("wendland", "thin-plate")
-CHECK_LINE_AIMS = ("gap", "contact")
+CHECK_LINE_AIMS = ("gap", "gap-weakest", "contact")
 
 
 @dataclass(frozen=True)
@@ -268,11 +268,14 @@ class SessionParams:
         ``eps`` along four tangents, each contact on new ground growing it again, and the
         session does not stop while one is queued. 0: stop as soon as the estimate is
         covered (the paper, the ``faithful`` preset).
-    check_line_aim : {"gap", "contact"}
+    check_line_aim : {"gap", "gap-weakest", "contact"}
         ``gap``: each check sweeps the widest gap that no contact, swept path or estimated
         surface is near, alternately inside the contacts' convex hull and in a shell of
         ``2 eps`` around the estimate: in from a direction with a clear way, then a lattice
-        of rows 0.2 apart through the cube inside the gap's ball; ``contact``: a straight
+        of rows 0.2 apart through the cube inside the gap's ball; ``gap-weakest``: every
+        third check sweeps that lattice about the estimate's vertex farthest from every
+        contact instead (where the object may lie up to ``eps`` off the estimate unseen);
+        ``contact``: a straight
         line through a random contact moved by about ``eps``, from the least used direction.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).

@@ -532,16 +532,23 @@ class Session:
         lattice through the widest unobserved gap, alternately inside the contacts' hull
         and in a shell of ``2 eps`` around the estimate, in from a direction with a clear
         way (:func:`~.exploration.widest_gap`, :func:`~.exploration.raster_path`);
+        ``"gap-weakest"``: every third check sweeps the same lattice about the estimate's
+        vertex farthest from every contact instead (:meth:`_weakest_support`);
         otherwise, or without a gap, a straight line through a random contact moved by
         about ``eps``, from the least used of the spread directions.
         """
         through = None
-        if self.params.check_line_aim == "gap" and outside is not None:
+        aim = self.params.check_line_aim
+        kinds = 3 if aim == "gap-weakest" else 2
+        kind = len(self._check_directions) % kinds
+        if aim != "contact" and outside is not None and kind == 2:
+            through, gap = self._weakest_support(estimate, contacts)
+        elif aim != "contact" and outside is not None:
             explored = np.vstack([contacts, self.filter.noncontact_positions,
                                   self._free_space, self._swept])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
-            shell = 2 * self.params.eps if len(self._check_directions) % 2 else 0.0
+            shell = 2 * self.params.eps if kind == 1 else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell)
         if through is None:
             direction = next_sweep_direction(self._check_directions, self.rng)
@@ -556,6 +563,18 @@ class Session:
                                reach=SWEEP_RADIUS)
         self._check_directions.append(direction)
         return estimate, through, direction, path
+
+    def _weakest_support(self, estimate, contacts):
+        """The estimate's vertex farthest from every contact (among those exploration may
+        still visit) and that distance: where the estimate rests on the fewest touches, so
+        the object may lie up to ``eps`` off it unseen (a leg's middle between touched ends).
+        """
+        reachable = np.flatnonzero(self._reachable(estimate))
+        if len(reachable) == 0 or len(contacts) == 0:
+            return None, 0.0
+        distance = cKDTree(contacts).query(estimate[reachable])[0]
+        best = int(np.argmax(distance))
+        return estimate[reachable[best]], max(float(distance[best]), self.params.contact_spacing)
 
     def _approach_start(self):
         """Where the approach to the current target starts (None without a target, and
