@@ -268,7 +268,7 @@ class MainWindow(QMainWindow):
         self._plots_timer.timeout.connect(self._flush_plots)
         self.setWindowTitle("tactile_viz")
         self.resize(1500, 900)
-        self.plotter = Viewport(self, auto_update=False)
+        self.plotter = Viewport(self, auto_update=False, multi_samples=IDLE_MULTISAMPLES)
         self.plotter.set_background("white")
         if getattr(self.plotter, "iren", None) is not None:
             self.plotter.clear_events_for_key("q")  # pyvista's 'q' would finalise the view
@@ -495,6 +495,11 @@ class MainWindow(QMainWindow):
                                          STATUS_SECONDS)
             self._show_running(False)
             return
+        if count is None:
+            # The plots take the run's layout now, before the worker competes for the
+            # interpreter, so that the run's own updates are all blitted.
+            self.plots.set_run_steps(max(session.params.max_steps_known,
+                                         session.params.max_steps_novel), now=True)
         self.runner.start(session, self.scene.generation, count)
         self._show_running(True)
 
@@ -518,6 +523,7 @@ class MainWindow(QMainWindow):
 
     def _on_run_finished(self):
         self._show_running(False)
+        self.plots.set_run_steps(None)
 
     def _on_run_toggled(self, checked):
         if checked:

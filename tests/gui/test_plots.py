@@ -43,3 +43,24 @@ def test_updates_blit_until_the_layout_changes(qtbot):
     plots.set_eps(0.8)  # the stop line moves: drawn in full again
     plots.update_plots(snapshots[:61])
     assert plots.blits == 27
+
+
+def test_a_run_is_drawn_without_full_draws(qtbot):
+    # While a run is drawn the step axis spans the cap and the error axis only widens:
+    # every update is blitted (a full draw blocks the event loop for over 0.1 s).
+    plots = PlotsWidget()
+    qtbot.addWidget(plots)
+    plots.resize(320, 600)
+    plots.show()
+    qtbot.waitExposed(plots)
+    snapshots = _snapshots(300, np.random.default_rng(1))
+    plots.update_plots(snapshots[:5])
+    plots.set_run_steps(400, now=True)
+    assert plots.error_axes.get_xlim() == (0, 400)
+    full_draws, blits = len(plots.draw_log) - plots.blits, plots.blits
+    for count in range(6, 300):
+        plots.update_plots(snapshots[:count])
+    assert plots.blits - blits == 294 and len(plots.draw_log) - plots.blits == full_draws
+    plots.set_run_steps(None)  # the run ended: fitted to the data again, in a later pass
+    assert plots.error_axes.get_xlim() == (0, 300)
+    qtbot.waitUntil(lambda: len(plots.draw_log) - plots.blits == full_draws + 1)
