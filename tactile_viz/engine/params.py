@@ -326,7 +326,7 @@ class SessionParams:
     cover_prior: bool = True
     target_uncovered: bool = False
     check_lines: int = 24
-    check_line_aim: str = "gap"
+    check_line_aim: str = "gap-weakest"
     variance_points: int = 1500
     final_resolution: int = 64
     learned_resolution: int = 64
