@@ -282,9 +282,9 @@ class SessionParams:
     final_resolution : int
         Marching-cubes cells along the longest side of the reconstruction reported when a
         novel session stops: the same posterior mean as the steps' surfaces, sampled finer
-        (at 32 cells across a chair a leg or rung thinner than a cell can fall between the
-        samples and vanish from the surface; 64 cells, ``bench paper``: PF-MAP-GPIS TWD
-        0.59 -> see docs/benchmarks.md). Exploration keeps ``gpis_resolution``.
+        (at 32 cells a sofa's foot or a chair's rung thinner than a cell can fall between
+        the samples and vanish; the protocol's home_chair error fell from 0.591 to 0.507,
+        docs/benchmarks.md). Exploration keeps ``gpis_resolution``.
     learned_resolution : int
         Marching-cubes cells along the longest side when a reconstruction is kept as a new
         prior: the same posterior mean as the step's surface, sampled finer, since a learned

@@ -154,8 +154,12 @@ class Viewport(QtInteractor):
         self.drops_enabled = True
 
     def schedule_render(self):
-        """Render once, in the next paint (a synchronous render would be followed by a
-        second one in that paint)."""
+        """Render once, in a paint in a later pass of the event loop: not synchronously
+        (that would be followed by a second render in the paint) and not in the pass that
+        updated the scene, so that input and timers run between the two."""
+        QTimer.singleShot(0, self, self._request_paint)
+
+    def _request_paint(self):
         QWidget.update(self)
 
     def paintGL(self):
