@@ -272,9 +272,10 @@ class SessionParams:
         ``gap``: each check sweeps the widest gap that no contact, swept path or estimated
         surface is near, alternately inside the contacts' convex hull and in a shell of
         ``2 eps`` around the estimate: in from a direction with a clear way, then a lattice
-        of rows 0.2 apart through the cube inside the gap's ball; ``gap-weakest``: every
-        third check sweeps that lattice about the estimate's vertex farthest from every
-        contact instead (where the object may lie up to ``eps`` off the estimate unseen);
+        of rows 0.2 apart through the cube inside the gap's ball; ``gap-weakest``: after
+        every two gap checks one more sweeps that lattice about the estimate's vertex
+        farthest from every contact (where the object may lie up to ``eps`` off the
+        estimate unseen); it does not count toward ``check_lines`` unless it surprises;
         ``contact``: a straight
         line through a random contact moved by about ``eps``, from the least used direction.
     variance_points : int

@@ -533,14 +533,14 @@ class Session:
         and in a shell of ``2 eps`` around the estimate, in from a direction with a clear
         way (:func:`~.exploration.widest_gap`, :func:`~.exploration.raster_path`);
         ``"gap-weakest"``: every third check sweeps the same lattice about the estimate's
-        vertex farthest from every contact instead (:meth:`_weakest_support`);
+        vertex farthest from every contact (:meth:`_weakest_support`), in addition to the
+        ``check_lines`` gap checks;
         otherwise, or without a gap, a straight line through a random contact moved by
         about ``eps``, from the least used of the spread directions.
         """
         through = None
         aim = self.params.check_line_aim
-        kinds = 3 if aim == "gap-weakest" else 2
-        kind = len(self._check_directions) % kinds
+        kind = len(self._check_directions) % (3 if aim == "gap-weakest" else 2)
         if aim != "contact" and outside is not None and kind == 2:
             through, gap = self._weakest_support(estimate, contacts)
         elif aim != "contact" and outside is not None:
@@ -617,9 +617,17 @@ class Session:
         surprise = isinstance(touched, Contact) and min(
             cKDTree(points).query(touched.position)[0]
             for points in known) > self.params.contact_spacing
-        self._checks_passed = 0 if surprise else self._checks_passed + 1
         if surprise:
+            self._checks_passed = 0
             self._grow_frontier(touched)
+        elif not self._weakest_check():
+            # A sweep about the weakest support adds to the gap checks, never replaces one.
+            self._checks_passed += 1
+
+    def _weakest_check(self):
+        """Whether the check just planned sweeps about the estimate's weakest support."""
+        return (self.params.check_line_aim == "gap-weakest"
+                and (len(self._check_directions) - 1) % 3 == 2)
 
     def _follow_frontier(self, touched):
         """After a frontier target: a contact on new ground grows the frontier from it."""

@@ -343,22 +343,29 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
 def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     # A part between two touched ends (a leg's middle) may lie up to eps off the estimate
     # unseen: "gap-weakest" sends every third check through the estimate's vertex farthest
-    # from every contact.
+    # from every contact, on top of the gap checks.
     params = session_preset("paper", check_line_aim="gap-weakest")
     session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
     session._check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
-    _, through, _, path = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    session._check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    _, through, _, path = session._check
     np.testing.assert_allclose(through, [1.5, 0.0, 0.0], atol=1e-9)
+    # It comes on top of the gap checks: passing it does not count toward check_lines.
+    session._count_check(NonContact(path[-1]))
+    assert session._checks_passed == 0
     from tactile_viz.engine.simulator import sample_path
 
     near = sample_path(path, 0.02)
     near = near[np.linalg.norm(near - through, axis=1) < 1.0]
     assert len(near) and np.linalg.norm(near - through, axis=1).min() < 0.15
     # The fourth check is a gap inside the contacts' hull again, not the weakest support.
-    _, other, _, _ = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
-    assert len(session._check_directions) == 4 and not np.allclose(other, through)
+    session._check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    assert len(session._check_directions) == 4
+    assert not np.allclose(session._check[1], through)
+    session._count_check(NonContact(session._check[3][-1]))
+    assert session._checks_passed == 1
 
 
 def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
