@@ -74,6 +74,10 @@ def build_parser():
                         help="output folder (default ./bench_paper)")
     parser.add_argument("--no-learned", action="store_true",
                         help="skip the learned-prior experiment on the home chair")
+    parser.add_argument("--learned-from", metavar="MESH", default=None,
+                        help="run the learned-prior trials with this mesh as the learned "
+                             "home chair (e.g. DIR/learned/home_chair_learned.ply of an earlier "
+                             "run) instead of learning it from this run's first trial")
     parser.add_argument("--no-poisson", action="store_true",
                         help="skip the Screened Poisson baseline (needs pymeshlab otherwise)")
     parser.add_argument("--resume", action="store_true",
@@ -144,12 +148,20 @@ def save_learned(result, folder):
 
 def load_learned(folder):
     """The learned prior saved by an earlier run, or None."""
+    path = folder / f"{LEARNED_NAME}.ply"
+    return load_learned_file(path) if path.exists() else None
+
+
+def load_learned_file(path):
+    """A mesh file as the learned prior (name ``home_chair_learned``)."""
     import trimesh
 
-    path = folder / f"{LEARNED_NAME}.ply"
-    if not path.exists():
-        return None
-    mesh = trimesh.load(path, process=False)
+    try:
+        mesh = trimesh.load(path, process=False, force="mesh")
+    except (OSError, ValueError) as error:
+        raise SystemExit(f"cannot read the learned prior {path}: {error}") from None
+    if len(mesh.faces) == 0:
+        raise SystemExit(f"the learned prior {path} has no faces")
     return {"name": LEARNED_NAME, "vertices": np.asarray(mesh.vertices),
             "faces": np.asarray(mesh.faces)}
 
@@ -180,7 +192,10 @@ def run(args):
         require_poisson()
     tasks = protocol_tasks(objects, strategies, args.trials, args.seed, args.preset,
                            args.max_steps, poisson, sets)
-    if not args.no_learned:
+    if args.learned_from:
+        tasks += learned_tasks(load_learned_file(args.learned_from), args.trials, args.seed,
+                               args.preset, args.max_steps)
+    elif not args.no_learned:
         tasks = learn_task(tasks, args.seed, args.preset, args.max_steps, poisson)
 
     def follow_up(task, result):

@@ -79,3 +79,23 @@ def test_step_time_section_splits_novel_and_known_steps():
     assert "while novel: median 0.200 s" in lines[3] and "(3 steps)" in lines[3]
     assert "while known: median 0.010 s" in lines[4] and "(1 steps)" in lines[4]
     assert _step_time_section([]) == []
+
+
+def test_learned_trials_can_take_the_prior_of_an_earlier_run(tmp_path):
+    import pytest
+
+    box = trimesh.creation.box((6, 3, 2))
+    mesh_path = tmp_path / "earlier.ply"
+    box.export(mesh_path)
+    out = tmp_path / "run"
+    assert cli(["bench", "paper", "--trials", "1", "--objects", "mug_1", "--strategies",
+                "gpis-dhd", "--max-steps", "2", "--learned-from", str(mesh_path), "--out",
+                str(out), "--no-progress"]) == 0
+    names = sorted(p.name for p in (out / "trials").glob("*"))
+    assert len(names) == 2 and names[0].startswith("learned__home_chair")
+    learned = read_trial(out / "trials" / names[0])
+    assert learned["library"][-1] == "home_chair_learned" and learned["seed"] == 1000
+    assert "## Learned prior (home chair)" in (out / "summary.md").read_text()
+    with pytest.raises(SystemExit, match="cannot read the learned prior"):
+        cli(["bench", "paper", "--trials", "1", "--objects", "mug_1", "--learned-from",
+             str(tmp_path / "missing.ply"), "--out", str(out), "--no-progress"])
