@@ -23,12 +23,17 @@ def _snapshots(count, rng):
     return snapshots
 
 
-def test_updates_blit_until_the_layout_changes(qtbot):
+def _shown_plots(qtbot):
     plots = PlotsWidget()
     qtbot.addWidget(plots)
     plots.resize(320, 600)
     plots.show()
     qtbot.waitExposed(plots)
+    return plots
+
+
+def test_updates_blit_until_the_layout_changes(qtbot):
+    plots = _shown_plots(qtbot)
     snapshots = _snapshots(120, np.random.default_rng(0))
     plots.update_plots(snapshots[:12])
     qtbot.waitUntil(lambda: plots._background is not None)  # the first, full draw
@@ -48,11 +53,7 @@ def test_updates_blit_until_the_layout_changes(qtbot):
 def test_a_run_is_drawn_without_full_draws(qtbot):
     # While a run is drawn the step axis spans the cap and the error axis only widens:
     # every update is blitted (a full draw blocks the event loop for over 0.1 s).
-    plots = PlotsWidget()
-    qtbot.addWidget(plots)
-    plots.resize(320, 600)
-    plots.show()
-    qtbot.waitExposed(plots)
+    plots = _shown_plots(qtbot)
     snapshots = _snapshots(300, np.random.default_rng(1))
     plots.update_plots(snapshots[:5])
     plots.set_run_steps(400, now=True)
