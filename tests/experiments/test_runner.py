@@ -66,14 +66,20 @@ def test_trial_files_are_compressed_and_older_plain_ones_still_read(tmp_path):
     import gzip
     import json
 
-    from tactile_viz.experiments.trial_files import (read_trials, trial_path, write_trial)
+    from tactile_viz.experiments.trial_files import (read_trials, rounded, trial_path,
+                                                     write_trial)
 
-    result = {"object": "mug_1", "steps": [{"t": t, "dhd": 1.0 / (t + 1)} for t in range(400)]}
+    result = {"object": "mug_1", "steps": [{"t": t, "dhd": 1.0 / (t + 1), "novel": t > 9,
+                                            "recon_error": None} for t in range(400)]}
     (tmp_path / "a.json").write_text(json.dumps(result))  # an older run's file
     assert trial_path(tmp_path, "a").name == "a.json"
     written = write_trial(tmp_path, "b", result)
-    assert written.name == "b.json.gz" and json.loads(gzip.decompress(written.read_bytes())) == result
+    stored = json.loads(gzip.decompress(written.read_bytes()))
+    assert written.name == "b.json.gz" and stored == rounded(result)
     assert written.stat().st_size < len(json.dumps(result, indent=1)) / 4
-    assert read_trials(tmp_path) == [result, result]
+    # Floats keep six significant digits; ints, booleans and None stay as they are.
+    assert stored["steps"][2] == {"t": 2, "dhd": 0.333333, "novel": False, "recon_error": None}
+    assert max(abs(s["dhd"] * (s["t"] + 1) - 1) for s in stored["steps"]) < 5e-6
+    assert read_trials(tmp_path) == [result, rounded(result)]
     write_trial(tmp_path, "a", result)  # rewriting an old trial replaces its plain file
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json.gz", "b.json.gz"]
