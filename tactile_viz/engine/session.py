@@ -57,7 +57,9 @@ class Snapshot:
     """Everything a viewer or a benchmark needs after one step (arrays are read-only).
 
     Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
-    ``recon_error`` are None in a session without a simulated object.
+    ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
+    is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
+    stops; None without a surface).
     """
 
     step: int
@@ -89,6 +91,7 @@ class Snapshot:
     terminated: bool
     timings: dict
     hypotheses: tuple = ()
+    gpis_resolution: object = None
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -138,6 +141,8 @@ class Reconstruction:
     subset : (k,) int or None
         The vertices where the variance was evaluated.
     fit : GPISFit
+    resolution : int
+        Marching-cubes cells along the box's longest side.
     """
 
     vertices: np.ndarray
@@ -145,6 +150,7 @@ class Reconstruction:
     variance: np.ndarray
     subset: object
     fit: object
+    resolution: int
 
     @property
     def empty(self):
@@ -428,7 +434,8 @@ class Session:
             target=None if self._target is None else _frozen(self._target[0]),
             dhd=float(dhd), truth_coverage=truth_coverage, pose_error=pose_error,
             recon_error=recon_error, terminated=terminated, timings=timings,
-            hypotheses=_hypotheses(state))
+            hypotheses=_hypotheses(state),
+            gpis_resolution=None if recon is None else recon.resolution)
         self.snapshots.append(snapshot)
         return snapshot
 
@@ -539,16 +546,15 @@ class Session:
         about ``eps``, from the least used of the spread directions.
         """
         through = None
-        aim = self.params.check_line_aim
-        kind = len(self._check_directions) % (3 if aim == "gap-weakest" else 2)
-        if aim != "contact" and outside is not None and kind == 2:
+        kind = self._check_kind(len(self._check_directions))
+        if kind == "weakest" and outside is not None:
             through, gap = self._weakest_support(estimate, contacts)
-        elif aim != "contact" and outside is not None:
+        elif kind in ("hull", "shell") and outside is not None:
             explored = np.vstack([contacts, self.filter.noncontact_positions,
                                   self._free_space, self._swept])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
-            shell = 2 * self.params.eps if kind == 1 else 0.0
+            shell = 2 * self.params.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell)
         if through is None:
             direction = next_sweep_direction(self._check_directions, self.rng)
@@ -620,14 +626,19 @@ class Session:
         if surprise:
             self._checks_passed = 0
             self._grow_frontier(touched)
-        elif not self._weakest_check():
+        elif self._check_kind(len(self._check_directions) - 1) != "weakest":
             # A sweep about the weakest support adds to the gap checks, never replaces one.
             self._checks_passed += 1
 
-    def _weakest_check(self):
-        """Whether the check just planned sweeps about the estimate's weakest support."""
-        return (self.params.check_line_aim == "gap-weakest"
-                and (len(self._check_directions) - 1) % 3 == 2)
+    def _check_kind(self, index):
+        """What check number ``index`` (0 first) of the session aims at: ``"hull"`` and
+        ``"shell"`` gaps in turn, with ``"gap-weakest"`` a ``"weakest"`` support after each
+        pair; ``"contact"`` with ``check_line_aim = "contact"``."""
+        aim = self.params.check_line_aim
+        if aim == "contact":
+            return "contact"
+        kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
+        return kinds[index % len(kinds)]
 
     def _follow_frontier(self, touched):
         """After a frontier target: a contact on new ground grows the frontier from it."""
@@ -761,7 +772,7 @@ class Session:
                 # Other vertices show the variance of the nearest evaluated one.
                 nearest = cKDTree(vertices[subset]).query(vertices)[1]
                 variance = variance[subset][nearest]
-        return Reconstruction(vertices, faces, variance, subset, fit)
+        return Reconstruction(vertices, faces, variance, subset, fit, resolution)
 
     def _final_surface(self, recon, map_vertices, contacts, timings):
         """The reconstruction a stopping session reports: the same fit at
@@ -806,9 +817,7 @@ class Session:
                                "judged novel in this step")
         resolution = resolution or self.params.learned_resolution
         vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
-        extracted_at = (self.params.final_resolution if snapshot.terminated
-                        else self.params.gpis_resolution)
-        if resolution != extracted_at:
+        if resolution != snapshot.gpis_resolution:
             vertices, faces = self._surface_at(snapshot, resolution)
         return learned_model_from_surface(vertices, faces, name,
                                           params=self.library[snapshot.map_class].params
