@@ -131,7 +131,8 @@ class PriorLibrary:
             if hashlib.sha256(data).hexdigest() != entry["sha256"]:
                 raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
                                    f"{entry['name']!r} is corrupt (checksum mismatch)")
-            models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache))
+            models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache,
+                                      learned=entry.get("learned") is True))
         log.info("loaded %d priors from %s", len(models), folder)
         return cls(models)
 
@@ -146,7 +147,7 @@ def _save_mesh(folder, model):
     filename = f"{_slug(model.name)}-{digest[:12]}.ply"
     if not (folder / filename).is_file():
         write_atomic(folder / filename, data)
-    return {"name": model.name, "file": filename, "sha256": digest}
+    return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned}
 
 
 def _mesh_from_ply(data, path):

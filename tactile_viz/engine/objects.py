@@ -57,13 +57,17 @@ class ObjectModel:
     params : ModelParams, optional
     cache : ArrayCache, optional
         Where derived arrays are stored; the default is the user cache folder.
+    learned : bool
+        The shape was reconstructed by a session rather than given (its feature normals
+        come from a reconstruction, so its point-pair poses are coarser).
     """
 
-    def __init__(self, name, mesh, params=None, cache=None):
+    def __init__(self, name, mesh, params=None, cache=None, learned=False):
         self.name = str(name)
         self.mesh = mesh
         self.params = params or ModelParams()
         self.cache = cache if cache is not None else ArrayCache()
+        self.learned = bool(learned)
 
     def __repr__(self):
         return f"ObjectModel({self.name!r}, faces={len(self.mesh.faces)})"
@@ -76,22 +80,23 @@ class ObjectModel:
 
     @classmethod
     def from_arrays(cls, vertices, faces, name, params=None, cache=None,
-                    longest_side=LONGEST_SIDE):
+                    longest_side=LONGEST_SIDE, learned=False):
         """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and normalised;
         ``longest_side=None`` keeps their size)."""
         return cls(name, prepare_mesh(vertices, faces, source=name, longest_side=longest_side),
-                   params, cache)
+                   params, cache, learned)
 
     def with_params(self, **changes):
         """The same mesh with other :class:`ModelParams` (shares the exact distance)."""
-        other = ObjectModel(self.name, self.mesh, replace(self.params, **changes), self.cache)
+        other = ObjectModel(self.name, self.mesh, replace(self.params, **changes), self.cache,
+                            self.learned)
         if "exact" in self.__dict__:
             other.__dict__["exact"] = self.exact
         return other
 
     def renamed(self, name):
         """The same model under another name."""
-        other = ObjectModel(name, self.mesh, self.params, self.cache)
+        other = ObjectModel(name, self.mesh, self.params, self.cache, self.learned)
         other.__dict__.update({k: v for k, v in self.__dict__.items()
                                if k in ("exact", "sdf", "features", "content_hash")})
         return other
@@ -152,7 +157,7 @@ class ObjectModel:
 
     def describe(self):
         """A JSON-ready summary (name, sizes, parameters, hash)."""
-        return {"name": self.name, "faces": int(len(self.mesh.faces)),
+        return {"name": self.name, "learned": self.learned, "faces": int(len(self.mesh.faces)),
                 "vertices": int(len(self.mesh.vertices)), "content_hash": self.content_hash,
                 "params": asdict(self.params)}
 

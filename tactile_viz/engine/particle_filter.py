@@ -265,7 +265,7 @@ class ParticleFilter:
                     sampled += len(new)
                     self.particles = self._merged(new)
                     map_index, map_evidence = self._map()
-        if self.params.refine_map and len(self.contact_positions) >= 3:
+        if self._refines(map_index) and len(self.contact_positions) >= 3:
             refined = self._refined_map(map_index, map_evidence)
             if refined is not None:
                 self.particles = self._merged(refined)
@@ -369,6 +369,10 @@ class ParticleFilter:
     def _merged(self, new):
         combined = Particles.concatenate([self.particles, new])
         return _with_log_weights(combined, normalise_log_weights(combined.log_weights))
+
+    def _refines(self, map_index):
+        learned = self.models[self.particles.classes[map_index]].learned
+        return self.params.refine_map or (self.params.refine_learned and learned)
 
     def _refined_map(self, map_index, map_evidence):
         """The MAP pose after a few least-squares steps on all observations, as a particle."""

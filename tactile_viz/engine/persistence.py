@@ -38,6 +38,7 @@ def save_session(session, path):
               "strategy": session.strategy, "seed": session.seed,
               "params": session.params.to_dict(), "sensor_noise": list(session.sensor_noise),
               "steps": session.step_count, "library": session.library.names,
+              "learned": [model.name for model in session.library if model.learned],
               "truth_name": None if truth is None else truth.model.name}
     arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
               "contacts": session.filter.contact_positions,
@@ -69,9 +70,10 @@ def _read(path):
     config = json.loads(arrays["config"].tobytes().decode())
     if config.get("format") != FORMAT:
         raise ValueError("not a tactile_viz session file")
+    learned = set(config.get("learned", ()))
     library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
                                               arrays[f"prior{i}_faces"],
-                                              f"the mesh of prior {name!r}")
+                                              f"the mesh of prior {name!r}", name in learned)
                            for i, name in enumerate(config["library"]))
     truth, recorded = None, None
     if config["truth_name"] is None:
@@ -141,12 +143,12 @@ def load_session(path, callback=None):
     return session
 
 
-def _model_from_arrays(name, vertices, faces, what="the mesh"):
+def _model_from_arrays(name, vertices, faces, what="the mesh", learned=False):
     """A model from stored (already normalised) arrays, checked but not re-processed."""
     if not isinstance(name, str):
         raise TypeError(f"the name of {what} must be a string, got {name!r}")
     vertices, faces = check_arrays(vertices, faces, what)
-    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False))
+    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False), learned=learned)
 
 
 def _checked_pose(rotation, translation):

@@ -945,7 +945,7 @@ def learned_model_from_surface(vertices, faces, name, params=None):
     if len(pieces):
         mesh = max(pieces, key=lambda piece: abs(piece.area))
     return ObjectModel.from_arrays(mesh.vertices, mesh.faces, name, params=params,
-                                   longest_side=None)
+                                   longest_side=None, learned=True)
 
 
 def make_truth(model, rng=None, max_translation=1.0):

@@ -74,7 +74,8 @@ def task_library(task):
     library = PriorLibrary(list(_bundled_library(task["library"])))
     for prior in task["extra_priors"]:
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
-                           prior["name"], longest_side=None)
+                           prior["name"], longest_side=None,
+                           learned=prior.get("learned", True))
     return library
 
 
