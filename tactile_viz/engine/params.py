@@ -63,6 +63,11 @@ class FilterParams:
     max_new_particles : int
         Particle budget (beyond the paper): at most this many of a step's new point-pair
         particles are kept, the heaviest (those resampling would keep anyway); 0 keeps all.
+    merge_distance : float
+        Particle merging (beyond the paper; 0 off): after each step, particles of one class
+        whose translations share a cell of this size and whose rotation vectors share a
+        cell of ``merge_angle_deg`` become one, with their summed weight.
+    merge_angle_deg : float
     refine_map : bool
         Add a Gauss-Newton refinement of the MAP pose as a particle (beyond the paper).
     refine_learned : bool
@@ -91,6 +96,8 @@ class FilterParams:
     max_new_per_class: int = 2000
     max_particles: int = 20000
     max_new_particles: int = 0
+    merge_distance: float = 0.0
+    merge_angle_deg: float = 1.0
     refine_map: bool = False
     refine_learned: bool = True
     refine_iterations: int = 10
@@ -124,6 +131,11 @@ class FilterParams:
         for name in at_least_one:
             if int(getattr(self, name)) < 1:
                 raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")
+        if self.merge_distance < 0:
+            raise ParameterError("merge_distance must be at least 0 (0: no merging), "
+                                 f"got {self.merge_distance!r}")
+        if not self.merge_angle_deg > 0:
+            raise ParameterError(f"merge_angle_deg must be positive, got {self.merge_angle_deg!r}")
         if self.max_new_particles < 0:
             raise ParameterError("max_new_particles must be at least 0 (0: no budget), "
                                  f"got {self.max_new_particles!r}")

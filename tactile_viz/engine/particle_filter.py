@@ -3,7 +3,8 @@
 Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 
 1. weight update: ``log w_j += log p(D_t | z_j)`` and normalise;
-2. stochastic universal resampling, merging duplicates;
+2. stochastic universal resampling, merging duplicates (and, with a merge tolerance, poses
+   that lie within it of each other);
 3. the MAP particle ``z*`` and its evidence ``log p(D_1:t | z*)``;
 4. if the evidence is poor (gate ``lambda``), new particles from point-pair features of the
    new contact paired with ``n_s`` earlier contacts, weighted by the paper's relative-weight
@@ -269,6 +270,9 @@ class ParticleFilter:
             refined = self._refined_map(map_index, map_evidence)
             if refined is not None:
                 self.particles = self._merged(refined)
+        if self.params.merge_distance > 0:
+            self.particles = merge_close_poses(self.particles, self.params.merge_distance,
+                                               np.radians(self.params.merge_angle_deg))
         return self._record(sampled)
 
     # ----------------------------------------------------------------- pieces
@@ -436,6 +440,46 @@ class ParticleFilter:
                 float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg)
         self.state = state
         return state
+
+
+def merge_close_poses(particles, distance, angle):
+    """Particles of one class whose poses share a cell of ``distance`` (translation) by
+    ``angle`` (rotation vector, radians) become one: the heaviest's pose with their summed
+    weight.
+
+    Point-pair sampling proposes the same pose many times over from different pairs; they
+    carry one hypothesis, so merging them bounds the particle count without changing what
+    the filter believes (to within the cell).
+
+    Parameters
+    ----------
+    particles : Particles
+    distance, angle : float
+        Positive cell sizes.
+
+    Returns
+    -------
+    Particles
+        Normalised; the input itself when no two share a cell.
+    """
+    if len(particles) < 2:
+        return particles
+    rotation_vectors = Rotation.from_matrix(particles.rotations).as_rotvec()
+    keys = np.column_stack([particles.classes,
+                            np.floor(particles.translations / distance),
+                            np.floor(rotation_vectors / angle)]).astype(np.int64)
+    _, group = np.unique(keys, axis=0, return_inverse=True)
+    group = group.ravel()
+    if group.max() + 1 == len(particles):
+        return particles
+    order = np.lexsort((-particles.log_weights, group))
+    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    heads = order[first]
+    merged = particles.take(heads)
+    # Summed in each group's own scale: the head is its heaviest, so no sum underflows.
+    head_log_weight = merged.log_weights[np.argsort(group[heads])][group]
+    sums = np.bincount(group, np.exp(particles.log_weights - head_log_weight))
+    return _with_log_weights(merged, merged.log_weights + np.log(sums[group[heads]]))
 
 
 def _with_log_weights(particles, log_weights):

@@ -44,6 +44,7 @@ HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghos
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
+CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
 
 
 def _frozen(array):
@@ -675,15 +676,20 @@ class Session:
         return bool(distance >= self.params.contact_spacing)
 
     def _repeats_contact(self, observation):
-        """Whether a contact lands where an earlier one did (within the sensor noise).
+        """Whether a contact lands where an earlier one did (within the sensor noise, and at
+        least the simulator's contact precision).
 
         Such a touch taught nothing: something in front of the target (or a crevice the
         probe cannot enter) took it, and aiming at the same target again would repeat it.
+        A noiseless sensor does not repeat a touch bit for bit (the approach moves with the
+        estimate), so without the precision floor a blocked target was aimed at until the
+        step cap (the learned home chair, seed 1005: 110 touches of one spot).
         """
         contacts = self.filter.contact_positions
         if not isinstance(observation, Contact) or len(contacts) == 0:
             return False
-        tolerance = max(4.0 * self.sensor_noise[0], 1e-9)
+        precision = self.simulator.tolerance if self.simulator is not None else CONTACT_PRECISION
+        tolerance = max(4.0 * self.sensor_noise[0], precision)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
 
     def _reachable(self, vertices, radius=None):

@@ -1,10 +1,13 @@
-"""``python -m tactile_viz bench tradeoff``: time per trial against pose and reconstruction
-error over the presets and one-knob variations of the paper preset, with the Pareto front.
+"""``python -m tactile_viz bench tradeoff``: time per trial against pose error,
+reconstruction error, truth coverage and termination step over the presets and one-knob
+variations of the paper preset, with t-based 95% intervals and the Pareto fronts.
 
 Every configuration runs the same objects and seeds (GPIS-DHD): known objects give the pose
 error at termination, novel objects the reconstruction error (PF-MAP-GPIS, or the MAP
-shape's when judged known). A configuration is on the Pareto front of a plot when no other
-one is both at least as fast and at least as accurate (and strictly better in one).
+shape's when judged known), every object the truth coverage and the termination step. A
+configuration is on the Pareto front of a plot when no other one is both at least as fast
+and at least as accurate (and strictly better in one), and on it within its interval when
+no other one is at least as fast with a mean error below its interval's lower end.
 """
 
 import argparse
@@ -41,6 +44,10 @@ CONFIGS = {
     # Particle budget: keep the heaviest new point-pair particles of a step (issue 18).
     "budget3000": ("paper", {}, {"max_new_particles": 3000}),
     "budget1500": ("paper", {}, {"max_new_particles": 1500}),
+    # Both caps: at most 3,000 draws survive resampling and 1,500 new particles join a step.
+    "particles3000": ("paper", {}, {"max_particles": 3000, "max_new_particles": 1500}),
+    # Poses within 0.05 and 1 degree of each other merged into one particle.
+    "merge0.05": ("paper", {}, {"merge_distance": 0.05, "merge_angle_deg": 1.0}),
     # The GPIS ablation (novel objects): the thin-plate kernel (the paper preset's) at the
     # paper's R and explicitly, the compact Wendland kernel with free space at three
     # supports (c = 4 was the paper preset at ef75223), free space with the thin-plate
@@ -159,8 +166,20 @@ def run(args):
         pool.close()
 
 
+# (row key, trials it is measured on, axis label): each is plotted against the seconds per
+# trial of the same trials, every one smaller-is-better.
+METRICS = (("pose_error", "known", "pose error at termination, known objects"),
+           ("recon_error", "novel", "reconstruction error (TWD), novel objects"),
+           ("truth_coverage", "all", "truth coverage at termination, all objects"),
+           ("steps", "all", "termination step, all objects"))
+
+
 def rows_from_results(results, sets):
-    """One row per configuration: seconds per trial, errors, steps (means over trials)."""
+    """One row per configuration: for each metric its mean, the half-width of its t-based
+    95% interval and the mean seconds per trial of the same trials; the largest particle
+    counts; and whether the configuration is on each metric's Pareto front (of the means)
+    and on it within its interval (no configuration is as fast and better than the
+    interval's lower end)."""
     by_config = {}
     for result in results:
         summary = aggregate.summarise_trial(result)
@@ -168,53 +187,86 @@ def rows_from_results(results, sets):
     rows = []
     for name in [c for c in CONFIGS if c in by_config]:
         items = [s for s in by_config[name] if "error" not in s]
-        known = [s for s in items if sets.get(s["object"]) == "known"]
-        novel = [s for s in items if sets.get(s["object"]) == "novel"]
-        rows.append({"config": name, "changes": describe(name), "trials": len(items),
-                     "seconds": aggregate.mean_std([s["seconds"] for s in items])[0],
-                     "seconds_known": aggregate.mean_std([s["seconds"] for s in known])[0],
-                     "seconds_novel": aggregate.mean_std([s["seconds"] for s in novel])[0],
-                     "pose_error": aggregate.mean_std([s["pose_error"] for s in known])[0],
-                     "correct": f"{sum(s['correct'] for s in known)}/{len(known)}",
-                     "recon_error": aggregate.mean_std([s["recon_error"] for s in novel])[0],
-                     "coverage_novel": aggregate.mean_std(
-                         [s.get("truth_coverage") for s in novel])[0],
-                     "steps_novel": aggregate.mean_std([s["steps"] for s in novel])[0],
-                     "steps": aggregate.mean_std([s["steps"] for s in items])[0],
-                     "failed": len(by_config[name]) - len(items)})
-    for key, seconds in (("pose_error", "seconds_known"), ("recon_error", "seconds_novel")):
-        for index in pareto_front([r[seconds] for r in rows], [r[key] for r in rows]):
+        subsets = {"all": items, "known": [s for s in items if sets.get(s["object"]) == "known"],
+                   "novel": [s for s in items if sets.get(s["object"]) == "novel"]}
+        row = {"config": name, "changes": describe(name), "trials": len(items),
+               "failed": len(by_config[name]) - len(items),
+               "correct": f"{sum(s['correct'] for s in subsets['known'])}/{len(subsets['known'])}",
+               "pose_ok": f"{sum(s['pose_error'] < aggregate.THRESHOLD for s in subsets['known'])}"
+                          f"/{len(subsets['known'])}",
+               "judged_novel": f"{sum(s['novel'] for s in subsets['novel'])}"
+                               f"/{len(subsets['novel'])}",
+               "max_particles": max((s["max_particles"] for s in items), default=0),
+               "mean_max_particles": aggregate.mean_std([s["max_particles"] for s in items])[0]}
+        for subset, trials in subsets.items():
+            seconds = [s["seconds"] for s in trials]
+            row[f"seconds_{subset}"] = aggregate.mean_std(seconds)[0]
+            row[f"seconds_{subset}_ci"] = aggregate.ci95(seconds)
+        for key, subset, _ in METRICS:
+            values = [s.get(key) for s in subsets[subset]]
+            row[key], row[f"{key}_ci"] = aggregate.mean_std(values)[0], aggregate.ci95(values)
+        rows.append(row)
+    for key, subset, _ in METRICS:
+        times = [r[f"seconds_{subset}"] for r in rows]
+        errors = [r[key] for r in rows]
+        for index in pareto_front(times, errors):
             rows[index][f"front_{key}"] = True
+        lower = [r[key] - r[f"{key}_ci"] for r in rows]
+        for index in front_within_interval(times, errors, lower):
+            rows[index][f"near_front_{key}"] = True
     return rows
 
 
+def front_within_interval(times, errors, lower):
+    """Indices of the points that no other point beats beyond their interval: none is at
+    least as fast with a mean error below the point's interval's lower end ``lower``."""
+    times, errors, lower = (np.asarray(a, float) for a in (times, errors, lower))
+    kept = []
+    for i in range(len(times)):
+        if not (np.isfinite(times[i]) and np.isfinite(errors[i])):
+            continue
+        others = np.arange(len(times)) != i
+        if not (others & (times <= times[i]) & (errors < lower[i])).any():
+            kept.append(i)
+    return kept
+
+
 def plot(rows, path):
-    """Two scatter plots (time vs pose error, time vs reconstruction error), front marked."""
+    """Time against each metric (mean with its 95% interval), the Pareto front marked."""
     from .plots import _pyplot
 
     plt = _pyplot()
-    figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    for axis, key, seconds_key, label in (
-            (axes[0], "pose_error", "seconds_known", "pose error, known objects (TWD)"),
-            (axes[1], "recon_error", "seconds_novel", "reconstruction error, novel (TWD)")):
-        points = [(r[seconds_key], r[key], r) for r in rows if np.isfinite(r[key])]
-        for seconds, error, row in points:
+    figure, axes = plt.subplots(2, 2, figsize=(12, 8.5))
+    for axis, (key, subset, label) in zip(axes.ravel(), METRICS):
+        points = [r for r in rows if np.isfinite(r[key]) and np.isfinite(r[f"seconds_{subset}"])]
+        for row in points:
             preset = row["config"] in PRESETS
-            axis.scatter(seconds, error, s=60 if preset else 25,
-                         color="tab:red" if preset else "tab:blue", zorder=3)
-            axis.annotate(row["config"], (seconds, error), fontsize=7,
-                          xytext=(3, 3), textcoords="offset points")
-        front = sorted((s, e) for s, e, r in points if r.get(f"front_{key}"))
+            axis.errorbar(row[f"seconds_{subset}"], row[key], yerr=row[f"{key}_ci"],
+                          xerr=row[f"seconds_{subset}_ci"], fmt="o",
+                          markersize=7 if preset else 4, capsize=2, linewidth=0.8,
+                          color="tab:red" if preset else "tab:blue", zorder=3)
+            axis.annotate(row["config"], (row[f"seconds_{subset}"], row[key]), fontsize=7,
+                          xytext=(4, 3), textcoords="offset points")
+        front = sorted((r[f"seconds_{subset}"], r[key]) for r in points if r.get(f"front_{key}"))
         if front:
             axis.step(*zip(*front), where="post", color="tab:green", linewidth=1,
-                      label="Pareto front")
+                      label="Pareto front of the means")
             axis.legend(fontsize=7)
-        axis.set_xlabel(f"seconds per trial (mean, {seconds_key.split('_')[1]} objects)")
-        axis.set_ylabel(label)
-    figure.suptitle("speed/accuracy trade (red: presets)", fontsize=10)
+        axis.set_xlabel(f"seconds per trial, {subset} objects (mean, 95% interval)")
+        axis.set_ylabel(label, fontsize=9)
+    figure.suptitle("speed/accuracy trade (red: presets; bars: t-based 95% intervals)",
+                    fontsize=10)
     figure.tight_layout()
     figure.savefig(path, dpi=80)
     plt.close(figure)
+
+
+def _with_ci(row, key):
+    value, half = row[key], row[f"{key}_ci"]
+    if not np.isfinite(value):
+        return "-"
+    digits = 1 if abs(value) >= 10 else 3
+    return f"{value:.{digits}f} ± {half:.{digits}f}"
 
 
 def report(folder, command=None):
@@ -223,26 +275,34 @@ def report(folder, command=None):
     rows = rows_from_results(results, object_sets())
     plot(rows, folder / "tradeoff.png")
     header = ["configuration", "changes", "trials", "s/trial known", "pose error (known)",
-              "correct class", "s/trial novel", "recon error (novel)",
-              "truth coverage (novel)", "steps (novel)", "steps", "front: pose", "front: recon"]
+              "correct class", "pose < 0.6", "s/trial novel", "recon error (novel)",
+              "judged novel", "truth coverage (all)", "s/trial", "termination step",
+              "largest particle count", "fronts"]
+    fronts = lambda r: ", ".join(  # noqa: E731
+        name + ("" if r.get(f"front_{key}") else " (within interval)")
+        for key, name in (("pose_error", "pose"), ("recon_error", "recon"),
+                          ("truth_coverage", "coverage"), ("steps", "steps"))
+        if r.get(f"near_front_{key}")) or "none"
     table = aggregate.markdown_table(header, [
-        [r["config"], r["changes"], r["trials"], r["seconds_known"], r["pose_error"],
-         r["correct"], r["seconds_novel"], r["recon_error"], r["coverage_novel"],
-         r["steps_novel"], r["steps"], "yes" if r.get("front_pose_error") else "",
-         "yes" if r.get("front_recon_error") else ""] for r in rows])
+        [r["config"], r["changes"], r["trials"], _with_ci(r, "seconds_known"),
+         _with_ci(r, "pose_error"), r["correct"], r["pose_ok"], _with_ci(r, "seconds_novel"),
+         _with_ci(r, "recon_error"), r["judged_novel"], _with_ci(r, "truth_coverage"),
+         _with_ci(r, "seconds_all"), _with_ci(r, "steps"), r["max_particles"], fronts(r)]
+        for r in rows])
     lines = [f"# bench tradeoff: {folder}", ""]
     if command:
         lines += [f"Command: `{command}`", ""]
     objects = sorted({r["object"] for r in results})
+    seeds = sorted({r["seed"] for r in results})
     lines += [f"Machine: {machine_description()}", "",
-              f"Objects: {', '.join(objects)}; GPIS-DHD; means over trials.", "", table, ""]
+              f"Objects: {', '.join(objects)}; seeds {', '.join(map(str, seeds))}; GPIS-DHD. "
+              "Means ± the half-width of a t-based 95% interval over the trials. A "
+              "configuration is on a front when no other is at least as fast and at least "
+              "as good (and better in one); on it within its interval when no other is at "
+              "least as fast with a mean below the lower end of its interval.", "", table, ""]
     for row in rows:
         if row["config"] in PRESETS:
-            where = [name for key, name in (("front_pose_error", "pose"),
-                                            ("front_recon_error", "reconstruction"))
-                     if row.get(key)]
-            lines.append(f"- preset {row['config']}: "
-                         + (f"on the {' and '.join(where)} front" if where else "off the front"))
+            lines.append(f"- preset {row['config']}: {fronts(row)}")
     lines += ["", "![tradeoff](tradeoff.png)"]
     (folder / "tradeoff.md").write_text("\n".join(lines) + "\n")
     (folder / "tradeoff.json").write_text(json.dumps(rows, indent=1))

@@ -31,6 +31,16 @@ def test_extend_from_file_and_arrays_then_save(small_library, tmp_path):
     assert len(list(folder.glob("*.ply"))) == 4
 
 
+def test_a_learned_prior_stays_learned_through_save_and_load(small_library, tmp_path):
+    library, folder = small_library
+    cone = trimesh.creation.cone(radius=1.0, height=3.0)
+    library.add_arrays(cone.vertices, cone.faces, "learned cone", learned=True)
+    library.save(folder)
+    loaded = PriorLibrary.load(folder)
+    assert [loaded[name].learned for name in loaded.names] == [False, False, True]
+    assert loaded["learned cone"].renamed("again").learned
+
+
 def test_names_are_unique(small_library):
     library, _ = small_library
     with pytest.raises(LibraryError, match="already has"):

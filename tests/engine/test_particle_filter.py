@@ -187,3 +187,57 @@ def test_particle_budget_keeps_the_heaviest_new_particles(small_library):
     assert counts[50] < counts[0]
     with pytest.raises(ParameterError, match="max_new_particles"):
         FilterParams(max_new_particles=-1)
+
+
+def _learned(model, name):
+    from tactile_viz.engine.objects import ObjectModel
+
+    return ObjectModel(name, model.mesh, model.params, model.cache, learned=True)
+
+
+def test_the_map_pose_is_refined_only_while_a_learned_prior_is_the_map(bundled):
+    """With refine_learned a learned MAP class gets the least-squares pose (its evidence is
+    at least the unrefined one's); a given mesh's MAP is left as sampled."""
+    truth = GroundTruth(bundled["guitar_1"], *random_pose(rng=11, max_translation=1.0))
+    evidence = {}
+    for learned in (False, True):
+        model = _learned(bundled["guitar_1"], "guitar") if learned else bundled["guitar_1"]
+        for refine in (False, True):
+            _, state = _run(PriorLibrary([model, bundled["mug_1"]]), truth, 12, seed=3,
+                            params=FilterParams(refine_learned=refine))
+            evidence[learned, refine] = state.log_evidence
+    assert evidence[False, True] == evidence[False, False]
+    assert evidence[True, True] > evidence[True, False]
+
+
+def test_merging_sums_the_weights_of_one_pose_and_keeps_classes_apart():
+    from tactile_viz.engine.particle_filter import Particles, merge_close_poses
+
+    rotations = np.repeat(np.eye(3)[None], 4, axis=0)
+    translations = np.array([[0.0, 0, 0], [0.01, 0, 0], [0.01, 0, 0], [2.0, 0, 0]])
+    log_weights = np.log([0.4, 0.3, 0.2, 0.1])
+    particles = Particles(np.array([0, 0, 1, 0]), rotations, translations, log_weights)
+    merged = merge_close_poses(particles, 0.05, np.radians(1.0))
+    assert len(merged) == 3
+    weights = dict(zip(map(tuple, np.c_[merged.classes, merged.translations[:, 0]]),
+                       np.exp(merged.log_weights)))
+    assert weights[(0, 0.0)] == pytest.approx(0.7) and weights[(1, 0.01)] == pytest.approx(0.2)
+
+
+def test_merging_stays_finite_with_negligible_weights():
+    from tactile_viz.engine.particle_filter import Particles, merge_close_poses
+
+    count = 50
+    rotations = np.repeat(np.eye(3)[None], count, axis=0)
+    log_weights = np.r_[0.0, np.full(count - 1, -5000.0)]
+    particles = Particles(np.zeros(count, int), rotations, np.zeros((count, 3)), log_weights)
+    merged = merge_close_poses(particles, 0.05, np.radians(1.0))
+    assert len(merged) == 1 and merged.log_weights[0] == pytest.approx(0.0)
+
+
+def test_the_particle_caps_bound_the_count(bundled):
+    library = PriorLibrary(bundled[name] for name in ["mug_1", "sofa_1", "vase_1"])
+    truth = GroundTruth(bundled["mug_1"], *random_pose(rng=2, max_translation=1.0))
+    params = FilterParams(max_particles=300, max_new_particles=150, merge_distance=0.05)
+    particle_filter, state = _run(library, truth, 15, seed=4, params=params)
+    assert len(state.particles) <= max(300 + 150, 3 * 200)

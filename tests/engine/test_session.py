@@ -208,6 +208,21 @@ def test_save_and_load_replays_the_session(bundled, known, tmp_path):
     assert loaded.latest.map_class == session.latest.map_class
 
 
+def test_a_learned_prior_stays_learned_in_a_saved_session(bundled, known, tmp_path):
+    learned = learned_model_from_surface(*_box_surface(), "box_learned")
+    assert learned.learned and not known["bottle_1"].learned
+    session = Session(make_truth(bundled["bottle_1"], rng=4), PriorLibrary(list(known) + [learned]),
+                      "gpis-dhd", seed=4)
+    session.run(max_steps=2)
+    loaded = Session.load(session.save(tmp_path / "learned.npz"))
+    assert [m.name for m in loaded.library if m.learned] == ["box_learned"]
+
+
+def _box_surface():
+    box = trimesh.creation.box((2.0, 3.0, 4.0))
+    return box.vertices, box.faces
+
+
 @pytest.mark.parametrize("damage", [lambda p: p.write_bytes(p.read_bytes()[:200]),
                                     lambda p: p.write_bytes(b"garbage"),
                                     lambda p: p.unlink()])

@@ -35,6 +35,32 @@ def test_rows_mark_the_front():
                                        result("sdf32", 3.0, 0.6)], {"mug_1": "known"})
     front = {r["config"]: bool(r.get("front_pose_error")) for r in rows}
     assert front == {"fast": True, "paper": True, "sdf32": False}
+    assert rows[0]["pose_error_ci"] == 0 and rows[0]["max_particles"] == 10
+
+
+def test_a_point_is_near_the_front_unless_beaten_beyond_its_interval():
+    times, errors = [1.0, 2.0, 3.0], [0.5, 0.55, 0.9]
+    # The second is slower and worse than the first, but within its interval (0.45-0.65);
+    # the third's interval (0.8-1.0) lies above the first's mean.
+    lower = [0.4, 0.45, 0.8]
+    assert tradeoff.pareto_front(times, errors) == [0]
+    assert tradeoff.front_within_interval(times, errors, lower) == [0, 1]
+
+
+def test_rows_give_t_intervals_over_seeds():
+    def result(seed, pose):
+        return {"object": "mug_1", "seed": seed, "strategy": "gpis-dhd", "seconds": 1.0,
+                "terminated_at": 1, "task": {"kind": "tradeoff", "tag": "paper"},
+                "steps": [{"t": 1, "map_class": "mug_1", "pose_error": pose, "dhd": 0.5,
+                           "novel": False, "recon_error": None, "n_particles": 10}]}
+
+    poses = [0.1, 0.2, 0.3, 0.4, 0.5]
+    (row,) = tradeoff.rows_from_results([result(i, p) for i, p in enumerate(poses)],
+                                        {"mug_1": "known"})
+    assert row["pose_error"] == pytest.approx(0.3)
+    # t(0.975, 4) = 2.776, sd 0.158: not the normal 1.96.
+    assert row["pose_error_ci"] == pytest.approx(2.776 * np.std(poses, ddof=1) / np.sqrt(5),
+                                                 rel=1e-3)
 
 
 def test_growth_exponent_of_a_power_law():
