@@ -71,11 +71,11 @@ class FilterParams:
     refine_map : bool
         Add a Gauss-Newton refinement of the MAP pose as a particle (beyond the paper).
     refine_learned : bool
-        The same refinement, only while the MAP class is a learned prior (beyond the paper):
-        a learned shape's feature normals come from a reconstruction, so its point-pair
-        poses are coarser than a given mesh's (on the learned home chair the MAP's normals
-        missed the contacts' by a median 33-39 degrees, against 8.5 on the bundled chair),
-        and the novelty test failed at them.
+        The same refinement of the heaviest particle of each learned prior (beyond the
+        paper): a learned shape's feature normals come from a reconstruction, so its
+        point-pair poses are coarser than a given mesh's (on the learned home chair the
+        MAP's normals missed the contacts' by a median 33-39 degrees, against 8.5 on the
+        bundled chair), and the novelty test failed at them.
     refine_iterations : int
     n_features : int
         Poisson-disk feature points per object (paper 200).

@@ -9,7 +9,8 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 4. if the evidence is poor (gate ``lambda``), new particles from point-pair features of the
    new contact paired with ``n_s`` earlier contacts, weighted by the paper's relative-weight
    approximation;
-5. optionally a local refinement of the MAP pose, added as a particle;
+5. optionally a local refinement of the MAP pose and of each learned prior's heaviest
+   particle, added as particles;
 6. the known/novel decision from the MAP evidence.
 """
 
@@ -266,10 +267,12 @@ class ParticleFilter:
                     sampled += len(new)
                     self.particles = self._merged(new)
                     map_index, map_evidence = self._map()
-        if self._refines(map_index) and len(self.contact_positions) >= 3:
-            refined = self._refined_map(map_index, map_evidence)
-            if refined is not None:
-                self.particles = self._merged(refined)
+        if len(self.contact_positions) >= 3:
+            for index in self._to_refine(map_index):
+                evidence = self.log_evidence_of(self.particles.take([index]))[0]
+                refined = self._refined(index, evidence)
+                if refined is not None:
+                    self.particles = self._merged(refined)
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
@@ -374,13 +377,23 @@ class ParticleFilter:
         combined = Particles.concatenate([self.particles, new])
         return _with_log_weights(combined, normalise_log_weights(combined.log_weights))
 
-    def _refines(self, map_index):
-        learned = self.models[self.particles.classes[map_index]].learned
-        return self.params.refine_map or (self.params.refine_learned and learned)
+    def _to_refine(self, map_index):
+        """Particles whose pose is refined this step: the MAP (``refine_map``) and the
+        heaviest of each learned prior (``refine_learned``), so that a learned shape's
+        coarse point-pair poses can still overtake a given mesh's."""
+        chosen = [map_index] if self.params.refine_map else []
+        if self.params.refine_learned:
+            learned = [c for c, model in enumerate(self.models) if model.learned]
+            for c in learned:
+                members = np.flatnonzero(self.particles.classes == c)
+                if len(members):
+                    chosen.append(int(members[np.argmax(self.particles.log_weights[members])]))
+        return list(dict.fromkeys(chosen))
 
-    def _refined_map(self, map_index, map_evidence):
-        """The MAP pose after a few least-squares steps on all observations, as a particle."""
-        particle = self.particles.take([map_index])
+    def _refined(self, index, evidence_before):
+        """A particle's pose after a few least-squares steps on all observations, as a new
+        particle weighted by its gain in evidence (None if there is no gain)."""
+        particle = self.particles.take([index])
         sdf = self.models[particle.classes[0]].sdf
         rotation0, translation0 = particle.rotations[0], particle.translations[0]
         centre = self.contact_positions.mean(axis=0)
@@ -406,10 +419,10 @@ class ParticleFilter:
         rotation, translation = pose(result.x)
         refined = Particles(particle.classes, rotation[None], translation[None], np.zeros(1))
         evidence = self.log_evidence_of(refined)[0]
-        if not evidence > map_evidence:
+        if not evidence > evidence_before:
             return None
         return Particles(particle.classes, rotation[None], translation[None],
-                         particle.log_weights + evidence - map_evidence)
+                         particle.log_weights + evidence - evidence_before)
 
     def _record(self, sampled):
         params = self.params

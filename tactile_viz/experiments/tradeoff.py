@@ -24,7 +24,7 @@ from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
 from .paper import machine_description, object_sets, recorded_command, split_names
 from .runner import make_task, open_pool, run_tasks, task_key
-from .trial_files import read_trials, trial_path, write_trial
+from .trial_files import read_trials, rounded, trial_path, write_trial
 
 PRESETS = tuple(SESSION_PRESETS)
 # name -> (base preset, session overrides, filter overrides): every preset, then one-knob
@@ -126,6 +126,10 @@ def build_parser():
     parser.add_argument("--out", default="bench_tradeoff", metavar="DIR", help="output folder")
     parser.add_argument("--resume", action="store_true",
                         help="reuse trial files already in DIR/trials")
+    parser.add_argument("--reuse", metavar="RUN", action="append", default=[],
+                        help="take trials from another run's RUN/trials (a bench paper run) "
+                             "that ran the same object, seed, library and parameters, instead "
+                             "of running them again (repeatable)")
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; rebuild the table and plot from DIR/trials")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -158,6 +162,7 @@ def run(args):
     tasks = plan(split_names(args.objects), args.seeds, configs, args.max_steps)
     todo = [t for t in tasks
             if not (args.resume and trial_path(out / "trials", task_key(t)).exists())]
+    todo = reuse_trials(todo, args.reuse, out / "trials")
     pool = open_pool(args.workers, args.scheduler)
     try:
         for task, result in run_tasks(todo, pool, progress=not args.no_progress):
@@ -172,6 +177,37 @@ METRICS = (("pose_error", "known", "pose error at termination, known objects"),
            ("recon_error", "novel", "reconstruction error (TWD), novel objects"),
            ("truth_coverage", "all", "truth coverage at termination, all objects"),
            ("steps", "all", "termination step, all objects"))
+
+
+def reuse_trials(tasks, runs, folder):
+    """Copy into ``folder`` the trials of earlier ``runs`` that match a task (object, seed,
+    strategy, the bundled known library, parameters, no step cap); returns the tasks left.
+
+    A trial is the same computation whichever benchmark ran it, and its seconds were
+    measured the same way (one trial per core)."""
+    from ..engine.library import PriorLibrary
+
+    if not runs:
+        return tasks
+    known = PriorLibrary.bundled("known").names
+    found = {}
+    for run_folder in runs:
+        for result in read_trials(Path(run_folder) / "trials"):
+            if result.get("library") == known and result["task"].get("max_steps") is None:
+                key = (result["object"], result["seed"], result["strategy"],
+                       json.dumps(result["params"], sort_keys=True))
+                found.setdefault(key, result)
+    left = []
+    for task in tasks:
+        key = (task["object"], task["seed"], task["strategy"],
+               json.dumps(rounded(task["params"]), sort_keys=True))
+        if task["library"] == "known" and not task["extra_priors"] and key in found:
+            result = dict(found[key], task={**found[key]["task"], **task, "reused": True})
+            write_trial(folder, task_key(task), result)
+        else:
+            left.append(task)
+    print(f"reused {len(tasks) - len(left)} of {len(tasks)} trials", file=sys.stderr)
+    return left
 
 
 def rows_from_results(results, sets):

@@ -195,9 +195,9 @@ def _learned(model, name):
     return ObjectModel(name, model.mesh, model.params, model.cache, learned=True)
 
 
-def test_the_map_pose_is_refined_only_while_a_learned_prior_is_the_map(bundled):
-    """With refine_learned a learned MAP class gets the least-squares pose (its evidence is
-    at least the unrefined one's); a given mesh's MAP is left as sampled."""
+def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
+    """With refine_learned a learned prior's heaviest particle gets the least-squares pose
+    (more evidence than without); a given mesh's poses are left as sampled."""
     truth = GroundTruth(bundled["guitar_1"], *random_pose(rng=11, max_translation=1.0))
     evidence = {}
     for learned in (False, True):

@@ -583,3 +583,14 @@ def test_a_session_without_truth_saves_and_loads(bundled, known, tmp_path):
     np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
     np.testing.assert_array_equal(loaded.latest.free_space, session.latest.free_space)
     np.testing.assert_allclose(loaded.latest.map_translation, session.latest.map_translation)
+
+
+def test_a_noiseless_touch_of_the_same_spot_is_a_repeat(bundled, known):
+    """Without sensor noise, a contact within the simulator's precision of an earlier one is
+    the same touch (the approach moves with the estimate, so it is never bit for bit equal);
+    a blocked target is then given up instead of aimed at until the step cap."""
+    session = Session(make_truth(bundled["bottle_1"], rng=4), known, "gpis-dhd", seed=4)
+    session.run(max_steps=3)
+    position, normal = session.filter.contact_positions[-1], session.filter.contact_normals[-1]
+    assert session._repeats_contact(Contact(position + 1e-4, normal))
+    assert not session._repeats_contact(Contact(position + [0.05, 0, 0], normal))

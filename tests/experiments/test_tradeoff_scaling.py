@@ -72,7 +72,31 @@ def test_growth_exponent_of_a_power_law():
 def test_library_of_forty_priors_has_unique_names():
     library = library_of_size(40)
     assert len(library) == 40 and len(set(library.names)) == 40
+    assert len({model.content_hash for model in library}) == 40
+    assert all(model.length == pytest.approx(6.0) for model in library)
 
 
 def test_small_values_keep_their_digits():
     assert "0.000123" in markdown_table(["x"], [[0.000123]])
+
+
+def test_matching_trials_of_another_run_are_reused(tmp_path):
+    from tactile_viz.engine.library import PriorLibrary
+    from tactile_viz.experiments.runner import task_key
+    from tactile_viz.experiments.trial_files import read_trials, write_trial
+
+    (other := tmp_path / "paper_run" / "trials").mkdir(parents=True)
+    tasks = tradeoff.plan(["mug_1"], 2, ["paper", "fast"], None)
+    done = {"object": "mug_1", "seed": 1, "strategy": "gpis-dhd", "seconds": 2.0,
+            "params": tradeoff.config_params("paper"),
+            "library": PriorLibrary.bundled("known").names,
+            "task": {"kind": "protocol", "max_steps": None}, "steps": []}
+    write_trial(other, "protocol__mug_1__s1", done)
+    out = tmp_path / "out"
+    out.mkdir()
+    left = tradeoff.reuse_trials(tasks, [tmp_path / "paper_run"], out)
+    assert len(left) == 3 and all((t["tag"], t["seed"]) != ("paper", 1) for t in left)
+    (copied,) = read_trials(out)
+    assert copied["task"]["tag"] == "paper" and copied["task"]["reused"]
+    assert (out / f"{task_key(next(t for t in tasks if t['tag'] == 'paper' and t['seed'] == 1))}"
+                  ".json.gz").exists()
