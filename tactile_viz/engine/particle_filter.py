@@ -3,15 +3,15 @@
 Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 
 1. weight update: ``log w_j += log p(D_t | z_j)`` and normalise;
-2. stochastic universal resampling, merging duplicates (and, with a merge tolerance, poses
-   that lie within it of each other);
+2. stochastic universal resampling, merging duplicates;
 3. the MAP particle ``z*`` and its evidence ``log p(D_1:t | z*)``;
 4. if the evidence is poor (gate ``lambda``), new particles from point-pair features of the
    new contact paired with ``n_s`` earlier contacts, weighted by the paper's relative-weight
    approximation;
 5. optionally a local refinement of the MAP pose and of each learned prior's heaviest
    particle, added as particles;
-6. the known/novel decision from the MAP evidence.
+6. optionally, particles whose poses lie within a merge tolerance of each other merged;
+7. the known/novel decision from the MAP evidence.
 """
 
 from dataclasses import dataclass
