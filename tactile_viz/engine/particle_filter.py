@@ -269,10 +269,7 @@ class ParticleFilter:
                     map_index, map_evidence = self._map()
         if len(self.contact_positions) >= 3:
             for index in self._to_refine(map_index):
-                evidence = self.log_evidence_of(self.particles.take([index]))[0]
-                refined = self._refined(index, evidence)
-                if refined is not None:
-                    self.particles = self._merged(refined)
+                self._refine(index)
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
@@ -390,10 +387,12 @@ class ParticleFilter:
                     chosen.append(int(members[np.argmax(self.particles.log_weights[members])]))
         return list(dict.fromkeys(chosen))
 
-    def _refined(self, index, evidence_before):
-        """A particle's pose after a few least-squares steps on all observations, as a new
-        particle weighted by its gain in evidence (None if there is no gain)."""
+    def _refine(self, index):
+        """Move particle ``index`` to its pose after a few least-squares steps on all
+        observations, its weight multiplied by the gain in evidence (kept as it is if there
+        is none). The particle is replaced, not copied: a copy would count its weight twice."""
         particle = self.particles.take([index])
+        evidence_before = self.log_evidence_of(particle)[0]
         sdf = self.models[particle.classes[0]].sdf
         rotation0, translation0 = particle.rotations[0], particle.translations[0]
         centre = self.contact_positions.mean(axis=0)
@@ -415,14 +414,18 @@ class ParticleFilter:
             result = least_squares(residuals, np.zeros(6), method="trf",
                                    max_nfev=self.params.refine_iterations * 7, x_scale=0.1)
         except (ValueError, np.linalg.LinAlgError):
-            return None
+            return
         rotation, translation = pose(result.x)
         refined = Particles(particle.classes, rotation[None], translation[None], np.zeros(1))
         evidence = self.log_evidence_of(refined)[0]
         if not evidence > evidence_before:
-            return None
-        return Particles(particle.classes, rotation[None], translation[None],
-                         particle.log_weights + evidence - evidence_before)
+            return
+        rotations, translations = self.particles.rotations.copy(), self.particles.translations.copy()
+        log_weights = self.particles.log_weights.copy()
+        rotations[index], translations[index] = rotation, translation
+        log_weights[index] += evidence - evidence_before
+        self.particles = _with_log_weights(
+            Particles(self.particles.classes, rotations, translations, log_weights), log_weights)
 
     def _record(self, sampled):
         params = self.params
@@ -489,10 +492,13 @@ def merge_close_poses(particles, distance, angle):
     first = np.r_[True, group[order][1:] != group[order][:-1]]
     heads = order[first]
     merged = particles.take(heads)
-    # Summed in each group's own scale: the head is its heaviest, so no sum underflows.
+    # Summed in each group's own scale: the head is its heaviest, so no sum underflows
+    # (a group of zero weights keeps weight zero instead of 0/0).
     head_log_weight = merged.log_weights[np.argsort(group[heads])][group]
+    head_log_weight = np.where(np.isfinite(head_log_weight), head_log_weight, 0.0)
     sums = np.bincount(group, np.exp(particles.log_weights - head_log_weight))
-    return _with_log_weights(merged, merged.log_weights + np.log(sums[group[heads]]))
+    with np.errstate(divide="ignore"):
+        return _with_log_weights(merged, merged.log_weights + np.log(sums[group[heads]]))
 
 
 def _with_log_weights(particles, log_weights):

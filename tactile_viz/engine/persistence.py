@@ -70,7 +70,10 @@ def _read(path):
     config = json.loads(arrays["config"].tobytes().decode())
     if config.get("format") != FORMAT:
         raise ValueError("not a tactile_viz session file")
-    learned = set(config.get("learned", ()))
+    learned = config.get("learned", [])
+    if not (isinstance(learned, list) and all(isinstance(name, str) for name in learned)):
+        raise ValueError("the list of learned priors is not a list of names")
+    learned = set(learned)
     library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
                                               arrays[f"prior{i}_faces"],
                                               f"the mesh of prior {name!r}", name in learned)

@@ -184,7 +184,8 @@ def reuse_trials(tasks, runs, folder):
     strategy, the bundled known library, parameters, no step cap); returns the tasks left.
 
     A trial is the same computation whichever benchmark ran it, and its seconds were
-    measured the same way (one trial per core)."""
+    measured the same way (one trial per core). The code version is not matched (an engine
+    change need not change a parameter): the report lists the versions of its trials."""
     from ..engine.library import PriorLibrary
 
     if not runs:
@@ -201,7 +202,8 @@ def reuse_trials(tasks, runs, folder):
     for task in tasks:
         key = (task["object"], task["seed"], task["strategy"],
                json.dumps(rounded(task["params"]), sort_keys=True))
-        if task["library"] == "known" and not task["extra_priors"] and key in found:
+        if (task["library"] == "known" and not task["extra_priors"]
+                and task["max_steps"] is None and key in found):
             result = dict(found[key], task={**found[key]["task"], **task, "reused": True})
             write_trial(folder, task_key(task), result)
         else:
@@ -330,7 +332,14 @@ def report(folder, command=None):
         lines += [f"Command: `{command}`", ""]
     objects = sorted({r["object"] for r in results})
     seeds = sorted({r["seed"] for r in results})
+    versions = {}
+    for result in results:
+        label = result.get("code_version", "unknown") + (
+            " (reused)" if result["task"].get("reused") else "")
+        versions[label] = versions.get(label, 0) + 1
     lines += [f"Machine: {machine_description()}", "",
+              "Code version(s) of the trials (number of trials): "
+              + ", ".join(f"{v} ({n})" for v, n in sorted(versions.items())), "",
               f"Objects: {', '.join(objects)}; seeds {', '.join(map(str, seeds))}; GPIS-DHD. "
               "Means ± the half-width of a t-based 95% interval over the trials. A "
               "configuration is on a front when no other is at least as fast and at least "
