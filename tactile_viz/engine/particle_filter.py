@@ -376,15 +376,15 @@ class ParticleFilter:
 
     def _to_refine(self, map_index):
         """Particles whose pose is refined this step: the MAP (``refine_map``) and the
-        heaviest of each learned prior (``refine_learned``), so that a learned shape's
-        coarse point-pair poses can still overtake a given mesh's."""
+        ``refine_learned`` heaviest of each learned prior, so that a learned shape's coarse
+        point-pair poses can still overtake a given mesh's."""
         chosen = [map_index] if self.params.refine_map else []
-        if self.params.refine_learned:
-            learned = [c for c, model in enumerate(self.models) if model.learned]
-            for c in learned:
+        count = self.params.refine_learned
+        for c, model in enumerate(self.models):
+            if count and model.learned:
                 members = np.flatnonzero(self.particles.classes == c)
-                if len(members):
-                    chosen.append(int(members[np.argmax(self.particles.log_weights[members])]))
+                heaviest = members[np.argsort(-self.particles.log_weights[members])[:count]]
+                chosen += [int(index) for index in heaviest]
         return list(dict.fromkeys(chosen))
 
     def _refine(self, index):

@@ -204,7 +204,7 @@ def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
         model = _learned(bundled["guitar_1"], "guitar") if learned else bundled["guitar_1"]
         for refine in (False, True):
             _, state = _run(PriorLibrary([model, bundled["mug_1"]]), truth, 12, seed=3,
-                            params=FilterParams(refine_learned=refine))
+                            params=FilterParams(refine_learned=3 if refine else 0))
             evidence[learned, refine] = state.log_evidence
     assert evidence[False, True] == evidence[False, False]
     assert evidence[True, True] > evidence[True, False]

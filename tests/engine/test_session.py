@@ -326,7 +326,7 @@ def test_faithful_preset_is_the_papers_gpis():
     params = session_preset("faithful")
     assert params.gpis_kernel == "thin-plate" and params.gpis_radius_factor == 1.0
     assert not params.gpis_noncontacts and not params.filter.refine_learned
-    assert params.filter == replace(session_preset("paper").filter, refine_learned=False)
+    assert params.filter == replace(session_preset("paper").filter, refine_learned=0)
     assert params.gpis_carve_radius == 0 and not params.cover_prior
     assert not params.target_uncovered and params.check_lines == 0
     assert params.approach_clearance == 0.5
