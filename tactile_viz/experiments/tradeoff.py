@@ -244,8 +244,12 @@ def rows_from_results(results, sets):
             values = [s.get(key) for s in subsets[subset]]
             row[key], row[f"{key}_ci"] = aggregate.mean_std(values)[0], aggregate.ci95(values)
         rows.append(row)
+    # A configuration run on fewer objects (e.g. only the known ones) is left out of the
+    # fronts over all objects: its means are over another set.
+    full = max((r["trials"] for r in rows), default=0)
     for key, subset, _ in METRICS:
-        times = [r[f"seconds_{subset}"] for r in rows]
+        complete = [subset != "all" or r["trials"] == full for r in rows]
+        times = [r[f"seconds_{subset}"] if ok else np.nan for r, ok in zip(rows, complete)]
         errors = [r[key] for r in rows]
         for index in pareto_front(times, errors):
             rows[index][f"front_{key}"] = True
