@@ -274,13 +274,16 @@ def front_within_interval(times, errors, lower):
 
 
 def plot(rows, path):
-    """Time against each metric (mean with its 95% interval), the Pareto front marked."""
+    """Time against each metric (mean with its 95% interval), the Pareto front marked; the
+    all-object panels leave out configurations run on fewer objects."""
     from .plots import _pyplot
 
     plt = _pyplot()
     figure, axes = plt.subplots(2, 2, figsize=(12, 8.5))
+    full = max((r["trials"] for r in rows), default=0)
     for axis, (key, subset, label) in zip(axes.ravel(), METRICS):
-        points = [r for r in rows if np.isfinite(r[key]) and np.isfinite(r[f"seconds_{subset}"])]
+        points = [r for r in rows if np.isfinite(r[key]) and np.isfinite(r[f"seconds_{subset}"])
+                  and (subset != "all" or r["trials"] == full)]
         for row in points:
             preset = row["config"] in PRESETS
             axis.errorbar(row[f"seconds_{subset}"], row[key], yerr=row[f"{key}_ci"],
