@@ -9,7 +9,7 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
    new contact paired with ``n_s`` earlier contacts, weighted by the paper's relative-weight
    approximation;
 5. optionally a local refinement of the MAP pose and of each learned prior's heaviest
-   particle, added as particles;
+   particles, in place;
 6. optionally, particles whose poses lie within a merge tolerance of each other merged;
 7. the known/novel decision from the MAP evidence.
 """
@@ -424,8 +424,8 @@ class ParticleFilter:
         log_weights = self.particles.log_weights.copy()
         rotations[index], translations[index] = rotation, translation
         log_weights[index] += evidence - evidence_before
-        self.particles = _with_log_weights(
-            Particles(self.particles.classes, rotations, translations, log_weights), log_weights)
+        self.particles = Particles(self.particles.classes, rotations, translations,
+                                   normalise_log_weights(log_weights))
 
     def _record(self, sampled):
         params = self.params

@@ -7,12 +7,13 @@
 2. Against the number of priors: the same observation sequence (random touches of one
    object) is fed to particle filters whose libraries hold 10, 40, 100 and 400 priors (the
    bundled sets, and beyond 20 stretched variants of them, each a distinct shape); the
-   median filter update is timed and the memory of the priors' arrays and of the process
-   recorded, with a growth exponent for each.
+   filter updates are timed (the growth exponent from their mean) and the memory of the
+   priors' arrays (with its exponent) and of the process recorded.
 """
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -70,8 +71,6 @@ def resident_bytes():
         pages = int(Path("/proc/self/statm").read_text().split()[1])
     except (OSError, ValueError, IndexError):
         return None
-    import os
-
     return pages * os.sysconf("SC_PAGE_SIZE")
 
 
@@ -108,11 +107,12 @@ def time_priors(counts, object_name="mug_1", steps=30, seed=0, progress=False):
             particle_filter.update(observation)
             times.append(time.perf_counter() - start)
             counts_seen.append(len(particle_filter.particles))
+        resident = resident_bytes()
         rows.append({"priors": count, "median": float(np.median(times)),
                      "mean": float(np.mean(times)), "particles": int(counts_seen[-1]),
                      "max_particles": int(max(counts_seen)),
                      "prior_megabytes": prior_bytes / 1e6,
-                     "resident_megabytes": (resident_bytes() or 0) / 1e6 or None,
+                     "resident_megabytes": None if resident is None else resident / 1e6,
                      "map_class": particle_filter.state.map_class})
         del particle_filter, library, models
     return rows

@@ -191,20 +191,20 @@ def reuse_trials(tasks, runs, folder):
     if not runs:
         return tasks
     known = PriorLibrary.bundled("known").names
+    def key(item, params):
+        return (item["object"], item["seed"], item["strategy"], json.dumps(params, sort_keys=True))
+
     found = {}
     for run_folder in runs:
         for result in read_trials(Path(run_folder) / "trials"):
             if result.get("library") == known and result["task"].get("max_steps") is None:
-                key = (result["object"], result["seed"], result["strategy"],
-                       json.dumps(result["params"], sort_keys=True))
-                found.setdefault(key, result)
+                found.setdefault(key(result, result["params"]), result)
     left = []
     for task in tasks:
-        key = (task["object"], task["seed"], task["strategy"],
-               json.dumps(rounded(task["params"]), sort_keys=True))
+        match = key(task, rounded(task["params"]))
         if (task["library"] == "known" and not task["extra_priors"]
-                and task["max_steps"] is None and key in found):
-            result = dict(found[key], task={**found[key]["task"], **task, "reused": True})
+                and task["max_steps"] is None and match in found):
+            result = dict(found[match], task={**found[match]["task"], **task, "reused": True})
             write_trial(folder, task_key(task), result)
         else:
             left.append(task)
@@ -245,11 +245,13 @@ def rows_from_results(results, sets):
             row[key], row[f"{key}_ci"] = aggregate.mean_std(values)[0], aggregate.ci95(values)
         rows.append(row)
     # A configuration run on fewer objects (e.g. only the known ones) is left out of the
-    # fronts over all objects: its means are over another set.
+    # fronts and plots over all objects: its means are over another set.
     full = max((r["trials"] for r in rows), default=0)
+    for row in rows:
+        row["all_objects"] = row["trials"] == full
     for key, subset, _ in METRICS:
-        complete = [subset != "all" or r["trials"] == full for r in rows]
-        times = [r[f"seconds_{subset}"] if ok else np.nan for r, ok in zip(rows, complete)]
+        times = [r[f"seconds_{subset}"] if subset != "all" or r["all_objects"] else np.nan
+                 for r in rows]
         errors = [r[key] for r in rows]
         for index in pareto_front(times, errors):
             rows[index][f"front_{key}"] = True
@@ -280,10 +282,9 @@ def plot(rows, path):
 
     plt = _pyplot()
     figure, axes = plt.subplots(2, 2, figsize=(12, 8.5))
-    full = max((r["trials"] for r in rows), default=0)
     for axis, (key, subset, label) in zip(axes.ravel(), METRICS):
         points = [r for r in rows if np.isfinite(r[key]) and np.isfinite(r[f"seconds_{subset}"])
-                  and (subset != "all" or r["trials"] == full)]
+                  and (subset != "all" or r["all_objects"])]
         for row in points:
             preset = row["config"] in PRESETS
             axis.errorbar(row[f"seconds_{subset}"], row[key], yerr=row[f"{key}_ci"],
