@@ -27,6 +27,10 @@ def parse_args(argv=None):
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
+    parser.add_argument("--engine", choices=("process", "thread"), default="process",
+                        help="where Step and Run step the session: a process of its own, so "
+                             "the window draws meanwhile on another core (default), or a "
+                             "thread of the app's process")
     parser.add_argument("--steps", type=int, default=0,
                         help="run this many steps before showing (or before the screenshot)")
     parser.add_argument("--learn-first", action="store_true",
@@ -97,7 +101,9 @@ def main(argv=None):
         print(f"error: {error}", file=sys.stderr)
         return 2
     app = QApplication.instance() or QApplication(sys.argv[:1])
-    window = MainWindow(scene)
+    window = MainWindow(scene, engine=args.engine)
+    if window.engine is not None and not args.screenshot:
+        window.engine.start()  # it imports the engine while the window opens
     default_hook = log_errors_shown(window)
     window.show()
     for _ in range(args.steps):

@@ -392,21 +392,31 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
     free_points, radii = free_points[keep], radii[keep]
     if len(free_points) == 0:
         return prior
-    tree, count = cKDTree(free_points), min(neighbours, len(free_points))
+    return CarvedPrior(prior, free_points, radii, min(neighbours, len(free_points)))
 
-    def carved(points):
+
+class CarvedPrior:
+    """``prior`` with balls of ``radii`` about ``free_points`` cut out (see
+    :func:`carved_prior`); a callable with the prior's signature that pickles."""
+
+    def __init__(self, prior, free_points, radii, neighbours):
+        self.prior, self.free_points, self.radii = prior, free_points, radii
+        self.neighbours = int(neighbours)
+        self.tree = cKDTree(free_points)
+
+    def __call__(self, points):
         points = np.atleast_2d(points)
-        values, gradients = prior(points)
+        values, gradients = self.prior(points)
         values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
-        candidates = np.flatnonzero(values < radii.max())  # a cut never exceeds its radius
+        candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
         if len(candidates) == 0:
             return values, gradients
-        distance, index = tree.query(points[candidates], k=count)
+        distance, index = self.tree.query(points[candidates], k=self.neighbours)
         distance, index = distance.reshape(len(candidates), -1), index.reshape(len(candidates), -1)
-        cut = radii[index] - distance
+        cut = self.radii[index] - distance
         best = np.argmax(cut, axis=1)
         rows = np.arange(len(candidates))
-        cut, centre = cut[rows, best], free_points[index[rows, best]]
+        cut, centre = cut[rows, best], self.free_points[index[rows, best]]
         wins = cut > values[candidates]
         changed = candidates[wins]
         offset = points[changed] - centre[wins]
@@ -414,8 +424,6 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
         values[changed] = cut[wins]
         gradients[changed] = -offset / np.maximum(length, 1e-12)
         return values, gradients
-
-    return carved
 
 
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,

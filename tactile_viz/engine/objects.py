@@ -72,6 +72,12 @@ class ObjectModel:
     def __repr__(self):
         return f"ObjectModel({self.name!r}, faces={len(self.mesh.faces)})"
 
+    def __getstate__(self):
+        # The exact distance holds libigl trees, which do not pickle; it is rebuilt on use.
+        state = dict(self.__dict__)
+        state.pop("exact", None)
+        return state
+
     @classmethod
     def from_file(cls, path, name=None, params=None, cache=None):
         """Load a mesh file (checked, repaired, normalised); the name defaults to the file stem."""

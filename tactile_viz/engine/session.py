@@ -128,6 +128,41 @@ def _hypotheses(state, count=HYPOTHESES):
                  for k in order)
 
 
+class PosedSDF:
+    """A model's SDF placed at a pose: ``field(points) -> (values (k,), gradients (k, 3))``
+    for (k, 3) world points. Callables of a session are classes, not closures, so that a
+    session pickles (the app steps it in another process)."""
+
+    def __init__(self, sdf, rotation, translation):
+        self.sdf, self.rotation, self.translation = sdf, rotation, translation
+
+    def __call__(self, points):
+        values, gradients = self.sdf.evaluate(
+            (np.atleast_2d(points) - self.translation) @ self.rotation)
+        return values, gradients @ self.rotation.T
+
+
+class ValueOf:
+    """The values of a field returning ``(values, gradients)``."""
+
+    def __init__(self, field):
+        self.field = field
+
+    def __call__(self, points):
+        return self.field(points)[0]
+
+
+class BelowTangentPlane:
+    """``min(signed height above the plane through position, outside(points))``: the full
+    depth across the tangent plane, short of what ``outside`` predicts."""
+
+    def __init__(self, position, normal, outside):
+        self.position, self.normal, self.outside = position, normal, outside
+
+    def __call__(self, points):
+        return np.minimum((points - self.position) @ self.normal, self.outside(points))
+
+
 @dataclass(frozen=True)
 class Reconstruction:
     """The GPIS estimate of a novel object in one step.
@@ -465,16 +500,14 @@ class Session:
         if recon is not None and not recon.empty:
             outside = recon.fit.mean_value
         else:
-            prior = self._prior(model, rotation, translation)
-            outside = lambda points: prior(points)[0]  # noqa: E731
+            outside = ValueOf(self._prior(model, rotation, translation))
         if terminated:
             self._target = None
         elif frontier:
             position, normal = self._frontier.pop(0)
             # Probe the full depth across the tangent plane (the estimate has no surface
             # here), but approach short of what the estimate does predict.
-            self._target = (position, normal, lambda points: np.minimum(
-                (points - position) @ normal, outside(points)))
+            self._target = (position, normal, BelowTangentPlane(position, normal, outside))
             self._frontier_target = True
         elif checking:
             self._target = None
@@ -718,13 +751,7 @@ class Session:
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
 
     def _prior(self, model, rotation, translation):
-        sdf = model.sdf
-
-        def prior(points):
-            values, gradients = sdf.evaluate((np.atleast_2d(points) - translation) @ rotation)
-            return values, gradients @ rotation.T
-
-        return prior
+        return PosedSDF(model.sdf, rotation, translation)
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space):
         """The GPIS prior mean: the MAP shape with the refuted space cut out."""
@@ -804,8 +831,8 @@ class Session:
             return target, normalise_rows(gradient)[0], recon.fit.mean_value
         index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
         normal = model.mesh.vertex_normals[index] @ rotation.T
-        estimate = self._prior(model, rotation, translation)
-        return surface[index], normalise_rows(normal[None])[0], lambda x: estimate(x)[0]
+        estimate = ValueOf(self._prior(model, rotation, translation))
+        return surface[index], normalise_rows(normal[None])[0], estimate
 
     # ---------------------------------------------------------------- learning
     def learned_model(self, name, snapshot=None, resolution=None):

@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QM
                                QWidget)
 from superqt.utils import thread_worker
 
+from ..app.engine_process import shared_engine
 from ..engine.errors import TactileVizError
 from ..engine.session import Session
 from .layers import ViewportLayers
@@ -38,6 +39,7 @@ from .runner import StepRunner
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 OBSERVATION_SUFFIXES = (".csv",)  # recorded touches (kind,x,y,z,nx,ny,nz)
 MESH_FILTER = "Meshes (*.obj *.ply *.stl *.off *.glb *.gltf);;All files (*)"
+ENGINES = ("process", "thread")  # where the window's steps run (see MainWindow)
 SETTINGS_ORGANIZATION = "tactile_viz"
 SETTINGS_APPLICATION = "tactile_viz"
 STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
@@ -249,15 +251,22 @@ class MainWindow(QMainWindow):
     settings : QSettings, optional
         Where the window geometry, dock layout and last folders are kept (default: the
         user's tactile_viz settings).
+    engine : {"process", "thread"}
+        Where Step and Run step the session: the app's engine process (the default; the
+        window draws meanwhile on another core, see
+        :mod:`tactile_viz.app.engine_process`) or a worker thread of this process.
     """
 
-    def __init__(self, scene, parent=None, settings=None):
+    def __init__(self, scene, parent=None, settings=None, engine="process"):
         super().__init__(parent)
         self.scene = scene
         self.settings = settings if settings is not None else QSettings(
             QSettings.IniFormat, QSettings.UserScope, SETTINGS_ORGANIZATION,
             SETTINGS_APPLICATION)
-        self.runner = StepRunner(scene, self._draw, parent=self)
+        if engine not in ENGINES:
+            raise ValueError(f"unknown engine {engine!r}; choose from {', '.join(ENGINES)}")
+        self.engine = shared_engine() if engine == "process" else None
+        self.runner = StepRunner(scene, self._draw, parent=self, engine=self.engine)
         self.runner.errored.connect(self.show_error)
         self.runner.finished.connect(self._on_run_finished)
         self.loader = None
@@ -499,12 +508,14 @@ class MainWindow(QMainWindow):
                                          STATUS_SECONDS)
             self._show_running(False)
             return
-        if count is None:
+        cap = max(session.params.max_steps_known, session.params.max_steps_novel)
+        if count is None and self.engine is None:
             # The plots take the run's layout now, before the worker competes for the
             # interpreter, so that the run's own updates are all blitted.
-            self.plots.set_run_steps(max(session.params.max_steps_known,
-                                         session.params.max_steps_novel), now=True)
+            self.plots.set_run_steps(cap, now=True)
         self.runner.start(session, self.scene.generation, count)
+        if count is None and self.engine is not None:
+            self.plots.set_run_steps(cap, now=True)  # while the process takes the first step
         self._show_running(True)
 
     def pause(self):

@@ -1,12 +1,15 @@
-"""Steps in a worker thread, drawn on the GUI thread no faster than the window can keep up.
+"""Steps in a worker, drawn on the GUI thread no faster than the window can keep up.
 
-The worker (superqt ``thread_worker``) steps a session and yields ``(generation, snapshot)``;
-it checks a stop flag between steps, so *Pause* and closing the window act after the step in
-progress. On the GUI thread a :class:`StepRunner` keeps only the newest snapshot of the
-current session (snapshots of a session that is no longer current are dropped) and hands it
-to ``draw`` from a single-shot timer: when drawing falls behind the engine, the snapshots in
-between are skipped, never queued. Drawing is also paced so that it takes at most
-``duty`` of the wall time (the engine shares the interpreter with it).
+The worker (superqt ``thread_worker``) steps a session, in the app's engine process
+(:mod:`tactile_viz.app.engine_process`) or in its own thread, and yields
+``(generation, snapshot)``; a stop flag is checked between steps, so *Pause* and closing the
+window act after the step in progress. On the GUI thread a :class:`StepRunner` keeps only
+the newest snapshot of the current session (snapshots of a session that is no longer
+current are dropped) and hands it to ``draw`` from a single-shot timer: when drawing falls
+behind the engine, the snapshots in between are skipped, never queued. Drawing is also
+paced so that it takes at most ``duty`` of the wall time (in a thread the engine waits for
+the interpreter while the window draws; in its process it shares the cores with the
+software renderer).
 """
 
 import threading
@@ -16,8 +19,8 @@ from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 from superqt.utils import thread_worker
 
 
-# Largest fraction of a run's wall time spent drawing (the engine's thread waits for the
-# interpreter while the window draws). 0.07 drew fewer steps without a measurable gain.
+# Largest fraction of a run's wall time spent drawing. 0.07 drew fewer steps without a
+# measurable gain (engine in a thread).
 DRAW_DUTY = 0.1
 
 
@@ -27,19 +30,32 @@ class StepFailed(Exception):
     (same message, the original as its cause)."""
 
 
-@thread_worker(start_thread=False, ignore_errors=True)
-def step_worker(session, count, stop, generation, step_ends=None):
-    """Step ``session`` ``count`` times (None: until it terminates) unless ``stop`` is set,
-    yielding ``(generation, snapshot)`` after each step (and appending the time each step
-    ended to ``step_ends``, if given). A failed step goes to the worker's ``errored`` signal
-    only (superqt would also re-raise it in the GUI thread as an uncaught exception)."""
+def stepped_here(session, count, stop):
+    """Step ``session`` in this thread ``count`` times (None: until it terminates) unless
+    ``stop`` is set, yielding each snapshot."""
     done = 0
     while not stop.is_set() and not session.terminated and (count is None or done < count):
+        yield session.step()
+        done += 1
+
+
+@thread_worker(start_thread=False, ignore_errors=True)
+def step_worker(session, count, stop, generation, step_ends=None, engine=None):
+    """Step ``session`` ``count`` times (None: until it terminates) unless ``stop`` is set,
+    in this worker's thread or, given an ``engine`` (:class:`EngineProcess`), in its
+    process; yields ``(generation, snapshot)`` after each step (and appends the time each
+    step ended to ``step_ends``, if given). A failed step goes to the worker's ``errored``
+    signal only (superqt would also re-raise it in the GUI thread as an uncaught
+    exception)."""
+    snapshots = (stepped_here(session, count, stop) if engine is None
+                 else engine.steps(session, count, stop))
+    while True:
         try:
-            snapshot = session.step()
+            snapshot = next(snapshots)
+        except StopIteration:
+            return
         except RuntimeError as error:
             raise StepFailed(str(error)) from error
-        done += 1
         if step_ends is not None:
             step_ends.append(time.perf_counter())
         yield generation, snapshot
@@ -55,15 +71,19 @@ class StepRunner(QObject):
         ``draw(snapshot)`` on the GUI thread (the newest snapshot of the current session).
     duty : float
         Largest fraction of the wall time spent drawing while the worker runs.
+    engine : EngineProcess, optional
+        Steps in this process (see :mod:`tactile_viz.app.engine_process`); None: in the
+        worker's thread.
     """
 
     started = Signal()
     finished = Signal()
     errored = Signal(object)
 
-    def __init__(self, scene, draw, duty=DRAW_DUTY, parent=None):
+    def __init__(self, scene, draw, duty=DRAW_DUTY, parent=None, engine=None):
         super().__init__(parent)
         self.scene = scene
+        self.engine = engine
         self.draw = draw
         self.duty = float(duty)
         self.worker = None
@@ -100,7 +120,8 @@ class StepRunner(QObject):
         self.generation = generation
         self.stop_requested_at = None
         self.step_ends = []
-        worker = step_worker(session, count, self._stop, generation, self.step_ends)
+        worker = step_worker(session, count, self._stop, generation, self.step_ends,
+                             self.engine)
         worker.yielded.connect(self._on_yielded)
         worker.errored.connect(self._on_errored)
         worker.finished.connect(self._on_finished)
@@ -110,11 +131,11 @@ class StepRunner(QObject):
         return True
 
     def stop(self):
-        """Stop after the step in progress (the worker checks between steps)."""
+        """Stop after the step in progress (the worker checks between steps; it is not
+        aborted, so that a run in the engine process brings the session's state back)."""
         if self.worker is not None and not self._stop.is_set():
             self.stop_requested_at = time.perf_counter()
             self._stop.set()
-            self.worker.quit()
 
     def shutdown(self, milliseconds=30_000):
         """Stop, drop whatever is pending and wait up to ``milliseconds`` for the step in

@@ -594,3 +594,25 @@ def test_a_noiseless_touch_of_the_same_spot_is_a_repeat(bundled, known):
     position, normal = session.filter.contact_positions[-1], session.filter.contact_normals[-1]
     assert session._repeats_contact(Contact(position + 1e-4, normal))
     assert not session._repeats_contact(Contact(position + [0.05, 0, 0], normal))
+
+
+def _same_steps(first, second):
+    return all(a.step == b.step and a.map_class == b.map_class and a.dhd == b.dhd
+               and np.array_equal(a.contacts, b.contacts)
+               and np.array_equal(a.map_translation, b.map_translation)
+               for a, b in zip(first, second))
+
+
+@pytest.mark.parametrize("truth, strategy, steps", [("mug_1", "gpis-dhd", 12),
+                                                    ("vase_2", "gpis-dhd", 30),
+                                                    ("vase_2", "rrt", 8)])
+def test_a_pickled_session_steps_on_as_the_original(bundled, known, truth, strategy, steps):
+    # The app steps sessions in another process: a session mid-run (a target with its
+    # estimate, a GPIS fit with a carved prior) must pickle and continue identically.
+    import pickle
+
+    session = Session(make_truth(bundled[truth], rng=2), known, strategy, seed=2)
+    session.run(max_steps=steps)
+    copy = pickle.loads(pickle.dumps(session))
+    assert copy.step_count == session.step_count
+    assert _same_steps([copy.step() for _ in range(3)], [session.step() for _ in range(3)])

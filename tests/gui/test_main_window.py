@@ -761,3 +761,57 @@ def test_run_draws_without_multisampling(qtbot, window):
     assert window.running and samples() == RUNNING_MULTISAMPLES
     _wait_idle(qtbot, window)
     assert window.scene.latest.step == 3 and samples() == IDLE_MULTISAMPLES
+
+
+def test_steps_run_in_the_engine_process_and_come_back(qtbot, window, known_library,
+                                                       settings):
+    # The default window steps in the app's engine process: the session the scene holds
+    # gets every snapshot and, at the end, the process's state, so that a window stepping
+    # in a thread continues it exactly.
+    assert window.engine is not None
+    _cap_steps(window.scene, 5)
+    window.actions["finish"].trigger()
+    _wait_idle(qtbot, window)
+    session = window.scene.session
+    assert session.step_count == 5 and window.engine.holds(session)
+    assert window.loop_panel.step_label.text().startswith("step 5")
+    threaded = MainWindow(Scene("mug_1", seed=0, library=PriorLibrary(list(known_library))),
+                          settings=settings, engine="thread")
+    qtbot.addWidget(threaded)
+    try:
+        assert threaded.engine is None
+        _cap_steps(threaded.scene, 5)
+        threaded.actions["finish"].trigger()
+        qtbot.waitUntil(lambda: not threaded.running, timeout=60_000)
+        here = threaded.scene.session
+        for a, b in zip(session.snapshots, here.snapshots):
+            assert a.map_class == b.map_class and np.array_equal(a.contacts, b.contacts)
+        # The state that came back is the thread's session's.
+        assert session.rng.bit_generator.state == here.rng.bit_generator.state
+        assert (session.simulator.rng.bit_generator.state
+                == here.simulator.rng.bit_generator.state)
+        assert np.array_equal(session._free_space, here._free_space)
+        assert np.array_equal(session.filter.contact_positions, here.filter.contact_positions)
+    finally:
+        threaded.wait_for_worker()
+        threaded.close()
+
+
+def test_a_step_failing_in_the_engine_process_is_shown_and_loses_nothing(
+        qtbot, window, errors, known_library):
+    from tactile_viz.engine.observation_file import RecordedStep
+    from tactile_viz.engine.session import Session, make_truth
+
+    source = Session(make_truth(load_bundled("mug_1"), rng=0), known_library, seed=0)
+    source.run(max_steps=1)
+    good = source.recorded_steps()[0]
+    broken = RecordedStep(good.observations, np.array([[np.nan, 0.0, 0.0]]))
+    scene = window.scene
+    scene.recording, scene.truth = ("a recording", [good, broken, good]), None
+    scene.reset()
+    window.actions["finish"].trigger()
+    _wait_idle(qtbot, window)
+    assert len(errors) == 1 and "finite" in errors[0]
+    session = scene.session
+    assert session.step_count == 1 and window.engine.holds(session)
+    assert window.loop_panel.step_label.text().startswith("step 1")
