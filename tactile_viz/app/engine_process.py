@@ -28,6 +28,7 @@ import pickle
 import queue
 import signal
 import threading
+import time
 import traceback
 import weakref
 
@@ -154,7 +155,8 @@ def _serve_run(outbox, session, count, stop, keys, faces):
             error = caught
             break
         done += 1
-        outbox.put(_dumps(("snapshot", snapshot), key_of, faces))
+        ended = time.perf_counter()  # the system's monotonic clock: the parent's too
+        outbox.put(_dumps(("snapshot", snapshot, ended), key_of, faces))
     state = {k: v for k, v in session.__dict__.items() if k not in CONSTANT_ATTRIBUTES}
     if error is not None:
         error = _portable(error)
@@ -242,11 +244,17 @@ class EngineProcess:
         return (self.alive and resident is not None and resident[0]() is session
                 and resident[1] == session.step_count)
 
-    def steps(self, session, count=None, stop=None):
+    def request_stop(self):
+        """End the run after the step in progress (any thread may call this)."""
+        if self._stop is not None:
+            self._stop.set()
+
+    def steps(self, session, count=None, stop=None, step_ends=None):
         """Step ``session`` in the process ``count`` times (None: until it terminates),
         yielding each snapshot (already appended to ``session.snapshots``); ``stop`` (a
         ``threading.Event``) ends the run after the step in progress. At the end the
-        session's state is the process's.
+        session's state is the process's. ``step_ends``, if given, gets the
+        ``time.perf_counter()`` at which each step ended in the process.
 
         Raises whatever a step raised (the session as before that step), or
         :class:`EngineProcessError` if the process stopped (the session as before the run).
@@ -260,8 +268,11 @@ class EngineProcess:
                 while True:
                     kind, *rest = self._receive(stop)
                     if kind == "snapshot":
-                        session.snapshots.append(rest[0])
-                        yield rest[0]
+                        snapshot, ended = rest
+                        session.snapshots.append(snapshot)
+                        if step_ends is not None:
+                            step_ends.append(ended)
+                        yield snapshot
                         continue
                     state, error = rest
                     session.__dict__.update(state)
@@ -317,9 +328,11 @@ class EngineProcess:
         self._connection.send(("run", data, count))
 
     def _receive(self, stop):
-        while not self._connection.poll(POLL_SECONDS):
+        while True:
             if stop is not None and stop.is_set():
                 self._stop.set()
+            if self._connection.poll(POLL_SECONDS):
+                break
             if not self._process.is_alive():
                 raise EOFError("the engine process ended")
         return _loads(self._connection.recv_bytes(), self._models)

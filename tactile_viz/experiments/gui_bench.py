@@ -2,15 +2,19 @@
 
 For each object (default: mug_1, a known object, and vase_2, a novel one) at one seed:
 
-1. **engine**: the session stepped headless to termination (or ``--max-steps``), wall time
-   (the mean of a run before and one after the app's run, against a changing machine load);
-2. **gui**: the same session run twice with *Run to termination* in the main window, with
-   the Qt event loop waiting for events as in the app: wall time from the click to the last
-   step shown (the mean of the two), steps drawn, seconds of drawing per drawn step (the scene update, the
-   viewport's render in the paint after it, and the plots' own draw pass) and the longest
-   single drawing pass; then once more with a 5 ms QTimer whose largest gap is the event
-   loop's longest block from any cause, including the engine's thread holding the
-   interpreter (a separate run: the timer's 200 wake-ups a second slow the engine);
+1. **engine** and **gui**, interleaved (engine, app, engine, ..., app, engine;
+   ``--repeats`` app runs): the session stepped headless to termination (or
+   ``--max-steps``), and run with *Run to termination* in the main window (stepping in the
+   app's engine process, or with ``--engine thread`` in a worker thread), with the Qt
+   event loop waiting for events as in the app. Wall time of each; for the app, from the
+   click to the last step shown. The overhead is the mean app time over the mean engine
+   time, with the t-interval of the mean of each app run against the engine runs either
+   side of it (the machine's speed drifts). Also steps drawn, seconds of drawing per drawn
+   step (the scene update, the viewport's render in the paint after it, and the plots' own
+   draw pass) and the longest single drawing pass;
+2. **loop gap**: once more with a 5 ms QTimer whose largest gap is the event loop's
+   longest block from any cause (a separate run: the timer's 200 wake-ups a second cost
+   the window's process time);
 3. **pause**: *Run*, then *Pause* after a few steps: time from the click to the run's end
    being handled, and the part of it after the step in progress ended;
 4. **close**: *Run*, then close the window after a few steps: how long ``close()`` takes,
@@ -49,6 +53,9 @@ def _parser():
     parser.add_argument("--strategy", default="gpis-dhd", choices=STRATEGIES)
     parser.add_argument("--max-steps", type=int, default=0,
                         help="cap the runs at this many steps (default 0: to termination)")
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="app runs per object, interleaved with one engine run more "
+                             "(default 3; the machine's speed drifts between runs)")
     parser.add_argument("--pause-after", type=int, default=5,
                         help="steps before Pause / close in the latency runs (default 5)")
     parser.add_argument("--size", default="1500x900", help="window size (default 1500x900)")
@@ -199,6 +206,18 @@ def _interrupt_run(app, args, name, settings, how):
             f"{how}_extra_steps": max(0, len(ends_after) - 1)}
 
 
+def _interval(values, confidence=0.95):
+    """``(low, high)``: the t-based interval of the mean of ``values`` (None for fewer
+    than two)."""
+    if len(values) < 2:
+        return None
+    from scipy import stats
+
+    mean, error = statistics.mean(values), statistics.stdev(values) / len(values) ** 0.5
+    half = float(stats.t.ppf(0.5 + confidence / 2, len(values) - 1)) * error
+    return [mean - half, mean + half]
+
+
 def run(args):
     os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
     from PySide6.QtCore import QSettings
@@ -216,25 +235,33 @@ def run(args):
             warm = _scene(args, name).ensure_session()
             for _ in shared_engine().steps(warm, 1):
                 pass
-        before, steps = _engine_run(args, name)
+        engine_runs, runs = [], []
+        for _ in range(args.repeats):  # engine, app, engine, ..., app, engine
+            seconds, steps = _engine_run(args, name)
+            engine_runs.append(seconds)
+            runs.append(_gui_run(app, args, name, settings))
+        engine_runs.append(_engine_run(args, name)[0])
         row = {"object": name, "engine_steps": steps, "load_average": os.getloadavg()[0],
-               "cpus": os.cpu_count()}
-        runs = [_gui_run(app, args, name, settings) for _ in range(2)]
+               "cpus": os.cpu_count(), "engine": args.engine, "repeats": args.repeats}
         row.update(runs[0])
-        # Wall time and drawing averaged over two runs, like the engine's.
         for key in ("gui_seconds", "drawing_seconds", "draw_per_step"):
             row[key] = sum(run[key] for run in runs) / len(runs)
         row["gui_runs"] = [run["gui_seconds"] for run in runs]
+        row["drawn_runs"] = [run["drawn"] for run in runs]
         row["longest_draw_pass"] = max(run["longest_draw_pass"] for run in runs)
+        row["engine_runs"] = engine_runs
+        row["engine_seconds"] = engine_seconds = statistics.mean(engine_runs)
+        row["overhead"] = row["gui_seconds"] / engine_seconds - 1.0
+        # Each app run against the engine runs either side of it (the machine's speed drifts).
+        ratios = [run["gui_seconds"] / ((engine_runs[i] + engine_runs[i + 1]) / 2) - 1.0
+                  for i, run in enumerate(runs)]
+        row["overhead_runs"] = ratios
+        row["overhead_interval"] = _interval(ratios)
         probed = _gui_run(app, args, name, settings, probe=True)
         for key in ("largest_loop_gap", "loop_gaps_top5", "loop_gaps_over_150ms"):
             row[key] = probed[key]
         row["longest_draw_pass"] = max(row["longest_draw_pass"], probed["longest_draw_pass"])
         row["probed_gui_seconds"] = probed["gui_seconds"]
-        after, _ = _engine_run(args, name)  # the machine's load may change during the runs
-        row["engine_runs"] = [before, after]
-        row["engine_seconds"] = engine_seconds = (before + after) / 2
-        row["overhead"] = row["gui_seconds"] / engine_seconds - 1.0
         row.update(_interrupt_run(app, args, name, settings, "pause"))
         row.update(_interrupt_run(app, args, name, settings, "close"))
         rows.append(row)
@@ -243,17 +270,21 @@ def run(args):
 
 
 def format_table(rows):
-    head = ("object", "steps", "engine s (2 runs)", "gui s (2 runs)", "overhead", "drawn",
-            "draw/step s", "longest draw s", "loop gap s (>150 ms)", "pause s (after step)",
-            "close s (after step)")
+    head = ("object", "steps", "engine s (runs)", "app s (runs)", "overhead (95% interval)",
+            "drawn", "draw/step s", "longest draw s", "loop gap s (>150 ms)",
+            "pause s (after step)", "close s (after step)")
     lines = [" | ".join(head), " | ".join("---" for _ in head)]
     for r in rows:
+        interval = r.get("overhead_interval")
+        spread = ("" if interval is None else
+                  f" ({100 * interval[0]:+.1f} to {100 * interval[1]:+.1f})")
         lines.append(" | ".join([
             r["object"], str(r["steps"]),
             f"{r['engine_seconds']:.1f} ({' / '.join(f'{v:.1f}' for v in r['engine_runs'])})",
             f"{r['gui_seconds']:.1f} ({' / '.join(f'{v:.1f}' for v in r['gui_runs'])})",
-            f"{100 * r['overhead']:+.1f}%", f"{r['drawn']}", f"{r['draw_per_step']:.3f}",
-            f"{r['longest_draw_pass']:.3f}",
+            f"{100 * r['overhead']:+.1f}%{spread}",
+            " / ".join(str(v) for v in r.get("drawn_runs", [r["drawn"]])),
+            f"{r['draw_per_step']:.3f}", f"{r['longest_draw_pass']:.3f}",
             f"{r['largest_loop_gap']:.3f} ({r['loop_gaps_over_150ms']})",
             f"{r['pause_latency']:.2f} ({r['pause_after_step']:.3f})",
             f"{r['close_latency']:.2f} ({r['close_after_step']:.3f})"]))

@@ -30,12 +30,16 @@ class StepFailed(Exception):
     (same message, the original as its cause)."""
 
 
-def stepped_here(session, count, stop):
+def stepped_here(session, count, stop, step_ends=None):
     """Step ``session`` in this thread ``count`` times (None: until it terminates) unless
-    ``stop`` is set, yielding each snapshot."""
+    ``stop`` is set, yielding each snapshot (and appending the time each step ended to
+    ``step_ends``, if given)."""
     done = 0
     while not stop.is_set() and not session.terminated and (count is None or done < count):
-        yield session.step()
+        snapshot = session.step()
+        if step_ends is not None:
+            step_ends.append(time.perf_counter())
+        yield snapshot
         done += 1
 
 
@@ -47,8 +51,8 @@ def step_worker(session, count, stop, generation, step_ends=None, engine=None):
     step ended to ``step_ends``, if given). A failed step goes to the worker's ``errored``
     signal only (superqt would also re-raise it in the GUI thread as an uncaught
     exception)."""
-    snapshots = (stepped_here(session, count, stop) if engine is None
-                 else engine.steps(session, count, stop))
+    snapshots = (stepped_here(session, count, stop, step_ends) if engine is None
+                 else engine.steps(session, count, stop, step_ends))
     while True:
         try:
             snapshot = next(snapshots)
@@ -56,8 +60,6 @@ def step_worker(session, count, stop, generation, step_ends=None, engine=None):
             return
         except RuntimeError as error:
             raise StepFailed(str(error)) from error
-        if step_ends is not None:
-            step_ends.append(time.perf_counter())
         yield generation, snapshot
 
 
@@ -136,6 +138,8 @@ class StepRunner(QObject):
         if self.worker is not None and not self._stop.is_set():
             self.stop_requested_at = time.perf_counter()
             self._stop.set()
+            if self.engine is not None:
+                self.engine.request_stop()
 
     def shutdown(self, milliseconds=30_000):
         """Stop, drop whatever is pending and wait up to ``milliseconds`` for the step in

@@ -9,11 +9,15 @@ pytestmark = pytest.mark.gui
 
 def test_short_bench_gui_run(qapp, capsys):
     args = gui_bench._parser().parse_args(["--objects", "mug_1", "--max-steps", "4",
-                                           "--pause-after", "2", "--size", "1280x720"])
+                                           "--pause-after", "2", "--size", "1280x720",
+                                           "--repeats", "2"])
     rows = gui_bench.run(args)
     row = rows[0]
     assert row["steps"] == row["engine_steps"] == 4 and row["shown_last_step"]
     assert 1 <= row["drawn"] <= 4 and row["drawing_seconds"] > 0
+    assert len(row["engine_runs"]) == 3 and len(row["gui_runs"]) == 2
+    low, high = row["overhead_interval"]
+    assert low <= sum(row["overhead_runs"]) / 2 <= high and row["engine"] == "process"
     assert row["pause_extra_steps"] == 0 and row["close_extra_steps"] == 0
     assert row["close_latency"] < 30
     table = gui_bench.format_table(rows)
