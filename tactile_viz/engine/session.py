@@ -131,13 +131,14 @@ def _hypotheses(state, count=HYPOTHESES):
 class PosedSDF:
     """A model's SDF placed at a pose: ``field(points) -> (values (k,), gradients (k, 3))``
     for (k, 3) world points. Callables of a session are classes, not closures, so that a
-    session pickles (the app steps it in another process)."""
+    session pickles (the app steps it in another process); this one holds the model, not
+    its grid, so that a pickle can name the model instead of copying the grid."""
 
-    def __init__(self, sdf, rotation, translation):
-        self.sdf, self.rotation, self.translation = sdf, rotation, translation
+    def __init__(self, model, rotation, translation):
+        self.model, self.rotation, self.translation = model, rotation, translation
 
     def __call__(self, points):
-        values, gradients = self.sdf.evaluate(
+        values, gradients = self.model.sdf.evaluate(
             (np.atleast_2d(points) - self.translation) @ self.rotation)
         return values, gradients @ self.rotation.T
 
@@ -751,7 +752,7 @@ class Session:
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
 
     def _prior(self, model, rotation, translation):
-        return PosedSDF(model.sdf, rotation, translation)
+        return PosedSDF(model, rotation, translation)
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space):
         """The GPIS prior mean: the MAP shape with the refuted space cut out."""

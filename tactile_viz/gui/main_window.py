@@ -46,6 +46,9 @@ STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
 # During a run the plots are drawn this long after the viewport's paint, so that the event
 # loop runs in between instead of blocking for both.
 PLOTS_DELAY_MS = 30
+# The render waits this long after the scene update: with no delay its paint followed the
+# update with no timer run in between (Qt delivers posted events first).
+RENDER_DELAY_MS = 10
 PLOTS_WIDTH = 320  # the plots dock's width at first start, pixels
 # Multisampling of the viewport when idle and while steps run: with Mesa's software
 # renderer 4x multisampling doubles a render (0.13 s against 0.06 s for a novel scene at
@@ -159,7 +162,7 @@ class Viewport(QtInteractor):
         """Render once, in a paint in a later pass of the event loop: not synchronously
         (that would be followed by a second render in the paint) and not in the pass that
         updated the scene, so that input and timers run between the two."""
-        QTimer.singleShot(0, self, self._request_paint)
+        QTimer.singleShot(RENDER_DELAY_MS, self, self._request_paint)
 
     def _request_paint(self):
         QWidget.update(self)
@@ -561,6 +564,9 @@ class MainWindow(QMainWindow):
         window = getattr(self.plotter, "render_window", None)
         if window is not None and window.GetMultiSamples() != samples:
             window.SetMultiSamples(samples)
+            # Translucent layers are blended in draw order rather than order-independently
+            # while running (a third of a software render), and exactly again when idle.
+            self.plotter.renderer.SetUseOIT(samples == IDLE_MULTISAMPLES)
             # Repaint in the next paint; Qt merges this with a pending step's paint.
             QWidget.update(self.plotter)
 
