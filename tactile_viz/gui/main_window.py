@@ -296,6 +296,7 @@ class MainWindow(QMainWindow):
         self._build_actions()
         self._build_panel()
         self._build_plots()
+        self.plots.set_classes(scene.active_library().names)
         self._build_menu()
         self._build_toolbar()
         self._build_status_bar()
@@ -625,6 +626,7 @@ class MainWindow(QMainWindow):
         self._plots_timer.stop()
         self._plots_step = None
         self.plots.update_plots([])
+        self.plots.set_classes(self.scene.active_library().names)
         self._update_status(None)
 
     def _on_stepped(self, snapshot):

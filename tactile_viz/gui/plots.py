@@ -157,9 +157,30 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._show_errors(snapshots)
         self._refresh()
 
+    def set_classes(self, names):
+        """Lay the posterior's bars out for the classes ``names`` (at 0) before the first
+        step, so that the first step of a run only moves them."""
+        self._set_names(list(names) or None)
+        self.draw_idle()
+
     def _show_posterior(self, snapshot):
+        if snapshot is None:  # no step yet: the classes' bars (if laid out) at 0
+            self._map_class = None
+            for bar in self._bars or []:
+                bar.set_height(0.0)
+                bar.set_color("tab:blue")
+            return
+        names = list(snapshot.class_posterior)
+        self._set_names(names)
+        for bar, name in zip(self._bars, names):
+            bar.set_height(snapshot.class_posterior[name])
+        if snapshot.map_class != self._map_class:
+            self._map_class = snapshot.map_class
+            for bar, name in zip(self._bars, names):
+                bar.set_color("tab:red" if name == snapshot.map_class else "tab:blue")
+
+    def _set_names(self, names):
         axes = self.posterior_axes
-        names = None if snapshot is None else list(snapshot.class_posterior)
         if names != self._names:
             if self._bars is not None:
                 self._bars.remove()
@@ -175,14 +196,6 @@ class PlotsWidget(FigureCanvasQTAgg):
                 self._relayout()
             else:
                 axes.set_xticks([])
-        if snapshot is None:
-            return
-        for bar, name in zip(self._bars, names):
-            bar.set_height(snapshot.class_posterior[name])
-        if snapshot.map_class != self._map_class:
-            self._map_class = snapshot.map_class
-            for bar, name in zip(self._bars, names):
-                bar.set_color("tab:red" if name == snapshot.map_class else "tab:blue")
 
     def _show_errors(self, snapshots):
         # Append only the steps not seen yet; a shorter or different history starts over.

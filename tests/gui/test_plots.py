@@ -65,3 +65,18 @@ def test_a_run_is_drawn_without_full_draws(qtbot):
     plots.set_run_steps(None)  # the run ended: fitted to the data again, in a later pass
     assert plots.error_axes.get_xlim() == (0, 300)
     qtbot.waitUntil(lambda: len(plots.draw_log) - plots.blits == full_draws + 1)
+
+
+def test_classes_laid_out_before_the_first_step_make_it_a_blit(qtbot):
+    plots = _shown_plots(qtbot)
+    plots.set_classes(NAMES)
+    qtbot.waitUntil(lambda: plots._background is not None)
+    assert [bar.get_height() for bar in plots._bars] == [0.0] * len(NAMES)
+    plots.set_run_steps(300, now=True)
+    blits = plots.blits
+    first = _snapshots(1, np.random.default_rng(1))
+    plots.update_plots(first)
+    assert plots.blits == blits + 1  # the bars moved; the layout did not change
+    plots.update_plots([])  # a reset: the same classes, back at 0
+    assert [bar.get_height() for bar in plots._bars] == [0.0] * len(NAMES)
+    assert plots._names == NAMES
