@@ -164,6 +164,8 @@ def _serve_run(outbox, session, count, stop, keys, faces):
             break
         done += 1
         ended = time.perf_counter()  # the system's monotonic clock: the parent's too
+        if len(session.snapshots) > 1:
+            session.snapshots[-2] = None  # the parent keeps them; a step reads the latest
         outbox.put(_dumps(("snapshot", snapshot, ended), key_of, faces))
     state = {k: v for k, v in session.__dict__.items() if k not in CONSTANT_ATTRIBUTES}
     if error is not None:

@@ -126,10 +126,6 @@ def _engine_run(args, name):
     return time.perf_counter() - began, session.step_count
 
 
-def _since(log, began):
-    return [seconds for start, seconds in list(log) if start >= began]
-
-
 def _until_finished(window, timeout):
     """Run the Qt event loop until the window's run ends, as the app does: waiting for
     events, not polling."""
@@ -163,8 +159,12 @@ def _gui_run(app, args, name, settings, probe=False):
     steps = window.scene.latest.step
     shown = window.loop_panel.step_label.text()
     viewport = list(runner.draw_seconds)  # scene update of the drawn steps
-    paints = _since(window.plotter.paint_log, began)  # the render, in the paint after it
-    plots = _since(window.plots.draw_log, began)
+    paint_log = [(start - began, seconds) for start, seconds in list(window.plotter.paint_log)
+                 if start >= began]
+    plots_log = [(start - began, seconds) for start, seconds in list(window.plots.draw_log)
+                 if start >= began]
+    paints = [seconds for _, seconds in paint_log]  # the render, in the paint after it
+    plots = [seconds for _, seconds in plots_log]
     window.close()
     app.processEvents()
     passes = viewport + paints + plots
@@ -177,6 +177,10 @@ def _gui_run(app, args, name, settings, probe=False):
             "paint_median": statistics.median(paints) if paints else 0.0,
             "plots_median": statistics.median(plots) if plots else 0.0,
             "longest_draw_pass": max(passes, default=0.0),
+            # (seconds into the run, seconds) of the longest paint and plots pass
+            "longest_paint": max(paint_log, key=lambda item: item[1], default=None),
+            "longest_plots": max(plots_log, key=lambda item: item[1], default=None),
+            "longest_viewport": max(viewport, default=0.0),
             "largest_loop_gap": gaps[0] if gaps else 0.0, "loop_gaps_top5": gaps[:5],
             "loop_gaps_over_150ms": sum(gap > TARGET_BLOCK for gap in gaps)}
 
@@ -249,6 +253,8 @@ def run(args):
         row["gui_runs"] = [run["gui_seconds"] for run in runs]
         row["drawn_runs"] = [run["drawn"] for run in runs]
         row["longest_draw_pass"] = max(run["longest_draw_pass"] for run in runs)
+        row["longest_passes_runs"] = [{key: run[key] for key in (
+            "longest_viewport", "longest_paint", "longest_plots")} for run in runs]
         row["engine_runs"] = engine_runs
         row["engine_seconds"] = engine_seconds = statistics.mean(engine_runs)
         row["overhead"] = row["gui_seconds"] / engine_seconds - 1.0

@@ -519,7 +519,9 @@ class MainWindow(QMainWindow):
             self.plots.set_run_steps(cap, now=True)
         self.runner.start(session, self.scene.generation, count)
         if count is None and self.engine is not None:
-            self.plots.set_run_steps(cap, now=True)  # while the process takes the first step
+            # In a later pass of the event loop, while the process takes the first steps
+            # (a full draw, 0.1-0.35 s, is no part of the click's handling).
+            self.plots.set_run_steps(cap)
         self._show_running(True)
 
     def pause(self):
