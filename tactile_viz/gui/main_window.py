@@ -207,6 +207,11 @@ class Viewport(QtInteractor):
             event.ignore()
 
 
+def _step_cap(params):
+    """The most steps a session with ``params`` takes (known or novel)."""
+    return max(params.max_steps_known, params.max_steps_novel)
+
+
 def _is_mesh_path(path):
     return str(path).lower().endswith(MESH_SUFFIXES)
 
@@ -296,7 +301,7 @@ class MainWindow(QMainWindow):
         self._build_actions()
         self._build_panel()
         self._build_plots()
-        self.plots.set_classes(scene.active_library().names)
+        self._lay_out_plots()
         self._build_menu()
         self._build_toolbar()
         self._build_status_bar()
@@ -512,16 +517,15 @@ class MainWindow(QMainWindow):
                                          STATUS_SECONDS)
             self._show_running(False)
             return
-        cap = max(session.params.max_steps_known, session.params.max_steps_novel)
         if count is None and self.engine is None:
-            # The plots take the run's layout now, before the worker competes for the
-            # interpreter, so that the run's own updates are all blitted.
-            self.plots.set_run_steps(cap, now=True)
+            # The plots take the run's layout now (if they had not: a session stepped
+            # before), before the worker competes for the interpreter.
+            self.plots.set_run_steps(_step_cap(session.params), now=True)
         self.runner.start(session, self.scene.generation, count)
         if count is None and self.engine is not None:
             # In a later pass of the event loop, while the process takes the first steps
             # (a full draw, 0.1-0.35 s, is no part of the click's handling).
-            self.plots.set_run_steps(cap)
+            self.plots.set_run_steps(_step_cap(session.params))
         self._show_running(True)
 
     def pause(self):
@@ -541,6 +545,12 @@ class MainWindow(QMainWindow):
             self.scene.announce(snapshot)
         finally:
             self._drawing_run = False
+
+    def _lay_out_plots(self):
+        """A new session's plots: the priors' bars and the axes a run fills (the step axis
+        to the cap), so that a run from the start is blitted from its first step."""
+        self.plots.set_classes(self.scene.active_library().names)
+        self.plots.set_run_steps(_step_cap(self.scene.params))
 
     def _on_run_finished(self):
         self._show_running(False)
@@ -628,7 +638,7 @@ class MainWindow(QMainWindow):
         self._plots_timer.stop()
         self._plots_step = None
         self.plots.update_plots([])
-        self.plots.set_classes(self.scene.active_library().names)
+        self._lay_out_plots()
         self._update_status(None)
 
     def _on_stepped(self, snapshot):

@@ -815,3 +815,21 @@ def test_a_step_failing_in_the_engine_process_is_shown_and_loses_nothing(
     session = scene.session
     assert session.step_count == 1 and window.engine.holds(session)
     assert window.loop_panel.step_label.text().startswith("step 1")
+
+
+def test_a_run_from_a_new_session_is_blitted_from_its_first_step(qtbot, window):
+    # A new session's plots already have the run's axes (the step axis to the cap) and the
+    # priors' bars, so no full draw (0.1-0.35 s of the GUI thread) falls inside the run.
+    _cap_steps(window.scene, 4)
+    plots = window.plots
+    assert plots.run_steps == 4 and plots._names == window.scene.active_library().names
+    qtbot.waitUntil(lambda: plots._background is not None
+                    and plots._layout_key == plots._current_layout(), timeout=10_000)
+    full_draws = len(plots.draw_log) - plots.blits
+    during = []
+    window.runner.finished.connect(lambda: during.append(len(plots.draw_log) - plots.blits))
+    window.actions["finish"].trigger()
+    _wait_idle(qtbot, window)
+    qtbot.waitUntil(lambda: bool(during), timeout=10_000)
+    assert during[0] == full_draws and plots.blits > 0
+    qtbot.waitUntil(lambda: plots.run_steps is None)  # after the run: fitted to the data
