@@ -36,6 +36,7 @@ LEGEND_MARKER_ASPECT = 2.0  # a marker's width over its height
 LEGEND_RAMP_STRIPS = 8  # colours of the GPIS layer's viridis marker
 SCALAR_BAR = "variance"
 HIDDEN_AT_START = ("hypotheses",)
+TRANSLUCENT_SURFACES = ("truth", "map", "hypotheses")
 
 
 def faces_to_polydata(vertices, faces, normals=False):
@@ -307,6 +308,11 @@ class ViewportLayers:
                                           show_scalar_bar=False, **style)
             if smooth:
                 actor.prop.interpolation = "gouraud"  # with the mesh's own normals
+            if name in TRANSLUCENT_SURFACES:
+                # Only the side facing the camera: half the fragments of a software render
+                # (0.04 s instead of 0.07 s for mug_1 and its MAP shape), and no far side
+                # blended over the near one out of order.
+                actor.prop.culling = "back"
             self.actors[name] = actor
         else:
             actor.mapper.dataset.copy_from(mesh, deep=False)

@@ -658,6 +658,7 @@ class MainWindow(QMainWindow):
             # the plots together.
             self._plots_timer.start()
         else:
+            self.plots.set_run_steps(None)  # a step outside a run: fitted to the data
             self._flush_plots()
         self._update_status(snapshot)
 

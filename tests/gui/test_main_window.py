@@ -833,3 +833,12 @@ def test_a_run_from_a_new_session_is_blitted_from_its_first_step(qtbot, window):
     qtbot.waitUntil(lambda: bool(during), timeout=10_000)
     assert during[0] == full_draws and plots.blits > 0
     qtbot.waitUntil(lambda: plots.run_steps is None)  # after the run: fitted to the data
+
+
+def test_translucent_surfaces_show_only_their_near_side(qtbot, window):
+    # Culling the far side halves a software render of the translucent truth and MAP shape.
+    window.loop_panel.step_button.click()
+    _wait_idle(qtbot, window)
+    actors = window.layers.actors
+    assert actors["truth"].prop.culling == "back" and actors["map"].prop.culling == "back"
+    assert actors["contacts"].prop.culling == "none"
