@@ -11,13 +11,14 @@ state goes to the engine process, every snapshot comes back as it is made (and i
 to the session's list) and at the end the session's state comes back (also after a failed
 step: then as before that step, which the session restored). A session the process already
 holds (the one it ran last, not stepped elsewhere since) is not sent again, and priors are
-sent once per process (by name, content, parameters and learned flag), so a run of a known
-session costs a few bytes to start. Snapshots refer to their MAP shape's faces rather than
-copy them.
+sent once (by name, content, parameters and learned flag; those the session sent last does
+not use are let go), so a run of a known session costs a few bytes to start. Snapshots
+refer to their MAP shape's faces rather than copy them.
 
-Protocol, parent to child: ``("models", [(key, bytes), ...])``, ``("run", state bytes or
-None, count)``, ``("quit",)``; child to parent: ``("snapshot", Snapshot)`` after each step,
-``("done", state, error or None)`` at the end.
+Protocol, parent to child: ``("models", [(key, bytes), ...])``, ``("forget", [key, ...])``,
+``("run", state bytes or None, count)``, ``("quit",)``; child to parent:
+``("snapshot", Snapshot, seconds)`` after each step, ``("done", state, error or None)`` at
+the end.
 """
 
 import atexit
@@ -124,6 +125,11 @@ def serve(connection, stop, niceness=0):
                 model = pickle.loads(data)
                 models[key], keys[id(model)] = model, key
                 faces[id(model.mesh.faces)] = key
+        elif kind == "forget":
+            for key in message[1]:
+                model = models.pop(key)
+                keys.pop(id(model), None)
+                faces.pop(id(model.mesh.faces), None)  # (a renamed model shares its mesh)
         elif kind == "run":
             _, data, count = message
             if data is not None:
@@ -325,15 +331,21 @@ class EngineProcess:
             self._connection.send(("run", None, count))
             return
         self._resident = None
-        new = {}
+        new, used = {}, set()
 
         def key_of(model):
             key = model_key(model)
+            used.add(key)
             if key not in self._models:
                 new.setdefault(key, model)
             return key
 
         data = _dumps(_outgoing_state(session), key_of)
+        stale = [key for key in self._models if key not in used]
+        if stale:  # priors of earlier sessions only: the process lets them go
+            self._connection.send(("forget", stale))
+            for key in stale:
+                del self._models[key]
         if new:
             log.info("sending %d priors to the engine process", len(new))
             self._connection.send(("models", [(k, pickle.dumps(m, pickle.HIGHEST_PROTOCOL))

@@ -115,3 +115,19 @@ def test_a_dead_process_loses_nothing_and_is_restarted(bundled, library):
         _same(session.snapshots, local.snapshots)
     finally:
         process.close()
+
+
+def test_priors_no_session_uses_are_let_go(bundled, library, engine):
+    from tactile_viz.app.engine_process import model_key
+
+    list(engine.steps(_session(bundled, library), 1))
+    fewer = library.subset(["mug_1", "vase_1"])
+    session = Session(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
+    list(engine.steps(session, 2))
+    truth = model_key(bundled["vase_2"])  # the simulated object goes too
+    assert set(engine._models) == {model_key(model) for model in fewer} | {truth}
+    local = Session(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
+    local.run(max_steps=2)
+    _same(session.snapshots, local.snapshots)
+    list(engine.steps(_session(bundled, library), 1))  # sent again when used again
+    assert set(engine._models) == {model_key(model) for model in library} | {truth}
