@@ -18,6 +18,7 @@ GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
 
 
 def parse_args(argv=None):
+    from tactile_viz.app.engine_process import ENGINES
     from tactile_viz.engine import SESSION_PRESETS, STRATEGIES
 
     parser = argparse.ArgumentParser(description="tactile_viz desktop app: watch and steer "
@@ -27,7 +28,7 @@ def parse_args(argv=None):
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
-    parser.add_argument("--engine", choices=("process", "thread"), default="process",
+    parser.add_argument("--engine", choices=ENGINES, default="process",
                         help="where Step and Run step the session: a process of its own, so "
                              "the window draws meanwhile on another core (default), or a "
                              "thread of the app's process")

@@ -40,12 +40,14 @@ from ..engine.objects import ObjectModel
 log = logging.getLogger(__name__)
 
 # The engine yields the CPU to the window when both want it: on 2 cores a software render
-# of the window's 2 threads beside the engine took 0.11-0.18 s instead of 0.07-0.12 s (the
-# event loop blocked for up to 0.24 s), while the engine loses only the renders' share of
+# of the window's 2 threads beside the engine took 0.11-0.17 s instead of 0.07-0.12 s (the
+# event loop blocked for up to 0.22 s), while the engine loses only the renders' share of
 # a core (drawing is paced to a tenth of the time).
 ENGINE_NICENESS = 10
 POLL_SECONDS = 0.02  # how often a waiting run looks at its stop flag and at the process
-# Attributes of a session that a step never changes: not sent back after a run.
+ENGINES = ("process", "thread")  # where the app steps: this process's child, or a thread
+# Not sent back after a run: the snapshots (the parent has them all) and what a step never
+# changes.
 CONSTANT_ATTRIBUTES = ("snapshots", "library", "truth", "recording", "source")
 
 
@@ -226,8 +228,9 @@ class EngineProcess:
         self._forget()
         parent, child = self._context.Pipe(duplex=True)
         self._stop = self._context.Event()
-        self._process = self._context.Process(target=serve, args=(child, self._stop, self.niceness),
-                                              name="tactile_viz engine", daemon=True)
+        self._process = self._context.Process(
+            target=serve, args=(child, self._stop, self.niceness), name="tactile_viz engine",
+            daemon=True)
         try:
             self._process.start()
         except OSError as error:
@@ -285,46 +288,45 @@ class EngineProcess:
                 self.start()
                 self._stop.clear()
                 self._send_run(session, count)
-                while True:
-                    kind, *rest = self._receive(stop)
-                    if kind == "snapshot":
-                        snapshot, ended = rest
-                        session.snapshots.append(snapshot)
-                        if step_ends is not None:
-                            step_ends.append(ended)
-                        yield snapshot
-                        continue
-                    state, error = rest
-                    session.__dict__.update(state)
-                    self._resident = (weakref.ref(session), session.step_count)
-                    if error is not None:
-                        raise error
-                    return
+                while (snapshot := self._take(session, self._receive(stop), step_ends)) is not None:
+                    yield snapshot
             except (EOFError, OSError) as error:
-                del session.snapshots[before:]
-                self.close(timeout=0.1)
+                self._lost(session, before)
                 raise EngineProcessError("the engine process stopped unexpectedly; the "
                                          "session is as it was before the run") from error
             except GeneratorExit:
                 # The consumer went away mid-run: keep the session whole anyway.
-                self._drain(session, before)
+                self.request_stop()
+                try:
+                    while self._take(session, self._receive(None)) is not None:
+                        pass
+                except (EOFError, OSError):
+                    self._lost(session, before)
+                except Exception:  # a step's error, with nobody left to show it
+                    pass
                 raise
 
-    def _drain(self, session, before):
-        if self._stop is not None:
-            self._stop.set()
-        try:
-            while True:
-                kind, *rest = self._receive(None)
-                if kind == "snapshot":
-                    session.snapshots.append(rest[0])
-                else:
-                    session.__dict__.update(rest[0])
-                    self._resident = (weakref.ref(session), session.step_count)
-                    return
-        except (EOFError, OSError):
-            del session.snapshots[before:]
-            self.close(timeout=0.1)
+    def _take(self, session, message, step_ends=None):
+        """Apply a message of the process to ``session``: a snapshot is appended and
+        returned; the final state is taken (its step's error raised) and None returned."""
+        kind, *rest = message
+        if kind == "snapshot":
+            snapshot, ended = rest
+            session.snapshots.append(snapshot)
+            if step_ends is not None:
+                step_ends.append(ended)
+            return snapshot
+        state, error = rest
+        session.__dict__.update(state)
+        self._resident = (weakref.ref(session), session.step_count)
+        if error is not None:
+            raise error
+        return None
+
+    def _lost(self, session, before):
+        """The process died mid-run: the session as before the run, the process gone."""
+        del session.snapshots[before:]
+        self.close(timeout=0.1)
 
     def _send_run(self, session, count):
         if self.holds(session):
@@ -376,4 +378,4 @@ def shared_engine():
     return _shared
 
 
-__all__ = ["EngineProcess", "EngineProcessError", "model_key", "shared_engine"]
+__all__ = ["ENGINES", "EngineProcess", "EngineProcessError", "model_key", "shared_engine"]

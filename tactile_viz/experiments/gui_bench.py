@@ -34,6 +34,7 @@ import sys
 import tempfile
 import time
 
+from ..app.engine_process import ENGINES
 from ..cli import ExtendList
 from ..engine.exploration import STRATEGIES
 
@@ -59,7 +60,7 @@ def _parser():
     parser.add_argument("--pause-after", type=int, default=5,
                         help="steps before Pause / close in the latency runs (default 5)")
     parser.add_argument("--size", default="1500x900", help="window size (default 1500x900)")
-    parser.add_argument("--engine", choices=("process", "thread"), default="process",
+    parser.add_argument("--engine", choices=ENGINES, default="process",
                         help="where the app steps: its engine process (default, as the app) "
                              "or a worker thread")
     parser.add_argument("--json", metavar="OUT", help="also write the results as JSON")

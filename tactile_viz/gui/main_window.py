@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QM
                                QWidget)
 from superqt.utils import thread_worker
 
-from ..app.engine_process import shared_engine
+from ..app.engine_process import ENGINES, shared_engine
 from ..engine.errors import TactileVizError
 from ..engine.session import Session
 from .layers import ViewportLayers
@@ -39,7 +39,6 @@ from .runner import StepRunner
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 OBSERVATION_SUFFIXES = (".csv",)  # recorded touches (kind,x,y,z,nx,ny,nz)
 MESH_FILTER = "Meshes (*.obj *.ply *.stl *.off *.glb *.gltf);;All files (*)"
-ENGINES = ("process", "thread")  # where the window's steps run (see MainWindow)
 SETTINGS_ORGANIZATION = "tactile_viz"
 SETTINGS_APPLICATION = "tactile_viz"
 STATUS_SECONDS = 8000  # how long a status-bar message stays, ms
