@@ -2,7 +2,9 @@
 
 A step of exploration returns the sensor paths it ran and the observations they gave:
 usually one contact, sometimes a non-contact before it. Every function takes the
-simulator (the only thing that touches the ground truth) and an ``rng``.
+simulator (the only thing that touches the ground truth) and an ``rng``. Lengths are in
+scene units; the fixed ones inside a function are multiples of ``unit``, the scene units of
+a size unit (a sixth of the object's longest side: 1 for the paper's objects).
 """
 
 import numpy as np
@@ -55,8 +57,9 @@ def variance_target(vertices, variance, subset, reachable, contacts, uncovered_b
     return int(subset[int(np.argmax(np.where(best, distance, -np.inf)))])
 
 
-def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
-    """The random first touch: straight lines through the workspace from random directions.
+def first_contact(simulator, centre, rng, radius=10.0, attempts=50, unit=1.0):
+    """The random first touch: straight lines through the workspace from random directions
+    (``radius`` on either side of ``centre``, offset up to ``unit / 2``).
 
     Returns
     -------
@@ -67,7 +70,7 @@ def first_contact(simulator, centre, rng, radius=10.0, attempts=50):
     paths, observations = [], []
     for _ in range(attempts):
         direction = normalise_rows(rng.normal(size=(1, 3)))[0]
-        offset = rng.uniform(-0.5, 0.5, size=3)
+        offset = rng.uniform(-0.5, 0.5, size=3) * unit
         path = np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
         observation = simulator.probe(path)
         paths.append(path)
@@ -97,7 +100,8 @@ def next_sweep_direction(used, rng, count=64):
     return candidates[int(np.argmin((candidates @ used.T).max(axis=1)))]
 
 
-def widest_gap(contacts, explored, surface, outside, margin=0.3, shell=0.6, max_points=8000):
+def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max_points=8000,
+               unit=1.0):
     """The point inside the contacts' convex hull or in a shell just outside the estimated
     surface that lies farthest from everything observed and from the estimated surface:
     where a part that nothing predicted could still hide (between touched parts, or
@@ -112,8 +116,9 @@ def widest_gap(contacts, explored, surface, outside, margin=0.3, shell=0.6, max_
         Vertices of the estimated surface.
     outside : callable
         ``(k, 3) -> (k,)`` positive outside the estimate (its signed distance or GPIS mean).
-    margin : float
-        Points nearer than this to the estimated surface are not candidates.
+    margin : float, optional
+        Points nearer than this to the estimated surface are not candidates (default
+        ``0.3 unit``).
     shell : float
         Points up to this far from the estimated surface are candidates outside the hull
         (0: the hull alone).
@@ -127,9 +132,10 @@ def widest_gap(contacts, explored, surface, outside, margin=0.3, shell=0.6, max_
     gap : float
         Its distance to the nearest observed point or surface vertex (0 without one).
     """
+    margin = 0.3 * unit if margin is None else margin
     everything = np.vstack([contacts, surface]) if shell > 0 else contacts
     low, high = everything.min(axis=0) - shell, everything.max(axis=0) + shell
-    spacing = max(float(np.prod(high - low) / max_points) ** (1 / 3), 0.05)
+    spacing = max(float(np.prod(high - low) / max_points) ** (1 / 3), 0.05 * unit)
     axes = [np.arange(a, b + spacing / 2, spacing) for a, b in zip(low, high)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     try:
@@ -154,17 +160,18 @@ def widest_gap(contacts, explored, surface, outside, margin=0.3, shell=0.6, max_
     return grid[best], float(distance[best]) if np.isfinite(distance[best]) else 0.0
 
 
-def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0.5):
+def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0.5, unit=1.0):
     """Of ``count`` spread directions, one along which a line comes in to ``through``
-    from ``reach`` away without passing within ``wanted`` of the estimated surface (the
-    least used of those, else the clearest): a line that can reach the point.
+    from ``reach`` away without passing within ``wanted unit`` of the estimated surface
+    (the least used of those, else the clearest): a line that can reach the point.
 
     Returns
     -------
     (3,) float
     """
     candidates = sweep_directions(count)
-    distances = np.linspace(0.3, reach, 40)
+    distances = np.linspace(0.3 * unit, reach, 40)
+    wanted = wanted * unit
     samples = through + distances[None, :, None] * candidates[:, None, :]
     clearance = np.full(count, np.inf)
     if len(surface):
@@ -213,7 +220,7 @@ def path_until(path, point, spacing, tolerance=0.05):
     -------
     (k, 3) float
     """
-    fine = sample_path(path, tolerance / 2)
+    fine = sample_path(path, tolerance / 2)  # tolerance: scene units
     near = np.flatnonzero(np.linalg.norm(fine - point, axis=1) <= tolerance)
     if len(near):
         fine = fine[:max(near[0], 1)]
@@ -331,7 +338,7 @@ def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_f
 
 
 def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth=1.0,
-                   clearance=0.5):
+                   clearance=0.5, unit=1.0):
     """One surface-following step from the contact nearest ``toward``, along its tangent."""
     nearest = int(cKDTree(contacts).query(toward)[1])
     start, normal = contacts[nearest], contact_normals[nearest]
@@ -343,20 +350,21 @@ def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth
         if np.linalg.norm(tangent) < 1e-6:
             tangent = np.cross(normal, [0.0, 1.0, 0.0])
         length = np.linalg.norm(tangent)
-    moved = start + min(step, max(length, 1e-3)) * tangent / length
+    moved = start + min(step, max(length, 1e-3 * unit)) * tangent / length
     path = np.stack([moved + clearance * normal, moved - depth * normal])
     observation = simulator.probe(path)
     if isinstance(observation, Contact):
         return [path], [observation]
     # Off an edge: come back toward the known contact, which must cross the surface.
-    back = np.stack([moved + clearance * normal, start - 0.2 * normal])
+    back = np.stack([moved + clearance * normal, start - 0.2 * unit * normal])
     return [path, back], [simulator.probe(back)]
 
 
 def rrt_step(simulator, contacts, contact_normals, workspace, rng, step=0.3, depth=1.0,
-             clearance=0.5):
+             clearance=0.5, unit=1.0):
     """RRT-style exploration: a random workspace sample, projected on the tangent plane at
     its nearest contact, and a small surface-constrained step toward it."""
     low, high = workspace
     sample = rng.uniform(low, high)
-    return follow_surface(simulator, sample, contacts, contact_normals, step, depth, clearance)
+    return follow_surface(simulator, sample, contacts, contact_normals, step, depth, clearance,
+                          unit)

@@ -12,6 +12,7 @@ import logging
 import re
 from pathlib import Path
 
+import numpy as np
 import trimesh
 
 from .errors import LibraryError, MeshError
@@ -56,6 +57,14 @@ class PriorLibrary:
 
     def __repr__(self):
         return f"PriorLibrary({self.names})"
+
+    @property
+    def reference_size(self):
+        """The median longest side of the priors, scene units: the size that the filter's
+        length parameters scale with (6 for the paper's objects)."""
+        if not self._models:
+            raise LibraryError("the prior library is empty")
+        return float(np.median([model.length for model in self]))
 
     @property
     def names(self):
@@ -132,7 +141,8 @@ class PriorLibrary:
                 raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
                                    f"{entry['name']!r} is corrupt (checksum mismatch)")
             models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache,
-                                      learned=entry.get("learned") is True))
+                                      learned=entry.get("learned") is True,
+                                      file_to_object=_matrix(entry, path)))
         log.info("loaded %d priors from %s", len(models), folder)
         return cls(models)
 
@@ -147,7 +157,22 @@ def _save_mesh(folder, model):
     filename = f"{_slug(model.name)}-{digest[:12]}.ply"
     if not (folder / filename).is_file():
         write_atomic(folder / filename, data)
-    return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned}
+    return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned,
+            "longest_side": model.length, "file_to_object": model.file_to_object.tolist()}
+
+
+def _matrix(entry, path):
+    """The entry's ``file_to_object`` (identity in libraries saved before it was kept)."""
+    matrix = entry.get("file_to_object")
+    if matrix is None:
+        return np.eye(4)
+    try:
+        matrix = np.array(matrix, dtype=float).reshape(4, 4)
+    except (TypeError, ValueError) as error:
+        raise LibraryError(f"{path}: its file_to_object is not a 4x4 matrix ({error})") from error
+    if not np.isfinite(matrix).all():
+        raise LibraryError(f"{path}: its file_to_object is not finite")
+    return matrix
 
 
 def _mesh_from_ply(data, path):

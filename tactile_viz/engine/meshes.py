@@ -2,7 +2,11 @@
 
 Every object model starts here: :func:`load_mesh` reads any file trimesh reads and
 :func:`prepare_mesh` turns raw arrays into a clean, watertight, outward-oriented mesh
-centred at the origin with its longest bounding-box side equal to ``LONGEST_SIDE``.
+centred at the origin. A mesh keeps its size (times an optional unit factor, see
+:func:`unit_factor`) unless it is normalised to a given longest side, as the paper
+normalises every object to ``LONGEST_SIDE``. The similarity from the file's coordinates to
+the object frame is kept in ``mesh.metadata["file_to_object"]`` (4x4), so that poses map back
+onto the user's file.
 Faults that can be repaired are repaired (duplicate vertices, degenerate or duplicate
 faces, inconsistent winding, inverted orientation, small holes); faults that cannot raise
 :class:`~tactile_viz.engine.errors.MeshError` naming the source and the reason.
@@ -17,7 +21,13 @@ import trimesh
 
 from .errors import MeshError, MeshWarning
 
-LONGEST_SIDE = 6.0
+LONGEST_SIDE = 6.0  # the paper's normalisation (an explicit choice: meshes keep their size)
+# Length units a file or a recording may be in, as metres: a scene given in named units is
+# in metres.
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+# Sizes a mesh may have in scene units: beyond them tolerances of the libraries (trimesh
+# merges vertices within 1e-8) and squared distances lose the shape.
+MIN_SIZE, MAX_SIZE = 1e-4, 1e6
 SUPPORTED_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 # A hole is closed by a fan of triangles only when the patch is a small part of the surface;
 # a larger opening means the file is an open scan or sheet whose inside is a guess.
@@ -31,23 +41,53 @@ MAX_FACES = 500_000
 DECIMATED_FACES = 200_000
 
 
-def load_mesh(path, longest_side=LONGEST_SIDE, max_faces=MAX_FACES):
-    """Read a mesh file and return it checked, repaired and normalised.
+def unit_factor(units):
+    """Scene units per file unit for ``units``: a name of :data:`UNITS` (converted to metres),
+    a positive number (a factor) or None (1: the file's units are the scene's).
+
+    Raises
+    ------
+    ValueError
+        For anything else.
+    """
+    if units is None:
+        return 1.0
+    if isinstance(units, str):
+        name = units.strip().lower()
+        if name in UNITS:
+            return UNITS[name]
+        try:
+            units = float(name)
+        except ValueError:
+            raise ValueError(f"unknown units {units!r}: use {', '.join(UNITS)} or a positive "
+                             "number (scene units per file unit)") from None
+    factor = float(units)
+    if not (np.isfinite(factor) and factor > 0):
+        raise ValueError(f"a unit factor must be a positive finite number, got {units!r}")
+    return factor
+
+
+def load_mesh(path, longest_side=None, max_faces=MAX_FACES, scale=1.0):
+    """Read a mesh file and return it checked, repaired and centred (and scaled if asked).
 
     Parameters
     ----------
     path : str or os.PathLike
         An OBJ, PLY, STL, OFF or GLB file (anything trimesh reads as triangles).
-    longest_side : float
-        Length of the longest side of the normalised bounding box.
+    longest_side : float or None
+        Normalise the longest side of the bounding box to this length (the paper's
+        convention is ``LONGEST_SIDE``); None keeps the file's size times ``scale``.
     max_faces : int or None
         Meshes with more faces are decimated to ``DECIMATED_FACES`` with a
         :class:`~tactile_viz.engine.errors.MeshWarning`; ``None`` keeps every face.
+    scale : float
+        Scene units per file unit (:func:`unit_factor`), when ``longest_side`` is None.
 
     Returns
     -------
     trimesh.Trimesh
-        Watertight, outward oriented, object frame.
+        Watertight, outward oriented, object frame (centred on its bounding box), with
+        ``metadata["file_to_object"]``.
 
     Raises
     ------
@@ -75,11 +115,11 @@ def load_mesh(path, longest_side=LONGEST_SIDE, max_faces=MAX_FACES):
     if vertices is None or faces is None or len(faces) == 0:
         raise MeshError(name, "the file holds no triangles")
     return prepare_mesh(vertices, faces, source=name, longest_side=longest_side,
-                        max_faces=max_faces)
+                        max_faces=max_faces, scale=scale)
 
 
-def prepare_mesh(vertices, faces, source="arrays", longest_side=LONGEST_SIDE,
-                 max_faces=MAX_FACES):
+def prepare_mesh(vertices, faces, source="arrays", longest_side=None, max_faces=MAX_FACES,
+                 scale=1.0):
     """Check, repair and normalise a mesh given as arrays.
 
     Parameters
@@ -90,16 +130,47 @@ def prepare_mesh(vertices, faces, source="arrays", longest_side=LONGEST_SIDE,
         Named in error messages.
     longest_side : float or None
         Scale so that the longest side of the bounding box has this length; None keeps the
-        size (only recentres), as for a learned shape measured in world units.
+        size times ``scale`` (only recentres).
     max_faces : int or None
         See :func:`load_mesh`.
+    scale : float
+        Scene units per unit of ``vertices`` when ``longest_side`` is None.
 
     Returns
     -------
     trimesh.Trimesh
+        With ``metadata["file_to_object"]``: the 4x4 similarity from the coordinates of
+        ``vertices`` to the returned mesh's.
     """
     vertices, faces = _checked_arrays(vertices, faces, source)
-    vertices = _normalised_vertices(vertices, faces, source, longest_side)
+    vertices, factor, offset = _normalised_vertices(vertices, faces, source)
+    target = LONGEST_SIDE if longest_side is None else float(longest_side)
+    if longest_side is None:
+        target = scale / factor * LONGEST_SIDE  # the file's size in scene units
+    if not MIN_SIZE <= target <= MAX_SIZE:
+        raise MeshError(source, f"is {target:.3g} scene units long, outside "
+                                f"[{MIN_SIZE:g}, {MAX_SIZE:g}]: give the file's units (a unit "
+                                "factor) or normalise its size")
+    mesh = _repaired(vertices, faces, source, max_faces)
+    mesh.metadata["file_to_object"] = mesh.metadata["file_to_object"] @ similarity(factor, offset)
+    return _resized(mesh, target / LONGEST_SIDE)
+
+
+def _resized(mesh, factor):
+    """The mesh scaled about its centre (float32-exact vertices), its ``file_to_object``
+    following."""
+    if factor == 1.0:
+        return mesh
+    mesh.vertices = (mesh.vertices * factor).astype(np.float32).astype(np.float64)
+    mesh.metadata["file_to_object"] = similarity(factor, np.zeros(3)) @ mesh.metadata[
+        "file_to_object"]
+    return mesh
+
+
+def _repaired(vertices, faces, source, max_faces):
+    """Repairs and checks at the paper's size (trimesh merges vertices within an absolute
+    tolerance, so a surface is repaired alike whatever its units), recentred; its
+    ``file_to_object`` is the recentring."""
     mesh = trimesh.Trimesh(vertices, faces, process=True, validate=False)
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.update_faces(mesh.unique_faces())
@@ -121,14 +192,23 @@ def prepare_mesh(vertices, faces, source="arrays", longest_side=LONGEST_SIDE,
         raise MeshError(source, "encloses no volume (a flat or degenerate surface)")
     # Repairs move the box a little; recentre so the object frame stays the box centre.
     # Vertices are kept float32-exact so saving to PLY and reading back changes nothing.
-    centred = mesh.vertices - mesh.bounds.mean(axis=0)
-    mesh.vertices = centred.astype(np.float32).astype(np.float64)
+    centre = mesh.bounds.mean(axis=0)
+    mesh.vertices = (mesh.vertices - centre).astype(np.float32).astype(np.float64)
+    mesh.metadata["file_to_object"] = similarity(1.0, -centre)
     if max_faces is not None and len(mesh.faces) > max_faces:
-        return _decimated(mesh, source, longest_side, max_faces)
+        return _decimated(mesh, source, max_faces)
     return mesh
 
 
-def _decimated(mesh, source, longest_side, max_faces):
+def similarity(factor, offset):
+    """The 4x4 matrix of ``x -> factor x + offset``."""
+    matrix = np.eye(4)
+    matrix[:3, :3] *= factor
+    matrix[:3, 3] = offset
+    return matrix
+
+
+def _decimated(mesh, source, max_faces):
     """The mesh decimated to ``DECIMATED_FACES`` (edge collapses, libigl), checked again.
 
     If decimation fails or breaks the surface, the full mesh is kept; either way a
@@ -141,7 +221,12 @@ def _decimated(mesh, source, longest_side, max_faces):
         vertices, faces, _, _ = igl.decimate(np.asfortranarray(mesh.vertices),
                                              np.asfortranarray(mesh.faces, dtype=np.int32),
                                              target)
-        smaller = prepare_mesh(vertices, faces, source, longest_side, max_faces=None)
+        vertices, factor, offset = _normalised_vertices(vertices, faces, source)
+        smaller = _repaired(vertices, faces, source, max_faces=None)
+        smaller.metadata["file_to_object"] = (smaller.metadata["file_to_object"]
+                                              @ similarity(factor, offset))
+        smaller.metadata["file_to_object"] = (smaller.metadata["file_to_object"]
+                                              @ mesh.metadata["file_to_object"])
     except (MeshError, ValueError, RuntimeError, TypeError) as error:
         warnings.warn(MeshWarning(f"{source}: {len(mesh.faces)} faces exceed {max_faces} but "
                                   f"decimation failed ({error}); every face is kept"),
@@ -217,18 +302,20 @@ def _checked_arrays(vertices, faces, source):
     return vertices, faces.astype(np.int64)
 
 
-def _normalised_vertices(vertices, faces, source, longest_side):
+def _normalised_vertices(vertices, faces, source):
+    """Vertices centred on their box and scaled to the paper's size, the factor and the
+    offset: ``factor * vertices + offset``."""
     used = vertices[np.unique(faces)]
     low, high = used.min(axis=0), used.max(axis=0)
     size = float((high - low).max())
     # Relative to the coordinates' magnitude: a mesh 1e-9 units across is only small, but
     # one 1e-9 across at 1e6 from the origin has lost its shape to rounding.
     with np.errstate(over="ignore", divide="ignore"):
-        target = size if longest_side is None else longest_side
-        factor = target / size if size > 0 else np.inf
-    if not np.isfinite(factor) or size <= 1e-12 * float(np.abs(used).max()):
+        factor = LONGEST_SIDE / size if size > 0 else np.inf
+    if size <= 0 or not np.isfinite(factor) or size <= 1e-12 * float(np.abs(used).max()):
         raise MeshError(source, "degenerate: all vertices coincide")
-    return (vertices - (low + high) / 2) * factor
+    centre = (low + high) / 2
+    return (vertices - centre) * factor, factor, -factor * centre
 
 
 def _close_holes(mesh, source):

@@ -1,4 +1,5 @@
-"""Shape distances: directed and two-way Hausdorff distances on dense surface samples."""
+"""Shape distances (directed and two-way Hausdorff distances on dense surface samples) and
+pose differences; every length in scene units."""
 
 import numpy as np
 import trimesh
@@ -6,9 +7,16 @@ from scipy.spatial import cKDTree
 
 from .transforms import transform_points
 
-# The paper's success threshold for the pose and reconstruction errors (TWD, in the units of
-# objects whose longest side is 6): an estimate within 0.6 counts as right.
+# The paper's success threshold for the pose and reconstruction errors (TWD, for objects
+# whose longest side is 6): an estimate within 0.6, 10% of the object's size, counts as right.
 ERROR_THRESHOLD = 0.6
+PAPER_SIZE = 6.0
+
+
+def error_threshold(size=PAPER_SIZE):
+    """The success threshold for an object whose longest side is ``size`` (scene units):
+    the paper's 0.6 on 6 units, 10% of the size."""
+    return ERROR_THRESHOLD * (float(size) / PAPER_SIZE)
 
 
 def directed_hausdorff(from_points, to_points):
@@ -42,3 +50,34 @@ def pose_error(model, rotation, translation, truth, count=4000):
     actual = transform_points(surface_samples(truth.model, count), truth.rotation,
                               truth.translation)
     return two_way_hausdorff(estimate, actual)
+
+
+def pose_difference(model, rotation, translation, truth):
+    """Rotation and translation errors of an estimated pose of the truth's own shape.
+
+    Parameters
+    ----------
+    model : ObjectModel
+        The estimate's shape; only the truth's shape (same content hash) has comparable
+        frames.
+    rotation : (3, 3) float
+    translation : (3,) float, scene units
+        The estimate's ``object_to_world``.
+    truth : GroundTruth
+
+    Returns
+    -------
+    angle_deg : float or None
+        The rotation angle of ``R_truth^T R``, degrees, without regard to the shape's
+        symmetries (a bottle turned about its axis counts; the TWD of :func:`pose_error`
+        does not); None for another shape.
+    distance : float or None
+        ``|t - t_truth|``: how far the estimate's object centre (the bounding box's) is from
+        the truth's, scene units; None for another shape.
+    """
+    if model.content_hash != truth.model.content_hash:
+        return None, None
+    relative = np.asarray(truth.rotation).T @ np.asarray(rotation)
+    cosine = np.clip((np.trace(relative) - 1) / 2, -1.0, 1.0)
+    return (float(np.degrees(np.arccos(cosine))),
+            float(np.linalg.norm(np.asarray(translation) - truth.translation)))

@@ -1,6 +1,7 @@
-"""Object models: a normalised mesh with lazily built, disk-cached derived data.
+"""Object models: a checked, centred mesh with lazily built, disk-cached derived data.
 
-An :class:`ObjectModel` holds a checked, normalised mesh (object frame). Its exact signed
+An :class:`ObjectModel` holds a checked mesh in its object frame (centred on its bounding
+box, at its real size in the scene's units unless normalised on loading). Its exact signed
 distance, SDF grid and feature points are built on first use only, and the grid and
 features are cached on disk by the mesh's content hash and the parameters that made them.
 """
@@ -17,7 +18,8 @@ import trimesh
 from .cache import ArrayCache
 from .errors import MeshError
 from .features import poisson_disk_points
-from .meshes import LONGEST_SIDE, content_hash, load_mesh, prepare_mesh
+from .meshes import content_hash, load_mesh, prepare_mesh
+from .params import PAPER_SIZE
 from .ppf import PairTable
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 
@@ -32,8 +34,9 @@ class ModelParams:
     ----------
     sdf_resolution : int
         Voxels along the longest side of the padded SDF grid.
-    sdf_padding : float
-        Margin of the SDF grid around the bounding box, in object units.
+    sdf_padding : float, size units
+        Margin of the SDF grid around the bounding box (a size unit is a sixth of the
+        object's longest side).
     n_features : int
         Number of Poisson-disk feature points.
     feature_seed : int
@@ -60,14 +63,21 @@ class ObjectModel:
     learned : bool
         The shape was reconstructed by a session rather than given (its feature normals
         come from a reconstruction, so its point-pair poses are coarser).
+    file_to_object : (4, 4) float, optional
+        The similarity from the coordinates of the file the mesh came from to the object
+        frame (centring, unit factor or normalisation); default ``mesh.metadata``'s, else
+        the identity. ``object_to_world @ file_to_object`` places the user's file.
     """
 
-    def __init__(self, name, mesh, params=None, cache=None, learned=False):
+    def __init__(self, name, mesh, params=None, cache=None, learned=False, file_to_object=None):
         self.name = str(name)
         self.mesh = mesh
         self.params = params or ModelParams()
         self.cache = cache if cache is not None else ArrayCache()
         self.learned = bool(learned)
+        if file_to_object is None:
+            file_to_object = mesh.metadata.get("file_to_object", np.eye(4))
+        self.file_to_object = np.array(file_to_object, dtype=float).reshape(4, 4)
 
     def __repr__(self):
         return f"ObjectModel({self.name!r}, faces={len(self.mesh.faces)})"
@@ -79,38 +89,61 @@ class ObjectModel:
         return state
 
     @classmethod
-    def from_file(cls, path, name=None, params=None, cache=None):
-        """Load a mesh file (checked, repaired, normalised); the name defaults to the file stem."""
-        mesh = load_mesh(path)
-        return cls(name or Path(path).stem, mesh, params, cache)
+    def from_file(cls, path, name=None, params=None, cache=None, longest_side=None, scale=1.0,
+                  learned=None):
+        """Load a mesh file (checked, repaired, centred); the name defaults to the file stem.
+
+        Parameters
+        ----------
+        longest_side : float or None
+            Normalise to this longest side (the paper's convention is 6); None keeps the
+            file's size times ``scale`` (scene units per file unit, see
+            :func:`~tactile_viz.engine.meshes.unit_factor`).
+        learned : bool or None
+            None: a file that :func:`~tactile_viz.engine.export.export_session` wrote as a
+            reconstruction is a learned shape (and is never normalised), others are not.
+        """
+        if learned is None:
+            learned = is_learned_file(path)
+        mesh = load_mesh(path, None if learned else longest_side, scale=scale)
+        return cls(name or Path(path).stem, mesh, params, cache, learned)
 
     @classmethod
-    def from_arrays(cls, vertices, faces, name, params=None, cache=None,
-                    longest_side=LONGEST_SIDE, learned=False):
-        """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and normalised;
-        ``longest_side=None`` keeps their size)."""
-        return cls(name, prepare_mesh(vertices, faces, source=name, longest_side=longest_side),
-                   params, cache, learned)
+    def from_arrays(cls, vertices, faces, name, params=None, cache=None, longest_side=None,
+                    learned=False, scale=1.0):
+        """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and centred;
+        ``longest_side`` normalises their size)."""
+        mesh = prepare_mesh(vertices, faces, source=name, longest_side=longest_side,
+                            scale=scale)
+        return cls(name, mesh, params, cache, learned)
+
+    def _like(self, name=None, params=None):
+        return ObjectModel(name or self.name, self.mesh, params or self.params, self.cache,
+                           self.learned, self.file_to_object)
 
     def with_params(self, **changes):
         """The same mesh with other :class:`ModelParams` (shares the exact distance)."""
-        other = ObjectModel(self.name, self.mesh, replace(self.params, **changes), self.cache,
-                            self.learned)
+        other = self._like(params=replace(self.params, **changes))
         if "exact" in self.__dict__:
             other.__dict__["exact"] = self.exact
         return other
 
     def renamed(self, name):
         """The same model under another name."""
-        other = ObjectModel(name, self.mesh, self.params, self.cache, self.learned)
+        other = self._like(name=name)
         other.__dict__.update({k: v for k, v in self.__dict__.items()
                                if k in ("exact", "sdf", "features", "content_hash")})
         return other
 
     @property
     def length(self):
-        """Longest side of the bounding box (6 after normalisation)."""
+        """Longest side of the bounding box, scene units (6 for the paper's objects)."""
         return float(self.mesh.extents.max())
+
+    @property
+    def size_unit(self):
+        """A sixth of :attr:`length`: the scene units of one size unit of the parameters."""
+        return self.length / PAPER_SIZE
 
     @cached_property
     def content_hash(self):
@@ -125,7 +158,8 @@ class ObjectModel:
     @cached_property
     def sdf(self):
         """:class:`~tactile_viz.engine.sdf.SDFGrid`, built on first use and cached on disk."""
-        params = {"resolution": self.params.sdf_resolution, "padding": self.params.sdf_padding}
+        params = {"resolution": self.params.sdf_resolution,
+                  "padding": self.params.sdf_padding * self.size_unit}
         arrays = self.cache.get_or_build(
             "sdf", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
@@ -165,7 +199,29 @@ class ObjectModel:
         """A JSON-ready summary (name, sizes, parameters, hash)."""
         return {"name": self.name, "learned": self.learned, "faces": int(len(self.mesh.faces)),
                 "vertices": int(len(self.mesh.vertices)), "content_hash": self.content_hash,
+                "longest_side": self.length, "file_to_object": self.file_to_object.tolist(),
                 "params": asdict(self.params)}
+
+
+LEARNED_MARK = b"comment tactile_viz learned shape"
+
+
+def is_learned_file(path):
+    """Whether a mesh file is a reconstruction :func:`mark_learned` marked (a PLY header
+    comment): such a shape is a learned prior, in the units of the session that made it."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(512)
+    except OSError:
+        return False
+    return head.startswith(b"ply") and LEARNED_MARK in head.split(b"end_header")[0]
+
+
+def mark_learned(ply_bytes):
+    """PLY bytes with the learned-shape comment after the format line."""
+    first, rest = ply_bytes.split(b"\n", 1)
+    second, rest = rest.split(b"\n", 1)
+    return b"\n".join([first, second, LEARNED_MARK, rest])
 
 
 def assets_dir():
@@ -191,11 +247,18 @@ def bundled_names(which="all"):
     return [entry["name"] for entry in bundled_manifest() if which in ("all", entry["set"])]
 
 
-def load_bundled(name, params=None, cache=None):
+def load_bundled(name, params=None, cache=None, size=None):
     """The bundled object ``name`` as an :class:`ObjectModel`.
 
-    The bundled meshes are stored normalised and checked, so they are read without
-    re-processing (which keeps their content hash, and so their cache entries, stable).
+    The bundled meshes are the paper's objects, stored normalised to a longest side of 6
+    and checked, so they are read without re-processing (which keeps their content hash,
+    and so their cache entries, stable).
+
+    Parameters
+    ----------
+    size : float, optional
+        Scale the object to this longest side (scene units, e.g. 0.12 for a 12 cm mug in
+        a metric scene); None keeps the paper's 6.
     """
     entries = {entry["name"]: entry for entry in bundled_manifest()}
     if name not in entries:
@@ -205,6 +268,12 @@ def load_bundled(name, params=None, cache=None):
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as error:
         raise MeshError(path, f"cannot be read ({error})") from error
-    mesh = trimesh.Trimesh(np.asarray(mesh.vertices, dtype=np.float64),
-                           np.asarray(mesh.faces, dtype=np.int64), process=False)
-    return ObjectModel(name, mesh, params, cache)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    factor = 1.0
+    if size is not None:
+        if not (np.isfinite(size) and size > 0):
+            raise MeshError(name, f"the size must be a positive length, got {size!r}")
+        factor = float(size) / float((vertices.max(axis=0) - vertices.min(axis=0)).max())
+        vertices = vertices * factor
+    mesh = trimesh.Trimesh(vertices, np.asarray(mesh.faces, dtype=np.int64), process=False)
+    return ObjectModel(name, mesh, params, cache, file_to_object=np.diag([factor] * 3 + [1.0]))

@@ -1,5 +1,20 @@
 """Parameters of the filter and of a session, each in one dataclass with the paper's values as
-defaults, and named presets on the speed/accuracy trade."""
+defaults, and named presets on the speed/accuracy trade.
+
+Lengths
+-------
+Every length parameter is given in *size units*: one size unit is a sixth of an object's
+longest side, so the paper's values, written for objects normalised to a longest side of 6,
+keep their proportion to objects of any size in any unit (``eps = 0.6`` is 10% of the
+object's size, in metres for a metric scene). A session turns them into scene units
+(:func:`scaled_lengths`): the filter's (``sigma_d``, ``distance_step``, ``merge_distance``)
+with the library's reference size (the median longest side of its priors), which all
+classes share so that their likelihoods compare; the exploration's and the stop's with the
+MAP object's longest side. ``SessionParams.length_unit`` fixes one size unit for all of
+them instead (1: every length in scene units as written). On the paper's objects a size unit
+is one scene unit, so the paper's configuration is unchanged. Fields that are lengths carry
+``metadata["length"]``, the power of length in their unit.
+"""
 
 import numbers
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -7,6 +22,43 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 
 from .errors import ParameterError
+
+PAPER_SIZE = 6.0  # longest side of the paper's normalised objects: one size unit is 1/6 of it
+
+
+def _length(default, power=1):
+    """A dataclass field in size units (``power``: length squared for a variance, ...)."""
+    return field(default=default, metadata={"length": power})
+
+
+def length_fields(cls):
+    """``{name: power of length}`` of the length fields of a parameter dataclass."""
+    return {f.name: f.metadata["length"] for f in fields(cls) if "length" in f.metadata}
+
+
+def scaled_lengths(params, unit):
+    """``params`` with every length field in scene units (nested dataclasses untouched).
+
+    Parameters
+    ----------
+    params : FilterParams or SessionParams
+    unit : float
+        Scene units per size unit (the object's longest side / 6); 1 returns ``params``.
+
+    Returns
+    -------
+    same type as ``params``
+    """
+    unit = float(unit)
+    if unit == 1.0:
+        return params
+    if not (np.isfinite(unit) and unit > 0):
+        raise ParameterError(f"the size unit must be a positive finite number, got {unit!r}")
+    powers = length_fields(type(params))
+    if getattr(params, "gpis_kernel", None) == "wendland":
+        powers["gpis_scale"] = 2  # Wendland's k(0) is the scale itself, thin-plate's a R^3
+    return replace(params, **{name: getattr(params, name) * unit**power
+                              for name, power in powers.items()})
 
 
 def _check_real(name, value):
@@ -33,7 +85,7 @@ class FilterParams:
 
     Attributes
     ----------
-    sigma_d : float
+    sigma_d : float, size units
         Std of the signed-distance likelihood (paper 0.5). Larger forgives misfit.
     sigma_n : float
         Std of the normal likelihood (paper 1.5).
@@ -48,7 +100,7 @@ class FilterParams:
     noncontact_fraction : float
         ... and its evidence on the non-contacts this probability per non-contact (paper
         0.5); each kind is tested on its own.
-    distance_step : float
+    distance_step : float, size units
         Point-pair key resolution of the distance (paper 0.1).
     angle_step_deg : float
         Point-pair key resolution of the angles in degrees (paper 12).
@@ -63,7 +115,7 @@ class FilterParams:
     max_new_particles : int
         Particle budget (beyond the paper): at most this many of a step's new point-pair
         particles are kept, the heaviest (those resampling would keep anyway); 0 keeps all.
-    merge_distance : float
+    merge_distance : float, size units
         Particle merging (beyond the paper; 0 off): after each step, particles of one class
         whose translations share a cell of this size and whose rotation vectors share a
         cell of ``merge_angle_deg`` become one, with their summed weight.
@@ -83,20 +135,20 @@ class FilterParams:
         Voxels along the longest side of each prior's SDF grid.
     """
 
-    sigma_d: float = 0.5
+    sigma_d: float = _length(0.5)
     sigma_n: float = 1.5
     n_s: int = 30
     lam: float = 0.97
     known_fraction: float = 0.9
     noncontact_fraction: float = 0.5
-    distance_step: float = 0.1
+    distance_step: float = _length(0.1)
     angle_step_deg: float = 12.0
     neighbour_bins: int = 0
     init_rotations: int = 1
     max_new_per_class: int = 2000
     max_particles: int = 20000
     max_new_particles: int = 0
-    merge_distance: float = 0.0
+    merge_distance: float = _length(0.0)
     merge_angle_deg: float = 1.0
     refine_map: bool = False
     refine_learned: int = 3
@@ -237,19 +289,19 @@ class SessionParams:
     Attributes
     ----------
     filter : FilterParams
-    eps : float
+    eps : float, size units
         Termination threshold on the DHD from the estimated surface (and, with
         ``cover_prior``, the MAP prior of a novel object) to the contacts; the surface near
         targets the sensor could not reach and near missed probes' paths is left out.
     max_steps_known, max_steps_novel : int
         Step caps while the object is judged known / novel (paper 300 / 400).
-    gpis_noise : float
+    gpis_noise : float, size units squared
         Observation noise variance of the GPIS (paper 1e-4).
-    gpis_scale : float
+    gpis_scale : float, per size unit (thin-plate; Wendland: size units squared)
         Initial kernel scale ``a_0``.
     gpis_resolution : int
         Marching-cubes cells along the longest side of the reconstruction box.
-    gpis_margin : float
+    gpis_margin : float, size units
         Margin of the reconstruction box around the MAP shape and the contacts.
     gpis_kernel : {"thin-plate", "wendland"}
         ``thin-plate``: the paper's kernel, whose correction reaches the whole box (the
@@ -257,7 +309,7 @@ class SessionParams:
         to a mean TWD of 0.80 against the Wendland kernel's 1.08, in 33 s against 55 s per
         trial, docs/benchmarks.md); ``wendland``: compactly supported, a contact corrects
         the prior only within ``gpis_support``.
-    gpis_support : float
+    gpis_support : float, size units
         Support radius ``c`` of the Wendland kernel.
     gpis_radius_factor : float
         Thin-plate ``R`` over the reconstruction box's diagonal (which bounds every
@@ -267,8 +319,8 @@ class SessionParams:
         Beyond the paper: non-contacts where the prior puts the inside observe
         ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
         a probe passed through it.
-    gpis_noncontact_value : float
-    gpis_carve_radius : float
+    gpis_noncontact_value : float, size units
+    gpis_carve_radius : float, size units
         Beyond the paper: the GPIS prior mean has a ball of this radius (at most the
         distance to the nearest contact) cut out of the MAP shape around every non-contact
         and every sample of a missed probe's path, so a probe through a phantom part of a
@@ -312,40 +364,45 @@ class SessionParams:
         Marching-cubes cells along the longest side when a reconstruction is kept as a new
         prior: the same posterior mean as the step's surface, sampled finer, since a learned
         shape is extracted once and matched against every later contact.
-    probe_depth : float
+    probe_depth : float, size units
         How deep contact enforcement reaches at most (the estimate's deepest point within
         it is probed).
-    approach_clearance : float
+    approach_clearance : float, size units
         How far outside a target the probe starts, along the estimated normal, at most: the
         approach stops short of where the estimate predicts the object again. A long
         approach bumps into parts that nothing predicted (beyond the paper, which leaves the
         start open; the ``faithful`` preset starts 0.5 outside).
-    follow_step : float
+    follow_step : float, size units
         Length of one in-contact surface-following step of contact enforcement.
-    contact_spacing : float
+    contact_spacing : float, size units
         Surface following stops at a contact this far from every earlier one; a target
         whose procedure ends nearer is given up.
-    max_follow : float
+    max_follow : float, size units
         Longest surface-following path of one step.
-    rrt_step : float
+    rrt_step : float, size units
     metric_samples : int
         Surface samples per shape for the error metrics (TWD).
+    length_unit : float or None
+        Scene units per size unit for every length parameter. None (the default): the
+        filter's lengths scale with the library's reference size and the others with the
+        MAP object's longest side (one size unit is a sixth of it); a number fixes it for
+        all (1: lengths in scene units as written). See the module's docstring.
     """
 
     filter: FilterParams = field(default_factory=FilterParams)
-    eps: float = 0.6
+    eps: float = _length(0.6)
     max_steps_known: int = 300
     max_steps_novel: int = 400
-    gpis_noise: float = 1e-4
-    gpis_scale: float = 1.0
+    gpis_noise: float = _length(1e-4, power=2)
+    gpis_scale: float = _length(1.0, power=-1)
     gpis_resolution: int = 32
-    gpis_margin: float = 0.6
+    gpis_margin: float = _length(0.6)
     gpis_kernel: str = "thin-plate"
-    gpis_support: float = 4.0
+    gpis_support: float = _length(4.0)
     gpis_radius_factor: float = 1.2
     gpis_noncontacts: bool = False
-    gpis_noncontact_value: float = 0.1
-    gpis_carve_radius: float = 0.6
+    gpis_noncontact_value: float = _length(0.1)
+    gpis_carve_radius: float = _length(0.6)
     cover_prior: bool = True
     target_uncovered: bool = False
     check_lines: int = 24
@@ -353,15 +410,22 @@ class SessionParams:
     variance_points: int = 1500
     final_resolution: int = 64
     learned_resolution: int = 64
-    probe_depth: float = 1.0
-    approach_clearance: float = 2.0
-    follow_step: float = 0.1
-    contact_spacing: float = 0.3
-    max_follow: float = 3.0
-    rrt_step: float = 0.3
+    probe_depth: float = _length(1.0)
+    approach_clearance: float = _length(2.0)
+    follow_step: float = _length(0.1)
+    contact_spacing: float = _length(0.3)
+    max_follow: float = _length(3.0)
+    rrt_step: float = _length(0.3)
     metric_samples: int = 3000
+    length_unit: object = None
 
     def __post_init__(self):
+        if self.length_unit is not None:
+            _check_real("length_unit", self.length_unit)
+            if not (np.isfinite(self.length_unit) and self.length_unit > 0):
+                raise ParameterError("length_unit must be None or a positive finite number, "
+                                     f"got {self.length_unit!r}")
+            object.__setattr__(self, "length_unit", float(self.length_unit))
         if not isinstance(self.filter, FilterParams):
             raise ParameterError(f"filter must be FilterParams, got {type(self.filter).__name__}")
         if self.check_line_aim not in CHECK_LINE_AIMS:

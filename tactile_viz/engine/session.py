@@ -24,12 +24,12 @@ from .exploration import (STRATEGIES, clearest_direction, enforce_contact, farth
                           rrt_step, variance_target, widest_gap)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
-from .metrics import directed_hausdorff, surface_samples, two_way_hausdorff
+from .metrics import directed_hausdorff, pose_difference, surface_samples, two_way_hausdorff
 from .metrics import pose_error as metric_pose_error
 from .objects import ObjectModel
 from .observation_file import RecordedStep
 from .observations import Contact, NonContact
-from .params import SESSION_PRESETS, SessionParams, session_preset
+from .params import PAPER_SIZE, SESSION_PRESETS, SessionParams, scaled_lengths, session_preset
 from .particle_filter import ParticleFilter
 from .sdf import normalise_rows
 from .simulator import ContactSimulator, GroundTruth
@@ -41,10 +41,13 @@ class SessionError(TactileVizError):
 
 
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
+# Lengths in size units (a sixth of the object's longest side; see .params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
 CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
+RRT_MARGIN = 3.0  # the RRT's workspace: the contacts' box grown by this
+FIRST_LINE_REACH = 10.0  # the random first lines run this far on either side of the origin
 
 
 def _frozen(array):
@@ -93,6 +96,8 @@ class Snapshot:
     timings: dict
     hypotheses: tuple = ()
     gpis_resolution: object = None
+    rotation_error_deg: object = None
+    translation_error: object = None
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -103,6 +108,8 @@ class Snapshot:
                 "n_noncontacts": int(len(self.noncontacts)),
                 "step_seconds": float(sum(self.timings.values())),
                 "timings": {k: float(v) for k, v in self.timings.items()},
+                "rotation_error_deg": self.rotation_error_deg,
+                "translation_error": self.translation_error,
                 "gpis_scale": self.gpis_scale,
                 "map_rotation": self.map_rotation.tolist(),
                 "map_translation": self.map_translation.tolist()}
@@ -264,9 +271,13 @@ class Session:
             self._truth_samples = transform_points(
                 surface_samples(truth.model, self.params.metric_samples), truth.rotation,
                 truth.translation)
-        self.filter = ParticleFilter(library, self.params.filter, rng=np.random.default_rng([self.seed, 3]))
+        # The filter's lengths scale with the library, which all classes share.
+        self._filter_unit = self.params.length_unit or library.reference_size / PAPER_SIZE
+        self.filter = ParticleFilter(library, scaled_lengths(self.params.filter, self._filter_unit),
+                                     rng=np.random.default_rng([self.seed, 3]))
         self.snapshots = []
-        self._scale = self.params.gpis_scale
+        self._p, self._unit = scaled_lengths(self.params, self._filter_unit), self._filter_unit
+        self._scale = self._p.gpis_scale
         self._target = None
         self._given_up_targets = []
         self._free_space = np.zeros((0, 3))
@@ -310,6 +321,7 @@ class Session:
                                "sensor touched with observe()")
         if self.terminated:
             raise SessionError("the session has terminated; start a new one")
+        self._use_lengths()
         saved = self._checkpoint()
         try:
             clock = time.perf_counter()
@@ -332,15 +344,17 @@ class Session:
         """
         if self.terminated or self.strategy == "rrt":
             return None
+        self._use_lengths()
         if self._check is not None:
             _, through, direction, path = self._check
-            return Target(_frozen(through), _frozen(direction), SWEEP_RADIUS, SWEEP_RADIUS,
-                          _frozen(path))
+            reach = SWEEP_RADIUS * self._unit
+            return Target(_frozen(through), _frozen(direction), reach, reach, _frozen(path))
         if self._target is None:
             return None
         position, normal, estimate = self._target
-        depth = deepest_inside(estimate, position, normal, self.params.probe_depth)
-        clearance = free_approach(estimate, position, normal, self.params.approach_clearance)
+        depth = deepest_inside(estimate, position, normal, self._p.probe_depth)
+        clearance = free_approach(estimate, position, normal, self._p.approach_clearance,
+                                  self._unit)
         return Target(_frozen(position), _frozen(normal), depth, clearance)
 
     def observe(self, observations, free_space=None):
@@ -373,6 +387,7 @@ class Session:
         points = np.asarray(np.zeros((0, 3)) if free_space is None else free_space, float)
         if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
             raise SessionError("free_space must be a finite (k, 3) array of points")
+        self._use_lengths()
         saved = self._checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
@@ -385,7 +400,7 @@ class Session:
                 self._follow_frontier(observations[-1])
             if len(points):
                 self._free_space = thin_points(np.vstack([self._free_space, points]),
-                                               self.params.contact_spacing)
+                                               self._p.contact_spacing)
             return self._update([], observations, {})
         except BaseException:
             self._restore(saved)
@@ -425,6 +440,20 @@ class Session:
         self._free_space, self._swept = free, swept
         del self.snapshots[count:]
 
+    def _use_lengths(self, model=None):
+        """Set ``self._p``, the parameters with their lengths in scene units, and
+        ``self._unit``, the scene units of a size unit: a sixth of the longest side of
+        ``model``, default the latest MAP object (the library's reference size before the
+        first step), or ``params.length_unit``. Derived from the snapshots, so rollbacks and
+        copies of a session need not keep it."""
+        if model is None and self.snapshots:
+            model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
+        unit = self.params.length_unit or (model.size_unit if model is not None
+                                           else self._filter_unit)
+        if unit != self._unit:
+            self._p, self._unit = scaled_lengths(self.params, unit), unit
+        return self._p
+
     def _generators(self):
         return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
 
@@ -436,6 +465,7 @@ class Session:
         timings["filter"] = time.perf_counter() - clock
 
         model = self.filter.models[self.filter.class_names.index(state.map_class)]
+        self._use_lengths(model)
         rotation, translation = state.map_rotation, state.map_translation
         map_vertices = transform_points(model.mesh.vertices, rotation, translation)
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
@@ -472,7 +502,8 @@ class Session:
             dhd=float(dhd), truth_coverage=truth_coverage, pose_error=pose_error,
             recon_error=recon_error, terminated=terminated, timings=timings,
             hypotheses=_hypotheses(state),
-            gpis_resolution=None if recon is None else recon.resolution)
+            gpis_resolution=None if recon is None else recon.resolution,
+            **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)
         return snapshot
 
@@ -484,17 +515,17 @@ class Session:
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if recon is not None and self.params.cover_prior:
+        if recon is not None and self._p.cover_prior:
             # The prior is cut out around missed probes as far as the carve reaches.
-            prior_open = self._reachable(map_vertices, max(self.params.contact_spacing,
-                                                           self.params.gpis_carve_radius))
+            prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
+                                                           self._p.gpis_carve_radius))
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
-        cap = self.params.max_steps_novel if state.novel else self.params.max_steps_known
-        covered = max(dhd, prior_dhd) <= self.params.eps
+        cap = self._p.max_steps_novel if state.novel else self._p.max_steps_known
+        covered = max(dhd, prior_dhd) <= self._p.eps
         exploring = state.novel and self.strategy != "rrt"
         frontier = exploring and bool(self._frontier)
         checking = (covered and exploring and not frontier
-                    and self._checks_passed < self.params.check_lines)
+                    and self._checks_passed < self._p.check_lines)
         terminated = bool((covered and not checking and not frontier)
                           or self.step_count + 1 >= cap)
         self._check, self._frontier_target = None, False
@@ -513,7 +544,7 @@ class Session:
         elif checking:
             self._target = None
             self._check = self._plan_check_line(surface, contacts, outside)
-        elif dhd <= self.params.eps < prior_dhd:
+        elif dhd <= self._p.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
             self._target = self._next_target(map_vertices, prior_open, None, model, rotation,
@@ -523,17 +554,25 @@ class Session:
                                              translation, contacts)
         return max(dhd, prior_dhd), terminated
 
+    def _pose_difference(self, model, rotation, translation):
+        """``rotation_error_deg`` and ``translation_error`` of the MAP against the simulated
+        object (None without one, or when the MAP is another shape)."""
+        if self.truth is None:
+            return {}
+        angle, distance = pose_difference(model, rotation, translation, self.truth)
+        return {"rotation_error_deg": angle, "translation_error": distance}
+
     def _truth_metrics(self, model, rotation, translation, recon, contacts):
         """Pose error, reconstruction error and truth coverage against the simulated
         object (None without one; the reconstruction error also while known)."""
         if self.truth is None:
             return None, None, None
         pose_error = metric_pose_error(model, rotation, translation, self.truth,
-                                       self.params.metric_samples)
+                                       self._p.metric_samples)
         recon_error = None
         if recon is not None and len(recon.faces):
             mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
-            samples, _ = trimesh.sample.sample_surface(mesh, self.params.metric_samples, seed=0)
+            samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
             recon_error = float(two_way_hausdorff(samples, self._truth_samples))
         return (float(pose_error), recon_error,
                 directed_hausdorff(self._truth_samples, contacts))
@@ -542,17 +581,20 @@ class Session:
     def _touch(self):
         contacts = self.filter.contact_positions
         if len(contacts) == 0:
-            return first_contact(self.simulator, np.zeros(3), self.rng)
-        p = self.params
+            return first_contact(self.simulator, np.zeros(3), self.rng,
+                                 radius=FIRST_LINE_REACH * self._filter_unit,
+                                 unit=self._filter_unit)
+        p = self._p
         if self.strategy == "rrt":
-            low, high = contacts.min(axis=0) - 3.0, contacts.max(axis=0) + 3.0
+            margin = RRT_MARGIN * self._unit
+            low, high = contacts.min(axis=0) - margin, contacts.max(axis=0) + margin
             return rrt_step(self.simulator, contacts, self.filter.contact_normals, (low, high),
-                            self.rng, p.rrt_step, p.probe_depth)
+                            self.rng, p.rrt_step, p.probe_depth, 0.5 * self._unit, self._unit)
         if self._check is not None:
             return self._check_line()
         target, normal, estimate = self._target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        clearance = free_approach(estimate, target, normal, p.approach_clearance)
+        clearance = free_approach(estimate, target, normal, p.approach_clearance, self._unit)
         paths, observations, reached = enforce_contact(
             self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
             clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing,
@@ -589,19 +631,21 @@ class Session:
                                   self._free_space, self._swept])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
-            shell = 2 * self.params.eps if kind == "shell" else 0.0
-            through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell)
+            shell = 2 * self._p.eps if kind == "shell" else 0.0
+            through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
+                                      unit=self._unit)
         if through is None:
             direction = next_sweep_direction(self._check_directions, self.rng)
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
-                0.0, self.params.eps, size=3)
-            path = np.stack([through + SWEEP_RADIUS * direction,
-                             through - SWEEP_RADIUS * direction])
+                0.0, self._p.eps, size=3)
+            path = np.stack([through + SWEEP_RADIUS * self._unit * direction,
+                             through - SWEEP_RADIUS * self._unit * direction])
         else:
+            unit = self._unit
             direction = clearest_direction(through, estimate, self._check_directions,
-                                           reach=SWEEP_RADIUS)
-            path = raster_path(through, min(gap, MAX_RASTER_RADIUS), direction,
-                               reach=SWEEP_RADIUS)
+                                           reach=SWEEP_RADIUS * unit, unit=unit)
+            path = raster_path(through, min(gap, MAX_RASTER_RADIUS * unit), direction,
+                               spacing=0.2 * unit, reach=SWEEP_RADIUS * unit)
         self._check_directions.append(direction)
         return estimate, through, direction, path
 
@@ -615,7 +659,7 @@ class Session:
             return None, 0.0
         distance = cKDTree(contacts).query(estimate[reachable])[0]
         best = int(np.argmax(distance))
-        return estimate[reachable[best]], max(float(distance[best]), self.params.contact_spacing)
+        return estimate[reachable[best]], max(float(distance[best]), self._p.contact_spacing)
 
     def _approach_start(self):
         """Where the approach to the current target starts (None without a target, and
@@ -624,18 +668,19 @@ class Session:
             return None
         position, normal, estimate = self._target
         return position + free_approach(estimate, position, normal,
-                                        self.params.approach_clearance) * normal
+                                        self._p.approach_clearance, self._unit) * normal
 
     def _record_sweep(self, touched, start=None):
         """Keep samples of the path the sensor swept up to its first touch: the planned
         check's path, else the straight approach from ``start`` (None: nothing to keep).
         Checks need not visit that space again."""
         if self._check is not None:
-            samples = path_until(self._check[3], touched.position, SWEPT_SPACING)
-            self._swept = thin_points(np.vstack([self._swept, samples]), SWEPT_SPACING)
+            spacing = SWEPT_SPACING * self._unit
+            samples = path_until(self._check[3], touched.position, spacing, 0.05 * self._unit)
+            self._swept = thin_points(np.vstack([self._swept, samples]), spacing)
         elif start is not None:
             self._swept = free_space_points(self._swept, np.stack([start, touched.position]),
-                                            SWEPT_SPACING)
+                                            SWEPT_SPACING * self._unit)
 
     def _check_line(self):
         """Sweep the planned check path with the simulated sensor and count it."""
@@ -644,9 +689,10 @@ class Session:
         self._record_sweep(observations[0])
         self._count_check(observations[0])
         if not isinstance(observations[0], Contact):
-            spacing = self.params.contact_spacing
+            spacing = self._p.contact_spacing
             self._free_space = thin_points(
-                np.vstack([self._free_space, path_until(path, path[-1], spacing)]), spacing)
+                np.vstack([self._free_space, path_until(path, path[-1], spacing,
+                                                        0.05 * self._unit)]), spacing)
         return paths, observations
 
     def _count_check(self, touched):
@@ -657,7 +703,7 @@ class Session:
                  if len(points)]
         surprise = isinstance(touched, Contact) and min(
             cKDTree(points).query(touched.position)[0]
-            for points in known) > self.params.contact_spacing
+            for points in known) > self._p.contact_spacing
         if surprise:
             self._checks_passed = 0
             self._grow_frontier(touched)
@@ -669,7 +715,7 @@ class Session:
         """What check number ``index`` (0 first) of the session aims at: ``"hull"`` and
         ``"shell"`` gaps in turn, with ``"gap-weakest"`` a ``"weakest"`` support after each
         pair; ``"contact"`` with ``check_line_aim = "contact"``."""
-        aim = self.params.check_line_aim
+        aim = self._p.check_line_aim
         if aim == "contact":
             return "contact"
         kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
@@ -679,7 +725,7 @@ class Session:
         """After a frontier target: a contact on new ground grows the frontier from it."""
         contacts = self.filter.contact_positions
         if (self._frontier_target and isinstance(touched, Contact) and len(contacts)
-                and cKDTree(contacts).query(touched.position)[0] > self.params.contact_spacing):
+                and cKDTree(contacts).query(touched.position)[0] > self._p.contact_spacing):
             self._grow_frontier(touched)
 
     def _grow_frontier(self, contact):
@@ -692,11 +738,11 @@ class Session:
         first = normalise_rows(np.cross(normal, helper)[None])[0]
         second = np.cross(normal, first)
         for tangent in (first, -first, second, -second):
-            point = contact.position + self.params.eps * tangent
+            point = contact.position + self._p.eps * tangent
             taken = np.vstack([self.filter.contact_positions, contact.position[None],
                                np.reshape(self._given_up_targets, (-1, 3)),
                                np.reshape([p for p, _ in self._frontier], (-1, 3))])
-            if cKDTree(taken).query(point)[0] > self.params.contact_spacing:
+            if cKDTree(taken).query(point)[0] > self._p.contact_spacing:
                 self._frontier.append((point, normal))
 
     def _reached(self, observations, contacts):
@@ -707,7 +753,7 @@ class Session:
         if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
             return True
         distance = cKDTree(self.filter.contact_positions).query(contacts[-1].position)[0]
-        return bool(distance >= self.params.contact_spacing)
+        return bool(distance >= self._p.contact_spacing)
 
     def _repeats_contact(self, observation):
         """Whether a contact lands where an earlier one did (within the sensor noise, and at
@@ -722,7 +768,8 @@ class Session:
         contacts = self.filter.contact_positions
         if not isinstance(observation, Contact) or len(contacts) == 0:
             return False
-        precision = self.simulator.tolerance if self.simulator is not None else CONTACT_PRECISION
+        precision = (self.simulator.tolerance if self.simulator is not None
+                     else CONTACT_PRECISION * self._filter_unit)
         tolerance = max(4.0 * self.sensor_noise[0], precision)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
 
@@ -738,7 +785,7 @@ class Session:
         refuted = np.vstack([np.reshape(self._given_up_targets, (-1, 3)), self._free_space])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
-        radius = self.params.contact_spacing if radius is None else radius
+        radius = self._p.contact_spacing if radius is None else radius
         far = cKDTree(refuted).query(vertices)[0] >= radius
         return far if far.any() else np.ones(len(vertices), bool)
 
@@ -748,7 +795,7 @@ class Session:
         constrains)."""
         noncontacts = self.filter.noncontact_positions if noncontacts is None else noncontacts
         free_space = self._free_space if free_space is None else free_space
-        reach = self.params.gpis_support if self.params.gpis_kernel == "wendland" else 1.0
+        reach = self._p.gpis_support if self._p.gpis_kernel == "wendland" else self._unit
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
 
     def _prior(self, model, rotation, translation):
@@ -758,11 +805,11 @@ class Session:
         """The GPIS prior mean: the MAP shape with the refuted space cut out."""
         return carved_prior(self._prior(model, rotation, translation),
                             np.vstack([noncontacts, free_space]), contacts,
-                            self.params.gpis_carve_radius)
+                            self._p.gpis_carve_radius)
 
     def _gpis_box(self, map_vertices, contacts):
         """The reconstruction box (low, high) and the GPIS kernel."""
-        p = self.params
+        p = self._p
         low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
         high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
         if p.gpis_kernel == "wendland":
@@ -770,14 +817,14 @@ class Session:
         return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
-        p = self.params
+        p = self._p
         return fit_gpis(contacts, normals, prior, kernel, scale=scale,
                         noise_variance=p.gpis_noise, newton=newton,
                         noncontacts=noncontacts if p.gpis_noncontacts else None,
                         noncontact_value=p.gpis_noncontact_value)
 
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
-        p = self.params
+        p = self._p
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
@@ -799,7 +846,7 @@ class Session:
         vertices, faces = zero_level_surface(fit, bounds, resolution)
         variance, subset = np.zeros(len(vertices)), None
         if len(vertices):
-            count = min(self.params.variance_points, len(vertices))
+            count = min(self._p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             variance[subset] = fit.variance(vertices[subset])
             if count < len(vertices):
@@ -811,12 +858,12 @@ class Session:
     def _final_surface(self, recon, map_vertices, contacts, timings):
         """The reconstruction a stopping session reports: the same fit at
         ``final_resolution`` (thin parts between the exploration grid's samples appear)."""
-        if recon is None or recon.empty or (self.params.final_resolution
-                                             == self.params.gpis_resolution):
+        if recon is None or recon.empty or (self._p.final_resolution
+                                             == self._p.gpis_resolution):
             return recon
         clock = time.perf_counter()
         low, high, _ = self._gpis_box(map_vertices, contacts)
-        final = self._surface(recon.fit, (low, high), self.params.final_resolution)
+        final = self._surface(recon.fit, (low, high), self._p.final_resolution)
         timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return recon if final.empty else final
 
@@ -825,7 +872,7 @@ class Session:
         :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
             index = variance_target(recon.vertices, recon.variance, recon.subset, reachable,
-                                    contacts, self.params.eps if self.params.target_uncovered
+                                    contacts, self._p.eps if self._p.target_uncovered
                                     else None)
             target = recon.vertices[index]
             _, gradient = recon.fit.mean(target[None])
@@ -849,7 +896,7 @@ class Session:
         if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
             raise SessionError("no reconstructed surface to learn from: the object was not "
                                "judged novel in this step")
-        resolution = resolution or self.params.learned_resolution
+        resolution = resolution or self._p.learned_resolution
         vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
         if resolution != snapshot.gpis_resolution:
             vertices, faces = self._surface_at(snapshot, resolution)
@@ -860,6 +907,7 @@ class Session:
     def _surface_at(self, snapshot, resolution):
         """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
+        self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
@@ -950,14 +998,15 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
 
 
-def free_approach(estimate, target, normal, longest, shortest=0.5, samples=32):
+def free_approach(estimate, target, normal, longest, unit=1.0, samples=32):
     """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
     less where the estimate predicts the object on the way (the approach then starts a
-    sample short of it), but at least ``shortest``.
+    sample short of it), but at least ``shortest = 0.5 unit``.
 
     A long approach meets parts of the object that the estimate does not predict; the
     ones it predicts are not passed through.
     """
+    shortest = 0.5 * unit
     if longest <= shortest:
         return float(longest)
     distances = np.linspace(shortest, longest, samples)
@@ -983,8 +1032,9 @@ def learned_model_from_surface(vertices, faces, name, params=None):
 
 
 def make_truth(model, rng=None, max_translation=1.0):
-    """The ground truth of a trial: ``model`` at a random pose."""
-    rotation, translation = random_pose(rng, max_translation)
+    """The ground truth of a trial: ``model`` at a random pose, translated up to
+    ``max_translation`` size units (a sixth of its longest side each)."""
+    rotation, translation = random_pose(rng, max_translation * model.size_unit)
     return GroundTruth(model, rotation, translation)
 
 

@@ -73,18 +73,19 @@ class ContactSimulator:
     ----------
     truth : GroundTruth
     step : float, optional
-        Step length; defaults to 1/300 of the object's longest side.
-    tolerance : float
-        A reported contact lies within this distance of the true surface.
+        Step length, scene units; defaults to 1/300 of the object's longest side.
+    tolerance : float, optional
+        A reported contact lies within this distance of the true surface, scene units;
+        defaults to 1/600 of the object's longest side (the paper's 0.01 on 6 units).
     position_noise : float
-        Standard deviation of Gaussian noise added to reported positions.
+        Standard deviation of Gaussian noise added to reported positions, scene units.
     normal_noise_deg : float
         Standard deviation, in degrees, of the angle by which reported normals are tilted.
     rng : int, numpy.random.Generator or None
         Seeds the noise.
     """
 
-    def __init__(self, truth, step=None, tolerance=0.01, position_noise=0.0,
+    def __init__(self, truth, step=None, tolerance=None, position_noise=0.0,
                  normal_noise_deg=0.0, rng=None):
         for name, value in (("step", step), ("tolerance", tolerance)):
             if value is not None and not (np.isfinite(value) and value > 0):
@@ -95,7 +96,7 @@ class ContactSimulator:
                 raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
         self.truth = truth
         self.step = float(step) if step is not None else truth.model.length / 300
-        self.tolerance = float(tolerance)
+        self.tolerance = float(tolerance) if tolerance is not None else truth.model.length / 600
         self.position_noise = float(position_noise)
         self.normal_noise_deg = float(normal_noise_deg)
         self.rng = np.random.default_rng(rng)

@@ -11,7 +11,8 @@ def sphere_model(tmp_path):
     from tactile_viz.engine.cache import ArrayCache
 
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=3.0)
-    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "sphere", cache=ArrayCache(tmp_path))
+    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "sphere", cache=ArrayCache(tmp_path),
+                                   longest_side=6.0)
 
 
 @pytest.fixture

@@ -37,7 +37,8 @@ def reference(tmp_path_factory):
     cache = ArrayCache(tmp_path_factory.mktemp("cache"))
     mesh = _ellipsoid()
     params = ModelParams(sdf_resolution=24, n_features=60)
-    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "ellipsoid", params, cache)
+    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "ellipsoid", params, cache,
+                                   longest_side=6.0)
 
 
 @pytest.mark.parametrize("suffix", [".stl", ".ply", ".obj"])
@@ -50,7 +51,8 @@ def test_scaled_files_give_the_same_model(tmp_path, reference, scale, suffix):
     mesh.apply_translation(np.array([3.0, -1.0, 2.0]) * scale)
     path = tmp_path / f"ellipsoid{suffix}"
     mesh.export(path)
-    model = ObjectModel.from_file(path, params=reference.params, cache=ArrayCache(tmp_path))
+    model = ObjectModel.from_file(path, params=reference.params, cache=ArrayCache(tmp_path),
+                                  longest_side=6.0)
     assert model.length == pytest.approx(6.0)
     np.testing.assert_allclose(model.mesh.bounds, reference.mesh.bounds, atol=1e-5)
     np.testing.assert_allclose(model.sdf.values, reference.sdf.values, atol=1e-4)
@@ -166,7 +168,8 @@ def test_decimation_path_on_a_small_limit():
     the source and the counts, a closed surface close to the original."""
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=3.0)  # 5,120 faces
     with pytest.warns(MeshWarning, match=r"ball: decimated from 5120 to \d+ faces"):
-        mesh = prepare_mesh(sphere.vertices, sphere.faces, source="ball", max_faces=1000)
+        mesh = prepare_mesh(sphere.vertices, sphere.faces, source="ball", max_faces=1000,
+                            longest_side=6.0)
     assert len(mesh.faces) <= 1000 and mesh.is_watertight and mesh.volume > 0
     assert mesh.metadata["decimated_from"] == 5120
     assert mesh.extents.max() == pytest.approx(6.0)
@@ -203,7 +206,13 @@ def test_bad_mesh_arrays_at_the_extremes():
         with pytest.raises(MeshError):
             prepare_mesh(sphere.vertices * scale * np.array([1, 1, 0]), sphere.faces,
                          source="flat")
-    huge = prepare_mesh(sphere.vertices * 1e150, sphere.faces)  # still a sphere
+    # At their own size they are refused with a hint; normalised they are still spheres.
+    for scale in (1e-150, 1e150):
+        with pytest.raises(MeshError, match="units long.*give the file's units"):
+            prepare_mesh(sphere.vertices * scale, sphere.faces)
+    huge = prepare_mesh(sphere.vertices * 1e150, sphere.faces, longest_side=6.0)
     assert huge.extents.max() == pytest.approx(6.0)
-    tiny = prepare_mesh(sphere.vertices * 1e-150, sphere.faces)
+    tiny = prepare_mesh(sphere.vertices * 1e-150, sphere.faces, longest_side=6.0)
     np.testing.assert_allclose(tiny.vertices, huge.vertices, atol=1e-6)
+    metres = prepare_mesh(sphere.vertices * 1e150, sphere.faces, scale=1e-150)  # a unit factor
+    np.testing.assert_allclose(metres.vertices * 3.0, huge.vertices, atol=1e-5)

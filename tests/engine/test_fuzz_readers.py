@@ -81,7 +81,7 @@ def test_mesh_loader_on_mutated_files(tmp_path, kind, data):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # trimesh may warn about odd files
         try:
-            mesh = load_mesh(path)
+            mesh = load_mesh(path, longest_side=6.0)
         except MeshError as error:
             assert "fuzzed" in str(error)
             return
@@ -98,7 +98,7 @@ def test_mesh_loader_on_random_bytes(tmp_path, content, suffix):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            mesh = load_mesh(path)
+            mesh = load_mesh(path, longest_side=6.0)
         except MeshError as error:
             assert "random" in str(error)
             return

@@ -18,7 +18,7 @@ def test_every_format_loads_normalised(tmp_path, suffix):
     mesh.apply_translation([10.0, -3.0, 2.0])
     path = tmp_path / f"box{suffix}"
     mesh.export(path)
-    loaded = load_mesh(path)
+    loaded = load_mesh(path, longest_side=6.0)
     assert loaded.is_watertight and loaded.volume > 0
     np.testing.assert_allclose(loaded.extents, [1.5, 3.0, 6.0], atol=1e-6)
     np.testing.assert_allclose(loaded.bounds.mean(axis=0), 0.0, atol=1e-6)
@@ -27,10 +27,10 @@ def test_every_format_loads_normalised(tmp_path, suffix):
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_normalisation_removes_scale(scale):
     mesh = _sphere()
-    normalised = prepare_mesh(mesh.vertices * scale + 5 * scale, mesh.faces)
+    normalised = prepare_mesh(mesh.vertices * scale + 5 * scale, mesh.faces, longest_side=6.0)
     assert normalised.extents.max() == pytest.approx(6.0)
     np.testing.assert_allclose(normalised.bounds.mean(axis=0), 0.0, atol=1e-6)
-    reference = prepare_mesh(mesh.vertices, mesh.faces)
+    reference = prepare_mesh(mesh.vertices, mesh.faces, longest_side=6.0)
     np.testing.assert_allclose(normalised.vertices, reference.vertices, atol=1e-6)
 
 
