@@ -11,8 +11,9 @@ START_TEXT = "Press Step or Run to start touching."
 
 def wrapped_between_fields(text):
     """``text`` whose word wrap may break only between its `` | `` fields (no-break spaces
-    inside them), so that a narrow panel never splits "recon error" from its value."""
-    return "\u00a0| ".join(field.replace(" ", "\u00a0") for field in text.split(" | "))
+    inside them), so that a narrow panel never splits "recon error" from its value. The word
+    joiner keeps a field ending in "-" (no value) from breaking there, before the "|"."""
+    return "\u2060\u00a0| ".join(field.replace(" ", "\u00a0") for field in text.split(" | "))
 
 
 def status_text(snapshot):
