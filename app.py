@@ -4,6 +4,8 @@
     python app.py                                   # the window, default scene (mug_1)
     python app.py --object vase_2 --seed 3          # another object and pose
     python app.py --object mug_1 --steps 40 --screenshot out.png   # headless picture
+    python app.py --object-file cup.stl --library known --prior-file cup.stl   # own meshes
+    python app.py --observations touches.csv --library-dir my_library  # recorded touches
 """
 
 import argparse
@@ -11,20 +13,39 @@ import logging
 import os
 import sys
 
-from tactile_viz.cli import add_logging_arguments, default_log_file, setup_logging
+from tactile_viz.cli import ExtendList, add_logging_arguments, default_log_file, setup_logging
 
 log = logging.getLogger("tactile_viz.app.launcher")
 GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit status 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def parse_args(argv=None):
     from tactile_viz.app.engine_process import ENGINES
     from tactile_viz.engine import SESSION_PRESETS, STRATEGIES
 
-    parser = argparse.ArgumentParser(description="tactile_viz desktop app: watch and steer "
-                                                 "active tactile recognition and shape learning")
-    parser.add_argument("--object", default="mug_1", metavar="NAME",
-                        help="bundled ground-truth object (default mug_1)")
+    parser = Parser(description="tactile_viz desktop app: watch and steer active tactile "
+                                "recognition and shape learning")
+    what = parser.add_mutually_exclusive_group()
+    what.add_argument("--object", metavar="NAME",
+                      help="bundled ground-truth object (default mug_1)")
+    what.add_argument("--object-file", metavar="MESH", help="a mesh file as the ground truth")
+    what.add_argument("--observations", metavar="FILE",
+                      help="step through recorded touches (CSV: kind,x,y,z,nx,ny,nz) "
+                           "instead of touching an object")
+    library = parser.add_mutually_exclusive_group()
+    library.add_argument("--library", choices=["known", "novel", "all"],
+                         help="the priors: a bundled set (default known)")
+    library.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
+    parser.add_argument("--prior-file", metavar="MESH", action=ExtendList,
+                        help="mesh files as priors (repeats add up): added to --library or "
+                             "--library-dir when given, else the only priors")
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
@@ -40,7 +61,57 @@ def parse_args(argv=None):
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
     add_logging_arguments(parser, log_file_default=str(default_log_file()))
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    problem = argument_problem(args)
+    if problem:
+        parser.error(problem)
+    return args
+
+
+def _path_problem(option, path, folder=False):
+    kind = "folder" if folder else "file"
+    if not os.path.exists(path):
+        return f"{option} {path}: no such {kind}"
+    if folder and not os.path.isdir(path):
+        return f"{option} {path}: not a folder"
+    if not folder and not os.path.isfile(path):
+        return f"{option} {path}: not a file (a folder?)"
+    return None
+
+
+def screenshot_problem(path):
+    """Why a screenshot cannot be written to ``path`` (None if it can)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if not path.lower().endswith(".png"):
+        return f"--screenshot {path}: the file name must end in .png"
+    if os.path.isdir(path):
+        return f"--screenshot {path}: is a folder"
+    if not os.path.isdir(folder):
+        return f"--screenshot {path}: the folder {folder} does not exist"
+    if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+        return f"--screenshot {path}: not writable"
+    return None
+
+
+def argument_problem(args):
+    """The first fault of the options that can be told without loading anything (None if
+    there is none): the screenshot's path first, then numbers and paths."""
+    if args.screenshot and (problem := screenshot_problem(args.screenshot)):
+        return problem
+    if args.seed < 0:
+        return f"--seed must be 0 or more, not {args.seed}"
+    if args.steps < 0:
+        return f"--steps must be 0 or more, not {args.steps}"
+    if args.observations and args.learn_first:
+        return "--learn-first needs an object to explore, not --observations"
+    paths = [("--object-file", args.object_file), ("--observations", args.observations)]
+    paths += [("--prior-file", path) for path in args.prior_file or ()]
+    for option, path in paths:
+        if path and (problem := _path_problem(option, path)):
+            return problem
+    if args.library_dir:
+        return _path_problem("--library-dir", args.library_dir, folder=True)
+    return None
 
 
 def log_errors_shown(window):
@@ -63,15 +134,37 @@ def log_errors_shown(window):
     return default_hook
 
 
-def build_scene(args):
-    from tactile_viz.app.scene import Scene
+def load_priors(args):
+    """The priors of the options: the bundled set or the saved library (known when neither
+    is given and no --prior-file is), plus every --prior-file."""
+    from tactile_viz.engine.library import PriorLibrary
 
-    scene = Scene(truth_name=args.object, seed=args.seed, strategy=args.strategy,
-                  preset=args.preset)
+    if args.library_dir:
+        library = PriorLibrary.load(args.library_dir)
+    elif args.library or not args.prior_file:
+        library = PriorLibrary.bundled(args.library or "known")
+    else:
+        library = PriorLibrary()
+    for path in args.prior_file or ():
+        library.add_file(path)
+    return library
+
+
+def build_scene(args):
+    """The scene of the options; a bad mesh, library or recording raises the project's
+    error (before any window opens)."""
+    from tactile_viz.app.scene import Scene
+    from tactile_viz.engine.objects import ObjectModel
+
+    truth = ObjectModel.from_file(args.object_file) if args.object_file else None
+    scene = Scene(truth_name=args.object or "mug_1", truth_model=truth, seed=args.seed,
+                  library=load_priors(args), strategy=args.strategy, preset=args.preset)
     if args.learn_first:
         scene.ensure_session().run()
         scene.add_learned_shape()
         scene.randomize_pose(args.seed + 1)
+    if args.observations:
+        scene.open_observations(args.observations)
     return scene
 
 
@@ -97,7 +190,7 @@ def main(argv=None):
 
     try:
         scene = build_scene(args)
-    except TactileVizError as error:
+    except (TactileVizError, ValueError, OSError) as error:
         log.debug("the scene could not be built", exc_info=True)
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -116,11 +209,14 @@ def main(argv=None):
         window.frame_truth()  # the final window size is known only now
         window.plots.draw()
         app.processEvents()
-        window.grab().save(args.screenshot)
+        saved = window.grab().save(args.screenshot)
         window.close()
         app.processEvents()
-        print(f"saved {args.screenshot}")
         sys.excepthook = default_hook
+        if not saved:
+            print(f"error: cannot write the screenshot {args.screenshot}", file=sys.stderr)
+            return 1
+        print(f"saved {args.screenshot}")
         return 0
     try:
         return app.exec()

@@ -58,6 +58,8 @@ class Scene:
     ----------
     truth_name : str
         A bundled object to start with.
+    truth_model : ObjectModel, optional
+        An object to start with instead (e.g. read from a mesh file).
     seed : int
         Seeds the truth's pose and the session.
     library : PriorLibrary, optional
@@ -65,7 +67,7 @@ class Scene:
     """
 
     def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
-                 preset="paper"):
+                 preset="paper", truth_model=None):
         self.truth_changed = Signal()
         self.library_changed = Signal()
         self.settings_changed = Signal()
@@ -73,7 +75,7 @@ class Scene:
         self.stepped = Signal()
         self.library = library if library is not None else PriorLibrary.bundled("known")
         self.enabled = {name: True for name in self.library.names}
-        self.truth_model = load_bundled(truth_name)
+        self.truth_model = truth_model if truth_model is not None else load_bundled(truth_name)
         self.seed = int(seed)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
         self.recording = None  # (source, recorded steps) while replaying a recording

@@ -29,7 +29,7 @@ LEGEND_WIDTH_PIXELS = 230
 # The legend: dark labels on a light box, each beside a framed marker of its layer's colour
 # (WCAG contrast of the labels against the box: about 17, where text needs 4.5).
 LEGEND_BACKGROUND = (1.0, 1.0, 1.0)
-LEGEND_BACKGROUND_OPACITY = 0.9
+LEGEND_BACKGROUND_OPACITY = 1.0  # opaque: a layer drawn behind it does not show through
 LEGEND_TEXT = (0.1, 0.1, 0.1)
 LEGEND_OUTLINE = (0.25, 0.25, 0.25)
 LEGEND_MARKER_ASPECT = 2.0  # a marker's width over its height
@@ -37,6 +37,9 @@ LEGEND_RAMP_STRIPS = 8  # colours of the GPIS layer's viridis marker
 SCALAR_BAR = "variance"
 HIDDEN_AT_START = ("hypotheses",)
 TRANSLUCENT_SURFACES = ("truth", "map", "hypotheses")
+# Drawn over every other layer: the target is a point of the MAP surface, often on its far
+# side, where behind the translucent truth and MAP shape it did not show at all.
+ON_TOP = ("target",)
 
 
 def faces_to_polydata(vertices, faces, normals=False):
@@ -172,6 +175,7 @@ class ViewportLayers:
         self.latest = None
         self._legend_key = None
         self._variance_range = None
+        self._overlay = None
 
     # ------------------------------------------------------------------ public
     def set_visible(self, name, visible):
@@ -277,7 +281,7 @@ class ViewportLayers:
                 self._put(name, spheres(getattr(snapshot, name)), color=LAYERS[name][1])
             elif name == "target":
                 self._put("target", spheres(np.asarray(snapshot.target)[None],
-                                            1.6 * CONTACT_RADIUS), color=LAYERS["target"][1])
+                                            2.2 * CONTACT_RADIUS), color=LAYERS["target"][1])
             elif name == "path":
                 self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1],
                           line_width=2)
@@ -300,10 +304,38 @@ class ViewportLayers:
         ghosts.point_data["rgba"] = np.vstack(rgba)
         return ghosts
 
+    def overlay(self):
+        """A renderer drawn after the plotter's, with its camera and a depth buffer of its
+        own: what it holds is never hidden by the layers (the legend is drawn there too)."""
+        if self._overlay is None:
+            main = self.plotter.renderer
+            overlay = vtk.vtkRenderer()
+            overlay.SetLayer(1)
+            overlay.InteractiveOff()
+            overlay.SetActiveCamera(main.GetActiveCamera())
+            # pyvista may give the main renderer a new camera: follow it at every render.
+            main.AddObserver("StartEvent", lambda *_: overlay.SetActiveCamera(
+                main.GetActiveCamera()))
+            window = self.plotter.render_window
+            window.SetNumberOfLayers(max(2, window.GetNumberOfLayers()))
+            window.AddRenderer(overlay)
+            self._overlay = overlay
+        return self._overlay
+
+    def _add_on_top(self, mesh, color):
+        mapper = pv.DataSetMapper(mesh)
+        mapper.scalar_visibility = False
+        actor = pv.Actor(mapper=mapper)
+        actor.prop.color = color
+        self.overlay().AddActor(actor)
+        return actor
+
     def _put(self, name, mesh, smooth=False, **style):
         """Create the layer's actor once, then swap its data set in place."""
         actor = self.actors.get(name)
-        if actor is None:
+        if actor is None and name in ON_TOP:
+            self.actors[name] = self._add_on_top(mesh, style["color"])
+        elif actor is None:
             actor = self.plotter.add_mesh(mesh, name=name, reset_camera=False, render=False,
                                           show_scalar_bar=False, **style)
             if smooth:
@@ -358,13 +390,14 @@ class ViewportLayers:
         legend.UseBackgroundOn()
         legend.SetBackgroundColor(*LEGEND_BACKGROUND)
         legend.SetBackgroundOpacity(LEGEND_BACKGROUND_OPACITY)
-        legend.BorderOff()
+        legend.BorderOn()
+        legend.GetProperty().SetColor(*LEGEND_OUTLINE)
         legend.SetPadding(3)
         legend.ScalarVisibilityOn()  # the markers' own cell colours
         legend.GetEntryTextProperty().SetColor(*LEGEND_TEXT)
         legend.GetEntryTextProperty().SetFontSize(12)
         self.markers = {name: legend_marker(legend_fill(name)) for name in LAYERS}
-        self.plotter.renderer.AddViewProp(legend)
+        self.overlay().AddViewProp(legend)  # over the target too
         self.legend = legend
 
     def _sync_legend(self):

@@ -230,14 +230,14 @@ class _Progress(QWidget):
 
 
 def _scrolled(groups):
-    """A scroll area that stacks ``groups`` and never scrolls sideways."""
+    """A scroll area that stacks ``(group, stretch)`` pairs and never scrolls sideways (it
+    scrolls down only in a window too small for the groups)."""
     panel = QWidget()
     layout = QVBoxLayout(panel)
     layout.setContentsMargins(4, 0, 4, 4)
     layout.setSpacing(4)
-    for group in groups:
-        layout.addWidget(group)
-    layout.addStretch(1)
+    for group, stretch in groups:
+        layout.addWidget(group, stretch)
     scroll = QScrollArea()
     scroll.setWidget(panel)
     scroll.setWidgetResizable(True)
@@ -371,8 +371,8 @@ class MainWindow(QMainWindow):
         self.layers_panel = LayersPanel()
         self.layers_panel.sync(self.layers.visible)
         self._connect_panels()
-        self.panel_scroll = _scrolled([self.scene_panel, self.priors_panel,
-                                       self.exploration_panel, self.layers_panel])
+        self.panel_scroll = _scrolled([(self.scene_panel, 0), (self.priors_panel, 1),
+                                       (self.exploration_panel, 0), (self.layers_panel, 0)])
         # The loop stays above the scrolled groups: it is what one needs most.
         controls = QWidget()
         column = QVBoxLayout(controls)

@@ -60,10 +60,9 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes = self.error_axes
         axes.set_title("errors over steps", fontsize=9)
         axes.set_xlabel("step", fontsize=8)
-        axes.axhline(THRESHOLD, color="tab:red", linestyle="--", linewidth=1,
-                     label=f"{THRESHOLD:g} threshold")
-        self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1,
-                                     label="DHD stop (eps)")
+        self.threshold_line = axes.axhline(THRESHOLD, color="tab:red", linestyle="--",
+                                           linewidth=1)
+        self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1)
         for key, label in ERROR_SERIES:
             (self._lines[key],) = axes.plot([], [], label=label, animated=True)
         axes.set_yscale("log")
@@ -74,10 +73,22 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes.set_xlim(0, 10)
         axes.set_ylim(0.05, 10)
         axes.tick_params(labelsize=7)
-        axes.legend(fontsize=7, loc="upper right")
+        self._label_stop_lines()
         self.posterior_axes.set_title("class posterior", fontsize=9)
         self.posterior_axes.set_ylim(0, 1)
         self.posterior_axes.tick_params(axis="y", labelsize=7)
+
+    def _label_stop_lines(self):
+        """One line when eps is the error threshold (two would lie on top of each other and
+        blend into one of neither colour), else one each."""
+        same = self.eps == THRESHOLD
+        self.threshold_line.set_label(f"{THRESHOLD:g}: threshold and DHD stop (eps)" if same
+                                      else f"{THRESHOLD:g} threshold")
+        self.eps_line.set_label(f"DHD stop (eps {self.eps:g})")
+        self.eps_line.set_visible(not same)
+        handles = [self.threshold_line] + ([] if same else [self.eps_line])
+        handles += [self._lines[key] for key, _ in ERROR_SERIES]
+        self.error_axes.legend(handles=handles, fontsize=7, loc="upper right")
 
     def _relayout(self):
         try:
@@ -134,6 +145,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         if eps != self.eps:
             self.eps = eps
             self.eps_line.set_ydata([eps, eps])
+            self._label_stop_lines()
             self.draw_idle()
 
     def set_run_steps(self, steps, now=False):

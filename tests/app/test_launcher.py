@@ -1,4 +1,5 @@
-"""app.py's logging, without Qt: errors the window shows and uncaught ones reach the log."""
+"""app.py without a window: its options (a user's scene, bad values refused before any work)
+and its logging (errors the window shows and uncaught ones reach the log)."""
 
 import importlib.util
 import sys
@@ -64,3 +65,96 @@ def test_default_log_file_option(launcher, monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
     assert launcher.parse_args([]).log_file == str(tmp_path / "tactile_viz" / "app.log")
     assert launcher.parse_args(["--log-file", ""]).log_file == ""
+
+
+# ---------------------------------------------------------------- options of a user's scene
+@pytest.fixture
+def box_file(tmp_path):
+    import trimesh
+
+    path = tmp_path / "crate.stl"
+    trimesh.creation.box(extents=(6, 3, 2)).export(path)
+    return path
+
+
+@pytest.fixture
+def touches_file(tmp_path):
+    path = tmp_path / "touches.csv"
+    path.write_text("kind,x,y,z,nx,ny,nz\ncontact,0.5,0,1,0,0,1\nnoncontact,2,0.4,0.1,,,\n")
+    return path
+
+
+def _refused(launcher, capsys, argv):
+    """The options ``argv`` end the launcher with status 2 and one line on stderr."""
+    with pytest.raises(SystemExit) as stop:
+        launcher.main(["--log-file", "", *argv])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    return err
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["--object-file", "no_such.stl"], "--object-file no_such.stl: no such file"),
+    (["--prior-file", "{tmp}"], "not a file"),
+    (["--observations", "{tmp}/none.csv"], "--observations"),
+    (["--library-dir", "{tmp}/none"], "no such folder"),
+    (["--seed", "-1"], "--seed must be 0 or more"),
+    (["--steps", "-3"], "--steps must be 0 or more"),
+    (["--seed", "x"], "invalid int value"),
+    (["--library", "known", "--library-dir", "{tmp}"], "not allowed with"),
+    (["--object", "mug_1", "--observations", "{tmp}/t.csv"], "not allowed with"),
+])
+def test_bad_options_exit_2_with_one_line(launcher, capsys, tmp_path, argv, said):
+    argv = [arg.replace("{tmp}", str(tmp_path)) for arg in argv]
+    assert said in _refused(launcher, capsys, argv)
+
+
+def test_screenshot_path_is_checked_first(launcher, capsys, tmp_path):
+    err = _refused(launcher, capsys, ["--object-file", "no_such.stl", "--screenshot",
+                                      str(tmp_path / "none" / "shot.png")])
+    assert "--screenshot" in err and "does not exist" in err
+    (tmp_path / "dir.png").mkdir()
+    assert "is a folder" in _refused(launcher, capsys, ["--screenshot", str(tmp_path / "dir.png")])
+    assert ".png" in _refused(launcher, capsys, ["--screenshot", str(tmp_path / "shot.gif")])
+
+
+def test_broken_mesh_exits_2_before_the_window(launcher, capsys, tmp_path, monkeypatch):
+    pytest.importorskip("PySide6")
+    monkeypatch.setenv("DISPLAY", ":0")  # the display is not reached: the mesh fails first
+    broken = tmp_path / "broken.stl"
+    broken.write_bytes(b"\x00garbage" * 7)
+    for argv in (["--object-file", str(broken)], ["--prior-file", str(broken)]):
+        assert launcher.main(["--log-file", "", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and "broken.stl" in err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_prior_files_add_to_a_library_or_stand_alone(launcher, box_file, tmp_path):
+    from tactile_viz.engine import PriorLibrary
+
+    def names(*argv):
+        return launcher.load_priors(launcher.parse_args(["--log-file", "", *argv])).names
+
+    known = PriorLibrary.bundled("known").names
+    assert names() == known
+    assert names("--prior-file", str(box_file)) == ["crate"]
+    assert names("--library", "known", "--prior-file", str(box_file)) == known + ["crate"]
+    PriorLibrary([PriorLibrary.bundled("novel")["vase_2"]]).save(tmp_path / "saved")
+    assert names("--library-dir", str(tmp_path / "saved"), "--prior-file",
+                 str(box_file)) == ["vase_2", "crate"]
+
+
+def test_scene_from_a_mesh_file_and_from_recorded_touches(launcher, box_file, touches_file):
+    args = launcher.parse_args(["--log-file", "", "--object-file", str(box_file), "--seed", "4",
+                                "--prior-file", str(box_file)])
+    scene = launcher.build_scene(args)
+    assert scene.truth_model.name == "crate" and scene.seed == 4
+    assert scene.library.names == ["crate"]
+    args = launcher.parse_args(["--log-file", "", "--observations", str(touches_file),
+                                "--library", "novel"])
+    scene = launcher.build_scene(args)
+    assert scene.truth is None and scene.recording[0] == str(touches_file)
+    assert len(scene.recording[1]) == 2 and "vase_2" in scene.library.names
+    assert scene.step().step == 1  # the recording's first touch

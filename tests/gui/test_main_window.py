@@ -482,7 +482,7 @@ def test_recorded_touches_step_like_a_session_and_export(qtbot, window, errors, 
     latest = window.scene.latest
     assert latest.step == 4 and latest.pose_error is None and window.scene.session.terminated
     np.testing.assert_array_equal(latest.contacts, other.latest.contacts)
-    assert "pose error -" in window.loop_panel.status_label.text()
+    assert "pose error -" in window.loop_panel.status_label.text().replace("\u00a0", " ")
     assert window.export(tmp_path / "again")
     assert (tmp_path / "again" / "estimate.json").exists() and len(errors) == 1
     window.scene_panel.pose_requested.emit(5)  # a new pose goes back to the simulator

@@ -150,7 +150,9 @@ def _at_1280_by_720(qtbot, window):
 
 
 def test_loop_stays_in_view_when_the_groups_scroll(qtbot, window):
-    _at_1280_by_720(qtbot, window)
+    window.resize(1100, 520)  # below 1280x720 (where they fit, see test_layout.py)
+    qtbot.waitUntil(lambda: window.height() == 520, timeout=5_000)
+    qtbot.wait(50)
     dock = window.controls_dock
     bar = window.panel_scroll.verticalScrollBar()
     assert bar.maximum() > 0  # the other groups do scroll at this size
@@ -174,3 +176,23 @@ def test_no_horizontal_scrolling_at_1280(qtbot, window):
     for panel in _panels(window):
         assert panel.width() >= panel.minimumSizeHint().width()  # nothing clipped sideways
         assert panel.mapTo(dock, QPoint(panel.width() - 1, 0)).x() < dock.width()
+
+
+def test_the_status_line_wraps_between_fields_only(qtbot):
+    from PySide6.QtGui import QTextLayout
+
+    from tactile_viz.gui.panels.loop_panel import wrapped_between_fields
+
+    text = wrapped_between_fields("known | MAP mug_1 | DHD 1.18 | pose error 0.45 | "
+                                  "recon error - | particles 464 | last step 0.03 s")
+    layout = QTextLayout(text)
+    layout.beginLayout()
+    lines = []
+    while (line := layout.createLine()).isValid():
+        line.setLineWidth(150)
+        lines.append(text[line.textStart():line.textStart() + line.textLength()])
+    layout.endLayout()
+    assert len(lines) > 2
+    for line in lines:  # each line is whole fields: "recon error -" and "| particles" not split
+        assert not line.strip(" \u00a0\u2060").startswith("|"), lines
+        assert line.strip() == "" or line.rstrip().endswith(("|", "s")), lines

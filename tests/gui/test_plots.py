@@ -80,3 +80,17 @@ def test_classes_laid_out_before_the_first_step_make_it_a_blit(qtbot):
     plots.update_plots([])  # a reset: the same classes, back at 0
     assert [bar.get_height() for bar in plots._bars] == [0.0] * len(NAMES)
     assert plots._names == NAMES
+
+
+def test_the_stop_line_on_the_threshold_is_one_line_named_for_both(qtbot):
+    plots = _shown_plots(qtbot)
+
+    def legend():
+        return [text.get_text() for text in plots.error_axes.get_legend().get_texts()]
+
+    plots.set_eps(0.6)  # the paper's eps is the error threshold
+    assert not plots.eps_line.get_visible()
+    assert legend()[0] == "0.6: threshold and DHD stop (eps)" and len(legend()) == 4
+    plots.set_eps(0.8)
+    assert plots.eps_line.get_visible()
+    assert legend()[:2] == ["0.6 threshold", "DHD stop (eps 0.8)"] and len(legend()) == 5

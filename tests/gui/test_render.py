@@ -77,3 +77,61 @@ def test_colour_bar_range_follows_the_current_surface(snapshot):
     layers.set_visible("gpis", False)
     assert "variance" not in plotter.scalar_bars
     plotter.close()
+
+
+def _legend_pixels(plotter, layers, image):
+    """The legend box of ``image``, a pixel short of its edges."""
+    height, width = image.shape[:2]
+    left, bottom = layers.legend.GetPosition()
+    box_w, box_h = layers.legend.GetPosition2()
+    return image[round((1 - bottom - box_h) * height) + 2:round((1 - bottom) * height) - 2,
+                 round(left * width) + 2:round((left + box_w) * width) - 2]
+
+
+def test_nothing_drawn_shows_through_the_legend(snapshot):
+    # The same legend over the scene filling the view and over an empty view.
+    plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
+    plotter.set_background("white")
+    layers = ViewportLayers(plotter)
+    layers.show_truth(snapshot.truth)
+    layers.show_snapshot(snapshot.latest)
+    centre = np.asarray(snapshot.truth.translation, dtype=float)
+    views = {"filled": (centre + (3, -3, 2), centre), "empty": (centre + (0, 0, 40),
+                                                               centre + (0, 0, 80))}
+    images = {}
+    for key, (position, focus) in views.items():
+        plotter.camera_position = [tuple(position), tuple(focus), (0, 1, 0)]
+        images[key] = plotter.screenshot(return_img=True)[..., :3].astype(int)
+    plotter.close()
+    behind = _legend_pixels(plotter, layers, images["filled"])
+    assert (np.abs(behind - 255).sum(axis=-1) > 30).mean() > 0.2  # mostly the legend's text
+    whole = images["filled"]
+    assert (np.abs(whole - 255).sum(axis=-1) > 30).mean() > 0.5  # the scene fills the view
+    np.testing.assert_array_equal(behind, _legend_pixels(plotter, layers, images["empty"]))
+
+
+def test_the_target_is_drawn_over_the_surfaces(snapshot):
+    from dataclasses import replace
+
+    from tactile_viz.gui.layers import LAYERS
+
+    # A target behind the truth and the MAP shape (seen from the camera), as a target on the
+    # far side of a known object is: those translucent surfaces all but hid it.
+    centre = np.asarray(snapshot.truth.translation, dtype=float)
+    camera = np.array([14.0, -14.0, 10.0])
+    behind = centre + 2.0 * (centre - camera) / np.linalg.norm(centre - camera)
+    inside = replace(snapshot.latest, target=behind)
+    gold = pv.Color(LAYERS["target"][1]).int_rgb
+    fractions = []
+    for shown in (True, False):
+        plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
+        layers = ViewportLayers(plotter)
+        layers.show_truth(snapshot.truth)
+        layers.show_snapshot(inside)
+        layers.set_visible("target", shown)
+        layers.legend.SetVisibility(False)  # its gold marker is not the target
+        plotter.camera_position = [tuple(camera), tuple(centre), (0, 0, 1)]
+        image = plotter.screenshot(return_img=True)[..., :3].astype(int)
+        fractions.append(_fraction(image, gold, 80))
+        plotter.close()
+    assert fractions[0] > 0.0001 and fractions[0] > 5 * fractions[1], fractions

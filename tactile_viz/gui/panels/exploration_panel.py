@@ -1,7 +1,8 @@
 """The Exploration panel: strategy, preset and the main parameters of a session."""
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QSpinBox
+from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel,
+                               QSpinBox)
 
 from ...engine.exploration import STRATEGIES
 from .base import MARGINS, blocked
@@ -42,8 +43,9 @@ class ExplorationPanel(QGroupBox):
 
     def __init__(self, parent=None):
         super().__init__("Exploration", parent)
-        form = QFormLayout(self)
-        form.setContentsMargins(*MARGINS)
+        grid = QGridLayout(self)  # label, box, label, box: fits a 720-pixel screen
+        grid.setContentsMargins(*MARGINS)
+        grid.setVerticalSpacing(2)
         self.strategy_box = QComboBox()
         self.strategy_box.addItems(list(STRATEGIES))
         self.strategy_box.setToolTip("gpis-dhd: aim where the estimate is least covered "
@@ -56,15 +58,20 @@ class ExplorationPanel(QGroupBox):
                                    "accurate: finer grids, neighbour bins, refinement")
         self.preset_box.activated.connect(
             lambda index: self.preset_chosen.emit(self.preset_box.itemText(index)))
-        form.addRow("strategy", self.strategy_box)
-        form.addRow("preset", self.preset_box)
+        rows = [("strategy", self.strategy_box), ("preset", self.preset_box)]
         self.parameter_boxes = {}
         for name, spec in PARAMETERS.items():
             box = _parameter_box(*spec[1:])
             box.valueChanged.connect(
                 lambda value, n=name: self.parameter_changed.emit(n, value))
-            form.addRow(spec[0], box)
+            rows.append((spec[0], box))
             self.parameter_boxes[name] = box
+        for index, (label, box) in enumerate(rows):
+            row, column = divmod(index, 2)
+            grid.addWidget(QLabel(label), row, 2 * column)
+            grid.addWidget(box, row, 2 * column + 1)
+        grid.setColumnStretch(1, 1)
+        grid.setColumnStretch(3, 1)
 
     def controls(self):
         """The widgets that change the scene."""

@@ -1,7 +1,7 @@
 """The Layers panel: one check box per viewport layer."""
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout
+from PySide6.QtWidgets import QCheckBox, QGridLayout, QGroupBox
 
 from ..layers import LAYERS
 from .base import MARGINS, blocked
@@ -23,15 +23,16 @@ class LayersPanel(QGroupBox):
 
     def __init__(self, parent=None):
         super().__init__("Layers", parent)
-        layout = QVBoxLayout(self)
+        layout = QGridLayout(self)  # two columns: the Controls dock fits a 720-pixel screen
         layout.setContentsMargins(*MARGINS)
         layout.setSpacing(0)
         self.layer_boxes = {}
-        for name, (label, color) in LAYERS.items():
+        rows = (len(LAYERS) + 1) // 2
+        for index, (name, (label, color)) in enumerate(LAYERS.items()):
             box = QCheckBox(label)
             box.setStyleSheet(f"QCheckBox {{ color: {SHOWN_COLORS.get(name, color)}; }}")
             box.toggled.connect(lambda checked, n=name: self.layer_toggled.emit(n, checked))
-            layout.addWidget(box)
+            layout.addWidget(box, index % rows, index // rows)
             self.layer_boxes[name] = box
 
     def sync(self, visible):

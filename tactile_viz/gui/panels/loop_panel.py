@@ -9,6 +9,13 @@ from .base import MARGINS, blocked
 START_TEXT = "Press Step or Run to start touching."
 
 
+def wrapped_between_fields(text):
+    """``text`` whose word wrap may break only between its `` | `` fields (no-break spaces
+    inside them), so that a narrow panel never splits "recon error" from its value. The word
+    joiner keeps a field ending in "-" (no value) from breaking there, before the "|"."""
+    return "\u2060\u00a0| ".join(field.replace(" ", "\u00a0") for field in text.split(" | "))
+
+
 def status_text(snapshot):
     """One line on a step: known or novel, MAP class, DHD, errors, particles, time."""
     recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
@@ -73,8 +80,10 @@ class LoopPanel(QGroupBox):
         self.history_slider.setToolTip("Scrub through the steps taken so far (not while "
                                        "running); the next step continues from the last")
         self.history_slider.valueChanged.connect(self.scrubbed)
-        layout.addWidget(self.step_label)
-        layout.addWidget(self.history_slider)
+        history = QHBoxLayout()
+        history.addWidget(self.step_label)
+        history.addWidget(self.history_slider, 1)
+        layout.addLayout(history)
         layout.addWidget(self.status_label)
 
     def controls(self):
@@ -94,7 +103,7 @@ class LoopPanel(QGroupBox):
             return
         self.step_label.setText(f"step {snapshot.step}"
                                 + (" (terminated)" if snapshot.terminated else ""))
-        self.status_label.setText(status_text(snapshot))
+        self.status_label.setText(wrapped_between_fields(status_text(snapshot)))
 
     def set_history(self, steps):
         """Let the slider cover ``steps`` steps (0: none) and point at the last."""

@@ -2,9 +2,11 @@
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QListWidget, QListWidgetItem,
-                               QPushButton, QVBoxLayout)
+                               QPushButton, QSizePolicy, QVBoxLayout)
 
 from .base import MARGINS, blocked
+
+PRIORS_MIN_HEIGHT = 70  # pixels: four rows
 
 
 class PriorsPanel(QGroupBox):
@@ -32,7 +34,9 @@ class PriorsPanel(QGroupBox):
         layout.setContentsMargins(*MARGINS)
         self.prior_list = QListWidget()
         self.prior_list.setToolTip("Checked priors are the classes the filter considers")
-        self.prior_list.setFixedHeight(150)
+        # The list takes the dock's spare height (it scrolls itself below that).
+        self.prior_list.setMinimumHeight(PRIORS_MIN_HEIGHT)
+        self.prior_list.setSizePolicy(QSizePolicy.Preferred, QSizePolicy.Ignored)
         self.prior_list.itemChanged.connect(
             lambda item: self.prior_toggled.emit(item.text(), item.checkState() == Qt.Checked))
         layout.addWidget(self.prior_list)

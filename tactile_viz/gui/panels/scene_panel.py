@@ -47,12 +47,12 @@ class ScenePanel(QGroupBox):
         self.random_button.clicked.connect(self._on_random)
         self.place_button = QPushButton("Place at seed")
         self.place_button.clicked.connect(lambda: self.pose_requested.emit(self.seed_box.value()))
-        buttons = QHBoxLayout()
-        buttons.addWidget(self.random_button)
-        buttons.addWidget(self.place_button)
+        seed_row = QHBoxLayout()
+        seed_row.addWidget(self.seed_box, 1)
+        seed_row.addWidget(self.random_button)
+        seed_row.addWidget(self.place_button)
         form.addRow("object", self.object_box)
-        form.addRow("seed", self.seed_box)
-        form.addRow(buttons)
+        form.addRow("seed", seed_row)
 
     def controls(self):
         """The widgets that change the scene."""
