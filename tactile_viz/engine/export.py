@@ -5,10 +5,16 @@
 - ``observations.csv``: every touch in the recording format of
   :mod:`~tactile_viz.engine.observation_file` (replaying it reproduces the estimate);
 - ``map_shape.ply``: the MAP prior at its estimated pose, world frame;
-- ``reconstruction.ply``: the GPIS surface, when the object is judged novel;
-- ``estimate.json``: ``map_class``, ``rotation`` (3x3, object to world), ``translation``,
+- ``reconstruction.ply``: the GPIS surface, when the object is judged novel, world frame,
+  marked as a learned shape (``--prior-file`` loads it as the learned prior it is);
+- ``estimate.json``: ``units``, ``map_class``, ``rotation`` (3x3) and ``translation`` (the
+  object frame to the world: the object frame is the prior's bounding-box centre),
+  ``file_to_world`` (4x4: the prior's own mesh file, in its own coordinates, to the world:
+  what to apply to the user's file to place it), ``map_longest_side``,
   ``class_posterior``, ``novel``, ``log_evidence``, ``log_threshold``, and the step, seed,
   strategy, library and parameters it came from.
+
+Every length is in the scene's units (those of the contacts).
 
 Each file is written atomically; a reconstruction file left from an earlier export of a
 known object is removed, so the folder always describes one estimate.
@@ -20,18 +26,27 @@ from pathlib import Path
 
 import trimesh
 
+import numpy as np
+
 from .files import write_atomic
+from .objects import mark_learned
 from .observation_file import format_observations
 
 FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json")
 
 
-def estimate_record(session, snapshot=None):
-    """The JSON-ready estimate of a snapshot (default the latest) of ``session``."""
+def estimate_record(session, snapshot=None, units=None):
+    """The JSON-ready estimate of a snapshot (default the latest) of ``session``;
+    ``units`` names the scene's length unit (None: the mesh files' own)."""
     snapshot = snapshot or session.latest
-    return {"step": snapshot.step, "map_class": snapshot.map_class,
+    model = session.library[snapshot.map_class]
+    object_to_world = np.eye(4)
+    object_to_world[:3, :3], object_to_world[:3, 3] = snapshot.map_rotation, snapshot.map_translation
+    return {"units": units, "step": snapshot.step, "map_class": snapshot.map_class,
             "rotation": snapshot.map_rotation.tolist(),
             "translation": snapshot.map_translation.tolist(),
+            "file_to_world": (object_to_world @ model.file_to_object).tolist(),
+            "map_longest_side": model.length,
             "class_posterior": {name: float(p) for name, p in snapshot.class_posterior.items()},
             "novel": bool(snapshot.novel), "log_evidence": float(snapshot.log_evidence),
             "log_threshold": float(snapshot.log_threshold),
@@ -44,7 +59,7 @@ def _ply(vertices, faces):
     return trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")
 
 
-def export_session(session, folder):
+def export_session(session, folder, units=None):
     """Write the latest estimate of ``session`` and its touches to ``folder``.
 
     Parameters
@@ -53,6 +68,8 @@ def export_session(session, folder):
         With at least one step.
     folder : path-like
         Created when missing.
+    units : str, optional
+        The scene's length unit, written into the files (None: the mesh files' own).
 
     Returns
     -------
@@ -68,16 +85,17 @@ def export_session(session, folder):
     try:
         folder.mkdir(parents=True, exist_ok=True)
         written = [write_atomic(folder / "observations.csv",
-                                format_observations(session.recorded_steps()).encode()),
+                                format_observations(session.recorded_steps(),
+                                                    units).encode()),
                    write_atomic(folder / "map_shape.ply",
                                 _ply(snapshot.map_vertices, snapshot.map_faces))]
         reconstruction = folder / "reconstruction.ply"
         if snapshot.gpis_faces is not None and len(snapshot.gpis_faces):
-            written.append(write_atomic(reconstruction,
-                                        _ply(snapshot.gpis_vertices, snapshot.gpis_faces)))
+            written.append(write_atomic(reconstruction, mark_learned(
+                _ply(snapshot.gpis_vertices, snapshot.gpis_faces))))
         elif reconstruction.exists():
             os.remove(reconstruction)
-        text = json.dumps(estimate_record(session, snapshot), indent=1)
+        text = json.dumps(estimate_record(session, snapshot, units), indent=1)
         written.append(write_atomic(folder / "estimate.json", text.encode()))
     except OSError as error:
         raise SessionError(f"cannot export to {folder}: {error}") from error

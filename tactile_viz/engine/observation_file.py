@@ -2,6 +2,7 @@
 
 The format (documented in the README)::
 
+    # units: mm
     step,kind,x,y,z,nx,ny,nz
     1,contact,0.51,-0.2,1.3,0.0,0.6,0.8
     2,noncontact,2.0,0.4,0.1,,,
@@ -14,7 +15,9 @@ passed through without touching; it only carves the reconstruction's prior and i
 observation of the filter; optional). The ``step`` column is optional: rows with the same
 step are one update of the filter; without it every row is a step of its own (a ``free`` row
 then joins the step of the next observation). Every other column, blank lines and lines
-starting with ``#`` are errors or ignored as stated in :func:`read_observations`.
+starting with ``#`` are errors or ignored as stated in :func:`read_observations`. An
+optional comment ``# units: NAME`` before the header names the positions' unit (m, cm, mm,
+in); readers convert them to the scene's unit.
 """
 
 import csv
@@ -26,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ObservationError
+from .meshes import UNITS
 from .files import write_atomic
 from .observations import Contact, NonContact
 
@@ -117,7 +121,25 @@ def _rows(reader, path):
             raise ObservationFileError(path, reader.line_num, f"not CSV: {error}") from None
 
 
-def parse_observations(text, path="<text>"):
+def file_units(text, path="<text>"):
+    """The unit a ``# units: NAME`` comment before the header names, or None."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            return None
+        key, _, value = stripped.lstrip("#").partition(":")
+        if key.strip().lower() == "units":
+            name = value.strip().lower()
+            if name not in UNITS:
+                raise ObservationFileError(path, number, f"unknown units {value.strip()!r}: "
+                                                         f"use one of {', '.join(UNITS)}")
+            return name
+    return None
+
+
+def parse_observations(text, path="<text>", scale=1.0):
     """The steps of a recording given as CSV text; see :func:`read_observations`."""
     reader = csv.reader(io.StringIO(text))
     columns, steps, keys = None, [], []
@@ -135,6 +157,7 @@ def parse_observations(text, path="<text>"):
                                            f"column), got {','.join(columns)}")
             continue
         step, kind, position, normal = _row(row, columns, path, line)
+        position = [scale * value for value in position] if scale != 1.0 else position
         key = step if step is not None else len(keys) + 1
         if keys and key != keys[-1] and key < keys[-1]:
             raise ObservationFileError(path, line, f"steps must not decrease (step {key} "
@@ -167,13 +190,16 @@ def parse_observations(text, path="<text>"):
     return steps
 
 
-def read_observations(path):
+def read_observations(path, units=None):
     """Read a recording of touches.
 
     Parameters
     ----------
     path : str or Path
         A CSV file with the header ``kind,x,y,z,nx,ny,nz`` (and optionally ``step``).
+    units : str, optional
+        The scene's unit (a name of ``UNITS``): positions of a file whose ``# units:``
+        comment names another are converted to it. None: positions as written.
 
     Returns
     -------
@@ -191,15 +217,21 @@ def read_observations(path):
         text = Path(path).read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as error:
         raise ObservationFileError(path, None, f"cannot read the file ({error})") from None
-    return parse_observations(text, path)
+    scale = 1.0
+    written = file_units(text, path)
+    if units is not None and written is not None:
+        scale = UNITS[written] / UNITS[units]
+    return parse_observations(text, path, scale)
 
 
-def format_observations(steps):
+def format_observations(steps, units=None):
     """CSV text of recorded steps (a ``step`` column, numbers written exactly).
 
     Parameters
     ----------
     steps : iterable of RecordedStep or (observations, free_space)
+    units : str, optional
+        Written as a ``# units:`` comment.
 
     Returns
     -------
@@ -207,6 +239,8 @@ def format_observations(steps):
     """
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
+    if units is not None:
+        out.write(f"# units: {units}\n")
     writer.writerow(("step", *HEADER))
     for number, step in enumerate(steps, start=1):
         observations, free_space = (step.observations, step.free_space) if isinstance(
@@ -223,9 +257,9 @@ def format_observations(steps):
     return out.getvalue()
 
 
-def write_observations(path, steps):
+def write_observations(path, steps, units=None):
     """Write recorded steps to ``path`` atomically; see :func:`format_observations`."""
-    return write_atomic(path, format_observations(steps).encode("utf-8"))
+    return write_atomic(path, format_observations(steps, units).encode("utf-8"))
 
 
 __all__ = ["HEADER", "KINDS", "ObservationFileError", "RecordedStep", "format_observations",

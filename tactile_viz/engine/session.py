@@ -703,7 +703,7 @@ class Session:
                  if len(points)]
         surprise = isinstance(touched, Contact) and min(
             cKDTree(points).query(touched.position)[0]
-            for points in known) > self._p.contact_spacing
+            for points in known) > self._new_ground()
         if surprise:
             self._checks_passed = 0
             self._grow_frontier(touched)
@@ -725,13 +725,20 @@ class Session:
         """After a frontier target: a contact on new ground grows the frontier from it."""
         contacts = self.filter.contact_positions
         if (self._frontier_target and isinstance(touched, Contact) and len(contacts)
-                and cKDTree(contacts).query(touched.position)[0] > self._p.contact_spacing):
+                and cKDTree(contacts).query(touched.position)[0] > self._new_ground()):
             self._grow_frontier(touched)
+
+    def _new_ground(self):
+        """How far from the estimate and every contact a touch is on ground nothing
+        predicted: ``contact_spacing``, at least ``eps / 2`` (equal at the paper's values;
+        with a larger eps the estimate may lie farther off, and a frontier grown eps at a
+        time in four directions would tile the surface ever finer)."""
+        return max(self._p.contact_spacing, self._p.eps / 2)
 
     def _grow_frontier(self, contact):
         """Queue targets ``eps`` from a contact on a part that nothing predicted, along
         four tangent directions: following them maps the part out, as a hand runs along a
-        rail it bumped into (beyond the paper). Places within ``contact_spacing`` of a
+        rail it bumped into (beyond the paper). Places within :meth:`_new_ground` of a
         contact, a given-up target or a queued target are skipped."""
         normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
         helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
@@ -742,7 +749,7 @@ class Session:
             taken = np.vstack([self.filter.contact_positions, contact.position[None],
                                np.reshape(self._given_up_targets, (-1, 3)),
                                np.reshape([p for p, _ in self._frontier], (-1, 3))])
-            if cKDTree(taken).query(point)[0] > self._p.contact_spacing:
+            if cKDTree(taken).query(point)[0] > self._new_ground():
                 self._frontier.append((point, normal))
 
     def _reached(self, observations, contacts):

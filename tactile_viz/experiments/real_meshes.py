@@ -41,6 +41,7 @@ import trimesh
 from ..cli import ExtendList
 from ..engine.errors import MeshError, TactileVizError
 from ..engine.exploration import STRATEGIES
+from ..engine.meshes import LONGEST_SIDE
 from ..engine.session import SESSION_PRESETS
 from .paper import split_names
 from .trial_files import read_trial, trial_files, write_trial
@@ -173,7 +174,8 @@ def load_entry(root, entry, rng=0):
     reasons = []
     for relative in entry.files:
         try:
-            model = ObjectModel.from_file(Path(root) / relative, name=entry.name)
+            model = ObjectModel.from_file(Path(root) / relative, name=entry.name,
+                                          longest_side=LONGEST_SIDE)
             fraction = check_inner_surface(model, relative, rng)
         except MeshError as error:
             reasons.append(f"{relative}: {error.reason}")
@@ -272,7 +274,7 @@ def task_key(task):
 def _model(path, name):
     from ..engine.objects import ObjectModel
 
-    return ObjectModel.from_file(path, name=name)
+    return ObjectModel.from_file(path, name=name, longest_side=LONGEST_SIDE)
 
 
 @functools.lru_cache(maxsize=4)

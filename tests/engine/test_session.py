@@ -117,7 +117,7 @@ def _last_reconstruction(session):
 def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     last, params = _last_reconstruction(novel_session), novel_session.params
     # Refitting from the snapshot (contacts, MAP prior, kernel scale) gives the step's surface.
-    vertices, faces = novel_session._surface_at(last, params.gpis_resolution)
+    vertices, faces = novel_session._surface_at(last, last.gpis_resolution)
     np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
     np.testing.assert_array_equal(faces, last.gpis_faces)
     fine = novel_session.learned_model("fine", last, resolution=2 * params.gpis_resolution)
