@@ -7,6 +7,8 @@ A *task* is a plain dict (picklable, mostly JSON)::
      "preset": "paper", "library": "known", "extra_priors": [], "params": None,
      "max_steps": None, "poisson": True, "learn_as": None}
 
+``sizes`` (optional) maps bundled names to a longest side in scene units (metres in
+``bench sizes``): the object and the bundled priors of those names are scaled to it.
 ``extra_priors`` holds ``{"name", "vertices", "faces"}`` models added to the bundled library
 (the learned prior travels this way, so remote workers need no shared disk); ``params`` is a
 ``SessionParams.to_dict()`` that replaces the preset's values. :func:`run_task` runs one
@@ -30,12 +32,15 @@ TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
 def make_task(object_name, strategy="gpis-dhd", seed=0, preset="paper", kind="protocol",
               library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
-              learn_as=None, poisson_depth=9):
+              learn_as=None, poisson_depth=9, sizes=None):
     """A task dict (see the module docstring)."""
-    return {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
+    task = {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
             "preset": preset, "library": library, "extra_priors": list(extra_priors),
             "params": params, "max_steps": max_steps, "poisson": bool(poisson),
             "poisson_depth": int(poisson_depth), "learn_as": learn_as}
+    if sizes:
+        task["sizes"] = {str(name): float(size) for name, size in sizes.items()}
+    return task
 
 
 def library_label(task):
@@ -50,28 +55,36 @@ def task_key(task):
              task["preset"] + (f"-{tag}" if tag else ""), f"s{task['seed']}"]
     if task["max_steps"] is not None:
         parts.append(f"m{task['max_steps']}")
+    if task.get("sizes"):
+        parts.append("sized")
     return "__".join(parts)
 
 
 @functools.lru_cache(maxsize=8)
-def _bundled_library(which):
+def _bundled_library(which, sizes=()):
     from ..engine.library import PriorLibrary
+    from ..engine.objects import bundled_names
 
-    return PriorLibrary.bundled(which)
+    return PriorLibrary(_bundled_model(name, dict(sizes).get(name))
+                        for name in bundled_names(which))
 
 
 @functools.lru_cache(maxsize=64)
-def _bundled_model(name):
+def _bundled_model(name, size=None):
     from ..engine.objects import load_bundled
 
-    return load_bundled(name)
+    return load_bundled(name, size=size)
+
+
+def _sizes(task):
+    return tuple(sorted((task.get("sizes") or {}).items()))
 
 
 def task_library(task):
     """The :class:`PriorLibrary` of a task: a bundled set plus its extra priors."""
     from ..engine.library import PriorLibrary
 
-    library = PriorLibrary(list(_bundled_library(task["library"])))
+    library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,
@@ -124,7 +137,8 @@ def run_task(task, progress=False):
     meta["library_label"] = library_label(task)
     try:
         params = SessionParams.from_dict(task["params"]) if task["params"] else None
-        result = run_trial(_bundled_model(task["object"]), task_library(task),
+        size = dict(_sizes(task)).get(task["object"])
+        result = run_trial(_bundled_model(task["object"], size), task_library(task),
                            task["strategy"], task["seed"], task["preset"], task["max_steps"],
                            progress=progress, params=params, finish=_finisher(task))
     except Exception:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cli import ExtendList
+from ..engine.meshes import LONGEST_SIDE
 from .aggregate import markdown_table
 from .paper import machine_description
 
@@ -51,7 +52,8 @@ def library_of_size(count, seed=0):
         stretch = np.exp(rng.uniform(np.log(0.75), np.log(4 / 3), size=3))
         models.append(ObjectModel.from_arrays(source.mesh.vertices * stretch, source.mesh.faces,
                                               f"{source.name}_variant{index // len(base)}",
-                                              source.params, source.cache))
+                                              source.params, source.cache,
+                                              longest_side=LONGEST_SIDE))
     return PriorLibrary(models)
 
 
