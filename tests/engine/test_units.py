@@ -1,0 +1,128 @@
+"""Real sizes and units: meshes keep their size, lengths scale with it, poses map back to
+the user's file, recordings and exports say their units."""
+
+import re
+
+import numpy as np
+import pytest
+import trimesh
+
+from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.cache import ArrayCache
+from tactile_viz.engine.export import estimate_record, export_session
+from tactile_viz.engine.metrics import error_threshold
+from tactile_viz.engine.objects import is_learned_file, load_bundled
+from tactile_viz.engine.observation_file import format_observations, read_observations
+from tactile_viz.engine.params import (FilterParams, SessionParams, length_fields,
+                                       scaled_lengths)
+from tactile_viz.engine.session import RecordedSession, Session, make_truth
+from tactile_viz.engine.simulator import ContactSimulator, random_touch
+
+
+@pytest.fixture(scope="module")
+def metric_mugs():
+    """mug_1 at 10 and 20 cm (two classes of one shape) and a 25 cm bottle, metres."""
+    small = load_bundled("mug_1", size=0.10).renamed("mug_small")
+    large = load_bundled("mug_1", size=0.20).renamed("mug_large")
+    return PriorLibrary([small, large, load_bundled("bottle_1", size=0.25)])
+
+
+@pytest.mark.parametrize("name", ["mug_small", "mug_large"])
+def test_a_scaled_twin_is_another_class(metric_mugs, name):
+    truth = make_truth(metric_mugs[name], rng=[1, 0])
+    session = Session(truth, metric_mugs, seed=1)
+    snapshot = session.run(max_steps=25)
+    assert snapshot.map_class == name and not snapshot.novel
+    assert snapshot.translation_error < 0.1 * metric_mugs[name].length
+
+
+def test_lengths_scale_with_the_objects(metric_mugs):
+    session = Session(make_truth(metric_mugs["mug_small"], rng=0), metric_mugs, seed=0)
+    assert metric_mugs.reference_size == pytest.approx(0.20)
+    assert session.filter.params.sigma_d == pytest.approx(0.5 * 0.20 / 6)
+    assert session.simulator.tolerance == pytest.approx(0.10 / 600)
+    session.run(max_steps=3)
+    unit = metric_mugs[session.latest.map_class].length / 6
+    assert session._p.eps == pytest.approx(0.6 * unit)
+    assert session._p.gpis_noise == pytest.approx(1e-4 * unit**2)
+    fixed = Session(None, metric_mugs, params=SessionParams(length_unit=1.0))
+    assert fixed.filter.params.sigma_d == 0.5 and fixed._p.eps == 0.6
+
+
+def test_paper_objects_keep_the_paper_values():
+    library = PriorLibrary.bundled("known")
+    session = Session(None, library)
+    assert library.reference_size == 6.0
+    assert session.filter.params == FilterParams() and session._p == SessionParams()
+    assert error_threshold(6.0) == 0.6
+    params = SessionParams()
+    assert scaled_lengths(params, 1.0) is params
+
+
+def test_every_length_parameter_states_its_unit():
+    for cls in (FilterParams, SessionParams):
+        lengths = length_fields(cls)
+        assert lengths, cls
+        for name in lengths:
+            assert re.search(rf"\n\s+{name} : float, [^\n]*size unit", cls.__doc__), name
+    assert length_fields(SessionParams)["gpis_noise"] == 2
+
+
+def test_a_pose_maps_back_to_the_users_file(tmp_path):
+    """A mesh in millimetres, off-centre, loaded into a metric scene: the exported
+    file_to_world puts the file's own vertices where the object is."""
+    # An irregular block (no symmetry that would make vertex correspondences ambiguous).
+    points = np.random.default_rng(7).uniform([-30, -15, -8], [30, 15, 8], size=(40, 3))
+    box = trimesh.convex.convex_hull(points)  # mm
+    box.apply_translation([100.0, -40.0, 25.0])
+    path = tmp_path / "block_mm.stl"
+    box.export(path)
+    block = ObjectModel.from_file(path, scale=0.001, cache=ArrayCache(tmp_path))
+    assert block.length == pytest.approx(box.extents.max() / 1000)
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=20.0)
+    library = PriorLibrary([block, ObjectModel.from_arrays(ball.vertices, ball.faces, "ball",
+                                                           cache=block.cache, scale=0.001)])
+    truth = make_truth(block, rng=[2, 0])
+    session = Session(truth, library, seed=2)
+    session.run(max_steps=20)
+    assert session.latest.map_class == "block_mm"
+    file_to_world = np.array(estimate_record(session, units="m")["file_to_world"])
+    placed = trimesh.transform_points(box.vertices, file_to_world)
+    actual = truth.to_world(trimesh.transform_points(box.vertices, block.file_to_object))
+    assert np.abs(placed - actual).max() < error_threshold(block.length)
+
+
+def test_a_metric_recording_is_recognised_against_a_metric_library(metric_mugs, tmp_path):
+    truth = make_truth(metric_mugs["mug_large"], rng=[3, 0])
+    simulator = ContactSimulator(truth)
+    rng = np.random.default_rng(3)
+    steps = [[simulator.probe(random_touch(truth, rng))] for _ in range(20)]
+    path = tmp_path / "touches.csv"
+    path.write_text(format_observations([(s, np.zeros((0, 3))) for s in steps], units="m"))
+    recorded = read_observations(path, units="m")
+    in_mm = read_observations(path, units="mm")  # the same file read into a millimetre scene
+    np.testing.assert_allclose(in_mm[0].observations[0].position,
+                               1000 * recorded[0].observations[0].position)
+    session = RecordedSession(recorded, metric_mugs, seed=3)
+    session.run()
+    assert session.latest.map_class == "mug_large" and not session.latest.novel
+
+
+def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.05)
+    box = trimesh.creation.box(extents=(0.12, 0.06, 0.06))
+    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
+                                                    cache=ArrayCache(tmp_path))])
+    truth_model = ObjectModel.from_arrays(sphere.vertices, sphere.faces, "ball",
+                                          cache=library["box"].cache)
+    session = Session(make_truth(truth_model, rng=0), library, seed=0)
+    session.run(max_steps=12)
+    assert session.latest.novel
+    export_session(session, tmp_path / "out", units="m")
+    path = tmp_path / "out" / "reconstruction.ply"
+    assert is_learned_file(path)
+    learned = ObjectModel.from_file(path, longest_side=6.0)  # never normalised
+    assert learned.learned and learned.length == pytest.approx(0.1, rel=0.3)
+    first = read_observations(tmp_path / "out" / "observations.csv", units="mm")[0]
+    np.testing.assert_allclose(first.observations[0].position,
+                               1000 * session.snapshots[0].new_observations[0].position)
