@@ -21,8 +21,11 @@ from ..engine.errors import LibraryError
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.library import PriorLibrary
+from ..engine.meshes import UNITS
+from ..engine.metrics import error_threshold
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.observation_file import read_observations
+from ..engine.params import PAPER_SIZE, FilterParams, SessionParams, length_fields
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
 
@@ -31,6 +34,22 @@ log = logging.getLogger(__name__)
 FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
 SESSION_KNOBS = ("eps",)
 LOADED_PRESET = "loaded session"  # the base parameters of a loaded session that match no preset
+SCENE_UNITS = "scene units"  # the name of the scene's length unit when it has none
+
+
+def knob_length_power(name):
+    """The power of length of a main knob's unit (0: not a length), from the parameters'
+    field metadata: 1 for ``sigma_d`` and ``eps``, which are in size units."""
+    if name not in FILTER_KNOBS + SESSION_KNOBS:
+        raise ValueError(f"unknown parameter {name!r}")
+    return length_fields(FilterParams if name in FILTER_KNOBS else SessionParams).get(name, 0)
+
+
+def knob_size_reference(name):
+    """What a length knob's size unit is a sixth of: the priors' median longest side for
+    the filter's lengths, the MAP object's longest side for the session's."""
+    return ("the priors' median longest side" if name in FILTER_KNOBS
+            else "the estimated object's longest side")
 
 
 class Signal:
@@ -64,10 +83,14 @@ class Scene:
         Seeds the truth's pose and the session.
     library : PriorLibrary, optional
         The priors (default: the bundled known set).
+    units : str, optional
+        The name of the scene's length unit where it has one (a key of
+        :data:`tactile_viz.engine.meshes.UNITS`, e.g. ``"m"``), shown on the plots and written
+        to exports; None: "scene units".
     """
 
     def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
-                 preset="paper", truth_model=None):
+                 preset="paper", truth_model=None, units=None):
         self.truth_changed = Signal()
         self.library_changed = Signal()
         self.settings_changed = Signal()
@@ -77,6 +100,9 @@ class Scene:
         self.enabled = {name: True for name in self.library.names}
         self.truth_model = truth_model if truth_model is not None else load_bundled(truth_name)
         self.seed = int(seed)
+        if units is not None and units not in UNITS:
+            raise ValueError(f"unknown units {units!r}: use one of {', '.join(UNITS)}")
+        self.units = units
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
         self.recording = None  # (source, recorded steps) while replaying a recording
         if strategy not in STRATEGIES:
@@ -141,6 +167,62 @@ class Scene:
         self.overrides = {}
         log.info("preset %s", preset)
         self._settings_changed()
+
+    # ------------------------------------------------------------------ lengths
+    @property
+    def unit_name(self):
+        """The scene's length unit as a view names it ("scene units" without a name)."""
+        return self.units or SCENE_UNITS
+
+    @property
+    def session_params(self):
+        """The parameters of the current session (the scene's before one is made)."""
+        return self.session.params if self.session is not None else self.params
+
+    def map_model(self, snapshot=None):
+        """The MAP object of ``snapshot`` (default the latest), None before a step."""
+        snapshot = snapshot or self.latest
+        if snapshot is None or self.session is None:
+            return None
+        library = self.session.library
+        if snapshot.map_class in library:
+            return library[snapshot.map_class]
+        names = self.session.filter.class_names  # a shape the filter holds beyond the library
+        return self.session.filter.models[names.index(snapshot.map_class)]
+
+    def _reference_size(self):
+        """The active priors' median longest side (the filter's size before a step)."""
+        for library in (self.session.library if self.session is not None else None,
+                        self.active_library(), self.library):
+            if library is not None and len(library):
+                return library.reference_size
+        return PAPER_SIZE
+
+    def truth_size(self, snapshot=None):
+        """The longest side (scene units) errors are judged against: the simulated truth's,
+        else the MAP object's of ``snapshot`` (default the latest), else the priors' median."""
+        if self.truth is not None:
+            return self.truth.model.length
+        model = self.map_model(snapshot)
+        return model.length if model is not None else self._reference_size()
+
+    def error_threshold(self, snapshot=None):
+        """The success threshold in scene units: 10% of :meth:`truth_size`."""
+        return error_threshold(self.truth_size(snapshot))
+
+    def size_unit(self, snapshot=None):
+        """Scene units per size unit of the session's lengths at ``snapshot`` (default the
+        latest): ``length_unit``, else a sixth of the MAP object's longest side, else (no
+        step yet) of the priors' median longest side, as the session scales them."""
+        params = self.session_params
+        if params.length_unit:
+            return float(params.length_unit)
+        model = self.map_model(snapshot)
+        return model.size_unit if model is not None else self._reference_size() / PAPER_SIZE
+
+    def eps_length(self, snapshot=None):
+        """The DHD stop (eps) in scene units at ``snapshot`` (default the latest)."""
+        return self.session_params.eps * self.size_unit(snapshot)
 
     # ------------------------------------------------------------------ truth
     @staticmethod
@@ -272,7 +354,7 @@ class Scene:
         :func:`tactile_viz.engine.export_session`); returns the files written."""
         if self.session is None or self.session.step_count == 0:
             raise SessionError("nothing to export: the session has not started")
-        written = export_session(self.session, folder)
+        written = export_session(self.session, folder, units=self.units)
         log.info("exported step %d to %s", self.session.step_count, folder)
         return written
 
@@ -359,4 +441,4 @@ class Scene:
         return LOADED_PRESET, {}
 
 
-__all__ = ["Scene", "Signal"]
+__all__ = ["SCENE_UNITS", "Scene", "Signal", "knob_length_power", "knob_size_reference"]

@@ -31,6 +31,7 @@ from ..engine.errors import TactileVizError
 from ..engine.session import Session
 from .layers import ViewportLayers
 from .panels import ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel, ScenePanel, status_text
+from .panels.loop_panel import format_length
 from .panels.base import blocked
 from .plots import PlotsWidget
 from .recording import Recorder, widget_frame
@@ -464,7 +465,9 @@ class MainWindow(QMainWindow):
         self.progress.setFormat("step %v of %m")
         self.progress.setToolTip("Steps taken of the step cap (known or novel)")
         self.dhd_label = QLabel()
-        self.dhd_label.setToolTip("Termination: the run stops when the DHD falls below eps")
+        self.dhd_label.setToolTip("Termination: the run stops when the DHD falls below eps. "
+                                  "Both in scene units: eps (set in size units) times a "
+                                  "sixth of the estimated object's longest side")
         self.statusBar().addPermanentWidget(self.dhd_label)
         self.statusBar().addPermanentWidget(self.progress)
 
@@ -674,24 +677,28 @@ class MainWindow(QMainWindow):
             self._show_step(snapshots[step - 1])
 
     def _update_status(self, snapshot):
-        self.loop_panel.show_snapshot(snapshot)
+        # Lengths in scene units: the errors against the truth's size, the DHD against eps
+        # scaled by the MAP object's (the priors' before a step), as the session does.
+        scene = self.scene
+        size, eps = scene.truth_size(snapshot), scene.eps_length(snapshot)
+        self.loop_panel.show_snapshot(snapshot, size)
+        self.plots.set_unit_name(scene.unit_name)
+        self.plots.set_stop_lines(scene.error_threshold(snapshot), eps)
         learn_button = self.priors_panel.learn_button
         if snapshot is None:
-            eps = self.scene.parameter("eps")
             self.statusBar().showMessage("new session: press Step or Run to start touching",
                                          STATUS_SECONDS)
             learn_button.setEnabled(False)
-            self._set_progress(0, self.scene.params.max_steps_known)
-            self.dhd_label.setText(f"DHD - / eps {eps:.2f}")
-            self.plots.set_eps(eps)
+            self._set_progress(0, scene.params.max_steps_known)
+            self.dhd_label.setText(f"DHD - / eps {format_length(eps, size)}")
             return
-        self.statusBar().showMessage(status_text(snapshot))
-        params = self.scene.session.params if self.scene.session is not None else self.scene.params
+        self.statusBar().showMessage(status_text(snapshot, size))
+        params = scene.session_params
         cap = params.max_steps_novel if snapshot.novel else params.max_steps_known
         self._set_progress(snapshot.step, max(cap, snapshot.step))
-        self.dhd_label.setText(f"DHD {snapshot.dhd:.2f} / eps {params.eps:.2f}")
-        self.plots.set_eps(params.eps)
-        learn_button.setEnabled(not self.running and self.scene.can_learn())
+        self.dhd_label.setText(f"DHD {format_length(snapshot.dhd, size)} / "
+                               f"eps {format_length(eps, size)}")
+        learn_button.setEnabled(not self.running and scene.can_learn())
 
     def _set_progress(self, value, maximum):
         """Without QProgressBar's synchronous repaint, which repaints the whole window (the

@@ -6,6 +6,10 @@ steps (the step axis by 50, the error axis by decades), so most updates change o
 and the lines: those are blitted onto a saved background (a few milliseconds) instead of
 redrawing the axes, ticks and text (over 100 ms, which would block the event loop). A full
 draw is left to ``draw_idle`` so that it happens in its own pass of the event loop.
+
+Errors are in scene units: the threshold line is 10% of the truth's longest side and the DHD
+stop is eps (size units) times a sixth of the MAP object's longest side, both given by the
+window (:meth:`PlotsWidget.set_stop_lines`, from the scene); the axis names the unit.
 """
 
 import math
@@ -17,11 +21,13 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
+from ..app.scene import SCENE_UNITS
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.params import SessionParams
 
 # The error axis of a run spans at least these decades (errors and the DHD of a run on
-# objects 6 units long stay within them), so that it does not change while the run is drawn.
+# objects 6 units long stay within them), so that it does not change while the run is drawn;
+# scaled with the threshold for objects of other sizes.
 RUN_ERROR_RANGE = (0.01, 10.0)
 ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
                 ("recon_error", "reconstruction error"))
@@ -46,7 +52,9 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._last_snapshots = []
         self.last_draw_seconds = 0.0
         self.draw_log = deque(maxlen=10_000)  # (perf_counter at the start, seconds) per draw
-        self.eps = SessionParams().eps
+        self.eps = SessionParams().eps  # the DHD stop, scene units
+        self.threshold = THRESHOLD  # the error threshold, scene units
+        self.unit_name = SCENE_UNITS
         self.run_steps = None  # the step axis' fixed end while a run is drawn
         self.blits = 0  # updates drawn by blitting (the rest are full draws)
         self._background = None  # the figure without the bars and lines, after a full draw
@@ -60,7 +68,8 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes = self.error_axes
         axes.set_title("errors over steps", fontsize=9)
         axes.set_xlabel("step", fontsize=8)
-        self.threshold_line = axes.axhline(THRESHOLD, color="tab:red", linestyle="--",
+        axes.set_ylabel(f"error [{self.unit_name}]", fontsize=8)
+        self.threshold_line = axes.axhline(self.threshold, color="tab:red", linestyle="--",
                                            linewidth=1)
         self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1)
         for key, label in ERROR_SERIES:
@@ -81,10 +90,11 @@ class PlotsWidget(FigureCanvasQTAgg):
     def _label_stop_lines(self):
         """One line when eps is the error threshold (two would lie on top of each other and
         blend into one of neither colour), else one each."""
-        same = self.eps == THRESHOLD
-        self.threshold_line.set_label(f"{THRESHOLD:g}: threshold and DHD stop (eps)" if same
-                                      else f"{THRESHOLD:g} threshold")
-        self.eps_line.set_label(f"DHD stop (eps {self.eps:g})")
+        same = math.isclose(self.eps, self.threshold, rel_tol=1e-9)
+        threshold = f"{self.threshold:.3g}"
+        self.threshold_line.set_label(f"{threshold}: threshold and DHD stop (eps)" if same
+                                      else f"{threshold} threshold")
+        self.eps_line.set_label(f"DHD stop (eps {self.eps:.3g})")
         self.eps_line.set_visible(not same)
         handles = [self.threshold_line] + ([] if same else [self.eps_line])
         handles += [self._lines[key] for key, _ in ERROR_SERIES]
@@ -118,7 +128,7 @@ class PlotsWidget(FigureCanvasQTAgg):
 
     def _current_layout(self):
         return (self.error_axes.get_xlim(), self.error_axes.get_ylim(), self._names, self.eps,
-                self.width(), self.height())
+                self.threshold, self.unit_name, self.width(), self.height())
 
     def _refresh(self):
         """Blit the bars and lines when nothing else changed, else ask for a full draw."""
@@ -140,12 +150,29 @@ class PlotsWidget(FigureCanvasQTAgg):
 
     # ------------------------------------------------------------------ updates
     def set_eps(self, eps):
-        """Move the DHD stop line to ``eps`` (the session's termination threshold)."""
-        eps = float(eps)
-        if eps != self.eps:
-            self.eps = eps
+        """Move the DHD stop line to ``eps`` (the session's termination threshold, scene
+        units)."""
+        self.set_stop_lines(self.threshold, eps)
+
+    def set_stop_lines(self, threshold, eps):
+        """Draw the error threshold at ``threshold`` and the DHD stop at ``eps`` (scene
+        units: 10% of the truth's size, eps times a sixth of the MAP object's size)."""
+        threshold, eps = float(threshold), float(eps)
+        if (threshold, eps) != (self.threshold, self.eps):
+            self.threshold, self.eps = threshold, eps
+            self.threshold_line.set_ydata([threshold, threshold])
             self.eps_line.set_ydata([eps, eps])
             self._label_stop_lines()
+            self._show_errors(self._last_snapshots)  # the axis spans both lines
+            self.draw_idle()
+
+    def set_unit_name(self, name):
+        """Name the errors' length unit on the axis ("scene units", "m", ...)."""
+        name = name or SCENE_UNITS
+        if name != self.unit_name:
+            self.unit_name = name
+            self.error_axes.set_ylabel(f"error [{name}]", fontsize=8)
+            self._relayout()
             self.draw_idle()
 
     def set_run_steps(self, steps, now=False):
@@ -229,14 +256,15 @@ class PlotsWidget(FigureCanvasQTAgg):
             values.append(series[np.isfinite(series) & (series > 0)])
         axes = self.error_axes
         last = self._steps[-1] if self._steps else 0
-        values = np.concatenate(values + [np.array([THRESHOLD, self.eps])])
-        low = max(1e-3, 10.0 ** math.floor(math.log10(values.min() / 1.5)))
+        values = np.concatenate(values + [np.array([self.threshold, self.eps])])
+        scale = self.threshold / THRESHOLD  # the object's size against the paper's 6
+        low = max(1e-3 * scale, 10.0 ** math.floor(math.log10(values.min() / 1.5)))
         high = 10.0 ** math.ceil(math.log10(values.max() * 1.5))
         if self.run_steps is not None:
             axes.set_xlim(0, max(self.run_steps, last))
             current = axes.get_ylim()
-            low = min(low, current[0], RUN_ERROR_RANGE[0])
-            high = max(high, current[1], RUN_ERROR_RANGE[1])
+            low = min(low, current[0], RUN_ERROR_RANGE[0] * scale)
+            high = max(high, current[1], RUN_ERROR_RANGE[1] * scale)
         else:
             axes.set_xlim(0, 10 if last < 10 else 50 * math.ceil((last + 1) / 50))
         axes.set_ylim(low, high)

@@ -146,3 +146,36 @@ def test_a_recording_replaces_the_simulator_until_the_truth_changes(scene, tmp_p
     assert scene.recording is None and truths[-1] is scene.truth
     scene.load_session(saved)  # a session without truth comes back as a recording
     assert scene.truth is None and len(scene.recording[1]) == 3 and scene.latest.step == 3
+
+
+def test_knob_units_come_from_the_parameters_metadata():
+    from tactile_viz.app.scene import FILTER_KNOBS, SESSION_KNOBS, knob_length_power
+    from tactile_viz.engine.params import FilterParams, SessionParams, length_fields
+
+    powers = {name: knob_length_power(name) for name in FILTER_KNOBS + SESSION_KNOBS}
+    assert powers == {name: {**length_fields(FilterParams), **length_fields(SessionParams)}
+                      .get(name, 0) for name in powers}
+    assert powers["eps"] == powers["sigma_d"] == 1 and powers["n_s"] == 0
+    with pytest.raises(ValueError):
+        knob_length_power("gpis_scale")
+
+
+def test_lengths_in_scene_units_follow_the_object_size(bundled):
+    from tactile_viz.engine import ObjectModel
+
+    mug = bundled["mug_1"]
+    small = ObjectModel.from_arrays(mug.mesh.vertices * 0.02, mug.mesh.faces, "small_mug")
+    scene = Scene(truth_model=small, seed=1, library=PriorLibrary([small]), units="m")
+    assert scene.unit_name == "m" and scene.truth_size() == pytest.approx(0.12)
+    assert scene.error_threshold() == pytest.approx(0.012)
+    assert scene.eps_length() == pytest.approx(0.012)  # the priors' size before a step
+    scene.set_parameter("eps", 0.8)
+    snapshot = scene.step()
+    assert scene.map_model(snapshot).name == "small_mug"
+    assert scene.eps_length(snapshot) == pytest.approx(0.8 * 0.12 / 6)
+    paper = Scene("mug_1", seed=1, library=PriorLibrary([mug]))
+    assert paper.unit_name == "scene units"
+    assert (paper.truth_size(), paper.error_threshold(), paper.eps_length()) == pytest.approx(
+        (6.0, 0.6, 0.6))
+    with pytest.raises(ValueError):
+        Scene("mug_1", library=PriorLibrary([mug]), units="furlong")

@@ -327,6 +327,9 @@ def test_dhd_stop_line_follows_eps(window):
     assert window.scene.parameter("eps") == pytest.approx(0.8)
     assert window.plots.eps_line.get_ydata()[0] == pytest.approx(0.8)
     assert "eps 0.80" in window.dhd_label.text()
+    # On the paper's objects (6 long) a size unit is a scene unit and the threshold is 0.6.
+    assert window.plots.threshold_line.get_ydata()[0] == pytest.approx(0.6)
+    assert window.plots.error_axes.get_ylabel() == "error [scene units]"
 
 
 def test_recording_writes_a_frame_per_drawn_step(qtbot, window, errors, tmp_path):

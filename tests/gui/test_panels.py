@@ -82,6 +82,50 @@ def test_exploration_panel_syncs_silently(qtbot, scene):
     assert emitted == [("parameter_changed", ("eps", pytest.approx(0.9)))]
 
 
+def test_every_length_parameter_shows_its_unit(qtbot):
+    # The units come from the parameters' field metadata: every spin box of a length field
+    # says "size units" in its label and its tooltip, and no other box does.
+    from dataclasses import fields
+
+    from tactile_viz.engine.params import FilterParams, SessionParams, length_fields
+
+    panel = _panel(qtbot, ExplorationPanel())
+    grid = panel.layout()
+    lengths = {**length_fields(FilterParams), **length_fields(SessionParams)}
+    known = {f.name for f in fields(FilterParams)} | {f.name for f in fields(SessionParams)}
+    assert {"sigma_d", "eps"} <= set(panel.parameter_boxes)
+    for name, box in panel.parameter_boxes.items():
+        assert name in known
+        row, column, _, _ = grid.getItemPosition(grid.indexOf(box))
+        label = grid.itemAtPosition(row, column - 1).widget().text()
+        if name in lengths:
+            assert label.endswith("[size units]"), (name, label)
+            assert "size unit is a sixth of" in box.toolTip() and "10%" in box.toolTip()
+        else:
+            assert "size unit" not in label and "size unit" not in box.toolTip(), name
+
+
+def test_the_status_line_gives_errors_in_scene_units_and_shares_of_the_size():
+    from types import SimpleNamespace
+
+    from tactile_viz.gui.panels.loop_panel import format_length, status_text
+
+    snapshot = SimpleNamespace(novel=False, map_class="mug_1", dhd=1.18, pose_error=0.25,
+                               recon_error=None, n_particles=464, timings={"filter": 0.03},
+                               rotation_error_deg=3.5, translation_error=0.07)
+    text = status_text(snapshot, 6.0)
+    assert ("DHD 1.18 | pose error 0.25 (4.2%) | rot 3.5\u00b0, shift 0.07 | recon error - "
+            in text)
+    small = SimpleNamespace(**dict(vars(snapshot), dhd=0.0236, pose_error=0.005,
+                                   translation_error=0.0014))
+    text = status_text(small, 0.12)  # a 12 cm mug in metres: not rounded to zeros
+    assert "DHD 0.0236 | pose error 0.0050 (4.2%) | rot 3.5\u00b0, shift 0.0014" in text
+    other = SimpleNamespace(**dict(vars(snapshot), rotation_error_deg=None,
+                                   translation_error=None, pose_error=None))
+    assert "rot" not in status_text(other, 6.0) and "pose error - |" in status_text(other, 6.0)
+    assert format_length(0.8) == "0.80" and format_length(0.012, 0.12) == "0.0120"
+
+
 def test_layers_panel_syncs_silently(qtbot):
     panel = _panel(qtbot, LayersPanel())
     emitted = _record(panel)

@@ -94,3 +94,28 @@ def test_the_stop_line_on_the_threshold_is_one_line_named_for_both(qtbot):
     plots.set_eps(0.8)
     assert plots.eps_line.get_visible()
     assert legend()[:2] == ["0.6 threshold", "DHD stop (eps 0.8)"] and len(legend()) == 5
+
+
+def test_stop_lines_and_axis_in_scene_units(qtbot):
+    # A 12 cm object in metres: threshold 10% of it, the paper's eps 0.6 size units is the
+    # same length (one line), the axis names the unit and spans the object's scale.
+    plots = _shown_plots(qtbot)
+    size = 0.12
+    plots.set_unit_name("m")
+    plots.set_stop_lines(0.1 * size, 0.6 * size / 6)
+    assert plots.error_axes.get_ylabel() == "error [m]"
+    assert not plots.eps_line.get_visible()
+    assert plots.threshold_line.get_ydata()[0] == pytest.approx(0.012)
+    assert plots.error_axes.get_legend().get_texts()[0].get_text() == (
+        "0.012: threshold and DHD stop (eps)")
+    snapshots = [SimpleNamespace(**dict(vars(s), pose_error=s.pose_error * size / 6,
+                                        dhd=s.dhd * size / 6))
+                 for s in _snapshots(20, np.random.default_rng(2))]
+    plots.set_run_steps(300)
+    plots.update_plots(snapshots)
+    low, high = plots.error_axes.get_ylim()
+    assert low <= 1.001 * 0.01 * size / 6 and 0.1 * size < high <= 1.001 * 10 * size / 6
+    plots.set_stop_lines(0.012, 0.016)  # eps 0.8 size units: two lines
+    assert plots.eps_line.get_visible() and plots.eps_line.get_ydata()[0] == 0.016
+    plots.set_unit_name(None)
+    assert plots.error_axes.get_ylabel() == "error [scene units]"

@@ -1,13 +1,19 @@
-"""The Exploration panel: strategy, preset and the main parameters of a session."""
+"""The Exploration panel: strategy, preset and the main parameters of a session.
+
+A length parameter is in size units (a sixth of an object's longest side, see
+:mod:`tactile_viz.engine.params`): its label and tooltip say so, from the parameters' field
+metadata (:func:`tactile_viz.app.scene.knob_length_power`).
+"""
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel,
                                QSpinBox)
 
+from ...app.scene import knob_length_power, knob_size_reference
 from ...engine.exploration import STRATEGIES
 from .base import MARGINS, blocked
 
-# name -> (label, minimum, maximum, step, decimals, tooltip)
+# name -> (label, minimum, maximum, step, decimals, tooltip); a length's unit is added
 PARAMETERS = {
     "sigma_d": ("sigma_d", 1e-3, 100.0, 0.05, 3,
                 "Std of the signed-distance likelihood. Larger forgives contacts off the "
@@ -61,10 +67,10 @@ class ExplorationPanel(QGroupBox):
         rows = [("strategy", self.strategy_box), ("preset", self.preset_box)]
         self.parameter_boxes = {}
         for name, spec in PARAMETERS.items():
-            box = _parameter_box(*spec[1:])
+            box = _parameter_box(*spec[1:5], parameter_tooltip(name))
             box.valueChanged.connect(
                 lambda value, n=name: self.parameter_changed.emit(n, value))
-            rows.append((spec[0], box))
+            rows.append((parameter_label(name), box))
             self.parameter_boxes[name] = box
         for index, (label, box) in enumerate(rows):
             row, column = divmod(index, 2)
@@ -88,6 +94,33 @@ class ExplorationPanel(QGroupBox):
             self.preset_box.setCurrentText(scene.preset)
             for name, box in self.parameter_boxes.items():
                 box.setValue(scene.parameter(name))
+
+
+def unit_text(power):
+    """The unit of a length of power ``power`` in size units ("" for 0: not a length)."""
+    if power == 0:
+        return ""
+    if power == 1:
+        return "size units"
+    if power > 0:
+        return f"size units^{power}"
+    return "1/size unit" if power == -1 else f"1/size units^{-power}"
+
+
+def parameter_label(name):
+    """The label of a parameter's spin box: its name, and its unit when it is a length."""
+    unit = unit_text(knob_length_power(name))
+    return PARAMETERS[name][0] + (f" [{unit}]" if unit else "")
+
+
+def parameter_tooltip(name):
+    """A parameter's tooltip, with what its unit is when it is a length."""
+    tip, power = PARAMETERS[name][5], knob_length_power(name)
+    if power == 0:
+        return tip
+    return (f"{tip}\n\nIn {unit_text(power)}: one size unit is a sixth of "
+            f"{knob_size_reference(name)} (0.6 = 10% of its size; on the paper's objects, "
+            "6 long, one scene unit).")
 
 
 def _parameter_box(low, high, step, decimals, tip):

@@ -1,9 +1,12 @@
 """The Loop panel: Step, Run, Run to termination, Reset, the step reached and the history."""
 
+import math
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QPushButton, QSizePolicy,
                                QSlider, QVBoxLayout)
 
+from ...engine.params import PAPER_SIZE
 from .base import MARGINS, blocked
 
 START_TEXT = "Press Step or Run to start touching."
@@ -16,15 +19,38 @@ def wrapped_between_fields(text):
     return "\u2060\u00a0| ".join(field.replace(" ", "\u00a0") for field in text.split(" | "))
 
 
-def status_text(snapshot):
-    """One line on a step: known or novel, MAP class, DHD, errors, particles, time."""
-    recon = "-" if snapshot.recon_error is None else f"{snapshot.recon_error:.2f}"
-    pose = "-" if snapshot.pose_error is None else f"{snapshot.pose_error:.2f}"
+def format_length(value, size=None):
+    """A length in scene units to a resolution of 1/600 of ``size`` (the object's longest
+    side; default the paper's 6, two decimals), so that a metric scene is not all zeros."""
+    size = PAPER_SIZE if size is None or not size > 0 else float(size)
+    decimals = max(0, 2 - math.floor(math.log10(size / PAPER_SIZE)))
+    return f"{value:.{decimals}f}"
+
+
+def status_text(snapshot, size=None):
+    """One line on a step: known or novel, MAP class, DHD, errors, particles, time.
+
+    Lengths are in scene units; with ``size`` (the longest side the errors are judged
+    against, scene units) the pose and reconstruction errors also give their share of it,
+    e.g. "pose error 0.25 (4.2%)". The MAP's rotation error (degrees) and translation error
+    follow when the snapshot has them (a simulated truth of the MAP's shape)."""
+    def error(value):
+        if value is None:
+            return "-"
+        text = format_length(value, size)
+        return text + (f" ({100 * value / size:.1f}%)" if size else "")
+
     seconds = sum(snapshot.timings.values())
-    return (f"{'NOVEL' if snapshot.novel else 'known'} | MAP {snapshot.map_class} | "
-            f"DHD {snapshot.dhd:.2f} | pose error {pose} | "
-            f"recon error {recon} | particles {snapshot.n_particles} | "
-            f"last step {seconds:.2f} s")
+    fields = [f"{'NOVEL' if snapshot.novel else 'known'}", f"MAP {snapshot.map_class}",
+              f"DHD {format_length(snapshot.dhd, size)}",
+              f"pose error {error(snapshot.pose_error)}"]
+    rotation = getattr(snapshot, "rotation_error_deg", None)
+    translation = getattr(snapshot, "translation_error", None)
+    if rotation is not None and translation is not None:
+        fields.append(f"rot {rotation:.1f}\u00b0, shift {format_length(translation, size)}")
+    fields += [f"recon error {error(snapshot.recon_error)}",
+               f"particles {snapshot.n_particles}", f"last step {seconds:.2f} s"]
+    return " | ".join(fields)
 
 
 class LoopPanel(QGroupBox):
@@ -92,18 +118,19 @@ class LoopPanel(QGroupBox):
 
     def sync(self, scene):
         """Show the scene's latest step and its history, without emitting."""
-        self.show_snapshot(scene.latest)
+        latest = scene.latest
+        self.show_snapshot(latest, None if latest is None else scene.truth_size(latest))
         self.set_history(len(scene.snapshots))
 
-    def show_snapshot(self, snapshot):
-        """Show a step (None: a new session) in the labels."""
+    def show_snapshot(self, snapshot, size=None):
+        """Show a step (None: a new session) in the labels; ``size``: see :func:`status_text`."""
         if snapshot is None:
             self.step_label.setText("step 0")
             self.status_label.setText(START_TEXT)
             return
         self.step_label.setText(f"step {snapshot.step}"
                                 + (" (terminated)" if snapshot.terminated else ""))
-        self.status_label.setText(wrapped_between_fields(status_text(snapshot)))
+        self.status_label.setText(wrapped_between_fields(status_text(snapshot, size)))
 
     def set_history(self, steps):
         """Let the slider cover ``steps`` steps (0: none) and point at the last."""
