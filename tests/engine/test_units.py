@@ -31,8 +31,9 @@ def metric_mugs():
 def test_a_scaled_twin_is_another_class(metric_mugs, name):
     truth = make_truth(metric_mugs[name], rng=[1, 0])
     session = Session(truth, metric_mugs, seed=1)
-    snapshot = session.run(max_steps=25)
+    snapshot = session.run(max_steps=40)
     assert snapshot.map_class == name and not snapshot.novel
+    assert snapshot.pose_error < error_threshold(metric_mugs[name].length)
     assert snapshot.translation_error < 0.1 * metric_mugs[name].length
 
 
