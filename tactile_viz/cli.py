@@ -98,7 +98,9 @@ def writable_output(text):
     cannot be written.
     """
     path = Path(text)
-    if not text or path.is_dir():
+    if not text:
+        raise argparse.ArgumentTypeError("a file name is needed")
+    if path.is_dir():
         raise argparse.ArgumentTypeError(f"a file name is needed, got the folder {text!r}")
     folder = path.parent
     if not folder.is_dir():
@@ -129,14 +131,17 @@ def output_dir(text):
 
 def name_list(choices, what):
     """An argument type: one name or a comma list of them, each one of ``choices`` (a list,
-    or a function returning it, called on first use); returns the text as given."""
+    or a function returning it, called on first use); returns the text as given.
+
+    ``what`` names a choice in the error message: ``"a strategy"``.
+    """
     def parse(text):
         known = choices() if callable(choices) else choices
         names = [name for name in text.split(",") if name]
         unknown = [name for name in names if name not in known]
         if unknown or not names:
             raise argparse.ArgumentTypeError(
-                f"unknown {what} {', '.join(map(repr, unknown or [text]))}; choose from "
+                f"not {what}: {', '.join(map(repr, unknown or [text]))}; choose from "
                 f"{', '.join(known)}")
         return text
 
@@ -151,7 +156,8 @@ def _bundled(which):
 
 def bundled_object(which="all"):
     """An argument type: the name of a bundled object of the set ``which``."""
-    check = name_list(lambda: _bundled(which), "object" if which == "all" else f"{which} object")
+    what = "an object" if which == "all" else f"a {which} object"
+    check = name_list(lambda: _bundled(which), what)
 
     def parse(text):
         if "," in text:
@@ -163,7 +169,7 @@ def bundled_object(which="all"):
 
 def bundled_objects(text):
     """An argument type: bundled object names, one or a comma list."""
-    return name_list(lambda: _bundled("all"), "object")(text)
+    return name_list(lambda: _bundled("all"), "an object")(text)
 
 
 class ExtendList(argparse.Action):

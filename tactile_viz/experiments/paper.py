@@ -55,7 +55,7 @@ def build_parser():
                         type=bundled_objects,
                         help="bundled objects to run (default all 20); comma lists work too")
     parser.add_argument("--strategies", action=ExtendList, default=list(STRATEGIES),
-                        type=name_list(STRATEGIES, "strategy"),
+                        type=name_list(STRATEGIES, "a strategy"),
                         metavar="NAME", help="exploration strategies, comma lists work too; "
                         f"repeats add up (default {','.join(STRATEGIES)})")
     parser.add_argument("--workers", type=workers_int, default=1,

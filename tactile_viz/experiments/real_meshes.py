@@ -457,11 +457,11 @@ def build_parser():
                     "Writes per-trial JSON and a Markdown summary.",
         epilog="objects: " + "; ".join(f"{e.name} ({e.note})" for e in CATALOGUE))
     parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
-                        type=name_list(lambda: [e.name for e in CATALOGUE], "real mesh"),
+                        type=name_list(lambda: [e.name for e in CATALOGUE], "a real mesh"),
                         help="real meshes to use as the truth (default every usable one); "
                              "all usable ones are priors either way; comma lists work too")
     parser.add_argument("--cases", action=ExtendList, default=list(CASES), metavar="CASE",
-                        type=name_list(CASES, "case"),
+                        type=name_list(CASES, "a case"),
                         help="cases, comma lists work too; repeats add up (default novel known)")
     parser.add_argument("--trials", type=count_int, default=3,
                         help="trials per object and case; trial i uses seed --seed + i "

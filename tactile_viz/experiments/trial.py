@@ -21,7 +21,7 @@ from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.files import write_atomic
 from ..engine.library import PriorLibrary
-from ..engine.objects import ObjectModel, load_bundled
+from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
 
 
@@ -73,19 +73,18 @@ def load_priors(args):
         If an extra file would have the name (its stem) of a prior already there.
     """
     extra = args.prior_file or []
-    if args.library_dir:
-        library = PriorLibrary.load(args.library_dir)
-    elif args.library or not extra:
-        library = PriorLibrary.bundled(args.library or "known")
-    else:
-        library = PriorLibrary()
-    names = list(library.names)
+    bundled = args.library or (None if extra or args.library_dir else "known")
+    library = PriorLibrary.load(args.library_dir) if args.library_dir else PriorLibrary()
+    # Names are checked before the meshes are read: a clash is found at once.
+    names = library.names + (bundled_names(bundled) if bundled else [])
     for path in extra:
         name = Path(path).stem
         if name in names:
             raise LibraryError(f"--prior-file {path}: there is already a prior named "
                                f"{name!r}; rename the file")
         names.append(name)
+    if bundled:
+        library = PriorLibrary.bundled(bundled)
     for path in extra:
         library.add_file(path)
     return library
