@@ -75,7 +75,7 @@ def load_priors(args):
     extra = args.prior_file or []
     bundled = args.library or (None if extra or args.library_dir else "known")
     library = PriorLibrary.load(args.library_dir) if args.library_dir else PriorLibrary()
-    # Names are checked before the meshes are read: a clash is found at once.
+    # Names are checked before the bundled and extra meshes are read: a clash shows at once.
     names = library.names + (bundled_names(bundled) if bundled else [])
     for path in extra:
         name = Path(path).stem
