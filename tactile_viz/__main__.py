@@ -8,7 +8,8 @@ import sys
 from .cli import ArgumentParser, add_logging_arguments, one_line, setup_logging
 from .engine.errors import TactileVizError
 
-log = logging.getLogger(__name__)
+# Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
+log = logging.getLogger("tactile_viz.__main__")
 
 
 def _objects(args):

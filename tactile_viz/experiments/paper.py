@@ -30,7 +30,7 @@ from ..engine.exploration import STRATEGIES
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
-from .trial_files import read_trial, read_trials, trial_path, write_trial
+from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"
 LEARNED_NAME = "home_chair_learned"
@@ -363,6 +363,13 @@ def _learned_section(before, after, results):
                                      aggregate.learned_rows(before, after))]
 
 
+def require_trials(folder):
+    """Stop with a one-line message when ``folder/trials`` has no trial file to report on."""
+    trials = Path(folder) / "trials"
+    if not trial_files(trials):
+        raise SystemExit(f"no trial files in {trials}; run without --report-only first")
+
+
 def recorded_command(report_path):
     """The ``Command:`` of an earlier report (the run that made its trials), or None."""
     report_path = Path(report_path)
@@ -377,7 +384,9 @@ def recorded_command(report_path):
 def main(argv=None):
     args = build_parser().parse_args(argv)
     start = time.perf_counter()
-    if not args.report_only:
+    if args.report_only:
+        require_trials(args.out)
+    else:
         run(args)
     command = "python -m tactile_viz bench paper " + " ".join(argv or sys.argv[3:])
     if args.report_only:  # the table still comes from the run that made the trials

@@ -23,7 +23,8 @@ from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, exist
 from ..engine.files import write_atomic
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
-from .paper import machine_description, object_sets, recorded_command, split_names, write_json
+from .paper import (machine_description, object_sets, recorded_command, require_trials,
+                    split_names, write_json)
 from .runner import make_task, open_pool, run_tasks, task_key
 from .trial_files import read_trials, rounded, trial_path, write_trial
 
@@ -369,7 +370,9 @@ def report(folder, command=None):
 def main(argv=None):
     args = build_parser().parse_args(argv)
     start = time.perf_counter()
-    if not args.report_only:
+    if args.report_only:
+        require_trials(args.out)
+    else:
         run(args)
     command = "python -m tactile_viz bench tradeoff " + " ".join(argv or [])
     if args.report_only:

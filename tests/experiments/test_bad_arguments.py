@@ -172,6 +172,27 @@ def test_no_traceback_from_the_real_command_line(argv):
     assert_one_line_error(result.stderr)
 
 
+def test_real_command_line_logs_the_traceback_to_the_file(tmp_path):
+    """Run as ``python -m`` (module ``__main__``), the error still reaches the log file."""
+    empty = tmp_path / "empty.stl"
+    empty.write_text("")
+    log_file = tmp_path / "run.log"
+    result = subprocess.run([sys.executable, "-m", "tactile_viz", "--log-file", str(log_file),
+                             "trial", "--object-file", str(empty), "--no-progress"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert_one_line_error(result.stderr)
+    assert "Traceback" in log_file.read_text()
+
+
+@pytest.mark.parametrize("what", ["paper", "tradeoff", "realmesh"])
+def test_report_only_without_trials_is_one_line(what, tmp_path, capsys):
+    assert main(["bench", what, "--report-only", "--out", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err
+    assert_one_line_error(err)
+    assert "no trial files" in err
+
+
 def test_run_trial_refuses_no_steps():
     from tactile_viz.engine.errors import ParameterError
     from tactile_viz.experiments.trial import run_trial
