@@ -5,10 +5,11 @@ import json
 import logging
 import sys
 
-from .cli import add_logging_arguments, setup_logging
+from .cli import ArgumentParser, add_logging_arguments, one_line, setup_logging
 from .engine.errors import TactileVizError
 
-log = logging.getLogger(__name__)
+# Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
+log = logging.getLogger("tactile_viz.__main__")
 
 
 def _objects(args):
@@ -16,7 +17,8 @@ def _objects(args):
 
     entries = bundled_manifest()
     if args.json:
-        print(json.dumps([{"name": e["name"], "set": e["set"]} for e in entries]))
+        print(json.dumps([{"name": e["name"], "set": e["set"],
+                           "variant_of": e.get("variant_of") or None} for e in entries]))
         return 0
     width = max(len(e["name"]) for e in entries)
     print(f"{'name':<{width}}  set    variant of")
@@ -63,7 +65,7 @@ def _bench(args):
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tactile_viz",
         description="Active tactile object recognition, pose estimation and shape transfer.")
     add_logging_arguments(parser)
@@ -71,7 +73,8 @@ def build_parser():
 
     objects = commands.add_parser("objects", help="list the bundled objects and their set")
     objects.add_argument("--json", action="store_true",
-                         help='print a JSON list of {"name": ..., "set": "known"|"novel"}')
+                         help='print a JSON list of {"name": ..., "set": "known"|"novel", '
+                              '"variant_of": NAME or null}')
     objects.set_defaults(run=_objects)
 
     from .experiments.trial import add_trial_arguments
@@ -113,16 +116,41 @@ def build_parser():
     return parser
 
 
+def _fail(message, status, verbose, hint=""):
+    """Log the exception being handled with its traceback (to the log file; on stderr too
+    with ``--verbose``) and show ``message`` as one line; returns ``status``."""
+    log.error("the command failed: %s", message, exc_info=True,
+              extra={"file_only": not verbose})
+    print(f"error: {one_line(message)}{hint}", file=sys.stderr)
+    return status
+
+
 def main(argv=None):
+    """Run ``python -m tactile_viz`` with ``argv``; returns the exit status.
+
+    Bad arguments exit (status 2) with one line on stderr. A failing command is shown as one
+    line on stderr, its traceback goes to the ``--log-file``: status 2 for the errors a
+    user can cause (bad input files, ...), 1 for anything unexpected.
+    """
     args = build_parser().parse_args(argv)
-    setup_logging(args.verbose, args.log_file)
+    log_file = setup_logging(args.verbose, args.log_file)
     log.debug("command: %s", sys.argv if argv is None else argv)
     try:
         return args.run(args)
     except TactileVizError as error:
-        log.debug("the command failed", exc_info=True)
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+        return _fail(str(error), 2, args.verbose)
+    except SystemExit as stop:
+        if not isinstance(stop.code, str):  # argparse's exits and plain exit statuses
+            raise
+        return _fail(stop.code, 2, args.verbose)
+    except KeyboardInterrupt:
+        log.info("interrupted", exc_info=True, extra={"file_only": True})
+        print("interrupted", file=sys.stderr)
+        return 130
+    except Exception as error:
+        where = (f"traceback in {log_file}" if log_file
+                 else "--log-file FILE or --verbose shows the traceback")
+        return _fail(f"{type(error).__name__}: {error}", 1, args.verbose, f" ({where})")
 
 
 if __name__ == "__main__":

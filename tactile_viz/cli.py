@@ -1,16 +1,175 @@
-"""Pieces every command line of the package shares: list options whose repeats add up, and
-logging (``--verbose``, ``--log-file``).
+"""Pieces every command line of the package shares: a parser whose errors are one line,
+argument types that check values before any work starts, list options whose repeats add
+up, and logging (``--verbose``, ``--log-file``).
 
 Qt-free and light: the engine's commands, the benchmarks and ``app.py`` all use it.
 """
 
 import argparse
 import logging
+import math
 import os
 import sys
 from pathlib import Path
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+MAX_SEED = 2**32 - 1
+MAX_COUNT = 10_000
+MAX_WORKERS = 256
+
+
+def one_line(text):
+    """``text`` with its lines joined by spaces (an error message shown as one line)."""
+    return " ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser, but an error is one line on stderr, ``PROG: error: MESSAGE``, and
+    exit status 2 (argparse's usage line is left out; ``--help`` shows it).
+
+    Subcommand parsers made with ``add_subparsers`` are of this class too.
+    """
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+def int_range(low, high=None):
+    """An argument type: an integer from ``low`` to ``high`` (no upper bound when None)."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            bounds = f"at least {low}" if high is None else f"from {low} to {high}"
+            raise argparse.ArgumentTypeError(f"must be {bounds}, got {text!r}")
+        return value
+
+    return parse
+
+
+positive_int = int_range(1)
+nonnegative_int = int_range(0)
+seed_int = int_range(0, MAX_SEED)
+count_int = int_range(1, MAX_COUNT)
+workers_int = int_range(1, MAX_WORKERS)
+
+
+def finite_float(text):
+    """An argument type: a finite number (no nan or inf)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def existing_file(text):
+    """An argument type: a readable file (returned as given)."""
+    path = Path(text)
+    if not text or not path.exists():
+        raise argparse.ArgumentTypeError(f"no such file: {text!r}")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"not a file: {text!r}")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"cannot read {text!r}")
+    return text
+
+
+def existing_dir(text):
+    """An argument type: a folder that exists (returned as given)."""
+    if not text or not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"no such folder: {text!r}")
+    return text
+
+
+def _writable_folder(folder, text):
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"cannot write in {str(folder)!r} (for {text!r})")
+
+
+def writable_output(text):
+    """An argument type: a file that can be written (its folder exists; returned as given).
+
+    Checked when the command line is read, so that a long run does not end in a file that
+    cannot be written.
+    """
+    path = Path(text)
+    if not text:
+        raise argparse.ArgumentTypeError("a file name is needed")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"a file name is needed, got the folder {text!r}")
+    folder = path.parent
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"no such folder: {str(folder)!r} (for {text!r})")
+    _writable_folder(folder, text)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise argparse.ArgumentTypeError(f"cannot write {text!r}")
+    return text
+
+
+def output_dir(text):
+    """An argument type: a folder to write into, existing or creatable (returned as given).
+
+    Missing folders are not made here: only the nearest existing one is checked.
+    """
+    path = Path(text)
+    if not text:
+        raise argparse.ArgumentTypeError("a folder name is needed")
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"not a folder: {text!r}")
+    existing = next(p for p in [path, *path.absolute().parents] if p.exists())
+    if not existing.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot make a folder under the file "
+                                         f"{str(existing)!r} (for {text!r})")
+    _writable_folder(existing, text)
+    return text
+
+
+def name_list(choices, what):
+    """An argument type: one name or a comma list of them, each one of ``choices`` (a list,
+    or a function returning it, called on first use); returns the text as given.
+
+    ``what`` names a choice in the error message: ``"a strategy"``.
+    """
+    def parse(text):
+        known = choices() if callable(choices) else choices
+        names = [name for name in text.split(",") if name]
+        unknown = [name for name in names if name not in known]
+        if unknown or not names:
+            raise argparse.ArgumentTypeError(
+                f"not {what}: {', '.join(map(repr, unknown or [text]))}; choose from "
+                f"{', '.join(known)}")
+        return text
+
+    return parse
+
+
+def _bundled(which):
+    from .engine.objects import bundled_names
+
+    return bundled_names(which)
+
+
+def bundled_object(which="all"):
+    """An argument type: the name of a bundled object of the set ``which``."""
+    what = "an object" if which == "all" else f"a {which} object"
+    check = name_list(lambda: _bundled(which), what)
+
+    def parse(text):
+        if "," in text:
+            raise argparse.ArgumentTypeError(f"one object name, got {text!r}")
+        return check(text)
+
+    return parse
+
+
+def bundled_objects(text):
+    """An argument type: bundled object names, one or a comma list."""
+    return name_list(lambda: _bundled("all"), "an object")(text)
 
 
 class ExtendList(argparse.Action):
@@ -31,6 +190,11 @@ class ExtendList(argparse.Action):
         if current is None or current is self.default:
             current = []
         setattr(namespace, self.dest, [*current, *values])
+
+
+def _for_console(record):
+    """Records logged with ``extra={"file_only": True}`` go to the log file only."""
+    return not getattr(record, "file_only", False)
 
 
 class _CurrentStderr(logging.StreamHandler):
@@ -87,6 +251,7 @@ def setup_logging(verbose=False, log_file=None):
     console = _CurrentStderr()
     console.setLevel(logging.DEBUG if verbose else logging.WARNING)
     console.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    console.addFilter(_for_console)
     handlers = [console]
     opened = None
     if log_file:

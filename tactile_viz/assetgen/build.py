@@ -3,7 +3,6 @@
 Usage: ``python -m tactile_viz.assetgen [--out assets] [--only NAME ...]``.
 """
 
-import argparse
 import hashlib
 import io
 import json
@@ -17,7 +16,7 @@ import trimesh
 from skimage.measure import marching_cubes
 
 from tactile_viz.assetgen.catalog import CATALOG, by_name
-from tactile_viz.cli import ExtendList
+from tactile_viz.cli import ArgumentParser, ExtendList, output_dir
 from tactile_viz.engine.files import write_atomic
 
 LONGEST_SIDE = 6.0
@@ -275,8 +274,8 @@ def build(out=DEFAULT_OUT, only=None, log=print):
 
 def main(argv=None):
     """Command-line entry point."""
-    parser = argparse.ArgumentParser(prog=GENERATOR, description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(DEFAULT_OUT), help="output folder")
+    parser = ArgumentParser(prog=GENERATOR, description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(DEFAULT_OUT), type=output_dir, help="output folder")
     parser.add_argument("--only", action=ExtendList, metavar="NAME",
                         choices=[s.name for s in CATALOG],
                         help="objects to regenerate (default: all; repeats add up)")

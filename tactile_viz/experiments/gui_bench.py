@@ -35,8 +35,11 @@ import tempfile
 import time
 
 from ..app.engine_process import ENGINES
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, int_range, seed_int,
+                   writable_output)
 from ..engine.exploration import STRATEGIES
+from ..engine.files import write_atomic
+from ..engine.session import SESSION_PRESETS
 
 TARGET_OVERHEAD = 0.15
 TARGET_BLOCK = 0.150
@@ -44,26 +47,40 @@ TARGET_PAUSE = 0.150
 TARGET_CLOSE = 1.0
 
 
+def window_size(text):
+    """An argument type: ``WIDTHxHEIGHT`` in pixels, as a pair of ints."""
+    side = int_range(100, 10_000)
+    try:
+        width, height = (side(part) for part in text.lower().split("x"))
+    except (ValueError, argparse.ArgumentTypeError):
+        raise argparse.ArgumentTypeError(
+            f"a window size is WIDTHxHEIGHT, each 100 to 10000, got {text!r}") from None
+    return width, height
+
+
 def _parser():
-    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench gui",
-                                     description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog="python -m tactile_viz bench gui",
+                            description=__doc__.split("\n\n")[0])
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "vase_2"],
+                        type=bundled_object(),
                         help="bundled objects to run (default: mug_1 known, vase_2 novel)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--preset", default="paper")
+    parser.add_argument("--seed", type=seed_int, default=0)
+    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
     parser.add_argument("--strategy", default="gpis-dhd", choices=STRATEGIES)
-    parser.add_argument("--max-steps", type=int, default=0,
+    parser.add_argument("--max-steps", type=int_range(0), default=0,
                         help="cap the runs at this many steps (default 0: to termination)")
-    parser.add_argument("--repeats", type=int, default=3,
+    parser.add_argument("--repeats", type=count_int, default=3,
                         help="app runs per object, interleaved with one engine run more "
                              "(default 3; the machine's speed drifts between runs)")
-    parser.add_argument("--pause-after", type=int, default=5,
+    parser.add_argument("--pause-after", type=count_int, default=5,
                         help="steps before Pause / close in the latency runs (default 5)")
-    parser.add_argument("--size", default="1500x900", help="window size (default 1500x900)")
+    parser.add_argument("--size", default="1500x900", type=window_size,
+                        help="window size (default 1500x900)")
     parser.add_argument("--engine", choices=ENGINES, default="process",
                         help="where the app steps: its engine process (default, as the app) "
                              "or a worker thread")
-    parser.add_argument("--json", metavar="OUT", help="also write the results as JSON")
+    parser.add_argument("--json", metavar="OUT", type=writable_output,
+                        help="also write the results as JSON")
     return parser
 
 
@@ -113,8 +130,7 @@ def _window(args, scene, settings):
     from ..gui.main_window import MainWindow
 
     window = MainWindow(scene, settings=settings, engine=args.engine)
-    width, height = (int(v) for v in args.size.lower().split("x"))
-    window.resize(width, height)
+    window.resize(*args.size)
     window.show()
     return window
 
@@ -341,11 +357,10 @@ def main(argv=None):
           + ", ".join(f"{r['load_average']:.1f}" for r in rows))
     print(verdicts(rows))
     if args.json:
-        with open(args.json, "w") as handle:
-            json.dump({"command": "python -m tactile_viz bench gui " + " ".join(argv or
-                                                                               sys.argv[3:]),
-                       "rows": rows, "verdicts": verdicts(rows).splitlines()}, handle,
-                      indent=2)
+        command = "python -m tactile_viz bench gui " + " ".join(argv or sys.argv[3:])
+        write_atomic(args.json, json.dumps({"command": command, "rows": rows,
+                                            "verdicts": verdicts(rows).splitlines()},
+                                           indent=2).encode())
     return 0
 
 

@@ -27,7 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, finite_float,
+                   output_dir)
+from ..engine.files import write_atomic
 from ..engine.library import PriorLibrary
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
 from ..engine.params import noise_matched, preset
@@ -181,38 +183,40 @@ def plot(rows, path):
 
 def _level(text):
     try:
-        position, normal = (float(part) for part in text.split(":"))
-    except ValueError:
+        position, normal = (finite_float(part) for part in text.split(":"))
+    except (ValueError, argparse.ArgumentTypeError):
         raise argparse.ArgumentTypeError(
-            f"a noise level is POSITION:DEGREES, got {text!r}") from None
+            f"a noise level is POSITION:DEGREES, two finite numbers, got {text!r}") from None
     if position < 0 or normal < 0:
         raise argparse.ArgumentTypeError(f"noise levels must not be negative, got {text!r}")
     return position, normal
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench noise", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = ArgumentParser(prog="python -m tactile_viz bench noise", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--levels", type=_level, action=ExtendList, default=list(DEFAULT_LEVELS),
                         metavar="POSITION:DEGREES")
-    parser.add_argument("--seeds", type=int, default=2, help="random poses per object")
-    parser.add_argument("--contacts", type=int, default=40, help="random touches per trial")
+    parser.add_argument("--seeds", type=count_int, default=2, help="random poses per object")
+    parser.add_argument("--contacts", type=count_int, default=40, help="random touches per trial")
     parser.add_argument("--configs", action=ExtendList, choices=CONFIGS, default=list(CONFIGS))
     parser.add_argument("--objects", action=ExtendList, default=None,
+                        type=bundled_object("known"),
                         help="known objects to test (default: all ten)")
-    parser.add_argument("--out", type=Path, default=Path("."),
+    parser.add_argument("--out", type=output_dir, default=".",
                         help="folder for noise.md, noise.json and noise.png")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    out = Path(args.out)
     rows = measure(args.levels, args.seeds, args.contacts, args.configs, args.objects,
                    progress=not args.no_progress)
     table = markdown_table(rows)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "noise.md").write_text(table)
-    (args.out / "noise.json").write_text(json.dumps(rows, indent=1))
-    plot(rows, args.out / "noise.png")
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / "noise.md", table.encode())
+    write_atomic(out / "noise.json", json.dumps(rows, indent=1).encode())
+    plot(rows, out / "noise.png")
     print(table, end="")
-    print(f"wrote noise.md, noise.json and noise.png to {args.out}")
+    print(f"wrote noise.md, noise.json and noise.png to {out}")
     return 0
 
 

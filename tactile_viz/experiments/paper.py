@@ -12,7 +12,6 @@ tables), ``summary.json`` (one summary per trial) and the plots ``overview.png``
 ``reconstruction.png``, ``learned_prior.png``.
 """
 
-import argparse
 import json
 import os
 import platform
@@ -24,13 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_file,
+                   name_list, output_dir, positive_int, seed_int, workers_int)
 from ..engine.files import write_atomic
 from ..engine.exploration import STRATEGIES
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
-from .trial_files import read_trial, read_trials, trial_path, write_trial
+from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"
 LEARNED_NAME = "home_chair_learned"
@@ -43,20 +43,22 @@ COST_ORDER = {("novel", "gpis-dhd"): 0, ("known", "gpis-dhd"): 1, ("novel", "rrt
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tactile_viz bench paper",
         description="The paper's protocol: trials per object at random seeded poses, both "
                     "exploration strategies, the Screened Poisson baseline on novel objects "
                     "and the learned-prior experiment on the home chair; writes per-trial "
                     "JSON, a Markdown summary and the paper's plots.")
-    parser.add_argument("--trials", type=int, default=10,
+    parser.add_argument("--trials", type=count_int, default=10,
                         help="trials per object and strategy (paper 10; 1 = quick version)")
     parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
+                        type=bundled_objects,
                         help="bundled objects to run (default all 20); comma lists work too")
     parser.add_argument("--strategies", action=ExtendList, default=list(STRATEGIES),
+                        type=name_list(STRATEGIES, "a strategy"),
                         metavar="NAME", help="exploration strategies, comma lists work too; "
                         f"repeats add up (default {','.join(STRATEGIES)})")
-    parser.add_argument("--workers", type=int, default=1,
+    parser.add_argument("--workers", type=workers_int, default=1,
                         help="local worker processes (default 1 = serial in this process, "
                              "with a per-step progress bar)")
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
@@ -64,17 +66,17 @@ def build_parser():
                              "(e.g. tcp://10.0.0.5:8786) instead of locally")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset of every trial (default paper)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=seed_int, default=0,
                         help="first seed; trial i uses seed + i (learned-prior trials seed + "
                              "1000 + i, so at other poses than the one learned from)")
-    parser.add_argument("--max-steps", type=int, default=None,
+    parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="cap every trial at this many steps (default: the paper's caps "
                              "300 known / 400 novel); for smoke tests")
-    parser.add_argument("--out", default="bench_paper", metavar="DIR",
+    parser.add_argument("--out", default="bench_paper", metavar="DIR", type=output_dir,
                         help="output folder (default ./bench_paper)")
     parser.add_argument("--no-learned", action="store_true",
                         help="skip the learned-prior experiment on the home chair")
-    parser.add_argument("--learned-from", metavar="MESH", default=None,
+    parser.add_argument("--learned-from", metavar="MESH", default=None, type=existing_file,
                         help="run the learned-prior trials with this mesh as the learned "
                              "home chair (e.g. DIR/learned/home_chair_learned.ply of an earlier "
                              "run) instead of learning it from this run's first trial")
@@ -261,7 +263,7 @@ def report(folder, command=None):
     summaries = [aggregate.summarise_trial(r) for r in results]
     for summary in summaries:
         summary["set"] = sets.get(summary["object"], "other")
-    (folder / "summary.json").write_text(json.dumps(summaries, indent=1))
+    write_json(folder / "summary.json", summaries)
     protocol = [(r, s) for r, s in zip(results, summaries) if s["kind"] == "protocol"]
     by_set = {name: [s for _, s in protocol if s["set"] == name] for name in ("known", "novel")}
     results_by_set = {name: [r for r, s in protocol if s["set"] == name and "error" not in s]
@@ -299,7 +301,7 @@ def report(folder, command=None):
         after_results = [r for r, s in zip(results, summaries) if s in after and "error" not in s]
         learned_figure(before_results, after_results, folder / "learned_prior.png")
         lines += ["", "![learned prior](learned_prior.png)"]
-    (folder / "summary.md").write_text("\n".join(lines) + "\n")
+    write_atomic(folder / "summary.md", ("\n".join(lines) + "\n").encode())
     return folder / "summary.md"
 
 
@@ -361,6 +363,13 @@ def _learned_section(before, after, results):
                                      aggregate.learned_rows(before, after))]
 
 
+def require_trials(folder):
+    """Stop with a one-line message when ``folder/trials`` has no trial file to report on."""
+    trials = Path(folder) / "trials"
+    if not trial_files(trials):
+        raise SystemExit(f"no trial files in {trials}; run without --report-only first")
+
+
 def recorded_command(report_path):
     """The ``Command:`` of an earlier report (the run that made its trials), or None."""
     report_path = Path(report_path)
@@ -375,7 +384,9 @@ def recorded_command(report_path):
 def main(argv=None):
     args = build_parser().parse_args(argv)
     start = time.perf_counter()
-    if not args.report_only:
+    if args.report_only:
+        require_trials(args.out)
+    else:
         run(args)
     command = "python -m tactile_viz bench paper " + " ".join(argv or sys.argv[3:])
     if args.report_only:  # the table still comes from the run that made the trials

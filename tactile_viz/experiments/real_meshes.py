@@ -22,7 +22,6 @@ Writes to ``--out``: ``trials/*.json`` (the ``trial`` JSON plus ``task``), ``mes
 ``summary.json`` (one summary per trial).
 """
 
-import argparse
 import concurrent.futures as cf
 import functools
 import json
@@ -38,7 +37,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, count_int, existing_dir, name_list, output_dir,
+                   positive_int, seed_int, workers_int)
 from ..engine.errors import MeshError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.meshes import LONGEST_SIDE
@@ -421,7 +421,8 @@ def mesh_lines(meshes):
 
 def report(folder, command=None):
     """Write ``summary.md`` and ``summary.json`` from ``folder/trials``; returns the table."""
-    from .paper import machine_description
+    from ..engine.files import write_atomic
+    from .paper import machine_description, write_json
 
     folder = Path(folder)
     paths = trial_files(folder / "trials")
@@ -430,7 +431,7 @@ def report(folder, command=None):
     summaries = [summarise(read_trial(path)) for path in paths]
     summaries.sort(key=lambda s: (s["object"], CASES.index(s["case"]) if s["case"] in CASES
                                   else len(CASES), s["seed"]))
-    (folder / "summary.json").write_text(json.dumps(summaries, indent=1))
+    write_json(folder / "summary.json", summaries)
     meshes_file = folder / "meshes.json"
     meshes = json.loads(meshes_file.read_text()) if meshes_file.exists() else None
     table = summary_table(summaries)
@@ -443,13 +444,13 @@ def report(folder, command=None):
               "trials judged novel at the end.", "", table]
     lines += [f"- FAILED {s['object']} {s['case']} seed {s['seed']}: "
               f"{s['error'].strip().splitlines()[-1]}" for s in summaries if "error" in s]
-    (folder / "summary.md").write_text("\n".join(lines) + "\n")
+    write_atomic(folder / "summary.md", ("\n".join(lines) + "\n").encode())
     return table
 
 
 # ------------------------------------------------------------------------------ command
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tactile_viz bench realmesh",
         description="Real-mesh check: trials on meshes shipped by pybullet (pybullet_data; "
                     f"install with {INSTALL_HINT}). Per object, a 'novel' case (the object "
@@ -458,32 +459,34 @@ def build_parser():
                     "Writes per-trial JSON and a Markdown summary.",
         epilog="objects: " + "; ".join(f"{e.name} ({e.note})" for e in CATALOGUE))
     parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
+                        type=name_list(lambda: [e.name for e in CATALOGUE], "a real mesh"),
                         help="real meshes to use as the truth (default every usable one); "
                              "all usable ones are priors either way; comma lists work too")
     parser.add_argument("--cases", action=ExtendList, default=list(CASES), metavar="CASE",
+                        type=name_list(CASES, "a case"),
                         help="cases, comma lists work too; repeats add up (default novel known)")
-    parser.add_argument("--trials", type=int, default=3,
+    parser.add_argument("--trials", type=count_int, default=3,
                         help="trials per object and case; trial i uses seed --seed + i "
                              "(default 3)")
-    parser.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    parser.add_argument("--seed", type=seed_int, default=0, help="first seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="exploration strategy (default gpis-dhd)")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
-    parser.add_argument("--max-steps", type=int, default=None,
+    parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="cap every trial at this many steps (default: the paper's caps "
                              "300 known / 400 novel); for smoke tests")
     parser.add_argument("--bundled", choices=["known", "novel", "all", "none"],
                         default="known",
                         help="bundled objects in every library besides the real meshes "
                              "(default known)")
-    parser.add_argument("--workers", type=int, default=1,
+    parser.add_argument("--workers", type=workers_int, default=1,
                         help="local worker processes (default 1 = serial, with a per-step "
                              "progress bar)")
-    parser.add_argument("--data-dir", metavar="DIR", default=None,
+    parser.add_argument("--data-dir", metavar="DIR", default=None, type=existing_dir,
                         help="read the catalogue's files from DIR instead of the installed "
                              "pybullet_data (e.g. a copy of it)")
-    parser.add_argument("--out", default="bench_realmesh", metavar="DIR",
+    parser.add_argument("--out", default="bench_realmesh", metavar="DIR", type=output_dir,
                         help="output folder (default ./bench_realmesh)")
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; rebuild summary.md from DIR/trials")

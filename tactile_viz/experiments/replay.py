@@ -9,37 +9,29 @@ stopped; the JSON is the ``trial`` command's, with null truth metrics.
 import json
 import sys
 import time
-from pathlib import Path
 
-from ..cli import ExtendList
+from ..cli import existing_file, seed_int
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.observation_file import read_observations
 from ..engine.session import SESSION_PRESETS, RecordedSession, session_preset
-from .trial import code_version, load_priors
+from .trial import (add_output_arguments, add_prior_arguments, code_version, load_priors,
+                    write_output)
 
 
 def add_replay_arguments(parser):
-    parser.add_argument("--observations", metavar="FILE", required=True,
+    parser.add_argument("--observations", metavar="FILE", required=True, type=existing_file,
                         help="CSV of touches: header kind,x,y,z,nx,ny,nz (optional step "
                              "column); kind contact, noncontact or free")
-    priors = parser.add_mutually_exclusive_group()
-    priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
-                        help="the filter's priors: a bundled set (default known)")
-    priors.add_argument("--prior-file", metavar="MESH", action=ExtendList,
-                        help="mesh files to use as the priors instead (repeats add up)")
-    priors.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
+    add_prior_arguments(parser)
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="recorded in the JSON; it only decides the proposed targets")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=seed_int, default=0,
                         help="filter seed (the trial's seed reproduces its estimate exactly)")
-    parser.add_argument("--json", metavar="OUT", help="write the JSON here (default stdout)")
-    parser.add_argument("--export", metavar="DIR",
-                        help="write observations.csv, map_shape.ply, reconstruction.ply "
-                             "(when novel) and estimate.json to DIR")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
+                                 "(when novel) and estimate.json to DIR")
 
 
 def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress=False,
@@ -92,9 +84,5 @@ def run_replay_command(args):
               "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
         export_session(session, args.export)
-    text = json.dumps(result, indent=1)
-    if args.json:
-        Path(args.json).write_text(text)
-    else:
-        print(text)
+    write_output(json.dumps(result, indent=1), args.json)
     return 0

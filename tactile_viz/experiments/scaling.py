@@ -11,7 +11,6 @@
    priors' arrays (with its exponent) and of the process recorded.
 """
 
-import argparse
 import json
 import os
 import sys
@@ -20,7 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, output_dir,
+                   seed_int)
+from ..engine.files import write_atomic
 from ..engine.meshes import LONGEST_SIDE
 from .aggregate import markdown_table
 from .paper import machine_description
@@ -121,26 +122,27 @@ def time_priors(counts, object_name="mug_1", steps=30, seed=0, progress=False):
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tactile_viz bench scaling",
         description="Time per step against the number of contacts (filter, GPIS fit, "
                     "surface, Cholesky; fitted growth exponent of each) and against the "
                     "number of priors (filter update and memory with 10/40/100/400 priors; "
                     "a first run builds and caches the variants' SDFs, about 2 s each).")
-    parser.add_argument("--object", default="mug_2",
+    parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
-    parser.add_argument("--sizes", type=int, action=ExtendList, default=[25, 50, 100, 200, 400],
+    parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
                         help="contact counts (default 25 50 100 200 400)")
-    parser.add_argument("--repeats", type=int, default=3, help="timings per part (median)")
-    parser.add_argument("--priors", type=int, action=ExtendList, default=[10, 40, 100, 400],
+    parser.add_argument("--repeats", type=count_int, default=3, help="timings per part (median)")
+    parser.add_argument("--priors", type=count_int, action=ExtendList, default=[10, 40, 100, 400],
                         help="library sizes (default 10 40 100 400; beyond the 20 bundled "
                              "objects, stretched variants of them)")
-    parser.add_argument("--prior-object", default="mug_1",
+    parser.add_argument("--prior-object", default="mug_1", type=bundled_object(),
                         help="object touched for the prior sweep (default mug_1)")
-    parser.add_argument("--prior-steps", type=int, default=30,
+    parser.add_argument("--prior-steps", type=count_int, default=30,
                         help="touches fed to each filter in the prior sweep (default 30)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="bench_scaling", metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=seed_int, default=0)
+    parser.add_argument("--out", default="bench_scaling", metavar="DIR", type=output_dir,
+                        help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
@@ -219,10 +221,10 @@ def main(argv=None):
              + ", memory of the priors' arrays "
              + (f"{memory_exponent:.2f}" if np.isfinite(memory_exponent) else "n/a"), "",
              "![scaling](scaling.png)"]
-    (out / "scaling.md").write_text("\n".join(lines) + "\n")
-    (out / "scaling.json").write_text(json.dumps(
+    write_atomic(out / "scaling.md", ("\n".join(lines) + "\n").encode())
+    write_atomic(out / "scaling.json", json.dumps(
         {"contacts": [{"contacts": s, **t} for s, t in contact_rows], "exponents": exponents,
          "priors": prior_rows, "prior_exponent": prior_exponent,
-         "memory_exponent": memory_exponent}, indent=1))
+         "memory_exponent": memory_exponent}, indent=1).encode())
     print("\n".join(lines), file=sys.stdout)
     return 0

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from ..cli import ExtendList
+from ..cli import ArgumentParser, ExtendList, bundled_object, int_range, seed_int
 
 
 def near_surface_points(model, count, rng, band=1.0):
@@ -45,15 +45,19 @@ def _chunked(function, points, size=5000):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench sdf", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--points", type=int, default=100_000, help="query points (default 100000)")
+    parser = ArgumentParser(prog="python -m tactile_viz bench sdf", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--points", type=int_range(1, 10**7), default=100_000,
+                        help="query points (default 100000)")
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "armadillo"],
+                        type=bundled_object(),
                         help="bundled objects to measure (default mug_1 armadillo)")
-    parser.add_argument("--resolution", type=int, default=64, help="SDF grid resolution")
+    # 256 cells a side already take about half a gigabyte.
+    parser.add_argument("--resolution", type=int_range(8, 256), default=64,
+                        help="SDF grid resolution (8 to 256)")
     parser.add_argument("--skip-trimesh", action="store_true",
                         help="leave out trimesh (needs rtree; slow on large point sets)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=seed_int, default=0)
     args = parser.parse_args(argv)
 
     from ..engine.objects import load_bundled

@@ -15,7 +15,7 @@ import time
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
-from ..cli import ExtendList
+from ..cli import ArgumentParser, ExtendList, bundled_object, count_int, seed_int
 from ..engine.exploration import enforce_contact
 from ..engine.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
                            stable_cholesky, zero_level_surface)
@@ -116,12 +116,12 @@ def _copy_update(particle_filter, observation):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench step", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--object", default="mug_2")
-    parser.add_argument("--sizes", type=int, action=ExtendList, default=[50, 200, 400])
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--seed", type=int, default=0)
+    parser = ArgumentParser(prog="python -m tactile_viz bench step", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--object", default="mug_2", type=bundled_object())
+    parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[50, 200, 400])
+    parser.add_argument("--repeats", type=count_int, default=5)
+    parser.add_argument("--seed", type=seed_int, default=0)
     args = parser.parse_args(argv)
     rows = measure(args.object, args.sizes, args.repeats, args.seed)
     names = list(rows[0][1])

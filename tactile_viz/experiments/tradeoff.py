@@ -10,7 +10,6 @@ and at least as accurate (and strictly better in one), and on it within its inte
 no other one is at least as fast with a mean error below its interval's lower end.
 """
 
-import argparse
 import json
 import sys
 import time
@@ -19,10 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ExtendList
+from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_dir,
+                   name_list, output_dir, positive_int, workers_int)
+from ..engine.files import write_atomic
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
-from .paper import machine_description, object_sets, recorded_command, split_names
+from .paper import (machine_description, object_sets, recorded_command, require_trials,
+                    split_names, write_json)
 from .runner import make_task, open_pool, run_tasks, task_key
 from .trial_files import read_trials, rounded, trial_path, write_trial
 
@@ -106,27 +108,30 @@ def pareto_front(times, errors):
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="python -m tactile_viz bench tradeoff",
         description="Sweep the presets and one-knob changes of the paper preset (SDF grid, "
                     "feature points, point-pair key resolution and neighbour look-up, GPIS "
                     "grid, eps); plot time per trial against pose error (known objects) and "
                     "reconstruction error (novel objects) with the Pareto front.")
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
+                        type=bundled_objects,
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
-    parser.add_argument("--seeds", type=int, default=2, help="trials (seeds 0..N-1) per object")
+    parser.add_argument("--seeds", type=count_int, default=2, help="trials (seeds 0..N-1) per object")
     parser.add_argument("--configs", action=ExtendList, default=list(CONFIGS), metavar="NAME",
+                        type=name_list(list(CONFIGS), "a configuration"),
                         help="configurations, comma lists work too; repeats add up "
                              f"(default all: {', '.join(CONFIGS)})")
-    parser.add_argument("--max-steps", type=int, default=None,
+    parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="cap every trial (default: the paper's caps)")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
+    parser.add_argument("--workers", type=workers_int, default=1, help="local worker processes")
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
                         help="a Dask distributed scheduler to run the trials on")
-    parser.add_argument("--out", default="bench_tradeoff", metavar="DIR", help="output folder")
+    parser.add_argument("--out", default="bench_tradeoff", metavar="DIR", type=output_dir,
+                        help="output folder")
     parser.add_argument("--resume", action="store_true",
                         help="reuse trial files already in DIR/trials")
-    parser.add_argument("--reuse", metavar="RUN", action="append", default=[],
+    parser.add_argument("--reuse", metavar="RUN", action="append", default=[], type=existing_dir,
                         help="take trials from another run's RUN/trials (a bench paper run) "
                              "that ran the same object, seed, library and parameters, instead "
                              "of running them again (repeatable)")
@@ -357,15 +362,17 @@ def report(folder, command=None):
         if row["config"] in PRESETS:
             lines.append(f"- preset {row['config']}: {fronts(row)}")
     lines += ["", "![tradeoff](tradeoff.png)"]
-    (folder / "tradeoff.md").write_text("\n".join(lines) + "\n")
-    (folder / "tradeoff.json").write_text(json.dumps(rows, indent=1))
+    write_atomic(folder / "tradeoff.md", ("\n".join(lines) + "\n").encode())
+    write_json(folder / "tradeoff.json", rows)
     return folder / "tradeoff.md"
 
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
     start = time.perf_counter()
-    if not args.report_only:
+    if args.report_only:
+        require_trials(args.out)
+    else:
         run(args)
     command = "python -m tactile_viz bench tradeoff " + " ".join(argv or [])
     if args.report_only:

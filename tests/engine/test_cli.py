@@ -11,7 +11,9 @@ def test_objects_json_contract(capsys):
     assert main(["objects", "--json"]) == 0
     listed = json.loads(capsys.readouterr().out)
     assert len(listed) == 20
-    assert all(set(item) == {"name", "set"} for item in listed)
+    assert all(set(item) == {"name", "set", "variant_of"} for item in listed)
+    variants = {item["name"]: item["variant_of"] for item in listed}
+    assert variants["mug_2"] == "mug_1" and variants["mug_1"] is None
     assert sum(item["set"] == "known" for item in listed) == 10
     assert {"mug_1", "home_chair"} <= {item["name"] for item in listed}
 
@@ -30,10 +32,13 @@ def test_help_lists_commands():
     assert "objects" in result.stdout and "bench" in result.stdout
 
 
-def test_repeated_prior_file_flags_add_up():
+def test_repeated_prior_file_flags_add_up(tmp_path, monkeypatch):
     """``--prior-file B --prior-file C`` means both files, not only C (issue 17)."""
     from tactile_viz.__main__ import build_parser
 
+    monkeypatch.chdir(tmp_path)
+    for name in "ABCD":
+        (tmp_path / f"{name}.off").write_text("")  # only their existence is checked here
     parse = build_parser().parse_args
     args = parse(["trial", "--object-file", "A.off", "--prior-file", "B.off",
                   "--prior-file", "C.off"])
