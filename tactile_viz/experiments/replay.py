@@ -15,7 +15,8 @@ from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.observation_file import read_observations
 from ..engine.session import SESSION_PRESETS, RecordedSession, session_preset
-from .trial import (add_output_arguments, add_prior_arguments, code_version, load_priors,
+from .trial import (add_output_arguments, add_prior_arguments, add_unit_arguments,
+                    check_learning, code_version, learn, load_priors, scene_units,
                     write_output)
 
 
@@ -30,6 +31,7 @@ def add_replay_arguments(parser):
                         help="recorded in the JSON; it only decides the proposed targets")
     parser.add_argument("--seed", type=seed_int, default=0,
                         help="filter seed (the trial's seed reproduces its estimate exactly)")
+    add_unit_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json to DIR")
 
@@ -71,8 +73,10 @@ def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress
 
 
 def run_replay_command(args):
-    steps = read_observations(args.observations)
+    units = scene_units(args)
+    steps = read_observations(args.observations, units)
     library = load_priors(args)
+    learn_to = check_learning(args, library)
     start = time.perf_counter()
     session, records = replay(steps, library, args.preset, args.strategy, args.seed,
                               progress=not args.no_progress)
@@ -81,8 +85,10 @@ def run_replay_command(args):
               "strategy": args.strategy, "preset": args.preset,
               "params": session.params.to_dict(), "library": library.names,
               "truth_pose": None, "terminated_at": stop, "code_version": code_version(),
-              "seconds": time.perf_counter() - start, "steps": records}
+              "units": units, "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
-        export_session(session, args.export)
+        export_session(session, args.export, units)
+    if learn_to:
+        result["learned"] = learn(session, library, args.learn, learn_to)
     write_output(json.dumps(result, indent=1), args.json)
     return 0

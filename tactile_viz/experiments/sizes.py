@@ -2,7 +2,7 @@
 same objects at the paper's scale (longest side 6).
 
 ``python -m tactile_viz bench sizes [--seeds 3] [--novel-seeds 1] [--objects ...]
-[--workers 2] [--out DIR] [--no-progress]``
+[--workers 2] [--out DIR] [--no-progress]`` (``--objects`` takes a comma list)
 
 Each object runs the same trials (object, seed, strategy, paper preset) twice: once at the
 paper's scale with the paper's library, once with every object scaled to the plausible size
@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cli import ArgumentParser, count_int, name_list, nonnegative_int, output_dir, workers_int
+from ..engine.files import write_atomic
 from ..engine.metrics import PAPER_SIZE, error_threshold
 from ..engine.objects import bundled_manifest, bundled_names
 from .runner import make_task, open_pool, run_tasks
@@ -123,19 +125,22 @@ def markdown(rows):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tactile_viz bench sizes", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seeds", type=int, default=3, help="seeds per known object")
-    parser.add_argument("--novel-seeds", type=int, default=1, help="seeds per novel object")
-    parser.add_argument("--objects", nargs="+", default=None, choices=list(SIZES_M),
-                        metavar="NAME", help="objects to run (default: all twenty)")
-    parser.add_argument("--workers", type=int, default=2, help="trials in parallel")
-    parser.add_argument("--out", type=Path, default=Path("results/sizes"),
+    parser = ArgumentParser(prog="python -m tactile_viz bench sizes", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=count_int, default=3, help="seeds per known object")
+    parser.add_argument("--novel-seeds", type=nonnegative_int, default=1,
+                        help="seeds per novel object")
+    parser.add_argument("--objects", type=name_list(list(SIZES_M), "an object"), default=None,
+                        metavar="NAME[,NAME...]", help="objects to run (default: all twenty)")
+    parser.add_argument("--workers", type=workers_int, default=2, help="trials in parallel")
+    parser.add_argument("--out", type=output_dir, default="results/sizes",
                         help="folder for sizes.md, sizes.json and trials.jsonl.gz")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    args.out = Path(args.out)
     args.out.mkdir(parents=True, exist_ok=True)
-    names = args.objects or [e["name"] for e in bundled_manifest()]
+    names = ([n for n in args.objects.split(",") if n] if args.objects
+             else [e["name"] for e in bundled_manifest()])
     pool = open_pool(args.workers)
     try:
         results = [result for _, result in run_tasks(
@@ -148,12 +153,12 @@ def main(argv=None):
         print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
     summaries = [summary(r) for r in results if "error" not in r]
     rows = table_rows(summaries)
-    (args.out / "sizes.json").write_text(json.dumps(rows, indent=1))
+    write_atomic(args.out / "sizes.json", json.dumps(rows, indent=1).encode())
     with gzip.open(args.out / "trials.jsonl.gz", "wt") as stream:
         for item in summaries:
             stream.write(json.dumps(item) + "\n")
     text = markdown(rows)
-    (args.out / "sizes.md").write_text(text)
+    write_atomic(args.out / "sizes.md", text.encode())
     print(text, end="")
     return 1 if failed else 0
 

@@ -7,6 +7,7 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 ``dhd``, ``novel``, ``recon_error``, ...). ``tests/engine/test_session.py`` checks the keys.
 """
 
+import argparse
 import functools
 import json
 import subprocess
@@ -14,13 +15,16 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import (ExtendList, bundled_object, existing_dir, existing_file, output_dir,
-                   positive_int, seed_int, writable_output)
-from ..engine.errors import LibraryError, ParameterError
+import numpy as np
+
+from ..cli import (ExtendList, bundled_object, existing_dir, existing_file, finite_float,
+                   output_dir, positive_int, seed_int, writable_output)
+from ..engine.errors import LibraryError, ParameterError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.files import write_atomic
 from ..engine.library import PriorLibrary
+from ..engine.meshes import UNITS, unit_factor
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
 
@@ -35,6 +39,89 @@ def add_prior_arguments(parser):
     parser.add_argument("--prior-file", metavar="MESH", action=ExtendList, type=existing_file,
                         help="mesh files added to --library or --library-dir as priors; "
                              "alone, the only priors (repeats add up)")
+
+
+def positive_float(text):
+    """An argument type: a positive finite number."""
+    value = finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def mesh_units(text):
+    """An argument type: a mesh file's unit (m, cm, mm, in) or a factor (scene units per
+    file unit)."""
+    try:
+        unit_factor(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
+
+
+def add_unit_arguments(parser):
+    """``--units`` (the scene's), ``--mesh-units`` and ``--normalise`` (see the README's
+    "Frames, units and poses")."""
+    parser.add_argument("--units", choices=list(UNITS), default=None,
+                        help="the scene's length unit, written in the outputs; a recording "
+                             "whose '# units:' line names another is converted (default: "
+                             "m when --mesh-units names a unit, else the files' own)")
+    parser.add_argument("--mesh-units", type=mesh_units, default=None, metavar="UNIT",
+                        help="the unit of --object-file and --prior-file meshes: m, cm, mm, "
+                             "in (converted to metres) or a factor (default: the scene's)")
+    parser.add_argument("--normalise", type=positive_float, default=None, metavar="SIZE",
+                        help="scale --object-file and --prior-file meshes to this longest "
+                             "side (the paper's normalisation is 6); default: their size")
+    parser.add_argument("--learn", metavar="NAME",
+                        help="when the object ends judged novel, add its reconstruction as "
+                             "the learned prior NAME to the library folder --learn-to")
+    parser.add_argument("--learn-to", metavar="DIR", type=output_dir,
+                        help="library folder --learn writes (default --library-dir): the "
+                             "session's priors plus the learned shape, saved atomically")
+
+
+def scene_units(args):
+    """The scene's unit name, or None when the files' own units are kept."""
+    if args.units:
+        return args.units
+    named = isinstance(args.mesh_units, str) and args.mesh_units.strip().lower() in UNITS
+    return "m" if named else None
+
+
+def mesh_options(args):
+    """Keyword arguments of ``ObjectModel.from_file`` for the command's mesh files."""
+    factor = unit_factor(args.mesh_units)
+    if args.units and args.mesh_units is None:
+        factor = 1.0
+    elif args.units and isinstance(args.mesh_units, str) and args.mesh_units.lower() in UNITS:
+        factor = UNITS[args.mesh_units.lower()] / UNITS[args.units]
+    return {"longest_side": args.normalise, "scale": factor}
+
+
+def check_learning(args, library):
+    """Where ``--learn`` writes (None without it); refused before any work when the name is
+    taken or there is no folder to write."""
+    if not args.learn:
+        return None
+    folder = args.learn_to or args.library_dir
+    if folder is None:
+        raise LibraryError("--learn needs a library folder to write: --learn-to DIR "
+                           "(or --library-dir DIR)")
+    if args.learn in library:
+        raise LibraryError(f"--learn {args.learn}: the library already has a prior of that "
+                           "name; choose another")
+    return folder
+
+
+def learn(session, library, name, folder):
+    """Add the session's reconstruction to ``library`` as the learned prior ``name`` and
+    save the library to ``folder``; returns a JSON-ready note."""
+    try:
+        model = session.learned_model(name)
+    except TactileVizError as error:
+        return {"name": name, "saved_to": None, "reason": str(error)}
+    PriorLibrary([*library, model]).save(folder)
+    return {"name": name, "saved_to": str(folder), "longest_side": model.length}
 
 
 def add_output_arguments(parser, export_help):
@@ -58,6 +145,7 @@ def add_trial_arguments(parser):
                         help="stop after this many steps (default: the paper's caps 300/400)")
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
+    add_unit_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json of the last step to DIR")
 
@@ -85,8 +173,9 @@ def load_priors(args):
         names.append(name)
     if bundled:
         library = PriorLibrary.bundled(bundled)
+    options = mesh_options(args) if hasattr(args, "mesh_units") else {}
     for path in extra:
-        library.add_file(path)
+        library.add_file(path, **options)
     return library
 
 
@@ -154,10 +243,13 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
     if bar is not None:
         bar.close()
     last = session.latest
-    result = {"object": truth_model.name, "seed": seed, "strategy": strategy, "preset": preset,
+    truth_pose = np.eye(4)
+    truth_pose[:3, :3], truth_pose[:3, 3] = truth.rotation, truth.translation
+    result = {"object": truth_model.name, "object_size": truth_model.length, "seed": seed, "strategy": strategy, "preset": preset,
             "params": params.to_dict(), "library": library.names,
             "truth_pose": {"rotation": truth.rotation.tolist(),
-                           "translation": truth.translation.tolist()},
+                           "translation": truth.translation.tolist(),
+                           "file_to_world": (truth_pose @ truth_model.file_to_object).tolist()},
             "terminated_at": last.step if last.terminated else None,
             "code_version": code_version(),
             "seconds": time.perf_counter() - start, "steps": steps}
@@ -168,15 +260,21 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
 
 def run_trial_command(args):
     truth_model = (load_bundled(args.object) if args.object
-                   else ObjectModel.from_file(args.object_file))
+                   else ObjectModel.from_file(args.object_file, **mesh_options(args)))
     library = load_priors(args)
+    learn_to = check_learning(args, library)
+    units = scene_units(args)
 
     def finish(session):
-        export_session(session, args.export)
-        return {}
+        extra = {}
+        if args.export:
+            export_session(session, args.export, units)
+        if learn_to:
+            extra["learned"] = learn(session, library, args.learn, learn_to)
+        return extra
 
     result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
-                       args.max_steps, progress=not args.no_progress,
-                       finish=finish if args.export else None)
+                       args.max_steps, progress=not args.no_progress, finish=finish)
+    result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
     return 0

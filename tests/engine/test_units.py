@@ -127,3 +127,13 @@ def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
     first = read_observations(tmp_path / "out" / "observations.csv", units="mm")[0]
     np.testing.assert_allclose(first.observations[0].position,
                                1000 * session.snapshots[0].new_observations[0].position)
+
+
+def test_an_object_of_another_size_is_novel_and_reconstructed_at_its_size(metric_mugs):
+    """mug_1 at 35 cm against priors of 10 to 25 cm: the same shape, but no prior's size."""
+    big = load_bundled("mug_1", size=0.35).renamed("big_mug")
+    session = Session(make_truth(big, rng=[4, 0]), metric_mugs, seed=4)
+    snapshot = session.run(max_steps=20)
+    assert snapshot.novel
+    extent = snapshot.gpis_vertices.max(axis=0) - snapshot.gpis_vertices.min(axis=0)
+    assert 0.2 < extent.max() < 0.5

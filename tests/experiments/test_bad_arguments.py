@@ -22,16 +22,19 @@ IN_DIR = ["MISSING", "FILE"]
 OUT_FILE = ["MISSING/out.json", "DIR", "FILE/out.json", ""]
 OUT_DIR = ["FILE", "FILE/sub", ""]
 NAME = ["nosuch", "", "mug_1,nosuch"]
+UNITS = {"--units": ["parsec", ""], "--mesh-units": ["parsec", "0", "-1", "nan", "inf"],
+         "--normalise": ["0", "-1", "nan", "inf", "x"], "--learn-to": OUT_DIR}
 
 TRIAL = ["trial", "--object", "mug_1", "--no-progress"]
 REPLAY = ["replay", "--observations", "OBS", "--no-progress"]
 COMMANDS = {
     "trial": (TRIAL, {"--max-steps": STEPS, "--seed": SEED, "--json": OUT_FILE,
                       "--export": OUT_DIR, "--prior-file": IN_FILE, "--library-dir": IN_DIR,
-                      "--library": NAME, "--strategy": NAME, "--preset": NAME}),
+                      "--library": NAME, "--strategy": NAME, "--preset": NAME, **UNITS}),
     "trial-object": (["trial"], {"--object": NAME, "--object-file": IN_FILE}),
     "replay": (REPLAY, {"--seed": SEED, "--json": OUT_FILE, "--export": OUT_DIR,
-                        "--prior-file": IN_FILE, "--library-dir": IN_DIR, "--preset": NAME}),
+                        "--prior-file": IN_FILE, "--library-dir": IN_DIR, "--preset": NAME,
+                        **UNITS}),
     "replay-observations": (["replay"], {"--observations": IN_FILE}),
     "objects": (["objects"], {"--jsn": [None], "--json": ["x"]}),
     "bench paper": (["bench", "paper"], {
@@ -48,6 +51,8 @@ COMMANDS = {
         "--seeds": COUNT, "--contacts": COUNT, "--objects": NAME + ["mug_2"],
         "--levels": ["nan:1", "0:inf", "0.5:-1", "1", "x:y"], "--configs": NAME,
         "--out": OUT_DIR}),
+    "bench sizes": (["bench", "sizes"], {
+        "--seeds": COUNT, "--objects": NAME, "--workers": WORKERS, "--out": OUT_DIR}),
     "bench sdf": (["bench", "sdf"], {
         "--points": COUNT, "--resolution": ["0", "7", "100000", "nan"], "--objects": NAME,
         "--seed": SEED}),
@@ -119,8 +124,8 @@ def test_library_with_library_dir_is_still_refused(paths, capsys):
     assert "not allowed with argument" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("what", ["paper", "tradeoff", "scaling", "noise", "sdf", "step",
-                                  "realmesh", "gui"])
+@pytest.mark.parametrize("what", ["paper", "tradeoff", "scaling", "noise", "sizes", "sdf",
+                                  "step", "realmesh", "gui"])
 def test_bench_help_lists_its_options(what, capsys):
     assert exit_status(["bench", what, "--help"]) == 0
     assert "usage: python -m tactile_viz bench " + what in capsys.readouterr().out
