@@ -59,4 +59,4 @@ screenshots: setup
 	$(PY) -m tactile_viz.gui.object_sheet --out screenshots
 	$(XVFB_RUN) $(PY) app.py --object mug_1 --seed 0 --steps 60 --screenshot screenshots/app_known_mug.png
 	$(XVFB_RUN) $(PY) app.py --object vase_2 --seed 3 --steps 90 --screenshot screenshots/app_novel_vase2.png
-	$(XVFB_RUN) $(PY) app.py --object vase_2 --seed 3 --learn-first --steps 30 --screenshot screenshots/app_learned_vase2.png
+	$(XVFB_RUN) $(PY) app.py --object vase_2 --seed 0 --learn-first --steps 30 --screenshot screenshots/app_learned_vase2.png
