@@ -1,10 +1,18 @@
 """Active data acquisition: target selection and contact enforcement (paper, III-F).
 
-A step of exploration returns the sensor paths it ran and the observations they gave:
-usually one contact, sometimes a non-contact before it. Every function takes the
-simulator (the only thing that touches the ground truth) and an ``rng``. Lengths are in
-scene units; the fixed ones inside a function are multiples of ``unit``, the scene units of
-a size unit (a sixth of the object's longest side: 1 for the paper's objects).
+The sensor contract is a *guarded move*: the sensor moves along a polyline (world frame,
+scene units) and stops at the first contact; it answers with the :class:`Contact` (position,
+outward normal) or with a :class:`NonContact` at the end of the path. The simulator's
+``probe(path)`` is one implementation, a robot's another.
+
+Each procedure is written twice over one body: ``*_moves`` is a generator that yields the
+paths of its guarded moves and is sent each move's result (so a session can hand the moves
+to a robot one at a time, :meth:`Session.propose` / :meth:`Session.observe`), and the plain
+function drives it with a sensor (:func:`drive`). A procedure returns the paths it ran and
+the observations they gave: usually one contact, sometimes a non-contact before it.
+Lengths are in scene units; the fixed ones inside a function are multiples of ``unit``, the
+scene units of a size unit (a sixth of the object's longest side: 1 for the paper's
+objects).
 """
 
 import numpy as np
@@ -57,28 +65,41 @@ def variance_target(vertices, variance, subset, reachable, contacts, uncovered_b
     return int(subset[int(np.argmax(np.where(best, distance, -np.inf)))])
 
 
-def first_contact(simulator, centre, rng, radius=10.0, attempts=50, unit=1.0):
+def drive(moves, sensor):
+    """Run a procedure of guarded moves (a ``*_moves`` generator) with ``sensor``, whose
+    ``probe(path)`` carries out one move; returns the procedure's result."""
+    try:
+        path = next(moves)
+        while True:
+            path = moves.send(sensor.probe(path))
+    except StopIteration as done:
+        return done.value
+
+
+def first_contact_moves(centre, rng, radius=10.0, attempts=50, unit=1.0):
     """The random first touch: straight lines through the workspace from random directions
     (``radius`` on either side of ``centre``, offset up to ``unit / 2``).
 
-    Returns
-    -------
-    paths : list of (2, 3) arrays
-    observations : list
-        Non-contacts for lines that missed, then the contact.
+    Yields the lines; returns ``(paths, observations)``: non-contacts for lines that
+    missed, then the contact.
     """
     paths, observations = [], []
     for _ in range(attempts):
         direction = normalise_rows(rng.normal(size=(1, 3)))[0]
         offset = rng.uniform(-0.5, 0.5, size=3) * unit
         path = np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
-        observation = simulator.probe(path)
+        observation = yield path
         paths.append(path)
         observations.append(observation)
         if isinstance(observation, Contact):
             return paths, observations
     raise TactileVizError(f"no contact after {attempts} random lines through the workspace: "
                           "is the object near the origin?")
+
+
+def first_contact(simulator, centre, rng, radius=10.0, attempts=50, unit=1.0):
+    """:func:`first_contact_moves` carried out by ``simulator``."""
+    return drive(first_contact_moves(centre, rng, radius, attempts, unit), simulator)
 
 
 def sweep_directions(count):
@@ -248,7 +269,18 @@ def sweep_line(simulator, through, direction, radius=10.0):
 
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,
                     clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0):
-    """Reach for a target as in the paper's figure; returns what was touched.
+    """:func:`enforce_contact_moves` carried out by ``simulator`` (the way back ends two of
+    its steps inside the anchor)."""
+    return drive(enforce_contact_moves(target, normal, contacts, contact_normals, depth,
+                                       clearance, follow_step, spacing, max_follow,
+                                       2 * simulator.step), simulator)
+
+
+def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
+                          clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0,
+                          back_depth=0.04):
+    """Reach for a target as in the paper's figure; yields the guarded moves, returns what
+    was touched.
 
     The sensor moves from just outside ``target`` inward along ``-normal`` up to ``depth``.
     A miss is recorded as a non-contact; the sensor then moves from the probe's end toward
@@ -258,7 +290,6 @@ def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=
 
     Parameters
     ----------
-    simulator : ContactSimulator
     target, normal : (3,) float, world frame
         The target and the estimated outward normal there.
     contacts, contact_normals : (n, 3) float
@@ -271,6 +302,8 @@ def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=
         A contact this far from every earlier one is new; following stops there.
     max_follow : float
         Longest surface path before giving up.
+    back_depth : float
+        How far inside the nearest contact the way back to it ends.
 
     Returns
     -------
@@ -282,24 +315,30 @@ def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=
         is out of the sensor's reach from here.
     """
     path = np.stack([target + clearance * normal, target - depth * normal])
-    observation = simulator.probe(path)
+    observation = yield path
     if isinstance(observation, Contact):
         return [path], [observation], True
     tree = cKDTree(contacts)
     nearest = int(tree.query(path[-1])[1])
     anchor, anchor_normal = contacts[nearest], contact_normals[nearest]
-    back = np.stack([path[-1], anchor, anchor - 2 * simulator.step * anchor_normal])
-    touched = simulator.probe(back)
+    back = np.stack([path[-1], anchor, anchor - back_depth * anchor_normal])
+    touched = yield back
     paths = [path, back]
     if not isinstance(touched, Contact):  # the sensor noise put the contact off the surface
         touched = Contact(anchor, anchor_normal)
-    follow_paths, touched = follow_toward(simulator, touched, target, tree, follow_step,
-                                          spacing, max_follow)
+    follow_paths, touched = yield from follow_toward_moves(touched, target, tree, follow_step,
+                                                           spacing, max_follow)
     reached = bool(tree.query(touched.position)[0] >= spacing)
     return paths + follow_paths, [observation, touched], reached
 
 
 def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
+    """:func:`follow_toward_moves` carried out by ``simulator``."""
+    return drive(follow_toward_moves(contact, target, tree, step, spacing, max_follow),
+                 simulator)
+
+
+def follow_toward_moves(contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
     """Slide along the surface from ``contact`` toward ``target`` in in-contact steps.
 
     Each step moves ``step`` along the tangent plane toward the target and probes across
@@ -325,7 +364,7 @@ def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_f
         reach = 2 * step
         path = np.stack([moved + reach * normal, moved - reach * normal,
                          position - reach * normal])
-        following = simulator.probe(path)
+        following = yield path
         paths.append(path)
         if not isinstance(following, Contact):
             break
@@ -339,6 +378,13 @@ def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_f
 
 def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth=1.0,
                    clearance=0.5, unit=1.0):
+    """:func:`follow_surface_moves` carried out by ``simulator``."""
+    return drive(follow_surface_moves(toward, contacts, contact_normals, step, depth,
+                                      clearance, unit), simulator)
+
+
+def follow_surface_moves(toward, contacts, contact_normals, step=0.3, depth=1.0,
+                         clearance=0.5, unit=1.0):
     """One surface-following step from the contact nearest ``toward``, along its tangent."""
     nearest = int(cKDTree(contacts).query(toward)[1])
     start, normal = contacts[nearest], contact_normals[nearest]
@@ -352,19 +398,26 @@ def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth
         length = np.linalg.norm(tangent)
     moved = start + min(step, max(length, 1e-3 * unit)) * tangent / length
     path = np.stack([moved + clearance * normal, moved - depth * normal])
-    observation = simulator.probe(path)
+    observation = yield path
     if isinstance(observation, Contact):
         return [path], [observation]
     # Off an edge: come back toward the known contact, which must cross the surface.
     back = np.stack([moved + clearance * normal, start - 0.2 * unit * normal])
-    return [path, back], [simulator.probe(back)]
+    return [path, back], [(yield back)]
 
 
 def rrt_step(simulator, contacts, contact_normals, workspace, rng, step=0.3, depth=1.0,
              clearance=0.5, unit=1.0):
+    """:func:`rrt_moves` carried out by ``simulator``."""
+    return drive(rrt_moves(contacts, contact_normals, workspace, rng, step, depth, clearance,
+                           unit), simulator)
+
+
+def rrt_moves(contacts, contact_normals, workspace, rng, step=0.3, depth=1.0, clearance=0.5,
+              unit=1.0):
     """RRT-style exploration: a random workspace sample, projected on the tangent plane at
     its nearest contact, and a small surface-constrained step toward it."""
     low, high = workspace
     sample = rng.uniform(low, high)
-    return follow_surface(simulator, sample, contacts, contact_normals, step, depth, clearance,
-                          unit)
+    return (yield from follow_surface_moves(sample, contacts, contact_normals, step, depth,
+                                            clearance, unit))

@@ -19,9 +19,9 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from .errors import TactileVizError
-from .exploration import (STRATEGIES, clearest_direction, enforce_contact, farthest_vertex,
-                          first_contact, next_sweep_direction, path_until, raster_path,
-                          rrt_step, variance_target, widest_gap)
+from .exploration import (STRATEGIES, clearest_direction, enforce_contact_moves,
+                          farthest_vertex, first_contact_moves, next_sweep_direction,
+                          path_until, raster_path, rrt_moves, variance_target, widest_gap)
 from .gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
                    zero_level_surface)
 from .metrics import directed_hausdorff, pose_difference, surface_samples, two_way_hausdorff
@@ -229,12 +229,55 @@ class Target:
     path: object = None
 
 
+@dataclass(frozen=True)
+class Move:
+    """A guarded move the session asks of the sensor: move along ``path`` and stop at the
+    first contact.
+
+    Attributes
+    ----------
+    path : (k, 3) float
+        The polyline, world frame, scene units (k >= 2).
+    kind : {"first", "target", "check", "rrt"}
+        The procedure the move belongs to: random lines until the first contact, contact
+        enforcement toward a target (the probe, then after a miss the way back to the
+        nearest contact and the in-contact steps along the surface), a check line, an RRT
+        step.
+    number : int
+        The move's place in its step (0 first).
+    target : (3,) float or None
+        The target the step reaches for (``kind == "target"``).
+    """
+
+    path: np.ndarray
+    kind: str
+    number: int
+    target: object = None
+
+
+def _one_move(path):
+    """A procedure of one guarded move: returns ``([path], [result])``."""
+    result = yield path
+    return [path], [result]
+
+
 class Session:
     """Active exploration of one object with one prior library: Algorithm 2, step by step.
 
-    The touches come from the simulator (``truth`` given: :meth:`step`) or from the caller
-    (a real sensor, a recording: :meth:`propose` the next target, :meth:`observe` what was
-    touched). Without a truth the error metrics of the snapshots are None.
+    The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
+    first contact, answering with the :class:`Contact` or a :class:`NonContact` at the path's
+    end. The session, not the sensor, carries out contact enforcement and surface
+    following by asking for such moves. Two ways to drive it, one code path:
+
+    - callback: a ``sensor`` with ``probe(path) -> Contact | NonContact`` (the simulator
+      when ``truth`` is given, or a robot); :meth:`step` runs a whole step;
+    - ask/tell: ``move = session.propose()``, the robot carries it out,
+      ``session.observe(result)``; ``observe`` returns the step's :class:`Snapshot` when the
+      step is complete, else None (more moves are needed).
+
+    :meth:`observe` also takes a whole step's observations (a list), as a recording gives
+    them. Misses before the first contact are kept until it comes. Without a truth the
+    error metrics of the snapshots are None.
 
     Parameters
     ----------
@@ -247,10 +290,13 @@ class Session:
         Seeds the filter, the exploration and the simulator noise.
     sensor_noise : tuple of float
         ``(position std, normal std in degrees)`` of the simulated sensor.
+    sensor : object, optional
+        A robot: ``sensor.probe(path)`` carries out one guarded move (ignored with a truth,
+        whose simulator is the sensor).
     """
 
     def __init__(self, truth, library, strategy="gpis-dhd", params=None, seed=0,
-                 sensor_noise=(0.0, 0.0)):
+                 sensor_noise=(0.0, 0.0), sensor=None):
         if strategy not in STRATEGIES:
             raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
@@ -263,11 +309,13 @@ class Session:
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
         self.rng = np.random.default_rng([self.seed, 1])
         self.simulator = None
+        self.sensor = sensor
         self._truth_samples = None
         if truth is not None:
             self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
                                               normal_noise_deg=self.sensor_noise[1],
                                               rng=np.random.default_rng([self.seed, 2]))
+            self.sensor = self.simulator
             self._truth_samples = transform_points(
                 surface_samples(truth.model, self.params.metric_samples), truth.rotation,
                 truth.translation)
@@ -287,6 +335,17 @@ class Session:
         self._check = None  # (estimate's vertices, point, direction, path) while a check is due
         self._check_directions = []
         self._checks_passed = 0
+        # The step in progress: the session rng's state when it began, the results of its
+        # guarded moves so far, observations held before the first contact.
+        self._moves_rng = None
+        self._results = []
+        self._held = None
+        self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_live"] = None  # a running generator does not pickle; it is replayed
+        return state
 
     @property
     def step_count(self):
@@ -311,59 +370,143 @@ class Session:
         return self.latest
 
     def step(self):
-        """One time step of Algorithm 2 with the simulated sensor; returns its
+        """One time step of Algorithm 2 with the sensor (the simulator or a robot given as
+        ``sensor``): the guarded moves of the step, then the update; returns its
         :class:`Snapshot`.
 
-        A step that fails leaves the session exactly as it was before it.
+        The same path as :meth:`propose` and :meth:`observe`. A step that fails leaves the
+        session exactly as it was before it.
         """
-        if self.simulator is None:
-            raise SessionError("this session has no simulated object: give it what the "
-                               "sensor touched with observe()")
+        if self.sensor is None:
+            raise SessionError("this session has no sensor: give it what the sensor found "
+                               "with observe(), or a sensor with probe(path)")
         if self.terminated:
             raise SessionError("the session has terminated; start a new one")
-        self._use_lengths()
         saved = self._checkpoint()
         try:
-            clock = time.perf_counter()
-            paths, observations = self._touch()
-            return self._update(paths, observations, {"simulator": time.perf_counter() - clock})
+            sensing, snapshot = 0.0, None
+            while snapshot is None:
+                move = self.propose()
+                clock = time.perf_counter()
+                result = self.sensor.probe(move.path)
+                sensing += time.perf_counter() - clock
+                snapshot = self._observe_move(result, {"sensor": sensing})
+            return snapshot
         except BaseException:
             self._restore(saved)
             raise
 
     def propose(self):
-        """Where to touch next, or None: before the first contact (touch the object
-        anywhere), with the RRT strategy and after termination.
+        """The next guarded move of the step in progress, or None after termination.
 
-        A check (``check_lines``) is proposed as a target with a ``path``: the polyline
-        the sensor should sweep, reporting the first thing it touches.
+        Asking again before :meth:`observe` gives the same move.
 
         Returns
         -------
-        Target or None
+        Move or None
         """
-        if self.terminated or self.strategy == "rrt":
+        if self.terminated:
             return None
         self._use_lengths()
+        kind, _, _, path = self._live_procedure()
+        target = (self._target[0] if kind == "target" else None)
+        return Move(_frozen(path), kind, len(self._results),
+                    None if target is None else _frozen(target))
+
+    def _live_procedure(self):
+        """The step's procedure of guarded moves, advanced to the next move: built from the
+        state at the step's start and replayed with the results so far when it is not
+        running (after a pickle, a copy or a rollback)."""
+        if self._live is not None:
+            return self._live
+        if self._moves_rng is None:
+            self._moves_rng = self.rng.bit_generator.state
+        rng = np.random.Generator(type(self.rng.bit_generator)())
+        rng.bit_generator.state = self._moves_rng
+        kind, procedure = self._procedure(rng)
+        path = next(procedure)
+        for result in self._results:
+            path = procedure.send(result)
+        self._live = (kind, procedure, rng, path)
+        return self._live
+
+    def _procedure(self, rng):
+        """``(kind, generator of guarded moves)`` for the step: lines 2-4 of Algorithm 2
+        (reach for the target chosen last step) or the first touch, a check, an RRT step."""
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        p, unit = self._p, self._unit
+        if len(contacts) == 0 or (self._target is None and self._check is None
+                                  and self.strategy != "rrt"):
+            return "first", first_contact_moves(
+                np.zeros(3), rng, radius=FIRST_LINE_REACH * self._filter_unit,
+                unit=self._filter_unit)
+        if self.strategy == "rrt":
+            low, high = contacts.min(axis=0) - RRT_MARGIN * unit, contacts.max(axis=0) + RRT_MARGIN * unit
+            return "rrt", rrt_moves(contacts, normals, (low, high), rng, p.rrt_step,
+                                    p.probe_depth, 0.5 * unit, unit)
         if self._check is not None:
-            _, through, direction, path = self._check
-            reach = SWEEP_RADIUS * self._unit
-            return Target(_frozen(through), _frozen(direction), reach, reach, _frozen(path))
-        if self._target is None:
-            return None
-        position, normal, estimate = self._target
-        depth = deepest_inside(estimate, position, normal, self._p.probe_depth)
-        clearance = free_approach(estimate, position, normal, self._p.approach_clearance,
-                                  self._unit)
-        return Target(_frozen(position), _frozen(normal), depth, clearance)
+            return "check", _one_move(self._check[3])
+        target, normal, estimate = self._target
+        depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
+        # The way back ends two simulator steps inside the anchor (1/150 of the size).
+        back = 2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
+        return "target", enforce_contact_moves(
+            target, normal, contacts, normals, depth, clearance, p.follow_step,
+            p.contact_spacing, p.max_follow, back)
+
+    def _observe_move(self, result, timings):
+        """Take the result of the current guarded move; the step's snapshot when its
+        procedure is done, else None."""
+        self._use_lengths()
+        kind, procedure, rng, _ = self._live_procedure()
+        self._results.append(result)
+        try:
+            path = procedure.send(result)
+        except StopIteration as done:
+            self.rng.bit_generator.state = rng.bit_generator.state
+            self._moves_rng, self._results, self._live = None, [], None
+            paths, observations = self._after_moves(kind, done.value)
+            return self._update(paths, observations, timings)
+        self._live = (kind, procedure, rng, path)
+        return None
+
+    def _after_moves(self, kind, done):
+        """What a finished procedure leaves besides its observations: the swept space, the
+        given-up target, the check's count, the frontier, the missed probe's free space."""
+        if kind == "check":
+            (path,), observations = done
+            self._record_sweep(observations[0])
+            self._count_check(observations[0])
+            if not isinstance(observations[0], Contact):
+                spacing = self._p.contact_spacing
+                self._free_space = thin_points(np.vstack([self._free_space, path_until(
+                    path, path[-1], spacing, 0.05 * self._unit)]), spacing)
+            return [path], observations
+        if kind != "target":
+            return done
+        paths, observations, reached = done
+        target = self._target[0]
+        self._record_sweep(observations[0], paths[0][0])  # the approach's start
+        if not reached or self._repeats_contact(observations[-1]):
+            self._given_up_targets.append(target)
+        self._follow_frontier(observations[-1])
+        if not isinstance(observations[0], Contact):
+            self._free_space = free_space_points(self._free_space, paths[0],
+                                                 self._p.contact_spacing)
+        return paths, observations
 
     def observe(self, observations, free_space=None):
-        """One time step with touches made by the caller; returns its :class:`Snapshot`.
+        """What the sensor found: the result of the proposed guarded move, or a whole step.
 
         Parameters
         ----------
-        observations : sequence of Contact or NonContact
-            What the sensor found in this step, in time order (at least one).
+        observations : Contact, NonContact or sequence of them
+            One observation: the result of the move :meth:`propose` gave (ask/tell); the
+            step's :class:`Snapshot` is returned when its procedure is done, else None.
+            A sequence: what the sensor found in one whole step, in time order (at least
+            one), as a recording gives it; misses before the first contact ever are held
+            (None is returned) and join the step of that contact.
         free_space : (k, 3) float, optional
             Points the sensor moved through without touching; they cut the prior of the
             reconstruction (``gpis_carve_radius``) and are not observations of the filter.
@@ -377,6 +520,18 @@ class Session:
         accepting observations after it would have stopped (``terminated``).
         A step that fails leaves the session exactly as it was before it.
         """
+        if isinstance(observations, (Contact, NonContact)):
+            if free_space is not None:
+                raise SessionError("free_space goes with a whole step's observations")
+            saved = self._checkpoint()
+            try:
+                return self._observe_move(observations, {})
+            except BaseException:
+                self._restore(saved)
+                raise
+        if self._results:
+            raise SessionError("a guarded move is pending: observe its result (one Contact "
+                               "or NonContact) before a whole step")
         observations = list(observations)
         if not observations:
             raise SessionError("a step needs at least one observation")
@@ -391,6 +546,13 @@ class Session:
         saved = self._checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
+            if self._held is not None:
+                observations = self._held[0] + observations
+                points = np.vstack([self._held[1], points])
+                self._held = None
+            if not contacts and len(self.filter.contact_positions) == 0:
+                self._held = (observations, points)  # no estimate before a contact
+                return None
             self._record_sweep(observations[0], self._approach_start())
             if self._check is not None:
                 self._count_check(observations[0])
@@ -427,10 +589,13 @@ class Session:
                 (self._scale, self._target, list(self._given_up_targets), self._free_space,
                  self._swept, len(self.snapshots)),
                 (self._check, list(self._check_directions), self._checks_passed,
-                 list(self._frontier), self._frontier_target))
+                 list(self._frontier), self._frontier_target),
+                (self._moves_rng, list(self._results), self._held))
 
     def _restore(self, saved):
-        filter_state, generator_states, (scale, target, given_up, free, swept, count), check = saved
+        (filter_state, generator_states, (scale, target, given_up, free, swept, count), check,
+         (self._moves_rng, self._results, self._held)) = saved
+        self._live = None
         (self._check, self._check_directions, self._checks_passed, self._frontier,
          self._frontier_target) = check
         self.filter.restore(filter_state)
@@ -578,36 +743,6 @@ class Session:
                 directed_hausdorff(self._truth_samples, contacts))
 
     # ---------------------------------------------------------------- pieces
-    def _touch(self):
-        contacts = self.filter.contact_positions
-        if len(contacts) == 0:
-            return first_contact(self.simulator, np.zeros(3), self.rng,
-                                 radius=FIRST_LINE_REACH * self._filter_unit,
-                                 unit=self._filter_unit)
-        p = self._p
-        if self.strategy == "rrt":
-            margin = RRT_MARGIN * self._unit
-            low, high = contacts.min(axis=0) - margin, contacts.max(axis=0) + margin
-            return rrt_step(self.simulator, contacts, self.filter.contact_normals, (low, high),
-                            self.rng, p.rrt_step, p.probe_depth, 0.5 * self._unit, self._unit)
-        if self._check is not None:
-            return self._check_line()
-        target, normal, estimate = self._target
-        depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        clearance = free_approach(estimate, target, normal, p.approach_clearance, self._unit)
-        paths, observations, reached = enforce_contact(
-            self.simulator, target, normal, contacts, self.filter.contact_normals, depth,
-            clearance=clearance, follow_step=p.follow_step, spacing=p.contact_spacing,
-            max_follow=p.max_follow)
-        self._record_sweep(observations[0], target + clearance * normal)
-        if not reached or self._repeats_contact(observations[-1]):
-            self._given_up_targets.append(target)
-        self._follow_frontier(observations[-1])
-        if not isinstance(observations[0], Contact):
-            self._free_space = free_space_points(self._free_space, paths[0],
-                                                 p.contact_spacing)
-        return paths, observations
-
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next check: ``(estimate's vertices, its point, its direction, the path to
         sweep)``.
@@ -681,19 +816,6 @@ class Session:
         elif start is not None:
             self._swept = free_space_points(self._swept, np.stack([start, touched.position]),
                                             SWEPT_SPACING * self._unit)
-
-    def _check_line(self):
-        """Sweep the planned check path with the simulated sensor and count it."""
-        path = self._check[3]
-        paths, observations = [path], [self.simulator.probe(path)]
-        self._record_sweep(observations[0])
-        self._count_check(observations[0])
-        if not isinstance(observations[0], Contact):
-            spacing = self._p.contact_spacing
-            self._free_space = thin_points(
-                np.vstack([self._free_space, path_until(path, path[-1], spacing,
-                                                        0.05 * self._unit)]), spacing)
-        return paths, observations
 
     def _count_check(self, touched):
         """Count the check as passed unless it touched the object farther than
@@ -963,16 +1085,26 @@ class RecordedSession(Session):
         super().__init__(None, library, strategy, params, seed)
         self.recording = list(steps)
         self.source = source
+        self.replayed = 0  # recorded steps given to the session (misses first are held)
 
     @property
     def terminated(self):
-        return self.step_count >= len(self.recording)
+        return self.replayed >= len(self.recording)
 
     def step(self):
+        """Replay recorded steps until one gives a snapshot (misses before the first
+        contact join its step); at the recording's end without a contact, None."""
         if self.terminated:
             raise SessionError("the recording has been replayed to its end")
-        recorded = self.recording[self.step_count]
-        return self.observe(recorded.observations, recorded.free_space)
+        snapshot = None
+        while snapshot is None and not self.terminated:
+            recorded = self.recording[self.replayed]
+            snapshot = self.observe(recorded.observations, recorded.free_space)
+            self.replayed += 1
+        if snapshot is None:
+            raise SessionError("the recording holds no contact: there is nothing to "
+                               "estimate from misses alone")
+        return snapshot
 
 
 def free_space_points(points, path, spacing):
@@ -1045,5 +1177,5 @@ def make_truth(model, rng=None, max_translation=1.0):
     return GroundTruth(model, rotation, translation)
 
 
-__all__ = ["Reconstruction", "RecordedSession", "Session", "SessionError", "SessionParams", "Snapshot", "Target",
+__all__ = ["Move", "Reconstruction", "RecordedSession", "Session", "SessionError", "SessionParams", "Snapshot", "Target",
            "session_preset", "SESSION_PRESETS", "learned_model_from_surface", "make_truth"]

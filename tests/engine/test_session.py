@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from tactile_viz.__main__ import main
-from tactile_viz.engine import PriorLibrary
+from tactile_viz.engine import ContactSimulator, PriorLibrary
 from tactile_viz.engine.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.objects import ObjectModel
@@ -173,7 +173,7 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
     assert len(second.contacts) == 2 and len(second.new_observations) >= 1
     assert second.map_vertices.shape == (len(bundled[second.map_class].mesh.vertices), 3)
     assert second.target is not None and second.paths
-    assert set(second.timings) >= {"simulator", "filter", "target", "metrics"}
+    assert set(second.timings) >= {"sensor", "filter", "target", "metrics"}
     assert sum(second.class_posterior.values()) == pytest.approx(1.0)
     with pytest.raises(ValueError):
         second.contacts[0, 0] = 1.0
@@ -332,6 +332,12 @@ def test_faithful_preset_is_the_papers_gpis():
     assert params.approach_clearance == 0.5
 
 
+def _sweep_check(session):
+    """Sweep the planned check with the simulator and count it, as a step does."""
+    path = session._check[3]
+    return session._after_moves("check", ([path], [session.simulator.probe(path)]))
+
+
 def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known,
                                                                   monkeypatch):
     # The estimate covers only the top of the truth: a line from below touches the bottom
@@ -350,10 +356,10 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
                         lambda used, rng: next(lines))
     session._checks_passed = 2
     session._check = session._plan_check_line(top, inside[None])
-    session._check_line()  # the path starts below and runs up
+    _sweep_check(session)  # the path starts below and runs up
     assert session._checks_passed == 0
     session._check = session._plan_check_line(top, inside[None])
-    session._check_line()  # from above
+    _sweep_check(session)  # from above
     assert session._checks_passed == 1
 
 
@@ -476,40 +482,83 @@ def test_trial_and_replay_commands_export_the_same_estimate(tmp_path):
         assert b["truth_coverage"] is None and a["truth_coverage"] is not None
 
 
-def _robot(truth, seed=0):
-    """A stand-in for a real robot: the simulator behind a callable that takes a target
-    (or None) and the contacts so far and returns what the sensor touched (after a miss it
-    slides to the nearest contact and along the surface, as the paper's robot does)."""
-    from tactile_viz.engine import ContactSimulator
-    from tactile_viz.engine.exploration import enforce_contact, first_contact
+def _ask_and_tell(session, sensor, steps):
+    """Drive a session as event-driven robot software would: ask for a guarded move, carry
+    it out with ``sensor``, tell the result; returns the snapshots of ``steps`` steps (fewer
+    if it terminates) and the moves."""
+    snapshots, moves = [], []
+    while len(snapshots) < steps and not session.terminated:
+        move = session.propose()
+        moves.append(move)
+        snapshot = session.observe(sensor.probe(move.path))
+        if snapshot is not None:
+            snapshots.append(snapshot)
+    return snapshots, moves
 
-    simulator = ContactSimulator(truth)
-    rng = np.random.default_rng(seed)
 
-    def touch(target, contacts, normals):
-        if target is None:
-            return first_contact(simulator, np.zeros(3), rng)[1]
-        return enforce_contact(simulator, target.position, target.normal, contacts, normals,
-                               target.depth, clearance=target.clearance)[1]
+class MissingFirst:
+    """A robot whose first ``misses`` guarded moves find nothing (reported at the path's
+    end), then a simulator's."""
 
-    return touch
+    def __init__(self, simulator, misses):
+        self.simulator, self.misses = simulator, misses
+
+    def probe(self, path):
+        if self.misses > 0:
+            self.misses -= 1
+            return NonContact(np.asarray(path, float)[-1])
+        return self.simulator.probe(path)
 
 
 def test_a_session_driven_by_its_caller(bundled, known):
     session = Session(None, known, seed=5)
-    with pytest.raises(SessionError, match="observe"):
+    with pytest.raises(SessionError, match="sensor"):
         session.step()
-    assert session.propose() is None
-    robot = _robot(make_truth(bundled["guitar_1"], rng=5))
-    for _ in range(40):
-        snapshot = session.observe(robot(session.propose(), session.filter.contact_positions,
-                                         session.filter.contact_normals))
-        if snapshot.terminated:
-            break
-    assert snapshot.map_class == "guitar_1" and not snapshot.novel
-    assert snapshot.pose_error is None and snapshot.truth_coverage is None
-    target = session.propose()
-    assert snapshot.terminated or (target.position.shape == (3,) and target.depth > 0)
+    robot = ContactSimulator(make_truth(bundled["guitar_1"], rng=5))
+    snapshots, moves = _ask_and_tell(session, robot, 40)
+    assert snapshots[-1].map_class == "guitar_1" and not snapshots[-1].novel
+    assert snapshots[-1].pose_error is None and snapshots[-1].truth_coverage is None
+    assert {m.kind for m in moves} <= {"first", "target"} and moves[0].kind == "first"
+    again = session.propose()
+    assert again is None or (again.path.shape[1] == 3 and again == session.propose())
+
+
+def test_ask_tell_and_callback_give_the_same_trajectory(bundled, known):
+    truth = make_truth(bundled["mug_1"], rng=3)
+    simulated = Session(truth, known, seed=3)
+    simulated.run(max_steps=12)
+    callback = Session(None, known, seed=3, sensor=ContactSimulator(truth))
+    callback.run(max_steps=12)
+    asked = Session(None, known, seed=3)
+    _ask_and_tell(asked, ContactSimulator(truth), 12)
+    for other in (callback, asked):
+        assert _same_steps(simulated.snapshots, other.snapshots)
+        np.testing.assert_array_equal(simulated.latest.contacts, other.latest.contacts)
+
+
+def test_a_first_miss_is_held_until_the_first_contact(bundled, known, tmp_path):
+    from tactile_viz.engine.observation_file import read_observations, write_observations
+    from tactile_viz.experiments.replay import replay
+
+    session = Session(None, known, seed=1)
+    assert session.observe([NonContact([0.0, 0.0, 9.0])]) is None  # a whole step: held
+    snapshot = session.observe([Contact([0.0, 0.0, 1.0], [0.0, 0.0, 1.0])])
+    assert snapshot.step == 1 and len(snapshot.new_observations) == 2
+    assert len(snapshot.noncontacts) == 1 and len(snapshot.contacts) == 1
+    write_observations(tmp_path / "miss_first.csv", [([NonContact([0.0, 0.0, 9.0])], []),
+                                                    ([Contact([0.0, 0.0, 1.0],
+                                                              [0.0, 0.0, 1.0])], [])])
+    replayed, records = replay(read_observations(tmp_path / "miss_first.csv"), known)
+    assert len(records) == 1 and records[0]["n_noncontacts"] == 1
+
+
+def test_a_session_driven_by_misses_for_a_while(bundled, known):
+    truth = make_truth(bundled["bottle_1"], rng=6)
+    session = Session(None, known, seed=6, sensor=MissingFirst(ContactSimulator(truth), 12))
+    first = session.step()
+    assert len(first.noncontacts) >= 12 and len(first.contacts) == 1
+    session.run(max_steps=25)
+    assert session.latest.map_class == "bottle_1" and not session.latest.novel
 
 
 def _sphere_against_a_box(sphere_model, check_lines):
@@ -526,19 +575,10 @@ def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model
     simulated, library = _sphere_against_a_box(sphere_model, 4)
     simulated.run(max_steps=60)
     session = Session(None, library, seed=0, params=simulated.params)
-    simulator = simulated.simulator
-    lines = 0
-    for _ in range(60):
-        target = session.propose()
-        if target is not None and target.path is not None:
-            lines += 1
-            observations = [simulator.probe(target.path)]
-        else:
-            observations = _robot(simulated.truth)(target, session.filter.contact_positions,
-                                                   session.filter.contact_normals)
-        if session.observe(observations).terminated:
-            break
-    assert simulated.terminated and session.terminated and lines >= 4
+    snapshots, moves = _ask_and_tell(session, ContactSimulator(simulated.truth), 60)
+    assert simulated.terminated and session.terminated
+    assert sum(m.kind == "check" for m in moves) >= 4
+    assert _same_steps(simulated.snapshots, snapshots)
 
 
 def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path):
@@ -574,10 +614,10 @@ def test_bad_observations_leave_the_session_unchanged(known, observations, free_
 
 def test_a_session_without_truth_saves_and_loads(bundled, known, tmp_path):
     session = Session(None, known, seed=2)
-    robot = _robot(make_truth(bundled["bottle_1"], rng=2), seed=2)
-    for _ in range(6):
-        session.observe(robot(session.propose(), session.filter.contact_positions,
-                              session.filter.contact_normals), free_space=[[0.0, 0.0, 20.0]])
+    robot = ContactSimulator(make_truth(bundled["bottle_1"], rng=2))
+    _ask_and_tell(session, robot, 5)
+    touched = robot.probe(session.propose().path)
+    session.observe([touched], free_space=[[0.0, 0.0, 20.0]])  # a whole step, free space
     loaded = Session.load(session.save(tmp_path / "recorded.npz"))
     assert loaded.truth is None and loaded.step_count == 6
     np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
