@@ -60,6 +60,15 @@ def parse_args(argv=None):
                              "as a prior, then place it at the next seed's pose")
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
+    from tactile_viz.experiments.trial import add_sensor_arguments, mesh_units
+
+    parser.add_argument("--units", choices=["m", "cm", "mm", "in"], default=None,
+                        help="the scene's length unit, shown on the plots and written to "
+                             "exports (default: m when --mesh-units names a unit)")
+    parser.add_argument("--mesh-units", type=mesh_units, default=None, metavar="UNIT",
+                        help="the unit of --object-file and --prior-file meshes: m, cm, mm, "
+                             "in (converted to metres) or a factor")
+    add_sensor_arguments(parser)
     add_logging_arguments(parser, log_file_default=str(default_log_file()))
     args = parser.parse_args(argv)
     problem = argument_problem(args)
@@ -146,8 +155,15 @@ def load_priors(args):
     else:
         library = PriorLibrary()
     for path in args.prior_file or ():
-        library.add_file(path)
+        library.add_file(path, **mesh_options(args))
     return library
+
+
+def mesh_options(args):
+    from tactile_viz.experiments.trial import mesh_options as options
+
+    args.normalise = None
+    return options(args)
 
 
 def build_scene(args):
@@ -156,9 +172,17 @@ def build_scene(args):
     from tactile_viz.app.scene import Scene
     from tactile_viz.engine.objects import ObjectModel
 
-    truth = ObjectModel.from_file(args.object_file) if args.object_file else None
+    from tactile_viz.experiments.trial import scene_units
+
+    truth = (ObjectModel.from_file(args.object_file, **mesh_options(args)) if args.object_file
+             else None)
     scene = Scene(truth_name=args.object or "mug_1", truth_model=truth, seed=args.seed,
-                  library=load_priors(args), strategy=args.strategy, preset=args.preset)
+                  library=load_priors(args), strategy=args.strategy, preset=args.preset,
+                  units=scene_units(args),
+                  sensor_noise=(args.position_noise, args.normal_noise),
+                  sensor_outliers=args.outliers)
+    if args.outlier_probability is not None:
+        scene.set_parameter("outlier_probability", args.outlier_probability)
     if args.learn_first:
         scene.ensure_session().run()
         scene.add_learned_shape()

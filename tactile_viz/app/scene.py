@@ -31,7 +31,7 @@ from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, Session
 
 log = logging.getLogger(__name__)
 
-FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam")
+FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam", "outlier_probability")
 SESSION_KNOBS = ("eps",)
 LOADED_PRESET = "loaded session"  # the base parameters of a loaded session that match no preset
 SCENE_UNITS = "scene units"  # the name of the scene's length unit when it has none
@@ -87,10 +87,16 @@ class Scene:
         The name of the scene's length unit where it has one (a key of
         :data:`tactile_viz.engine.meshes.UNITS`, e.g. ``"m"``), shown on the plots and written
         to exports; None: "scene units".
+    sensor_noise : tuple of float
+        ``(position std in scene units, normal std in degrees)``: what the simulated sensor
+        adds and the model assumes (see :class:`~tactile_viz.engine.session.Session`).
+    sensor_outliers : float
+        The simulated sensor's chance of a wrong contact.
     """
 
     def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
-                 preset="paper", truth_model=None, units=None):
+                 preset="paper", truth_model=None, units=None, sensor_noise=(0.0, 0.0),
+                 sensor_outliers=0.0):
         self.truth_changed = Signal()
         self.library_changed = Signal()
         self.settings_changed = Signal()
@@ -103,6 +109,8 @@ class Scene:
         if units is not None and units not in UNITS:
             raise ValueError(f"unknown units {units!r}: use one of {', '.join(UNITS)}")
         self.units = units
+        self.sensor_noise = tuple(float(v) for v in sensor_noise)
+        self.sensor_outliers = float(sensor_outliers)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
         self.recording = None  # (source, recorded steps) while replaying a recording
         if strategy not in STRATEGIES:
@@ -329,10 +337,12 @@ class Scene:
             if self.recording is not None:
                 source, steps = self.recording
                 self.session = RecordedSession(steps, library, self.strategy, self.params,
-                                               self.seed, source=source)
+                                               self.seed, source=source,
+                                               sensor_noise=self.sensor_noise)
             else:
                 self.session = Session(self.truth, library, self.strategy, self.params,
-                                       self.seed)
+                                       self.seed, self.sensor_noise,
+                                       sensor_outliers=self.sensor_outliers)
         return self.session
 
     # ------------------------------------------------------------------ recordings

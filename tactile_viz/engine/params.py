@@ -129,6 +129,10 @@ class FilterParams:
         learned home chair the MAP's normals missed the contacts' by a median 33-39 degrees,
         against 8.5 on the bundled chair), and the novelty test failed at them.
     refine_iterations : int
+    outlier_probability : float
+        Beyond the paper (0 off, the paper's Gaussian): the chance that a contact is a
+        wrong reading, a mixture with a flat density (see :mod:`.likelihood`), so that one
+        outlier cannot kill the true hypothesis.
     n_features : int
         Poisson-disk feature points per object (paper 200).
     sdf_resolution : int
@@ -153,6 +157,7 @@ class FilterParams:
     refine_map: bool = False
     refine_learned: int = 3
     refine_iterations: int = 10
+    outlier_probability: float = 0.0
     n_features: int = 200
     sdf_resolution: int = 64
 
@@ -174,6 +179,9 @@ class FilterParams:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+        if not 0 <= self.outlier_probability < 0.5:
+            raise ParameterError("outlier_probability must lie in [0, 0.5), "
+                                 f"got {self.outlier_probability!r}")
         for name in ("lam", "known_fraction", "noncontact_fraction"):
             value = getattr(self, name)
             if not 0 < value <= 1:
@@ -253,7 +261,8 @@ def noise_matched(params, position_noise, normal_noise_deg):
     ----------
     params : FilterParams
     position_noise : float
-        Standard deviation of the reported positions, object units.
+        Standard deviation of the reported positions, in the units of ``params``' lengths
+        (scene units once :func:`scaled_lengths` made them so).
     normal_noise_deg : float
         Standard deviation of the tilt of the reported normals, degrees.
 

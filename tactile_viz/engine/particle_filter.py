@@ -215,7 +215,7 @@ class ParticleFilter:
                     observed = np.einsum("kij,mi->kmj", rotation, normals)
                     total[index] += log_contact_likelihood(
                         values[:, :m], gradients[:, :m], observed, self.params.sigma_d,
-                        self.params.sigma_n).sum(axis=1)
+                        self.params.sigma_n, self.params.outlier_probability).sum(axis=1)
                 if len(points) > m:
                     total[index] += log_noncontact_likelihood(
                         values[:, m:], self.params.sigma_d).sum(axis=1)
@@ -427,6 +427,21 @@ class ParticleFilter:
         self.particles = Particles(self.particles.classes, rotations, translations,
                                    normalise_log_weights(log_weights))
 
+    def _trimmed_contact_test(self, best):
+        """The novelty test's contact part without the worst ``ceil(eps n)`` contacts of
+        the MAP (``eps = outlier_probability``): ``(their log-likelihood, its threshold)``.
+        One wrong contact cannot make a known object novel."""
+        params = self.params
+        rotation, translation = best.rotations[0], best.translations[0]
+        values, gradients = self.models[best.classes[0]].sdf.evaluate(
+            (self.contact_positions - translation) @ rotation)
+        terms = log_contact_likelihood(values, gradients, self.contact_normals @ rotation,
+                                       params.sigma_d, params.sigma_n,
+                                       params.outlier_probability)
+        total, kept = _trimmed(terms, params.outlier_probability)
+        return total, kept * (np.log(params.known_fraction)
+                              - log_normaliser(params.sigma_d, params.sigma_n))
+
     def _record(self, sampled):
         params = self.params
         n_pos, n_neg = len(self.contact_positions), len(self.noncontact_positions)
@@ -443,9 +458,12 @@ class ParticleFilter:
             on_contacts = self.log_likelihood(best, self.contact_positions,
                                               self.contact_normals)[0]
             on_noncontacts = self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
+            tested, tested_threshold = on_contacts, contact_threshold
+            if params.outlier_probability > 0 and n_pos:
+                tested, tested_threshold = self._trimmed_contact_test(best)
             # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood
             # ~1 > 0.5) must not buy slack for contacts that miss its surface.
-            novel = bool(on_contacts < contact_threshold or on_noncontacts < noncontact_threshold)
+            novel = bool(tested < tested_threshold or on_noncontacts < noncontact_threshold)
             weights = np.exp(self.particles.log_weights)
             posterior = {name: float(weights[self.particles.classes == c].sum())
                          for c, name in enumerate(self.class_names)}
@@ -456,6 +474,14 @@ class ParticleFilter:
                 float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg)
         self.state = state
         return state
+
+
+def _trimmed(terms, fraction):
+    """The sum of ``terms`` without their ``ceil(fraction * n)`` smallest, and how many
+    remain."""
+    drop = int(np.ceil(fraction * len(terms)))
+    kept = np.sort(terms)[drop:]
+    return float(kept.sum()), len(kept)
 
 
 def merge_close_poses(particles, distance, angle):

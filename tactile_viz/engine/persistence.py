@@ -37,6 +37,7 @@ def save_session(session, path):
     config = {"format": FORMAT, "version": 2 if truth is None else 1,
               "strategy": session.strategy, "seed": session.seed,
               "params": session.params.to_dict(), "sensor_noise": list(session.sensor_noise),
+              "sensor_outliers": session.simulator.outlier_fraction if session.simulator else 0.0,
               "steps": session.step_count, "library": session.library.names,
               "learned": [model.name for model in session.library if model.learned],
               "truth_name": None if truth is None else truth.model.name}
@@ -90,7 +91,8 @@ def _read(path):
         truth = GroundTruth(truth_model, rotation, translation)
     session = Session(truth, library, config["strategy"],
                       SessionParams.from_dict(config["params"]), config["seed"],
-                      tuple(config["sensor_noise"]))
+                      tuple(config["sensor_noise"]),
+                      sensor_outliers=float(config.get("sensor_outliers", 0.0)))
     steps = _check_integer("steps", config["steps"])
     cap = max(session.params.max_steps_known, session.params.max_steps_novel)
     if recorded is not None and steps != len(recorded):

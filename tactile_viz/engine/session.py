@@ -29,7 +29,8 @@ from .metrics import pose_error as metric_pose_error
 from .objects import ObjectModel
 from .observation_file import RecordedStep
 from .observations import Contact, NonContact
-from .params import PAPER_SIZE, SESSION_PRESETS, SessionParams, scaled_lengths, session_preset
+from .params import (PAPER_SIZE, SESSION_PRESETS, SessionParams, noise_matched, scaled_lengths,
+                     session_preset)
 from .particle_filter import ParticleFilter
 from .sdf import normalise_rows
 from .simulator import ContactSimulator, GroundTruth
@@ -289,14 +290,19 @@ class Session:
     seed : int
         Seeds the filter, the exploration and the simulator noise.
     sensor_noise : tuple of float
-        ``(position std, normal std in degrees)`` of the simulated sensor.
+        ``(position std in scene units, normal std in degrees)`` of the sensor: the
+        simulator adds it, and the model assumes it (the likelihood's widths grow with it,
+        :func:`~.params.noise_matched`, and so does the GPIS's observation noise).
+    sensor_outliers : float
+        The simulated sensor's chance of a wrong contact (``ContactSimulator``); the model's
+        is ``params.filter.outlier_probability``.
     sensor : object, optional
         A robot: ``sensor.probe(path)`` carries out one guarded move (ignored with a truth,
         whose simulator is the sensor).
     """
 
     def __init__(self, truth, library, strategy="gpis-dhd", params=None, seed=0,
-                 sensor_noise=(0.0, 0.0), sensor=None):
+                 sensor_noise=(0.0, 0.0), sensor=None, sensor_outliers=0.0):
         if strategy not in STRATEGIES:
             raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
@@ -314,14 +320,18 @@ class Session:
         if truth is not None:
             self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
                                               normal_noise_deg=self.sensor_noise[1],
-                                              rng=np.random.default_rng([self.seed, 2]))
+                                              rng=np.random.default_rng([self.seed, 2]),
+                                              outlier_fraction=sensor_outliers)
             self.sensor = self.simulator
             self._truth_samples = transform_points(
                 surface_samples(truth.model, self.params.metric_samples), truth.rotation,
                 truth.translation)
         # The filter's lengths scale with the library, which all classes share.
         self._filter_unit = self.params.length_unit or library.reference_size / PAPER_SIZE
-        self.filter = ParticleFilter(library, scaled_lengths(self.params.filter, self._filter_unit),
+        filter_params = scaled_lengths(self.params.filter, self._filter_unit)
+        if any(self.sensor_noise):
+            filter_params = noise_matched(filter_params, *self.sensor_noise)
+        self.filter = ParticleFilter(library, filter_params,
                                      rng=np.random.default_rng([self.seed, 3]))
         self.snapshots = []
         self._p, self._unit = scaled_lengths(self.params, self._filter_unit), self._filter_unit
@@ -947,8 +957,9 @@ class Session:
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         p = self._p
+        # The sensor's position noise adds to the GPIS's observation noise (variances).
         return fit_gpis(contacts, normals, prior, kernel, scale=scale,
-                        noise_variance=p.gpis_noise, newton=newton,
+                        noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2, newton=newton,
                         noncontacts=noncontacts if p.gpis_noncontacts else None,
                         noncontact_value=p.gpis_noncontact_value)
 
@@ -1081,8 +1092,9 @@ class RecordedSession(Session):
         Where the recording came from (shown by viewers).
     """
 
-    def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None):
-        super().__init__(None, library, strategy, params, seed)
+    def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None,
+                 sensor_noise=(0.0, 0.0)):
+        super().__init__(None, library, strategy, params, seed, sensor_noise)
         self.recording = list(steps)
         self.source = source
         self.replayed = 0  # recorded steps given to the session (misses first are held)

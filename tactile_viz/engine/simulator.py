@@ -81,12 +81,17 @@ class ContactSimulator:
         Standard deviation of Gaussian noise added to reported positions, scene units.
     normal_noise_deg : float
         Standard deviation, in degrees, of the angle by which reported normals are tilted.
+    outlier_fraction : float
+        The chance that a reported contact is a wrong reading: moved ``outlier_distance``
+        in a random direction, with a random normal.
+    outlier_distance : float, optional
+        Scene units; default a third of the object's longest side (3 cm on a 10 cm object).
     rng : int, numpy.random.Generator or None
         Seeds the noise.
     """
 
     def __init__(self, truth, step=None, tolerance=None, position_noise=0.0,
-                 normal_noise_deg=0.0, rng=None):
+                 normal_noise_deg=0.0, rng=None, outlier_fraction=0.0, outlier_distance=None):
         for name, value in (("step", step), ("tolerance", tolerance)):
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
@@ -99,6 +104,11 @@ class ContactSimulator:
         self.tolerance = float(tolerance) if tolerance is not None else truth.model.length / 600
         self.position_noise = float(position_noise)
         self.normal_noise_deg = float(normal_noise_deg)
+        if not 0 <= outlier_fraction < 1:
+            raise ParameterError(f"outlier_fraction must lie in [0, 1), got {outlier_fraction!r}")
+        self.outlier_fraction = float(outlier_fraction)
+        self.outlier_distance = (float(outlier_distance) if outlier_distance is not None
+                                 else truth.model.length / 3)
         self.rng = np.random.default_rng(rng)
 
     def probe(self, path):
@@ -143,6 +153,9 @@ class ContactSimulator:
         return outside
 
     def _contact(self, position, normal):
+        if self.outlier_fraction and self.rng.random() < self.outlier_fraction:
+            away = normalise_rows(self.rng.normal(size=(2, 3)))
+            return Contact(position + self.outlier_distance * away[0], away[1])
         return Contact(self._noisy_position(position), self._noisy_normal(normal))
 
     def _noisy_position(self, position):

@@ -30,6 +30,7 @@ from ..engine.exploration import STRATEGIES
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
+from .trial import add_sensor_arguments, sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"
@@ -87,6 +88,7 @@ def build_parser():
                              "of running them again")
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; rebuild summary.md and the plots from DIR/trials")
+    add_sensor_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
@@ -173,6 +175,19 @@ def write_json(path, value):
     write_atomic(path, json.dumps(value, indent=1).encode())
 
 
+def with_sensor(tasks, sensor):
+    """Give every task the sensor settings (noise, outliers) unless they are the noiseless
+    defaults; returns a function that does the same to later tasks."""
+    def noisy(more):
+        if any(value for value in sensor.values()):
+            for task in more:
+                task["sensor"] = dict(sensor)
+        return more
+
+    noisy(tasks)
+    return noisy
+
+
 def run(args):
     """Run (or resume) the trials of the protocol; returns nothing, files are in ``out``."""
     out = Path(args.out)
@@ -199,6 +214,7 @@ def run(args):
                                args.preset, args.max_steps)
     elif not args.no_learned:
         tasks = learn_task(tasks, args.seed, args.preset, args.max_steps, poisson)
+    noisy = with_sensor(tasks, sensor_settings(args))
 
     def follow_up(task, result):
         if not task["learn_as"]:
@@ -209,7 +225,8 @@ def run(args):
             print(f"learned-prior experiment skipped: the {LEARN_OBJECT} trial gave no prior "
                   f"({note})", file=sys.stderr)
             return []
-        pending = learned_tasks(prior, args.trials, args.seed, args.preset, args.max_steps)
+        pending = noisy(learned_tasks(prior, args.trials, args.seed, args.preset,
+                                      args.max_steps))
         return [t for t in pending if not _reuse(t)]
 
     def _reuse(task):

@@ -15,9 +15,9 @@ from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.observation_file import read_observations
 from ..engine.session import SESSION_PRESETS, RecordedSession, session_preset
-from .trial import (add_output_arguments, add_prior_arguments, add_unit_arguments,
-                    check_learning, code_version, learn, load_priors, scene_units,
-                    write_output)
+from .trial import (add_output_arguments, add_prior_arguments, add_sensor_arguments,
+                    add_unit_arguments, check_learning, code_version, learn, load_priors,
+                    scene_units, with_outliers, write_output)
 
 
 def add_replay_arguments(parser):
@@ -32,12 +32,13 @@ def add_replay_arguments(parser):
     parser.add_argument("--seed", type=seed_int, default=0,
                         help="filter seed (the trial's seed reproduces its estimate exactly)")
     add_unit_arguments(parser)
+    add_sensor_arguments(parser, simulated=False)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json to DIR")
 
 
 def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress=False,
-           params=None):
+           params=None, sensor_noise=(0.0, 0.0)):
     """Feed recorded steps to a new session without a simulated object.
 
     Parameters
@@ -53,7 +54,8 @@ def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress
     records : list of dict
         One :meth:`Snapshot.record` per step.
     """
-    session = RecordedSession(steps, library, strategy, params or session_preset(preset), seed)
+    session = RecordedSession(steps, library, strategy, params or session_preset(preset), seed,
+                              sensor_noise=sensor_noise)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -79,7 +81,10 @@ def run_replay_command(args):
     learn_to = check_learning(args, library)
     start = time.perf_counter()
     session, records = replay(steps, library, args.preset, args.strategy, args.seed,
-                              progress=not args.no_progress)
+                              progress=not args.no_progress,
+                              params=with_outliers(session_preset(args.preset),
+                                                   args.outlier_probability),
+                              sensor_noise=(args.position_noise, args.normal_noise))
     stop = next((r["t"] for r, s in zip(records, session.snapshots) if s.terminated), None)
     result = {"object": None, "observations": str(args.observations), "seed": args.seed,
               "strategy": args.strategy, "preset": args.preset,

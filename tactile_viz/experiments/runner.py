@@ -32,7 +32,7 @@ TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
 def make_task(object_name, strategy="gpis-dhd", seed=0, preset="paper", kind="protocol",
               library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
-              learn_as=None, poisson_depth=9, sizes=None):
+              learn_as=None, poisson_depth=9, sizes=None, sensor=None):
     """A task dict (see the module docstring)."""
     task = {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
             "preset": preset, "library": library, "extra_priors": list(extra_priors),
@@ -40,6 +40,8 @@ def make_task(object_name, strategy="gpis-dhd", seed=0, preset="paper", kind="pr
             "poisson_depth": int(poisson_depth), "learn_as": learn_as}
     if sizes:
         task["sizes"] = {str(name): float(size) for name, size in sizes.items()}
+    if sensor and any(value for value in sensor.values()):
+        task["sensor"] = dict(sensor)
     return task
 
 
@@ -57,6 +59,9 @@ def task_key(task):
         parts.append(f"m{task['max_steps']}")
     if task.get("sizes"):
         parts.append("sized")
+    if task.get("sensor"):
+        parts.append("noise-" + "-".join(f"{v:g}" for v in task["sensor"].values()
+                                         if v is not None))
     return "__".join(parts)
 
 
@@ -140,7 +145,8 @@ def run_task(task, progress=False):
         size = dict(_sizes(task)).get(task["object"])
         result = run_trial(_bundled_model(task["object"], size), task_library(task),
                            task["strategy"], task["seed"], task["preset"], task["max_steps"],
-                           progress=progress, params=params, finish=_finisher(task))
+                           progress=progress, params=params, finish=_finisher(task),
+                           sensor=task.get("sensor"))
     except Exception:
         return {"object": task["object"], "seed": task["seed"], "strategy": task["strategy"],
                 "task": meta, "error": traceback.format_exc()}

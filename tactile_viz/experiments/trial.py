@@ -10,6 +10,7 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 import argparse
 import functools
 import json
+from dataclasses import replace
 import subprocess
 import sys
 import time
@@ -27,6 +28,10 @@ from ..engine.library import PriorLibrary
 from ..engine.meshes import UNITS, unit_factor
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
+
+
+NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
+             "outlier_probability": None}
 
 
 def add_prior_arguments(parser):
@@ -124,6 +129,54 @@ def learn(session, library, name, folder):
     return {"name": name, "saved_to": str(folder), "longest_side": model.length}
 
 
+def nonnegative_float(text):
+    """An argument type: a finite number >= 0."""
+    value = finite_float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {text!r}")
+    return value
+
+
+def fraction(text):
+    """An argument type: a number in [0, 0.5)."""
+    value = finite_float(text)
+    if not 0 <= value < 0.5:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
+    return value
+
+
+def add_sensor_arguments(parser, simulated=True):
+    """The sensor's noise (``--position-noise``, ``--normal-noise``: the simulator adds it
+    and the model assumes it), the model's outlier probability and, for a simulated
+    sensor, its rate of wrong contacts (``--outliers``)."""
+    parser.add_argument("--position-noise", type=nonnegative_float, default=0.0, metavar="STD",
+                        help="std of the sensor's contact positions, scene units (default 0)")
+    parser.add_argument("--normal-noise", type=nonnegative_float, default=0.0, metavar="DEG",
+                        help="std of the tilt of the sensor's normals, degrees (default 0)")
+    parser.add_argument("--outlier-probability", type=fraction, default=None, metavar="P",
+                        help="the model's chance of a wrong contact: a robust likelihood "
+                             "(default the preset's; 0 is the paper's Gaussian)")
+    if simulated:
+        parser.add_argument("--outliers", type=fraction, default=0.0, metavar="FRACTION",
+                            help="the simulated sensor's chance of a wrong contact, a third "
+                                 "of the object's size off (default 0)")
+
+
+def sensor_settings(args):
+    """``{"position_noise", "normal_noise_deg", "outliers", "outlier_probability"}`` of the
+    command line (a task's ``sensor``)."""
+    return {"position_noise": args.position_noise, "normal_noise_deg": args.normal_noise,
+            "outliers": getattr(args, "outliers", 0.0),
+            "outlier_probability": args.outlier_probability}
+
+
+def with_outliers(params, probability):
+    """``params`` with the filter's ``outlier_probability`` (None: unchanged)."""
+    if probability is None:
+        return params
+    return replace(params, filter=replace(params.filter, outlier_probability=probability))
+
+
 def add_output_arguments(parser, export_help):
     parser.add_argument("--json", metavar="OUT", type=writable_output,
                         help="write the JSON here (default stdout)")
@@ -146,6 +199,7 @@ def add_trial_arguments(parser):
     parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
                         help="speed/accuracy preset (default paper)")
     add_unit_arguments(parser)
+    add_sensor_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json of the last step to DIR")
 
@@ -213,18 +267,22 @@ def code_version():
 
 
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
-              max_steps=None, progress=False, params=None, finish=None):
+              max_steps=None, progress=False, params=None, finish=None, sensor=None):
     """Run one trial and return its JSON-ready result dict.
 
     ``params`` (a ``SessionParams``) replaces the preset's parameters when given (``preset``
     is then only a label). ``finish(session)`` is called after the last step; the dict it
     returns is merged into the result (benchmarks add final contacts, baselines, ...).
+    ``sensor`` holds the simulated sensor's noise and outliers (:func:`sensor_settings`).
     """
+    sensor = {**NOISELESS, **(sensor or {})}
     if max_steps is not None and max_steps < 1:
         raise ParameterError(f"max_steps must be at least 1, got {max_steps}")
-    params = params or session_preset(preset)
+    params = with_outliers(params or session_preset(preset), sensor["outlier_probability"])
     truth = make_truth(truth_model, rng=[seed, 0])
-    session = Session(truth, library, strategy, params, seed=seed)
+    session = Session(truth, library, strategy, params, seed=seed,
+                      sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
+                      sensor_outliers=sensor["outliers"])
     bar = None
     if progress:
         from tqdm import tqdm
@@ -250,7 +308,7 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist(),
                            "file_to_world": (truth_pose @ truth_model.file_to_object).tolist()},
-            "terminated_at": last.step if last.terminated else None,
+            "sensor": sensor, "terminated_at": last.step if last.terminated else None,
             "code_version": code_version(),
             "seconds": time.perf_counter() - start, "steps": steps}
     if finish is not None:
@@ -274,7 +332,8 @@ def run_trial_command(args):
         return extra
 
     result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
-                       args.max_steps, progress=not args.no_progress, finish=finish)
+                       args.max_steps, progress=not args.no_progress, finish=finish,
+                       sensor=sensor_settings(args))
     result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
     return 0

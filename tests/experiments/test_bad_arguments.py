@@ -22,7 +22,9 @@ IN_DIR = ["MISSING", "FILE"]
 OUT_FILE = ["MISSING/out.json", "DIR", "FILE/out.json", ""]
 OUT_DIR = ["FILE", "FILE/sub", ""]
 NAME = ["nosuch", "", "mug_1,nosuch"]
-UNITS = {"--units": ["parsec", ""], "--mesh-units": ["parsec", "0", "-1", "nan", "inf"],
+NOISE = {"--position-noise": ["-1", "nan", "inf", "x"], "--normal-noise": ["-1", "nan", "x"],
+         "--outlier-probability": ["-0.1", "0.5", "nan", "x"]}
+UNITS = {**NOISE, "--units": ["parsec", ""], "--mesh-units": ["parsec", "0", "-1", "nan", "inf"],
          "--normalise": ["0", "-1", "nan", "inf", "x"], "--learn-to": OUT_DIR}
 
 TRIAL = ["trial", "--object", "mug_1", "--no-progress"]
@@ -40,7 +42,7 @@ COMMANDS = {
     "bench paper": (["bench", "paper"], {
         "--trials": COUNT, "--objects": NAME, "--strategies": NAME, "--workers": WORKERS,
         "--seed": SEED, "--max-steps": STEPS, "--out": OUT_DIR, "--learned-from": IN_FILE,
-        "--preset": NAME}),
+        "--preset": NAME, "--outliers": ["1", "-0.1", "x"], **NOISE}),
     "bench tradeoff": (["bench", "tradeoff"], {
         "--seeds": COUNT, "--objects": NAME, "--configs": NAME, "--workers": WORKERS,
         "--max-steps": STEPS, "--out": OUT_DIR, "--reuse": IN_DIR}),

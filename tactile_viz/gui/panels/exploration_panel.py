@@ -29,6 +29,10 @@ PARAMETERS = {
     "lam": ("lambda", 0.01, 1.0, 0.01, 2,
             "Sampling gate: new particles are proposed while the MAP fit is below this "
             "fraction of perfect. Higher samples more often (slower, more robust)."),
+    "outlier_probability": ("outliers", 0.0, 0.49, 0.01, 3,
+                            "The chance that a contact is a wrong reading (beyond the paper; "
+                            "0 is its Gaussian): a robust likelihood, so that one wrong "
+                            "contact cannot kill the true hypothesis."),
 }
 
 
