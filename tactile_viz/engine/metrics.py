@@ -52,6 +52,87 @@ def pose_error(model, rotation, translation, truth, count=4000):
     return two_way_hausdorff(estimate, actual)
 
 
+SYMMETRY_TOLERANCE = 0.02  # of the longest side: a rotation mapping the surface this close is a symmetry
+_FOLDS = (2, 3, 4, 5, 6, 8)
+
+
+def _rotation(axis, angle):
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(angle * np.asarray(axis, float)).as_matrix()
+
+
+def symmetries(model, count=1000):
+    """The shape's rotational symmetries about its principal axes, object frame.
+
+    A rotation about the centre of mass is a symmetry when it maps every surface sample
+    within ``SYMMETRY_TOLERANCE`` of the longest side of the surface; the candidate axes are
+    the principal axes of inertia. An axis about which rotations by 45 and
+    by 30 degrees are symmetries is taken as continuous (a bottle's, a vase's).
+
+    Returns
+    -------
+    discrete : (g, 3, 3) float
+        The group the discrete symmetries found generate (the identity first).
+    axis : (3,) float or None
+        The continuous symmetry axis, if any.
+    """
+    cache = model.__dict__.setdefault("_symmetries", {})
+    if count in cache:
+        return cache[count]
+    points = surface_samples(model, count, seed=1)
+    centre = np.asarray(model.mesh.center_mass)  # on every symmetry axis
+    centred = points - centre
+    tolerance = SYMMETRY_TOLERANCE * model.length
+
+    def symmetric(rotation):
+        # A rotation keeps area, so the samples all landing on the surface is enough.
+        moved = centred @ rotation.T + centre
+        return np.abs(model.exact.signed_distance(moved)).max() <= tolerance
+
+    axes = np.asarray(model.mesh.principal_inertia_vectors)
+    found, axis = [], None
+    for candidate in axes:
+        if axis is None and all(symmetric(_rotation(candidate, np.radians(a))) for a in (45, 30)):
+            axis = candidate
+            continue
+        # A fold's generator (one turn of 2 pi / fold) generates the rest with the closure.
+        found += [turn for turn in (_rotation(candidate, 2 * np.pi / fold) for fold in _FOLDS)
+                  if symmetric(turn)]
+    cache[count] = (_closure(found), axis)
+    return cache[count]
+
+
+def _closure(generators, limit=48):
+    """The group ``generators`` generate (at most ``limit`` elements), the identity first."""
+    group = [np.eye(3)]
+    frontier = list(generators)
+    while frontier and len(group) < limit:
+        element = frontier.pop()
+        if any(np.allclose(element, other, atol=1e-6) for other in group):
+            continue
+        group.append(element)
+        frontier += [element @ g for g in generators]
+    return np.array(group)
+
+
+def rotation_error_deg(model, rotation, truth_rotation):
+    """The angle between two orientations of ``model``, degrees, up to its symmetries:
+    the smallest over its discrete symmetries, and about a continuous axis only the axis's
+    tilt counts."""
+    discrete, axis = symmetries(model)
+    relative = np.asarray(truth_rotation).T @ np.asarray(rotation)
+    best = np.pi
+    for symmetry in discrete:
+        turned = relative @ symmetry
+        if axis is None:
+            cosine = (np.trace(turned) - 1) / 2
+        else:
+            cosine = axis @ turned @ axis
+        best = min(best, float(np.arccos(np.clip(cosine, -1.0, 1.0))))
+    return float(np.degrees(best))
+
+
 def pose_difference(model, rotation, translation, truth):
     """Rotation and translation errors of an estimated pose of the truth's own shape.
 
@@ -68,16 +149,14 @@ def pose_difference(model, rotation, translation, truth):
     Returns
     -------
     angle_deg : float or None
-        The rotation angle of ``R_truth^T R``, degrees, without regard to the shape's
-        symmetries (a bottle turned about its axis counts; the TWD of :func:`pose_error`
-        does not); None for another shape.
+        :func:`rotation_error_deg`: the angle of ``R_truth^T R``, degrees, up to the shape's
+        symmetries (about a continuous axis, a bottle's, only the axis's tilt counts);
+        None for another shape.
     distance : float or None
         ``|t - t_truth|``: how far the estimate's object centre (the bounding box's) is from
         the truth's, scene units; None for another shape.
     """
     if model.content_hash != truth.model.content_hash:
         return None, None
-    relative = np.asarray(truth.rotation).T @ np.asarray(rotation)
-    cosine = np.clip((np.trace(relative) - 1) / 2, -1.0, 1.0)
-    return (float(np.degrees(np.arccos(cosine))),
+    return (rotation_error_deg(model, rotation, truth.rotation),
             float(np.linalg.norm(np.asarray(translation) - truth.translation)))

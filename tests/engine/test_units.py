@@ -137,3 +137,25 @@ def test_an_object_of_another_size_is_novel_and_reconstructed_at_its_size(metric
     assert snapshot.novel
     extent = snapshot.gpis_vertices.max(axis=0) - snapshot.gpis_vertices.min(axis=0)
     assert 0.2 < extent.max() < 0.5
+
+
+def test_rotation_errors_are_taken_up_to_the_shapes_symmetries(tmp_path):
+    from tactile_viz.engine.metrics import _rotation, rotation_error_deg, symmetries
+
+    cache = ArrayCache(tmp_path)
+    box = trimesh.creation.box(extents=(6.0, 3.0, 2.0))
+    block = ObjectModel.from_arrays(box.vertices, box.faces, "block", cache=cache)
+    group, axis = symmetries(block)
+    assert axis is None and len(group) == 4  # the identity and a half turn about each axis
+    half_turn = _rotation([0, 0, 1], np.pi)
+    assert rotation_error_deg(block, half_turn, np.eye(3)) == pytest.approx(0.0, abs=1e-6)
+    assert rotation_error_deg(block, _rotation([0, 0, 1], np.radians(20)), np.eye(3)) \
+        == pytest.approx(20.0, abs=1e-6)
+    rod = trimesh.creation.cylinder(radius=1.0, height=6.0, sections=64)
+    cylinder = ObjectModel.from_arrays(rod.vertices, rod.faces, "rod", cache=cache)
+    _, axis = symmetries(cylinder)
+    assert axis is not None and abs(axis[2]) == pytest.approx(1.0, abs=1e-3)
+    spun = _rotation([0, 0, 1], 1.3)
+    assert rotation_error_deg(cylinder, spun, np.eye(3)) == pytest.approx(0.0, abs=0.5)
+    tilted = _rotation([1, 0, 0], np.radians(10)) @ spun
+    assert rotation_error_deg(cylinder, tilted, np.eye(3)) == pytest.approx(10.0, abs=0.5)
