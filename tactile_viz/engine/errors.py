@@ -41,3 +41,7 @@ class ParameterError(TactileVizError, ValueError):
 
 class MeshWarning(UserWarning):
     """A mesh was changed on loading in a way the user should know about (e.g. decimated)."""
+
+
+class SessionError(TactileVizError):
+    """A session cannot be run, saved or loaded as asked."""

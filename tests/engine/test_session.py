@@ -334,7 +334,7 @@ def test_faithful_preset_is_the_papers_gpis():
 
 def _sweep_check(session):
     """Sweep the planned check with the simulator and count it, as a step does."""
-    path = session._check[3]
+    path = session.state.check.path
     return session._after_moves("check", ([path], [session.simulator.probe(path)]))
 
 
@@ -352,15 +352,15 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     top = surface[height > height.max() - 1.0]
     inside = translation + (height.max() - 1.5) * axis
     lines = iter([-axis, axis])  # a line starts at through + 10 direction
-    monkeypatch.setattr("tactile_viz.engine.session.next_sweep_direction",
+    monkeypatch.setattr("tactile_viz.engine.session.planner.next_sweep_direction",
                         lambda used, rng: next(lines))
-    session._checks_passed = 2
-    session._check = session._plan_check_line(top, inside[None])
+    session.state.checks_passed = 2
+    session.state.check = session._plan_check_line(top, inside[None])
     _sweep_check(session)  # the path starts below and runs up
-    assert session._checks_passed == 0
-    session._check = session._plan_check_line(top, inside[None])
+    assert session.state.checks_passed == 0
+    session.state.check = session._plan_check_line(top, inside[None])
     _sweep_check(session)  # from above
-    assert session._checks_passed == 1
+    assert session.state.checks_passed == 1
 
 
 def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
@@ -371,24 +371,24 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
-    session._check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
-    session._check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
-    _, through, _, path = session._check
+    session.state.check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
+    session.state.check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    _, through, _, path = session.state.check
     np.testing.assert_allclose(through, [1.5, 0.0, 0.0], atol=1e-9)
     # It comes on top of the gap checks: passing it does not count toward check_lines.
     session._count_check(NonContact(path[-1]))
-    assert session._checks_passed == 0
+    assert session.state.checks_passed == 0
     from tactile_viz.engine.simulator import sample_path
 
     near = sample_path(path, 0.02)
     near = near[np.linalg.norm(near - through, axis=1) < 1.0]
     assert len(near) and np.linalg.norm(near - through, axis=1).min() < 0.15
     # The fourth check is a gap inside the contacts' hull again, not the weakest support.
-    session._check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
-    assert len(session._check_directions) == 4
-    assert not np.allclose(session._check[1], through)
-    session._count_check(NonContact(session._check[3][-1]))
-    assert session._checks_passed == 1
+    session.state.check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    assert len(session.state.check_directions) == 4
+    assert not np.allclose(session.state.check.through, through)
+    session._count_check(NonContact(session.state.check.path[-1]))
+    assert session.state.checks_passed == 1
 
 
 def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
@@ -398,16 +398,16 @@ def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     session.run(max_steps=3)
     contact = Contact(np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0]))
     session._grow_frontier(contact)
-    queued = np.array([position for position, _ in session._frontier])
+    queued = np.array([position for position, _ in session.state.frontier])
     assert len(queued) == 4
     np.testing.assert_allclose(np.linalg.norm(queued - contact.position, axis=1), 2.0)
     np.testing.assert_allclose(queued[:, 2], 3.0)
     session._grow_frontier(contact)  # the same places again: nothing new
-    assert len(session._frontier) == 4
+    assert len(session.state.frontier) == 4
     targets = []
     for _ in range(12):
         snapshot = session.step()
-        if snapshot.novel and session._frontier:
+        if snapshot.novel and session.state.frontier:
             assert not snapshot.terminated
         if snapshot.terminated:
             break

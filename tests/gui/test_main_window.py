@@ -793,7 +793,7 @@ def test_steps_run_in_the_engine_process_and_come_back(qtbot, window, known_libr
         assert session.rng.bit_generator.state == here.rng.bit_generator.state
         assert (session.simulator.rng.bit_generator.state
                 == here.simulator.rng.bit_generator.state)
-        assert np.array_equal(session._free_space, here._free_space)
+        assert np.array_equal(session.state.free_space, here.state.free_space)
         assert np.array_equal(session.filter.contact_positions, here.filter.contact_positions)
     finally:
         threaded.wait_for_worker()

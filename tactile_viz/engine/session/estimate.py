@@ -1,0 +1,99 @@
+"""The shape estimate of a novel object: the GPIS fit on the contacts with the MAP shape,
+carved where probes found free space, as its prior mean (paper, Section III-E), and its
+zero level set with the variance at the vertices.
+
+A mixin of :class:`~.loop.Session` (reads its filter, parameters in scene units and
+exploration state).
+"""
+
+import time
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from .fields import PosedSDF, thin_points
+from .snapshot import Reconstruction
+
+
+class Estimation:
+    """GPIS fit and surface of a session (see the module)."""
+
+    def _reconstruct(self, model, rotation, translation, map_vertices, timings):
+        p = self._p
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        low, high, kernel = self._gpis_box(map_vertices, contacts)
+        clock = time.perf_counter()
+        prior = self._gpis_prior(model, rotation, translation, contacts,
+                                 self.filter.noncontact_positions, self.state.free_space)
+        fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+                        self.state.gpis_scale)
+        self.state.gpis_scale = fit.scale
+        timings["gpis"] = time.perf_counter() - clock
+        clock = time.perf_counter()
+        recon = self._surface(fit, (low, high), p.gpis_resolution)
+        timings["surface"] = time.perf_counter() - clock
+        return recon
+
+    def _final_surface(self, recon, map_vertices, contacts, timings):
+        """The reconstruction a stopping session reports: the same fit at
+        ``final_resolution`` (thin parts between the exploration grid's samples appear)."""
+        if recon is None or recon.empty or (self._p.final_resolution
+                                             == self._p.gpis_resolution):
+            return recon
+        clock = time.perf_counter()
+        low, high, _ = self._gpis_box(map_vertices, contacts)
+        final = self._surface(recon.fit, (low, high), self._p.final_resolution)
+        timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
+        return recon if final.empty else final
+
+    def _surface(self, fit, bounds, resolution):
+        """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
+        cells of the box ``bounds``, with the variance at up to ``variance_points``
+        vertices."""
+        vertices, faces = zero_level_surface(fit, bounds, resolution)
+        variance, subset = np.zeros(len(vertices)), None
+        if len(vertices):
+            count = min(self._p.variance_points, len(vertices))
+            subset = self.rng.choice(len(vertices), count, replace=False)
+            variance[subset] = fit.variance(vertices[subset])
+            if count < len(vertices):
+                # Other vertices show the variance of the nearest evaluated one.
+                nearest = cKDTree(vertices[subset]).query(vertices)[1]
+                variance = variance[subset][nearest]
+        return Reconstruction(vertices, faces, variance, subset, fit, resolution)
+
+    def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
+        p = self._p
+        # The sensor's position noise adds to the GPIS's observation noise (variances).
+        return fit_gpis(contacts, normals, prior, kernel, scale=scale,
+                        noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2, newton=newton,
+                        noncontacts=noncontacts if p.gpis_noncontacts else None,
+                        noncontact_value=p.gpis_noncontact_value)
+
+    def _gpis_box(self, map_vertices, contacts):
+        """The reconstruction box (low, high) and the GPIS kernel."""
+        p = self._p
+        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
+        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
+        if p.gpis_kernel == "wendland":
+            return low, high, WendlandKernel(p.gpis_support)
+        return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
+
+    def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space):
+        """The GPIS prior mean: the MAP shape with the refuted space cut out."""
+        return carved_prior(self._prior(model, rotation, translation),
+                            np.vstack([noncontacts, free_space]), contacts,
+                            self._p.gpis_carve_radius)
+
+    def _prior(self, model, rotation, translation):
+        return PosedSDF(model, rotation, translation)
+
+    def _noncontact_points(self, noncontacts=None, free_space=None):
+        """Where the sensor found no object: the non-contacts and the points along missed
+        probes, one per quarter of the kernel's reach (what the GPIS's non-contact switch
+        constrains)."""
+        noncontacts = self.filter.noncontact_positions if noncontacts is None else noncontacts
+        free_space = self.state.free_space if free_space is None else free_space
+        reach = self._p.gpis_support if self._p.gpis_kernel == "wendland" else self._unit
+        return np.vstack([noncontacts, thin_points(free_space, reach / 4)])

@@ -1,0 +1,90 @@
+"""Callables and point sets a session builds: a model's SDF at a pose, the values of a
+field, the space below a tangent plane, thinned free-space samples, and how deep and from
+how far a probe goes. The callables are classes, not closures, so that a session pickles
+(the app steps it in another process)."""
+
+import numpy as np
+
+
+class PosedSDF:
+    """A model's SDF placed at a pose: ``field(points) -> (values (k,), gradients (k, 3))``
+    for (k, 3) world points. Callables of a session are classes, not closures, so that a
+    session pickles (the app steps it in another process); this one holds the model, not
+    its grid, so that a pickle can name the model instead of copying the grid."""
+
+    def __init__(self, model, rotation, translation):
+        self.model, self.rotation, self.translation = model, rotation, translation
+
+    def __call__(self, points):
+        values, gradients = self.model.sdf.evaluate(
+            (np.atleast_2d(points) - self.translation) @ self.rotation)
+        return values, gradients @ self.rotation.T
+
+
+class ValueOf:
+    """The values of a field returning ``(values, gradients)``."""
+
+    def __init__(self, field):
+        self.field = field
+
+    def __call__(self, points):
+        return self.field(points)[0]
+
+
+class BelowTangentPlane:
+    """``min(signed height above the plane through position, outside(points))``: the full
+    depth across the tangent plane, short of what ``outside`` predicts."""
+
+    def __init__(self, position, normal, outside):
+        self.position, self.normal, self.outside = position, normal, outside
+
+    def __call__(self, points):
+        return np.minimum((points - self.position) @ self.normal, self.outside(points))
+
+
+def free_space_points(points, path, spacing):
+    """``points`` plus samples of a missed probe ``path``, one per grid cell of ``spacing``.
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    length = float(np.linalg.norm(path[-1] - path[0]))
+    count = max(2, int(np.ceil(length / spacing)) + 1)
+    samples = path[0] + np.linspace(0.0, 1.0, count)[:, None] * (path[-1] - path[0])
+    return thin_points(np.vstack([points, samples]), spacing)
+
+
+def thin_points(points, spacing):
+    """The first of ``points`` in each grid cell of size ``spacing`` (order kept)."""
+    if len(points) == 0:
+        return points
+    _, first = np.unique(np.floor(points / spacing).astype(np.int64), axis=0, return_index=True)
+    return points[np.sort(first)]
+
+
+def deepest_inside(estimate, target, normal, max_depth, samples=21):
+    """How far to probe inward from ``target``: to the point the estimated surface puts
+    deepest inside (within ``max_depth``), so that a miss there is a non-contact that the
+    estimate most strongly contradicts; probing farther could leave a thin part again."""
+    depths = np.linspace(0.0, max_depth, samples)
+    values = estimate(target - depths[:, None] * normal)
+    return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
+
+
+def free_approach(estimate, target, normal, longest, unit=1.0, samples=32):
+    """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
+    less where the estimate predicts the object on the way (the approach then starts a
+    sample short of it), but at least ``shortest = 0.5 unit``.
+
+    A long approach meets parts of the object that the estimate does not predict; the
+    ones it predicts are not passed through.
+    """
+    shortest = 0.5 * unit
+    if longest <= shortest:
+        return float(longest)
+    distances = np.linspace(shortest, longest, samples)
+    inside = np.flatnonzero(estimate(target + distances[:, None] * normal) < 0)
+    if len(inside) == 0:
+        return float(longest)
+    return float(max(shortest, distances[max(inside[0] - 1, 0)]))

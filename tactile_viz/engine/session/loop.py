@@ -1,0 +1,496 @@
+"""The inference session: Algorithm 2 of the paper, one step at a time.
+
+A :class:`Session` couples a prior library, the particle filter, the GPIS and an
+exploration strategy with a sensor. A step asks the sensor for guarded moves until its
+procedure is done (the first touch, contact enforcement toward the target, a check, an RRT
+step), then updates the belief, reconstructs the surface when the object is judged novel,
+measures coverage (DHD) and, with a simulated object, the errors against it, picks the next
+target and returns an immutable :class:`Snapshot`. The planner (targets, checks, stop), the
+estimate (GPIS) and learning are mixins in their own modules; everything a step changes
+besides the filter and the generators is one :class:`~.state.ExplorationState`.
+"""
+
+import time
+from contextlib import contextmanager
+
+import numpy as np
+import trimesh
+
+from ..errors import SessionError
+from ..exploration import (STRATEGIES, enforce_contact_moves, first_contact_moves, path_until,
+                           rrt_moves)
+from ..metrics import directed_hausdorff, pose_difference, surface_samples, two_way_hausdorff
+from ..metrics import pose_error as metric_pose_error
+from ..observation_file import RecordedStep
+from ..observations import Contact, NonContact
+from ..params import PAPER_SIZE, SessionParams, noise_matched, scaled_lengths
+from ..particle_filter import ParticleFilter
+from ..simulator import ContactSimulator, GroundTruth
+from ..transforms import random_pose, transform_points
+from .estimate import Estimation
+from .fields import deepest_inside, free_approach, free_space_points, thin_points
+from .learning import Learning
+from .planner import Planner
+from .snapshot import Move, Snapshot, frozen, hypotheses
+from .state import ExplorationState
+
+# Lengths in size units (a sixth of the object's longest side; see ..params):
+RRT_MARGIN = 3.0  # the RRT's workspace: the contacts' box grown by this
+FIRST_LINE_REACH = 10.0  # the random first lines run this far on either side of the origin
+
+
+@contextmanager
+def _timed(timings, name):
+    clock = time.perf_counter()
+    yield
+    timings[name] = timings.get(name, 0.0) + time.perf_counter() - clock
+
+
+def _one_move(path):
+    """A procedure of one guarded move: returns ``([path], [result])``."""
+    result = yield path
+    return [path], [result]
+
+
+class Session(Planner, Estimation, Learning):
+    """Active exploration of one object with one prior library: Algorithm 2, step by step.
+
+    The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
+    first contact, answering with the :class:`Contact` or a :class:`NonContact` at the path's
+    end. The session, not the sensor, carries out contact enforcement and surface
+    following by asking for such moves. Two ways to drive it, one code path:
+
+    - callback: a ``sensor`` with ``probe(path) -> Contact | NonContact`` (the simulator
+      when ``truth`` is given, or a robot); :meth:`step` runs a whole step;
+    - ask/tell: ``move = session.propose()``, the robot carries it out,
+      ``session.observe(result)``; ``observe`` returns the step's :class:`Snapshot` when the
+      step is complete, else None (more moves are needed).
+
+    :meth:`observe` also takes a whole step's observations (a list), as a recording gives
+    them. Misses before the first contact are kept until it comes. Without a truth the
+    error metrics of the snapshots are None.
+
+    Parameters
+    ----------
+    truth : GroundTruth or None
+        The simulated object; None for a session fed by :meth:`observe`.
+    library : PriorLibrary
+    strategy : {"gpis-dhd", "rrt"}
+    params : SessionParams, optional
+    seed : int
+        Seeds the filter, the exploration and the simulator noise.
+    sensor_noise : tuple of float
+        ``(position std in scene units, normal std in degrees)`` of the sensor: the
+        simulator adds it, and the model assumes it (the likelihood's widths grow with it,
+        :func:`~.params.noise_matched`, and so does the GPIS's observation noise).
+    sensor_outliers : float
+        The simulated sensor's chance of a wrong contact (``ContactSimulator``); the model's
+        is ``params.filter.outlier_probability``.
+    sensor : object, optional
+        A robot: ``sensor.probe(path)`` carries out one guarded move (ignored with a truth,
+        whose simulator is the sensor).
+    """
+
+    def __init__(self, truth, library, strategy="gpis-dhd", params=None, seed=0,
+                 sensor_noise=(0.0, 0.0), sensor=None, sensor_outliers=0.0):
+        if strategy not in STRATEGIES:
+            raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+        if len(library) == 0:
+            raise SessionError("the prior library is empty")
+        self.truth = truth
+        self.library = library
+        self.strategy = strategy
+        self.params = params or SessionParams()
+        self.seed = int(seed)
+        self.sensor_noise = tuple(float(v) for v in sensor_noise)
+        self.rng = np.random.default_rng([self.seed, 1])
+        self.simulator = None
+        self.sensor = sensor
+        self._truth_samples = None
+        if truth is not None:
+            self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
+                                              normal_noise_deg=self.sensor_noise[1],
+                                              rng=np.random.default_rng([self.seed, 2]),
+                                              outlier_fraction=sensor_outliers)
+            self.sensor = self.simulator
+            self._truth_samples = transform_points(
+                surface_samples(truth.model, self.params.metric_samples), truth.rotation,
+                truth.translation)
+        # The filter's lengths scale with the library, which all classes share.
+        self._filter_unit = self.params.length_unit or library.reference_size / PAPER_SIZE
+        filter_params = scaled_lengths(self.params.filter, self._filter_unit)
+        if any(self.sensor_noise):
+            filter_params = noise_matched(filter_params, *self.sensor_noise)
+        self.filter = ParticleFilter(library, filter_params,
+                                     rng=np.random.default_rng([self.seed, 3]))
+        self.snapshots = []
+        self._p, self._unit = scaled_lengths(self.params, self._filter_unit), self._filter_unit
+        self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
+        self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_live"] = None  # a running generator does not pickle; it is replayed
+        return state
+
+    @property
+    def step_count(self):
+        return len(self.snapshots)
+
+    @property
+    def terminated(self):
+        return bool(self.snapshots) and self.snapshots[-1].terminated
+
+    @property
+    def latest(self):
+        return self.snapshots[-1] if self.snapshots else None
+
+    def run(self, max_steps=None, callback=None):
+        """Step until termination (or ``max_steps`` more steps); returns the last snapshot."""
+        while not self.terminated and (max_steps is None or max_steps > 0):
+            snapshot = self.step()
+            if callback is not None:
+                callback(snapshot)
+            if max_steps is not None:
+                max_steps -= 1
+        return self.latest
+
+    def step(self):
+        """One time step of Algorithm 2 with the sensor (the simulator or a robot given as
+        ``sensor``): the guarded moves of the step, then the update; returns its
+        :class:`Snapshot`.
+
+        The same path as :meth:`propose` and :meth:`observe`. A step that fails leaves the
+        session exactly as it was before it.
+        """
+        if self.sensor is None:
+            raise SessionError("this session has no sensor: give it what the sensor found "
+                               "with observe(), or a sensor with probe(path)")
+        if self.terminated:
+            raise SessionError("the session has terminated; start a new one")
+        saved = self._checkpoint()
+        try:
+            sensing, snapshot = 0.0, None
+            while snapshot is None:
+                move = self.propose()
+                clock = time.perf_counter()
+                result = self.sensor.probe(move.path)
+                sensing += time.perf_counter() - clock
+                snapshot = self._observe_move(result, {"sensor": sensing})
+            return snapshot
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    def propose(self):
+        """The next guarded move of the step in progress, or None after termination.
+
+        Asking again before :meth:`observe` gives the same move.
+
+        Returns
+        -------
+        Move or None
+        """
+        if self.terminated:
+            return None
+        self._use_lengths()
+        kind, _, _, path = self._live_procedure()
+        target = (self.state.target.position if kind == "target" else None)
+        return Move(frozen(path), kind, len(self.state.results),
+                    None if target is None else frozen(target))
+
+    def _live_procedure(self):
+        """The step's procedure of guarded moves, advanced to the next move: built from the
+        state at the step's start and replayed with the results so far when it is not
+        running (after a pickle, a copy or a rollback)."""
+        if self._live is not None:
+            return self._live
+        if self.state.moves_rng is None:
+            self.state.moves_rng = self.rng.bit_generator.state
+        rng = np.random.Generator(type(self.rng.bit_generator)())
+        rng.bit_generator.state = self.state.moves_rng
+        kind, procedure = self._procedure(rng)
+        path = next(procedure)
+        for result in self.state.results:
+            path = procedure.send(result)
+        self._live = (kind, procedure, rng, path)
+        return self._live
+
+    def _procedure(self, rng):
+        """``(kind, generator of guarded moves)`` for the step: lines 2-4 of Algorithm 2
+        (reach for the target chosen last step) or the first touch, a check, an RRT step."""
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        p, unit = self._p, self._unit
+        if len(contacts) == 0 or (self.state.target is None and self.state.check is None
+                                  and self.strategy != "rrt"):
+            return "first", first_contact_moves(
+                np.zeros(3), rng, radius=FIRST_LINE_REACH * self._filter_unit,
+                unit=self._filter_unit)
+        if self.strategy == "rrt":
+            low, high = contacts.min(axis=0) - RRT_MARGIN * unit, contacts.max(axis=0) + RRT_MARGIN * unit
+            return "rrt", rrt_moves(contacts, normals, (low, high), rng, p.rrt_step,
+                                    p.probe_depth, 0.5 * unit, unit)
+        if self.state.check is not None:
+            return "check", _one_move(self.state.check.path)
+        target, normal, estimate = self.state.target
+        depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
+        # The way back ends two simulator steps inside the anchor (1/150 of the size).
+        back = 2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
+        return "target", enforce_contact_moves(
+            target, normal, contacts, normals, depth, clearance, p.follow_step,
+            p.contact_spacing, p.max_follow, back)
+
+    def _observe_move(self, result, timings):
+        """Take the result of the current guarded move; the step's snapshot when its
+        procedure is done, else None."""
+        self._use_lengths()
+        kind, procedure, rng, _ = self._live_procedure()
+        self.state.results.append(result)
+        try:
+            path = procedure.send(result)
+        except StopIteration as done:
+            self.rng.bit_generator.state = rng.bit_generator.state
+            self.state.moves_rng, self.state.results, self._live = None, [], None
+            paths, observations = self._after_moves(kind, done.value)
+            return self._update(paths, observations, timings)
+        self._live = (kind, procedure, rng, path)
+        return None
+
+    def _after_moves(self, kind, done):
+        """What a finished procedure leaves besides its observations: the swept space, the
+        given-up target, the check's count, the frontier, the missed probe's free space."""
+        if kind == "check":
+            (path,), observations = done
+            self._record_sweep(observations[0])
+            self._count_check(observations[0])
+            if not isinstance(observations[0], Contact):
+                spacing = self._p.contact_spacing
+                self.state.free_space = thin_points(np.vstack([self.state.free_space, path_until(
+                    path, path[-1], spacing, 0.05 * self._unit)]), spacing)
+            return [path], observations
+        if kind != "target":
+            return done
+        paths, observations, reached = done
+        target = self.state.target.position
+        self._record_sweep(observations[0], paths[0][0])  # the approach's start
+        if not reached or self._repeats_contact(observations[-1]):
+            self.state.given_up.append(target)
+        self._follow_frontier(observations[-1])
+        if not isinstance(observations[0], Contact):
+            self.state.free_space = free_space_points(self.state.free_space, paths[0],
+                                                 self._p.contact_spacing)
+        return paths, observations
+
+    def observe(self, observations, free_space=None):
+        """What the sensor found: the result of the proposed guarded move, or a whole step.
+
+        Parameters
+        ----------
+        observations : Contact, NonContact or sequence of them
+            One observation: the result of the move :meth:`propose` gave (ask/tell); the
+            step's :class:`Snapshot` is returned when its procedure is done, else None.
+            A sequence: what the sensor found in one whole step, in time order (at least
+            one), as a recording gives it; misses before the first contact ever are held
+            (None is returned) and join the step of that contact.
+        free_space : (k, 3) float, optional
+            Points the sensor moved through without touching; they cut the prior of the
+            reconstruction (``gpis_carve_radius``) and are not observations of the filter.
+
+        Notes
+        -----
+        The proposed target is given up as the simulated contact enforcement does: when no
+        contact was made, when the first touch missed and the last contact lies within
+        ``contact_spacing`` of an earlier one, or when a contact repeats an earlier one.
+        After a proposed check the first observation is where its sweep first touched. The session keeps
+        accepting observations after it would have stopped (``terminated``).
+        A step that fails leaves the session exactly as it was before it.
+        """
+        if isinstance(observations, (Contact, NonContact)):
+            if free_space is not None:
+                raise SessionError("free_space goes with a whole step's observations")
+            saved = self._checkpoint()
+            try:
+                return self._observe_move(observations, {})
+            except BaseException:
+                self._restore(saved)
+                raise
+        if self.state.results:
+            raise SessionError("a guarded move is pending: observe its result (one Contact "
+                               "or NonContact) before a whole step")
+        observations = list(observations)
+        if not observations:
+            raise SessionError("a step needs at least one observation")
+        for observation in observations:
+            if not isinstance(observation, (Contact, NonContact)):
+                raise SessionError(f"not an observation: {observation!r} (use Contact or "
+                                   "NonContact)")
+        points = np.asarray(np.zeros((0, 3)) if free_space is None else free_space, float)
+        if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
+            raise SessionError("free_space must be a finite (k, 3) array of points")
+        self._use_lengths()
+        saved = self._checkpoint()
+        try:
+            contacts = [o for o in observations if isinstance(o, Contact)]
+            if self.state.held is not None:
+                observations = self.state.held[0] + observations
+                points = np.vstack([self.state.held[1], points])
+                self.state.held = None
+            if not contacts and len(self.filter.contact_positions) == 0:
+                self.state.held = (observations, points)  # no estimate before a contact
+                return None
+            self._record_sweep(observations[0], self._approach_start())
+            if self.state.check is not None:
+                self._count_check(observations[0])
+            elif self.state.target is not None:
+                if not self._reached(observations, contacts):
+                    self.state.given_up.append(self.state.target.position)
+                self._follow_frontier(observations[-1])
+            if len(points):
+                self.state.free_space = thin_points(np.vstack([self.state.free_space, points]),
+                                               self._p.contact_spacing)
+            return self._update([], observations, {})
+        except BaseException:
+            self._restore(saved)
+            raise
+
+    def recorded_steps(self):
+        """What was observed in each step so far: replaying them through :meth:`observe` of
+        a session with the same library, parameters and seed gives the same estimates.
+
+        Returns
+        -------
+        list of RecordedStep
+        """
+        steps, before = [], 0
+        for snapshot in self.snapshots:
+            free = snapshot.free_space
+            steps.append(RecordedStep(list(snapshot.new_observations), np.array(free[before:])))
+            before = len(free)
+        return steps
+
+    def _checkpoint(self):
+        """Everything a failed step must give back: the filter, the random generators, the
+        exploration state and the number of snapshots."""
+        return (self.filter.checkpoint(), [g.bit_generator.state for g in self._generators()],
+                self.state.copy(), len(self.snapshots))
+
+    def _restore(self, saved):
+        filter_state, generator_states, state, count = saved
+        self.filter.restore(filter_state)
+        for generator, generator_state in zip(self._generators(), generator_states):
+            generator.bit_generator.state = generator_state
+        self.state, self._live = state, None
+        del self.snapshots[count:]
+
+    def _use_lengths(self, model=None):
+        """Set ``self._p``, the parameters with their lengths in scene units, and
+        ``self._unit``, the scene units of a size unit: a sixth of the longest side of
+        ``model``, default the latest MAP object (the library's reference size before the
+        first step), or ``params.length_unit``. Derived from the snapshots, so rollbacks and
+        copies of a session need not keep it."""
+        if model is None and self.snapshots:
+            model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
+        unit = self.params.length_unit or (model.size_unit if model is not None
+                                           else self._filter_unit)
+        if unit != self._unit:
+            self._p, self._unit = scaled_lengths(self.params, unit), unit
+        return self._p
+
+    def _generators(self):
+        return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
+
+    def _update(self, paths, observations, timings):
+        """Algorithm 2 once the step's guarded moves (line 7) are done: lines 2-6 and 8."""
+        with _timed(timings, "filter"):
+            belief = self.filter.update(observations)          # l.2: update the belief (PF)
+        model = self.filter.models[self.filter.class_names.index(belief.map_class)]
+        pose = belief.map_rotation, belief.map_translation     # l.2: the MAP particle z*
+        self._use_lengths(model)
+        map_vertices = transform_points(model.mesh.vertices, *pose)
+        contacts = self.filter.contact_positions
+        recon = None
+        if belief.novel:                                       # l.3: p(D|z*) below threshold
+            recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
+        with _timed(timings, "target"):                        # l.8, l.1: d_H(S*, X_c) <= eps
+            dhd, terminated = self._stop_and_target(           # l.4 / l.6: the next target
+                belief, model, *pose, map_vertices, recon, contacts)
+        if terminated:
+            recon = self._final_surface(recon, map_vertices, contacts, timings)
+        with _timed(timings, "metrics"):
+            errors = self._truth_metrics(model, *pose, recon, contacts)
+        return self._snapshot(belief, model, pose, map_vertices, recon, dhd, terminated,
+                              paths, observations, timings, errors)
+
+    def _snapshot(self, belief, model, pose, map_vertices, recon, dhd, terminated, paths,
+                  observations, timings, errors):
+        """Record the step's :class:`Snapshot`."""
+        (rotation, translation), (pose_error, recon_error, truth_coverage) = pose, errors
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        snapshot = Snapshot(
+            step=self.step_count + 1, new_observations=tuple(observations),
+            paths=tuple(frozen(p) for p in paths), contacts=frozen(contacts),
+            normals=frozen(normals), noncontacts=frozen(self.filter.noncontact_positions),
+            free_space=frozen(self.state.free_space),
+            map_class=belief.map_class, map_rotation=frozen(rotation),
+            map_translation=frozen(translation), map_vertices=frozen(map_vertices),
+            map_faces=model.mesh.faces, class_posterior=dict(belief.class_posterior),
+            n_particles=belief.n_particles, log_evidence=float(belief.log_evidence),
+            log_threshold=float(belief.log_threshold), novel=bool(belief.novel),
+            gpis_vertices=None if recon is None else frozen(recon.vertices),
+            gpis_faces=None if recon is None else frozen(recon.faces),
+            gpis_variance=None if recon is None else frozen(recon.variance),
+            gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
+            target=None if self.state.target is None else frozen(self.state.target.position),
+            dhd=float(dhd), truth_coverage=truth_coverage, pose_error=pose_error,
+            recon_error=recon_error, terminated=terminated, timings=timings,
+            hypotheses=hypotheses(belief),
+            gpis_resolution=None if recon is None else recon.resolution,
+            **self._pose_difference(model, rotation, translation))
+        self.snapshots.append(snapshot)
+        return snapshot
+
+    def _pose_difference(self, model, rotation, translation):
+        """``rotation_error_deg`` and ``translation_error`` of the MAP against the simulated
+        object (None without one, or when the MAP is another shape)."""
+        if self.truth is None:
+            return {}
+        angle, distance = pose_difference(model, rotation, translation, self.truth)
+        return {"rotation_error_deg": angle, "translation_error": distance}
+
+    def _truth_metrics(self, model, rotation, translation, recon, contacts):
+        """Pose error, reconstruction error and truth coverage against the simulated
+        object (None without one; the reconstruction error also while known)."""
+        if self.truth is None:
+            return None, None, None
+        pose_error = metric_pose_error(model, rotation, translation, self.truth,
+                                       self._p.metric_samples)
+        recon_error = None
+        if recon is not None and len(recon.faces):
+            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
+            samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
+            recon_error = float(two_way_hausdorff(samples, self._truth_samples))
+        return (float(pose_error), recon_error,
+                directed_hausdorff(self._truth_samples, contacts))
+
+    def save(self, path):
+        """Save the session (its set-up and its observation history) to an ``.npz`` file;
+        see :func:`tactile_viz.engine.persistence.save_session`."""
+        from ..persistence import save_session
+
+        return save_session(self, path)
+
+    @classmethod
+    def load(cls, path, callback=None):
+        """Rebuild a saved session by replaying its steps; see
+        :func:`tactile_viz.engine.persistence.load_session`."""
+        from ..persistence import load_session
+
+        return load_session(path, callback)
+
+
+def make_truth(model, rng=None, max_translation=1.0):
+    """The ground truth of a trial: ``model`` at a random pose, translated up to
+    ``max_translation`` size units (a sixth of its longest side each)."""
+    rotation, translation = random_pose(rng, max_translation * model.size_unit)
+    return GroundTruth(model, rotation, translation)

@@ -1,0 +1,46 @@
+"""A session that steps through recorded touches."""
+
+from ..errors import SessionError
+from .loop import Session
+
+
+class RecordedSession(Session):
+    """A session that steps through recorded touches: :meth:`step` gives the next recorded
+    step to :meth:`~Session.observe`, and the session ends with the recording (not at the
+    stop rule, which a recording may have passed long before).
+
+    Parameters
+    ----------
+    steps : list of RecordedStep
+        From :func:`~tactile_viz.engine.observation_file.read_observations`.
+    library, strategy, params, seed
+        As for :class:`Session` (the recording's seed reproduces its estimates exactly).
+    source : str, optional
+        Where the recording came from (shown by viewers).
+    """
+
+    def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None,
+                 sensor_noise=(0.0, 0.0)):
+        super().__init__(None, library, strategy, params, seed, sensor_noise)
+        self.recording = list(steps)
+        self.source = source
+        self.replayed = 0  # recorded steps given to the session (misses first are held)
+
+    @property
+    def terminated(self):
+        return self.replayed >= len(self.recording)
+
+    def step(self):
+        """Replay recorded steps until one gives a snapshot (misses before the first
+        contact join its step); at the recording's end without a contact, None."""
+        if self.terminated:
+            raise SessionError("the recording has been replayed to its end")
+        snapshot = None
+        while snapshot is None and not self.terminated:
+            recorded = self.recording[self.replayed]
+            snapshot = self.observe(recorded.observations, recorded.free_space)
+            self.replayed += 1
+        if snapshot is None:
+            raise SessionError("the recording holds no contact: there is nothing to "
+                               "estimate from misses alone")
+        return snapshot

@@ -1,0 +1,177 @@
+"""What a session hands out: immutable snapshots of each step, the guarded moves it asks
+of a sensor, the targets it reaches for and the reconstruction of a novel object."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
+
+
+def frozen(array):
+    array = np.array(array)
+    array.flags.writeable = False
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """Everything a viewer or a benchmark needs after one step (arrays are read-only).
+
+    Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
+    ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
+    is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
+    stops; None without a surface).
+    """
+
+    step: int
+    new_observations: tuple
+    paths: tuple
+    contacts: np.ndarray
+    normals: np.ndarray
+    noncontacts: np.ndarray
+    free_space: np.ndarray
+    map_class: str
+    map_rotation: np.ndarray
+    map_translation: np.ndarray
+    map_vertices: np.ndarray
+    map_faces: np.ndarray
+    class_posterior: dict
+    n_particles: int
+    log_evidence: float
+    log_threshold: float
+    novel: bool
+    gpis_vertices: object
+    gpis_faces: object
+    gpis_variance: object
+    gpis_scale: object
+    target: object
+    dhd: float
+    truth_coverage: object
+    pose_error: object
+    recon_error: object
+    terminated: bool
+    timings: dict
+    hypotheses: tuple = ()
+    gpis_resolution: object = None
+    rotation_error_deg: object = None
+    translation_error: object = None
+
+    def record(self):
+        """The JSON record of this step (the ``trial`` command's contract)."""
+        return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
+                "dhd": self.dhd, "truth_coverage": self.truth_coverage, "novel": self.novel,
+                "recon_error": self.recon_error,
+                "n_particles": self.n_particles, "n_contacts": int(len(self.contacts)),
+                "n_noncontacts": int(len(self.noncontacts)),
+                "step_seconds": float(sum(self.timings.values())),
+                "timings": {k: float(v) for k, v in self.timings.items()},
+                "rotation_error_deg": self.rotation_error_deg,
+                "translation_error": self.translation_error,
+                "gpis_scale": self.gpis_scale,
+                "map_rotation": self.map_rotation.tolist(),
+                "map_translation": self.map_translation.tolist()}
+
+
+def hypotheses(state, count=HYPOTHESES):
+    """The ``count`` heaviest distinct poses of the filter after its MAP, as
+    ``(class name, rotation, translation, weight)`` (weights of the duplicates summed)."""
+    particles = getattr(state, "particles", None)
+    if particles is None or len(particles) < 2:
+        return ()
+    weights = np.exp(particles.log_weights)
+    keys = np.column_stack([particles.classes, particles.translations.round(3),
+                            particles.rotations.reshape(len(particles), -1).round(3)])
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    totals = np.bincount(inverse, weights, minlength=len(first))
+    map_group = inverse[np.argmax(particles.log_weights)]  # drawn on its own
+    order = [k for k in np.argsort(-totals) if k != map_group][:count]
+    return tuple((state.class_names[particles.classes[first[k]]],
+                  frozen(particles.rotations[first[k]]),
+                  frozen(particles.translations[first[k]]), float(totals[k]))
+                 for k in order)
+
+
+@dataclass(frozen=True)
+class Reconstruction:
+    """The GPIS estimate of a novel object in one step.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float
+        The zero level set of the posterior mean (marching cubes), world frame.
+    faces : (f, 3) int
+    variance : (v,) float
+        Posterior variance at the vertices (evaluated at ``subset``, nearest elsewhere).
+    subset : (k,) int or None
+        The vertices where the variance was evaluated.
+    fit : GPISFit
+    resolution : int
+        Marching-cubes cells along the box's longest side.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    variance: np.ndarray
+    subset: object
+    fit: object
+    resolution: int
+
+    @property
+    def empty(self):
+        return len(self.vertices) == 0
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where the session wants the next touch.
+
+    Attributes
+    ----------
+    position : (3,) float
+        The point to touch, world frame.
+    normal : (3,) float
+        The estimated outward normal there: approach along ``-normal``.
+    depth : float
+        How far beyond ``position`` to probe (the estimate's deepest point within the
+        probe depth).
+    clearance : float
+        How far outside ``position`` the approach starts (short of any part the estimate
+        predicts on the way).
+    path : (k, 3) float or None
+        A check (``check_lines``): the polyline to sweep instead of an approach; the first
+        touch along it is the step's first observation.
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    depth: float
+    clearance: float = 0.5
+    path: object = None
+
+
+@dataclass(frozen=True)
+class Move:
+    """A guarded move the session asks of the sensor: move along ``path`` and stop at the
+    first contact.
+
+    Attributes
+    ----------
+    path : (k, 3) float
+        The polyline, world frame, scene units (k >= 2).
+    kind : {"first", "target", "check", "rrt"}
+        The procedure the move belongs to: random lines until the first contact, contact
+        enforcement toward a target (the probe, then after a miss the way back to the
+        nearest contact and the in-contact steps along the surface), a check line, an RRT
+        step.
+    number : int
+        The move's place in its step (0 first).
+    target : (3,) float or None
+        The target the step reaches for (``kind == "target"``).
+    """
+
+    path: np.ndarray
+    kind: str
+    number: int
+    target: object = None

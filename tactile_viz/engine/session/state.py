@@ -1,0 +1,86 @@
+"""The exploration state of a session: everything a step changes besides the filter, the
+random generators and the snapshots, in one dataclass that is checkpointed, sent to the
+engine process, pickled and restored whole (adding a field needs no other edit)."""
+
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+
+class Aim(NamedTuple):
+    """The target a step reaches for: ``position`` and outward ``normal`` (world frame) and
+    the ``estimate`` (``(k, 3) -> (k,)``, negative inside) whose inside the probe depth and
+    the approach are taken from."""
+
+    position: np.ndarray
+    normal: np.ndarray
+    estimate: Any
+
+
+class Check(NamedTuple):
+    """A planned check of a novel estimate: the ``estimate``'s vertices it checks, the
+    point ``through`` and ``direction`` it was planned from, and the ``path`` to sweep."""
+
+    estimate: np.ndarray
+    through: np.ndarray
+    direction: np.ndarray
+    path: np.ndarray
+
+
+def _points():
+    return np.zeros((0, 3))
+
+
+@dataclass
+class ExplorationState:
+    """What exploration remembers from step to step.
+
+    Attributes
+    ----------
+    gpis_scale : float
+        The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
+    target : Aim or None
+        Where the next step reaches (None: terminated, a check, or the first touch).
+    given_up : list of (3,) float
+        Targets the sensor could not reach (exploration leaves the surface near them out).
+    free_space : (k, 3) float
+        Samples of the paths missed probes passed through.
+    swept : (k, 3) float
+        Samples of the approach paths up to their first touch.
+    frontier : list of (position, normal)
+        Targets beside contacts on parts nothing predicted, still to visit.
+    frontier_target : bool
+        Whether ``target`` came from the frontier.
+    check : Check or None
+        The check the next step sweeps.
+    check_directions : list of (3,) float
+        The directions of the checks so far.
+    checks_passed : int
+        Checks in a row that touched nothing unpredicted.
+    moves_rng : dict or None
+        The session rng's state when the step in progress began (None between steps).
+    results : list of Contact or NonContact
+        The results of the step's guarded moves so far.
+    held : tuple or None
+        ``(observations, free space)`` given before the first contact ever, kept for its step.
+    """
+
+    gpis_scale: float = 1.0
+    target: Any = None
+    given_up: list = field(default_factory=list)
+    free_space: np.ndarray = field(default_factory=_points)
+    swept: np.ndarray = field(default_factory=_points)
+    frontier: list = field(default_factory=list)
+    frontier_target: bool = False
+    check: Any = None
+    check_directions: list = field(default_factory=list)
+    checks_passed: int = 0
+    moves_rng: Any = None
+    results: list = field(default_factory=list)
+    held: Any = None
+
+    def copy(self):
+        """A copy whose lists are new (arrays and tuples are replaced, never changed)."""
+        return replace(self, **{f.name: list(getattr(self, f.name)) for f in fields(self)
+                                if isinstance(getattr(self, f.name), list)})
