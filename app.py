@@ -13,7 +13,8 @@ import logging
 import os
 import sys
 
-from tactile_viz.cli import ExtendList, add_logging_arguments, default_log_file, setup_logging
+from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
+                             default_log_file, setup_logging)
 
 log = logging.getLogger("tactile_viz.app.launcher")
 GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
@@ -28,7 +29,7 @@ class Parser(argparse.ArgumentParser):
 
 def parse_args(argv=None):
     from tactile_viz.app.engine_process import ENGINES
-    from tactile_viz.engine import SESSION_PRESETS, STRATEGIES
+    from tactile_viz.engine import STRATEGIES
 
     parser = Parser(description="tactile_viz desktop app: watch and steer active tactile "
                                 "recognition and shape learning")
@@ -48,7 +49,7 @@ def parse_args(argv=None):
                              "--library-dir when given, else the only priors")
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
+    add_preset_argument(parser)
     parser.add_argument("--engine", choices=ENGINES, default="process",
                         help="where Step and Run step the session: a process of its own, so "
                              "the window draws meanwhile on another core (default), or a "

@@ -210,6 +210,18 @@ class _CurrentStderr(logging.StreamHandler):
         pass
 
 
+DEFAULT_PRESET = "paper"
+
+
+def add_preset_argument(parser):
+    """``--preset NAME``, one of the engine's session presets (default ``paper``), declared
+    here once for every command."""
+    from .engine.params import SESSION_PRESETS
+
+    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default=DEFAULT_PRESET,
+                        help=f"speed/accuracy preset (default {DEFAULT_PRESET})")
+
+
 def default_log_file():
     """``$XDG_STATE_HOME/tactile_viz/app.log``, else ``~/.local/state/tactile_viz/app.log``."""
     base = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"

@@ -14,7 +14,6 @@ snapshots of a session that is no longer current.
 """
 
 import logging
-from dataclasses import replace
 from pathlib import Path
 
 from ..engine.errors import LibraryError
@@ -25,14 +24,16 @@ from ..engine.meshes import UNITS
 from ..engine.metrics import error_threshold
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.observation_file import read_observations
-from ..engine.params import PAPER_SIZE, FilterParams, SessionParams, length_fields
+from ..engine.params import PAPER_SIZE, declaration, declarations, length_fields, with_changes
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
 
 log = logging.getLogger(__name__)
 
-FILTER_KNOBS = ("sigma_d", "sigma_n", "n_s", "lam", "outlier_probability")
-SESSION_KNOBS = ("eps",)
+KNOBS = ("sigma_d", "sigma_n", "n_s", "lam", "outlier_probability", "eps")  # the main ones
+# Which dataclass each belongs to comes from its declaration (engine.params.declarations).
+FILTER_KNOBS = tuple(name for name in KNOBS if declarations()[name].component == "filter")
+SESSION_KNOBS = tuple(name for name in KNOBS if declarations()[name].component == "session")
 LOADED_PRESET = "loaded session"  # the base parameters of a loaded session that match no preset
 SCENE_UNITS = "scene units"  # the name of the scene's length unit when it has none
 
@@ -40,9 +41,12 @@ SCENE_UNITS = "scene units"  # the name of the scene's length unit when it has n
 def knob_length_power(name):
     """The power of length of a main knob's unit (0: not a length), from the parameters'
     field metadata: 1 for ``sigma_d`` and ``eps``, which are in size units."""
-    if name not in FILTER_KNOBS + SESSION_KNOBS:
+    if name not in KNOBS:
         raise ValueError(f"unknown parameter {name!r}")
-    return length_fields(FilterParams if name in FILTER_KNOBS else SessionParams).get(name, 0)
+    from ..engine.params import FilterParams, SessionParams
+
+    component = FilterParams if declaration(name).component == "filter" else SessionParams
+    return length_fields(component).get(name, 0)
 
 
 def knob_size_reference(name):
@@ -50,6 +54,11 @@ def knob_size_reference(name):
     the filter's lengths, the MAP object's longest side for the session's."""
     return ("the priors' median longest side" if name in FILTER_KNOBS
             else "the estimated object's longest side")
+
+
+def value_of(params, name):
+    """A declared parameter's value in ``params`` (SessionParams), in its component."""
+    return getattr(params.filter if declaration(name).component == "filter" else params, name)
 
 
 class Signal:
@@ -138,19 +147,16 @@ class Scene:
     @property
     def params(self):
         """The session parameters: the preset with the user's overrides."""
-        params = self._base_params(self.preset)
-        filter_changes = {k: v for k, v in self.overrides.items() if k in FILTER_KNOBS}
-        session_changes = {k: v for k, v in self.overrides.items() if k in SESSION_KNOBS}
-        return replace(params, filter=replace(params.filter, **filter_changes), **session_changes)
+        return with_changes(self._base_params(self.preset), **self.overrides)
 
     def parameter(self, name):
         """Current value of a main knob (``sigma_d``, ``sigma_n``, ``n_s``, ``lam``, ``eps``)."""
         params = self.params
-        return getattr(params.filter if name in FILTER_KNOBS else params, name)
+        return value_of(params, name)
 
     def set_parameter(self, name, value):
         """Change a main knob; an invalid value raises ValueError and changes nothing."""
-        if name not in FILTER_KNOBS + SESSION_KNOBS:
+        if name not in KNOBS:
             raise ValueError(f"unknown parameter {name!r}")
         overrides = dict(self.overrides, **{name: value})
         previous, self.overrides = self.overrides, overrides
@@ -436,17 +442,11 @@ class Scene:
     def _match_params(self, params):
         """(preset, overrides) that give ``params``: a bundled preset with some main knobs
         changed if one does, else ``params`` itself as the preset :data:`LOADED_PRESET`."""
-        knobs = {name: getattr(params.filter, name) for name in FILTER_KNOBS}
-        knobs.update({name: getattr(params, name) for name in SESSION_KNOBS})
+        knobs = {name: value_of(params, name) for name in KNOBS}
         self.presets.pop(LOADED_PRESET, None)
         for name, base in self.presets.items():
-            candidate = replace(base, filter=replace(base.filter, **{
-                k: v for k, v in knobs.items() if k in FILTER_KNOBS}),
-                **{k: v for k, v in knobs.items() if k in SESSION_KNOBS})
-            if candidate == params:
-                base_knobs = {k: (getattr(base.filter, k) if k in FILTER_KNOBS
-                                  else getattr(base, k)) for k in knobs}
-                return name, {k: v for k, v in knobs.items() if base_knobs[k] != v}
+            if with_changes(base, **knobs) == params:
+                return name, {k: v for k, v in knobs.items() if value_of(base, k) != v}
         self.presets[LOADED_PRESET] = params
         return LOADED_PRESET, {}
 

@@ -16,8 +16,10 @@ is one scene unit, so the paper's configuration is unchanged. Fields that are le
 ``metadata["length"]``, the power of length in their unit.
 """
 
+import functools
 import numbers
-from dataclasses import asdict, dataclass, field, fields, replace
+import re
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
 import numpy as np
 
@@ -26,9 +28,15 @@ from .errors import ParameterError
 PAPER_SIZE = 6.0  # longest side of the paper's normalised objects: one size unit is 1/6 of it
 
 
-def _length(default, power=1):
-    """A dataclass field in size units (``power``: length squared for a variance, ...)."""
-    return field(default=default, metadata={"length": power})
+def _length(default, power=1, low=None, high=None):
+    """A dataclass field in size units (``power``: length squared for a variance, ...),
+    with the range a control offers (``low``, ``high``; None: only the validation's)."""
+    return field(default=default, metadata={"length": power, "range": (low, high)})
+
+
+def _ranged(default, low, high):
+    """A dataclass field with the range a control offers."""
+    return field(default=default, metadata={"range": (low, high)})
 
 
 def length_fields(cls):
@@ -139,10 +147,10 @@ class FilterParams:
         Voxels along the longest side of each prior's SDF grid.
     """
 
-    sigma_d: float = _length(0.5)
-    sigma_n: float = 1.5
-    n_s: int = 30
-    lam: float = 0.97
+    sigma_d: float = _length(0.5, low=1e-3, high=100.0)
+    sigma_n: float = _ranged(1.5, 1e-3, 100.0)
+    n_s: int = _ranged(30, 1, 500)
+    lam: float = _ranged(0.97, 0.01, 1.0)
     known_fraction: float = 0.9
     noncontact_fraction: float = 0.5
     distance_step: float = _length(0.1)
@@ -157,7 +165,7 @@ class FilterParams:
     refine_map: bool = False
     refine_learned: int = 3
     refine_iterations: int = 10
-    outlier_probability: float = 0.0
+    outlier_probability: float = _ranged(0.0, 0.0, 0.49)
     n_features: int = 200
     sdf_resolution: int = 64
 
@@ -399,7 +407,7 @@ class SessionParams:
     """
 
     filter: FilterParams = field(default_factory=FilterParams)
-    eps: float = _length(0.6)
+    eps: float = _length(0.6, low=0.05, high=10.0)
     max_steps_known: int = 300
     max_steps_novel: int = 400
     gpis_noise: float = _length(1e-4, power=2)
@@ -512,3 +520,79 @@ def session_preset(name, **overrides):
     except KeyError:
         raise ParameterError(f"unknown preset {name!r}; choose from "
                              f"{', '.join(SESSION_PRESETS)}") from None
+
+
+# ------------------------------------------------------------------ declarations
+@dataclass(frozen=True)
+class Declaration:
+    """One parameter as the GUI, the command line, presets and benchmarks see it, read from
+    its field in :class:`FilterParams` or :class:`SessionParams` (the one place it is
+    declared): its component, default, unit, one-line doc and the range a control offers.
+    """
+
+    name: str
+    component: str
+    default: object
+    unit: str
+    doc: str
+    low: object = None
+    high: object = None
+
+
+def _docstring_entries(cls):
+    """``{name: (unit, first sentence)}`` of the numpydoc Attributes of ``cls``."""
+    entries, names, header = {}, [], None
+    for line in (cls.__doc__ or "").splitlines():
+        match = re.match(r"^    (\w[\w, ]*) : (\{[^}]*\}|[^,]+)(?:, (.+))?$", line)
+        if match:
+            names = [n.strip() for n in match.group(1).split(",")]
+            header = (match.group(3) or "").strip()
+            for name in names:
+                entries[name] = [header, ""]
+        elif names and line.startswith("        ") and line.strip():
+            for name in names:
+                entries[name][1] += (" " if entries[name][1] else "") + line.strip()
+        elif not line.strip():
+            names = []
+    return {name: (unit, _first_sentence(text)) for name, (unit, text) in entries.items()}
+
+
+def _first_sentence(text):
+    sentence = re.split(r"(?<=[.)])\s+(?=[A-Z(])", text, maxsplit=1)[0]
+    return sentence.rstrip(".") + "." if sentence else ""
+
+
+@functools.cache
+def declarations():
+    """Every parameter's :class:`Declaration`, by name (filter's and session's)."""
+    out = {}
+    for component, cls in (("filter", FilterParams), ("session", SessionParams)):
+        docs = _docstring_entries(cls)
+        for item in fields(cls):
+            if item.name == "filter":
+                continue
+            unit, doc = docs.get(item.name, ("", ""))
+            if not unit and item.name.endswith("_deg"):
+                unit = "degrees"
+            default = (item.default_factory() if item.default_factory is not MISSING
+                       else item.default)
+            low, high = item.metadata.get("range", (None, None))
+            out[item.name] = Declaration(item.name, component, default, unit, doc, low, high)
+    return out
+
+
+def declaration(name):
+    """The :class:`Declaration` of one parameter (ParameterError for an unknown name)."""
+    try:
+        return declarations()[name]
+    except KeyError:
+        raise ParameterError(f"unknown parameter {name!r}") from None
+
+
+def with_changes(params, **changes):
+    """``params`` (SessionParams) with declared parameters changed, each in its component."""
+    by_component = {"filter": {}, "session": {}}
+    for name, value in changes.items():
+        by_component[declaration(name).component][name] = value
+    return replace(params, filter=replace(params.filter, **by_component["filter"]),
+                   **by_component["session"])

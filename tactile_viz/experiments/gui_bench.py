@@ -35,11 +35,10 @@ import tempfile
 import time
 
 from ..app.engine_process import ENGINES
-from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, int_range, seed_int,
-                   writable_output)
+from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
+                  int_range, seed_int, writable_output)
 from ..engine.exploration import STRATEGIES
 from ..engine.files import write_atomic
-from ..engine.session import SESSION_PRESETS
 
 TARGET_OVERHEAD = 0.15
 TARGET_BLOCK = 0.150
@@ -65,7 +64,7 @@ def _parser():
                         type=bundled_object(),
                         help="bundled objects to run (default: mug_1 known, vase_2 novel)")
     parser.add_argument("--seed", type=seed_int, default=0)
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper")
+    add_preset_argument(parser)
     parser.add_argument("--strategy", default="gpis-dhd", choices=STRATEGIES)
     parser.add_argument("--max-steps", type=int_range(0), default=0,
                         help="cap the runs at this many steps (default 0: to termination)")

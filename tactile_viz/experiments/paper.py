@@ -23,12 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
-from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_file,
-                   name_list, output_dir, positive_int, seed_int, workers_int)
+from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_objects, count_int,
+                  existing_file, name_list, output_dir, positive_int, seed_int, workers_int)
 from ..engine.files import write_atomic
 from ..engine.exploration import STRATEGIES
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
-from ..engine.session import SESSION_PRESETS
 from .runner import make_task, open_pool, run_tasks, task_key
 from .trial import add_sensor_arguments, sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
@@ -65,8 +64,7 @@ def build_parser():
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
                         help="run the trials on a Dask distributed cluster at this address "
                              "(e.g. tcp://10.0.0.5:8786) instead of locally")
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
-                        help="speed/accuracy preset of every trial (default paper)")
+    add_preset_argument(parser)
     parser.add_argument("--seed", type=seed_int, default=0,
                         help="first seed; trial i uses seed + i (learned-prior trials seed + "
                              "1000 + i, so at other poses than the one learned from)")

@@ -37,12 +37,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..cli import (ArgumentParser, ExtendList, count_int, existing_dir, name_list, output_dir,
-                   positive_int, seed_int, workers_int)
+from ..cli import (ArgumentParser, ExtendList, add_preset_argument, count_int, existing_dir,
+                  name_list, output_dir, positive_int, seed_int, workers_int)
 from ..engine.errors import MeshError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.meshes import LONGEST_SIDE
-from ..engine.session import SESSION_PRESETS
 from .paper import split_names
 from .trial_files import read_trial, trial_files, write_trial
 
@@ -471,8 +470,7 @@ def build_parser():
     parser.add_argument("--seed", type=seed_int, default=0, help="first seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="exploration strategy (default gpis-dhd)")
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
-                        help="speed/accuracy preset (default paper)")
+    add_preset_argument(parser)
     parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="cap every trial at this many steps (default: the paper's caps "
                              "300 known / 400 novel); for smoke tests")

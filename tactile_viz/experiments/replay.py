@@ -10,11 +10,11 @@ import json
 import sys
 import time
 
-from ..cli import existing_file, seed_int
+from ..cli import add_preset_argument, existing_file, seed_int
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.observation_file import read_observations
-from ..engine.session import SESSION_PRESETS, RecordedSession, session_preset
+from ..engine.session import RecordedSession, session_preset
 from .trial import (add_output_arguments, add_prior_arguments, add_sensor_arguments,
                     add_unit_arguments, check_learning, code_version, learn, load_priors,
                     scene_units, with_outliers, write_output)
@@ -25,8 +25,7 @@ def add_replay_arguments(parser):
                         help="CSV of touches: header kind,x,y,z,nx,ny,nz (optional step "
                              "column); kind contact, noncontact or free")
     add_prior_arguments(parser)
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
-                        help="speed/accuracy preset (default paper)")
+    add_preset_argument(parser)
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="recorded in the JSON; it only decides the proposed targets")
     parser.add_argument("--seed", type=seed_int, default=0,

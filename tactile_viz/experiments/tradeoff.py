@@ -13,7 +13,6 @@ no other one is at least as fast with a mean error below its interval's lower en
 import json
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ import numpy as np
 from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_dir,
                    name_list, output_dir, positive_int, workers_int)
 from ..engine.files import write_atomic
+from ..engine.params import with_changes
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
 from .paper import (machine_description, object_sets, recorded_command, require_trials,
@@ -77,11 +77,10 @@ CONFIGS = {
 
 
 def config_params(name):
-    """``SessionParams.to_dict()`` of a configuration."""
+    """``SessionParams.to_dict()`` of a configuration (its changes are declared parameters,
+    each put in its component by its declaration)."""
     base, session_changes, filter_changes = CONFIGS[name]
-    params = session_preset(base)
-    params = replace(params, filter=replace(params.filter, **filter_changes), **session_changes)
-    return params.to_dict()
+    return with_changes(session_preset(base), **session_changes, **filter_changes).to_dict()
 
 
 def describe(name):

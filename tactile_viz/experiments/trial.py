@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ExtendList, bundled_object, existing_dir, existing_file, finite_float,
-                   output_dir, positive_int, seed_int, writable_output)
+from ..cli import (ExtendList, add_preset_argument, bundled_object, existing_dir,
+                  existing_file, finite_float, output_dir, positive_int, seed_int,
+                  writable_output)
 from ..engine.errors import LibraryError, ParameterError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
@@ -27,7 +28,7 @@ from ..engine.files import write_atomic
 from ..engine.library import PriorLibrary
 from ..engine.meshes import UNITS, unit_factor
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.session import SESSION_PRESETS, Session, make_truth, session_preset
+from ..engine.session import Session, make_truth, session_preset
 
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
@@ -196,8 +197,7 @@ def add_trial_arguments(parser):
                         help="pose, exploration and filter seed")
     parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="stop after this many steps (default: the paper's caps 300/400)")
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default="paper",
-                        help="speed/accuracy preset (default paper)")
+    add_preset_argument(parser)
     add_unit_arguments(parser)
     add_sensor_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "

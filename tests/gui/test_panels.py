@@ -240,3 +240,10 @@ def test_the_status_line_wraps_between_fields_only(qtbot):
     for line in lines:  # each line is whole fields: "recon error -" and "| particles" not split
         assert not line.strip(" \u00a0\u2060").startswith("|"), lines
         assert line.strip() == "" or line.rstrip().endswith(("|", "s")), lines
+
+
+def test_every_parameter_control_is_a_declared_parameter():
+    from tactile_viz.engine.params import declarations
+    from tactile_viz.gui.panels.exploration_panel import PARAMETERS
+
+    assert set(PARAMETERS) <= set(declarations())

@@ -11,28 +11,18 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox
 
 from ...app.scene import knob_length_power, knob_size_reference
 from ...engine.exploration import STRATEGIES
+from ...engine.params import declaration
 from .base import MARGINS, blocked
 
-# name -> (label, minimum, maximum, step, decimals, tooltip); a length's unit is added
+# The main knobs: name -> (label, step, decimals). Their range, default and doc come from
+# the parameters' declarations (engine.params.declarations); a length's unit is added.
 PARAMETERS = {
-    "sigma_d": ("sigma_d", 1e-3, 100.0, 0.05, 3,
-                "Std of the signed-distance likelihood. Larger forgives contacts off the "
-                "prior surface (noise, novel shapes) but separates classes less sharply."),
-    "sigma_n": ("sigma_n", 1e-3, 100.0, 0.1, 3,
-                "Std of the normal likelihood. Larger trusts measured normals less."),
-    "eps": ("eps (DHD)", 0.05, 10.0, 0.05, 2,
-            "Termination: stop when every point of the estimated surface is within eps of "
-            "a contact. Smaller covers the surface more densely at the cost of more steps."),
-    "n_s": ("n_s", 1, 500, 1, 0,
-            "Earlier contacts paired with each new one to propose particles. More pairs "
-            "find the pose sooner but cost time per step."),
-    "lam": ("lambda", 0.01, 1.0, 0.01, 2,
-            "Sampling gate: new particles are proposed while the MAP fit is below this "
-            "fraction of perfect. Higher samples more often (slower, more robust)."),
-    "outlier_probability": ("outliers", 0.0, 0.49, 0.01, 3,
-                            "The chance that a contact is a wrong reading (beyond the paper; "
-                            "0 is its Gaussian): a robust likelihood, so that one wrong "
-                            "contact cannot kill the true hypothesis."),
+    "sigma_d": ("sigma_d", 0.05, 3),
+    "sigma_n": ("sigma_n", 0.1, 3),
+    "eps": ("eps (DHD)", 0.05, 2),
+    "n_s": ("n_s", 1, 0),
+    "lam": ("lambda", 0.01, 2),
+    "outlier_probability": ("outliers", 0.01, 3),
 }
 
 
@@ -71,7 +61,8 @@ class ExplorationPanel(QGroupBox):
         rows = [("strategy", self.strategy_box), ("preset", self.preset_box)]
         self.parameter_boxes = {}
         for name, spec in PARAMETERS.items():
-            box = _parameter_box(*spec[1:5], parameter_tooltip(name))
+            known = declaration(name)
+            box = _parameter_box(known.low, known.high, *spec[1:3], parameter_tooltip(name))
             box.valueChanged.connect(
                 lambda value, n=name: self.parameter_changed.emit(n, value))
             rows.append((parameter_label(name), box))
@@ -119,7 +110,7 @@ def parameter_label(name):
 
 def parameter_tooltip(name):
     """A parameter's tooltip, with what its unit is when it is a length."""
-    tip, power = PARAMETERS[name][5], knob_length_power(name)
+    tip, power = declaration(name).doc.replace("``", ""), knob_length_power(name)
     if power == 0:
         return tip
     return (f"{tip}\n\nIn {unit_text(power)}: one size unit is a sixth of "
