@@ -210,16 +210,25 @@ class _CurrentStderr(logging.StreamHandler):
         pass
 
 
-DEFAULT_PRESET = "paper"
-
-
 def add_preset_argument(parser):
-    """``--preset NAME``, one of the engine's session presets (default ``paper``), declared
-    here once for every command."""
-    from .engine.params import SESSION_PRESETS
+    """``--preset NAME``, one of the engine's session presets (default ``recommended``; an old
+    name is taken with a note on stderr), declared here once for every command."""
+    from .engine.params import DEFAULT_PRESET, RENAMED_PRESETS, SESSION_PRESETS
 
-    parser.add_argument("--preset", choices=list(SESSION_PRESETS), default=DEFAULT_PRESET,
-                        help=f"speed/accuracy preset (default {DEFAULT_PRESET})")
+    def preset(text):
+        if text in RENAMED_PRESETS:
+            print(f"note: the preset {text!r} is now called {RENAMED_PRESETS[text]!r}",
+                  file=sys.stderr)
+            return RENAMED_PRESETS[text]
+        if text not in SESSION_PRESETS:
+            raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
+                                             f"{', '.join(SESSION_PRESETS)})")
+        return text
+
+    parser.add_argument("--preset", type=preset, default=DEFAULT_PRESET, metavar="NAME",
+                        help=f"speed/accuracy preset: {', '.join(SESSION_PRESETS)} (default "
+                             f"{DEFAULT_PRESET}; paper: the paper exactly; recommended: the "
+                             "project's configuration)")
 
 
 def default_log_file():

@@ -104,7 +104,7 @@ class Scene:
     """
 
     def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
-                 preset="paper", truth_model=None, units=None, sensor_noise=(0.0, 0.0),
+                 preset="recommended", truth_model=None, units=None, sensor_noise=(0.0, 0.0),
                  sensor_outliers=0.0):
         self.truth_changed = Signal()
         self.library_changed = Signal()

@@ -19,6 +19,7 @@ is one scene unit, so the paper's configuration is unchanged. Fields that are le
 import functools
 import numbers
 import re
+import warnings
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
 import numpy as np
@@ -358,7 +359,7 @@ class SessionParams:
         the object was never predicted) and grows a frontier from the contact: targets
         ``eps`` along four tangents, each contact on new ground growing it again, and the
         session does not stop while one is queued. 0: stop as soon as the estimate is
-        covered (the paper, the ``faithful`` preset).
+        covered (the paper, the ``paper`` preset).
     check_line_aim : {"gap", "gap-weakest", "contact"}
         ``gap``: each check sweeps the widest gap that no contact, swept path or estimated
         surface is near, alternately inside the contacts' convex hull and in a shell of
@@ -388,7 +389,7 @@ class SessionParams:
         How far outside a target the probe starts, along the estimated normal, at most: the
         approach stops short of where the estimate predicts the object again. A long
         approach bumps into parts that nothing predicted (beyond the paper, which leaves the
-        start open; the ``faithful`` preset starts 0.5 outside).
+        start open; the ``paper`` preset starts 0.5 outside).
     follow_step : float, size units
         Length of one in-contact surface-following step of contact enforcement.
     contact_spacing : float, size units
@@ -498,23 +499,43 @@ class SessionParams:
 
 
 SESSION_PRESETS = {
+    # The project's configuration, the default: the paper's values plus shape transfer that
+    # keeps the prior where the data agree (carved prior, prior coverage, check lines,
+    # frontier) and the learned prior's pose refined.
+    "recommended": SessionParams(),
+    # The paper exactly: its GPIS as written (thin-plate kernel with R the largest distance,
+    # contacts only), the stop as soon as the estimate is covered, no pose refinement.
+    "paper": SessionParams(filter=preset("paper", refine_learned=0),
+                           gpis_kernel="thin-plate", gpis_radius_factor=1.0,
+                           gpis_noncontacts=False, gpis_carve_radius=0.0,
+                           cover_prior=False, check_lines=0, approach_clearance=0.5),
     "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, final_resolution=48,
                           variance_points=800, metric_samples=2000),
-    "paper": SessionParams(),
-    # The paper's GPIS as written: thin-plate kernel with R the largest distance, contacts
-    # only (the shape-transfer shortfall of the README comes from it); no pose refinement.
-    "faithful": SessionParams(filter=preset("paper", refine_learned=0),
-                              gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                              gpis_noncontacts=False, gpis_carve_radius=0.0,
-                              cover_prior=False, check_lines=0, approach_clearance=0.5),
     "refined": SessionParams(filter=preset("refined")),
     "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
                               variance_points=3000, metric_samples=5000),
 }
 
 
+DEFAULT_PRESET = "recommended"
+# Old names still accepted, with a message: "faithful" was the paper's exact configuration
+# before it took the name "paper" (which was the project's configuration, now "recommended").
+RENAMED_PRESETS = {"faithful": "paper"}
+
+
+def preset_name(name):
+    """The current name of a preset name (an old one gives a FutureWarning)."""
+    if name in RENAMED_PRESETS:
+        warnings.warn(FutureWarning(f"the preset {name!r} is now called "
+                                    f"{RENAMED_PRESETS[name]!r}"), stacklevel=3)
+        return RENAMED_PRESETS[name]
+    return name
+
+
 def session_preset(name, **overrides):
-    """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`)."""
+    """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`; an old
+    name of :data:`RENAMED_PRESETS` gives a FutureWarning)."""
+    name = preset_name(name)
     try:
         return replace(SESSION_PRESETS[name], **overrides)
     except KeyError:

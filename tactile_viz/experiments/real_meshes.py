@@ -233,7 +233,7 @@ def expected(case, truth, map_class, novel):
 
 
 def make_tasks(objects, files, cases=CASES, trials=1, seed=0, strategy="gpis-dhd",
-               preset="paper", max_steps=None, bundled="known"):
+               preset="recommended", max_steps=None, bundled="known"):
     """One task dict per object, case and trial (picklable, JSON-ready).
 
     Parameters

@@ -36,7 +36,7 @@ def add_replay_arguments(parser):
                                  "(when novel) and estimate.json to DIR")
 
 
-def replay(steps, library, preset="paper", strategy="gpis-dhd", seed=0, progress=False,
+def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, progress=False,
            params=None, sensor_noise=(0.0, 0.0)):
     """Feed recorded steps to a new session without a simulated object.
 

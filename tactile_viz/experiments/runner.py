@@ -4,7 +4,7 @@ them (in this process, in a local process pool, on a Dask distributed cluster).
 A *task* is a plain dict (picklable, mostly JSON)::
 
     {"kind": "protocol", "object": "mug_1", "strategy": "gpis-dhd", "seed": 0,
-     "preset": "paper", "library": "known", "extra_priors": [], "params": None,
+     "preset": "recommended", "library": "known", "extra_priors": [], "params": None,
      "max_steps": None, "poisson": True, "learn_as": None}
 
 ``sizes`` (optional) maps bundled names to a longest side in scene units (metres in
@@ -30,7 +30,7 @@ import numpy as np
 TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
 
-def make_task(object_name, strategy="gpis-dhd", seed=0, preset="paper", kind="protocol",
+def make_task(object_name, strategy="gpis-dhd", seed=0, preset="recommended", kind="protocol",
               library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
               learn_as=None, poisson_depth=9, sizes=None, sensor=None):
     """A task dict (see the module docstring)."""

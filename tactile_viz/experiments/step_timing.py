@@ -96,7 +96,7 @@ def measure(object_name, sizes, repeats, seed=0):
 
 def _paper_kernel(low, high):
     """The GPIS kernel of the ``paper`` preset for a reconstruction box."""
-    params = session_preset("paper")
+    params = session_preset("recommended")
     if params.gpis_kernel == "wendland":
         return WendlandKernel(params.gpis_support)
     return ThinPlateKernel(params.gpis_radius_factor * float(np.linalg.norm(high - low)))

@@ -266,7 +266,7 @@ def code_version():
     return commit + ("-dirty" if changed else "")
 
 
-def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="paper",
+def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recommended",
               max_steps=None, progress=False, params=None, finish=None, sensor=None):
     """Run one trial and return its JSON-ready result dict.
 

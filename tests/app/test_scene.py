@@ -41,7 +41,7 @@ def test_invalid_settings_change_nothing(scene):
         scene.set_parameter("sigma_q", 1.0)
     with pytest.raises(ValueError):
         scene.set_preset("fastest")
-    assert scene.overrides == {} and scene.preset == "paper"
+    assert scene.overrides == {} and scene.preset == "recommended"
 
 
 def test_bad_mesh_changes_nothing(scene, tmp_path):

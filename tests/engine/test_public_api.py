@@ -10,7 +10,7 @@ def test_engine_exports_the_session_api():
     from tactile_viz.engine.session import Session as SessionAgain
 
     assert Session is SessionAgain and FilterParams is FilterParamsAgain
-    assert isinstance(session_preset("paper"), SessionParams)
+    assert isinstance(session_preset("recommended"), SessionParams)
     assert isinstance(preset("paper"), FilterParams)
     assert ParticleFilter.__module__.endswith("particle_filter") and Snapshot
 

@@ -130,7 +130,7 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
 
 
 def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monkeypatch):
-    params = session_preset("paper", max_steps_novel=40)
+    params = session_preset("recommended", max_steps_novel=40)
     session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", params,
                       seed=0)
     last = session.run()
@@ -322,11 +322,13 @@ def test_bad_gpis_and_enforcement_parameters(changes):
         SessionParams(**changes)
 
 
-def test_faithful_preset_is_the_papers_gpis():
-    params = session_preset("faithful")
+def test_paper_preset_is_the_papers_gpis():
+    params = session_preset("paper")
     assert params.gpis_kernel == "thin-plate" and params.gpis_radius_factor == 1.0
     assert not params.gpis_noncontacts and not params.filter.refine_learned
-    assert params.filter == replace(session_preset("paper").filter, refine_learned=0)
+    assert params.filter == replace(session_preset("recommended").filter, refine_learned=0)
+    with pytest.warns(FutureWarning, match="now called 'paper'"):
+        assert session_preset("faithful") == params  # its old name
     assert params.gpis_carve_radius == 0 and not params.cover_prior
     assert not params.target_uncovered and params.check_lines == 0
     assert params.approach_clearance == 0.5
@@ -343,7 +345,7 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     # The estimate covers only the top of the truth: a line from below touches the bottom
     # first, which nothing predicted, and restarts the count; a line from above touches the
     # top, confirming the estimate.
-    params = session_preset("paper", check_lines=3, eps=0.3)
+    params = session_preset("recommended", check_lines=3, eps=0.3)
     session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
     rotation, translation = session.truth.rotation, session.truth.translation
     axis = rotation[:, 2]
@@ -367,7 +369,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     # A part between two touched ends (a leg's middle) may lie up to eps off the estimate
     # unseen: "gap-weakest" sends every third check through the estimate's vertex farthest
     # from every contact, on top of the gap checks.
-    params = session_preset("paper", check_line_aim="gap-weakest")
+    params = session_preset("recommended", check_line_aim="gap-weakest")
     session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
@@ -423,7 +425,7 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
                                                     cache=sphere_model.cache)])
     runs = {}
     for lines in (0, 4):
-        params = session_preset("paper", check_lines=lines, eps=2.0)
+        params = session_preset("recommended", check_lines=lines, eps=2.0)
         session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
         runs[lines] = session.run(max_steps=60), session.snapshots
     (plain, _), (checked, snapshots) = runs[0], runs[4]
@@ -567,7 +569,7 @@ def _sphere_against_a_box(sphere_model, check_lines):
     box = trimesh.creation.box((6.0, 3.0, 3.0))
     library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
                                                     cache=sphere_model.cache)])
-    params = session_preset("paper", check_lines=check_lines, eps=2.0)
+    params = session_preset("recommended", check_lines=check_lines, eps=2.0)
     return Session(make_truth(sphere_model, rng=0), library, seed=0, params=params), library
 
 

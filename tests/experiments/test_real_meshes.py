@@ -115,7 +115,7 @@ def test_tasks_pair_the_cases_at_the_same_seeds():
     assert [p[0] for p in novel["priors"]] == ["block", "pill"]
     assert [p[0] for p in known["priors"]] == ["block", "ball", "pill"]
     assert novel["truth_file"] == "/m/ball.stl"
-    assert rm.task_key(novel) == "ball__novel__gpis-dhd__paper__s5__m3"
+    assert rm.task_key(novel) == "ball__novel__gpis-dhd__recommended__s5__m3"
     json.dumps(tasks)
 
 
@@ -207,8 +207,8 @@ def test_run_on_a_folder_of_meshes(mesh_dir, tmp_path, monkeypatch):
                     "--max-steps", "2", "--bundled", "none", "--out", str(out),
                     "--no-progress"]) == 0
     trials = sorted(p.name for p in (out / "trials").glob("*"))
-    assert trials == ["pill__known__gpis-dhd__paper__s0__m2.json.gz",
-                      "pill__novel__gpis-dhd__paper__s0__m2.json.gz"]
+    assert trials == ["pill__known__gpis-dhd__recommended__s0__m2.json.gz",
+                      "pill__novel__gpis-dhd__recommended__s0__m2.json.gz"]
     novel = read_trial(out / "trials" / trials[1])
     assert "error" not in novel, novel.get("error")
     assert novel["library"] == ["block", "ball"] and len(novel["steps"]) == 2

@@ -20,7 +20,7 @@ def test_every_configuration_is_valid_and_the_presets_are_unchanged():
         SessionParams.from_dict(tradeoff.config_params(name))
     assert tradeoff.config_params("gpis24")["gpis_resolution"] == 24
     assert tradeoff.config_params("coarse-keys")["filter"]["distance_step"] == 0.2
-    assert tradeoff.config_params("paper") == SessionParams().to_dict()
+    assert tradeoff.config_params("recommended") == SessionParams().to_dict()
     assert tradeoff.describe("eps0.4") == "eps=0.4"
 
 
@@ -86,17 +86,17 @@ def test_matching_trials_of_another_run_are_reused(tmp_path):
     from tactile_viz.experiments.trial_files import read_trials, write_trial
 
     (other := tmp_path / "paper_run" / "trials").mkdir(parents=True)
-    tasks = tradeoff.plan(["mug_1"], 2, ["paper", "fast"], None)
+    tasks = tradeoff.plan(["mug_1"], 2, ["recommended", "fast"], None)
     done = {"object": "mug_1", "seed": 1, "strategy": "gpis-dhd", "seconds": 2.0,
-            "params": tradeoff.config_params("paper"),
+            "params": tradeoff.config_params("recommended"),
             "library": PriorLibrary.bundled("known").names,
             "task": {"kind": "protocol", "max_steps": None}, "steps": []}
     write_trial(other, "protocol__mug_1__s1", done)
     out = tmp_path / "out"
     out.mkdir()
     left = tradeoff.reuse_trials(tasks, [tmp_path / "paper_run"], out)
-    assert len(left) == 3 and all((t["tag"], t["seed"]) != ("paper", 1) for t in left)
+    assert len(left) == 3 and all((t["tag"], t["seed"]) != ("recommended", 1) for t in left)
     (copied,) = read_trials(out)
-    assert copied["task"]["tag"] == "paper" and copied["task"]["reused"]
-    assert (out / f"{task_key(next(t for t in tasks if t['tag'] == 'paper' and t['seed'] == 1))}"
-                  ".json.gz").exists()
+    assert copied["task"]["tag"] == "recommended" and copied["task"]["reused"]
+    reused = next(t for t in tasks if t["tag"] == "recommended" and t["seed"] == 1)
+    assert (out / f"{task_key(reused)}.json.gz").exists()

@@ -53,8 +53,9 @@ class ExplorationPanel(QGroupBox):
         self.strategy_box.activated.connect(
             lambda index: self.strategy_chosen.emit(self.strategy_box.itemText(index)))
         self.preset_box = QComboBox()
-        self.preset_box.setToolTip("fast: coarser grids, fewer features; paper: the paper's "
-                                   "values; refined: the paper's values plus MAP pose refinement; "
+        self.preset_box.setToolTip("recommended: the project's configuration (the default); "
+                                   "paper: the paper exactly; fast: coarser grids, fewer "
+                                   "features; refined: recommended plus MAP pose refinement; "
                                    "accurate: finer grids, neighbour bins, refinement")
         self.preset_box.activated.connect(
             lambda index: self.preset_chosen.emit(self.preset_box.itemText(index)))
