@@ -82,8 +82,8 @@ class ContactSimulator:
     normal_noise_deg : float
         Standard deviation, in degrees, of the angle by which reported normals are tilted.
     outlier_fraction : float
-        The chance that a reported contact is a wrong reading: moved ``outlier_distance``
-        in a random direction, with a random normal.
+        The chance that a recorded contact is a wrong reading (:meth:`corrupted`): moved
+        ``outlier_distance`` in a random direction, with a random normal.
     outlier_distance : float, optional
         Scene units; default a third of the object's longest side (3 cm on a 10 cm object).
     rng : int, numpy.random.Generator or None
@@ -153,10 +153,22 @@ class ContactSimulator:
         return outside
 
     def _contact(self, position, normal):
-        if self.outlier_fraction and self.rng.random() < self.outlier_fraction:
-            away = normalise_rows(self.rng.normal(size=(2, 3)))
-            return Contact(position + self.outlier_distance * away[0], away[1])
         return Contact(self._noisy_position(position), self._noisy_normal(normal))
+
+    def corrupted(self, observations):
+        """The observations a step records, each contact replaced by a wrong reading with
+        probability ``outlier_fraction`` (the moves that led to them are not: a wrong
+        reading is what the sensor reports, not where it went)."""
+        if not self.outlier_fraction:
+            return observations
+        out = []
+        for observation in observations:
+            if isinstance(observation, Contact) and self.rng.random() < self.outlier_fraction:
+                away = normalise_rows(self.rng.normal(size=(2, 3)))
+                observation = Contact(observation.position + self.outlier_distance * away[0],
+                                      away[1])
+            out.append(observation)
+        return out
 
     def _noisy_position(self, position):
         if self.position_noise == 0:

@@ -47,8 +47,10 @@ def test_the_simulated_sensor_makes_wrong_contacts(known):
     truth = make_truth(known["bottle_1"], rng=[1, 0])
     simulator = ContactSimulator(truth, outlier_fraction=0.5, rng=1)
     rng = np.random.default_rng(1)
-    distances = np.abs([truth.signed_distance(simulator.probe(random_touch(truth, rng))
-                                              .position[None])[0] for _ in range(40)])
+    touches = [simulator.probe(random_touch(truth, rng)) for _ in range(40)]
+    assert all(abs(truth.signed_distance(t.position[None])[0]) < 0.02 for t in touches)
+    recorded = simulator.corrupted(touches)
+    distances = np.abs([truth.signed_distance(t.position[None])[0] for t in recorded])
     assert 5 < np.sum(distances > 0.5) < 35 and np.sum(distances < 0.02) > 5
 
 

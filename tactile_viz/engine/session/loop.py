@@ -253,6 +253,8 @@ class Session(Planner, Estimation, Learning):
             self.rng.bit_generator.state = rng.bit_generator.state
             self.state.moves_rng, self.state.results, self._live = None, [], None
             paths, observations = self._after_moves(kind, done.value)
+            if self.simulator is not None:  # the simulated sensor's wrong readings, if any
+                observations = self.simulator.corrupted(observations)
             return self._update(paths, observations, timings)
         self._live = (kind, procedure, rng, path)
         return None
