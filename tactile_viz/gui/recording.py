@@ -3,7 +3,8 @@
 A :class:`Recorder` takes RGB frames of any size (each is scaled to the first frame's size)
 and writes them with imageio: GIF through Pillow, MP4 through imageio-ffmpeg when it is
 installed. The recorder knows nothing of Qt; :func:`widget_frame` turns a widget's grab into
-a frame.
+a frame, and :func:`start_recording` / :func:`stop_recording` (methods of the main window)
+record the window at every drawn step, its record action checked meanwhile.
 """
 
 from pathlib import Path
@@ -80,3 +81,40 @@ def widget_frame(widget):
     buffer = np.frombuffer(image.constBits(), dtype=np.uint8)
     rows = buffer.reshape(height, image.bytesPerLine())
     return rows[:, :3 * width].reshape(height, width, 3).copy()
+
+
+def start_recording(window, path):
+    """Record the whole window at every drawn step to ``path`` (.gif or .mp4); False, with
+    an error box, if the file cannot be written."""
+    from .status_bar import STATUS_SECONDS
+
+    window.stop_recording()
+    try:
+        window.recorder = Recorder(path)
+    except OSError as error:
+        window.show_error(error)
+        return False
+    window.show_recording(True)
+    window.statusBar().showMessage(f"recording the drawn steps to {path}", STATUS_SECONDS)
+    return True
+
+
+def stop_recording(window):
+    """Finish the window's recording, if any; returns its path."""
+    from .status_bar import STATUS_SECONDS
+
+    recorder, window.recorder = window.recorder, None
+    window.show_recording(False)
+    if recorder is None:
+        return None
+    path = recorder.close()
+    window.statusBar().showMessage(f"saved {recorder.frames} frames to {path}", STATUS_SECONDS)
+    return path
+
+
+def show_recording(window, recording):
+    """Check the window's record action (or not), without toggling a recording."""
+    from .panels.base import blocked
+
+    with blocked(window.actions["record"]):
+        window.actions["record"].setChecked(recording)

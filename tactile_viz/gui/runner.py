@@ -24,6 +24,17 @@ from superqt.utils import thread_worker
 DRAW_DUTY = 0.1
 
 
+
+def seconds_since(log, since):
+    """Total seconds of the ``(start, seconds)`` entries of ``log`` that started at or after
+    ``since`` (the newest are at the end)."""
+    total = 0.0
+    for began, seconds in reversed(log):
+        if began < since:
+            break
+        total += seconds
+    return total
+
 class StepFailed(Exception):
     """A step raised a RuntimeError. superqt's generator worker takes a RuntimeError for its
     own deletion and drops it without reporting it or finishing, so it is passed on as this

@@ -109,7 +109,7 @@ def test_broken_mesh_shows_error_and_changes_nothing(qtbot, window, errors, tmp_
     window.load_truth_file(bad)
     assert errors and "broken.stl" in errors[0]
     assert window.scene.truth is truth and window.scene.session is session
-    window._guarded(window.scene.add_prior_file, str(bad))
+    window.guarded(window.scene.add_prior_file, str(bad))
     assert len(errors) == 2 and window.priors_panel.prior_list.count() == 10
 
 
@@ -170,7 +170,7 @@ def test_scene_changing_controls_are_disabled_during_run(qtbot, window):
     assert window.loop_panel.run_button.isEnabled()
     assert all(not control.isEnabled() for control in window.scene_controls())
     strategy = window.scene.strategy
-    assert not window._guarded(window.scene.set_strategy, "rrt")  # refused while running
+    assert not window.guarded(window.scene.set_strategy, "rrt")  # refused while running
     assert window.scene.strategy == strategy
     qtbot.waitUntil(lambda: window.scene.latest is not None, timeout=60_000)
     window.loop_panel.run_button.setChecked(False)
@@ -622,7 +622,8 @@ def test_cancelling_load_session_changes_nothing(qtbot, window, known_library, t
     before = (scene.session, scene.truth, scene.library, scene.generation)
     assert window.load_session(path)
     assert window.loading and all(not control.isEnabled() for control in window.scene_controls())
-    dialog = window._load_dialog
+    loader = window.loader
+    dialog = loader.dialog
     assert dialog.isVisible() and dialog.windowTitle() == "Load session"
     dialog.findChild(QPushButton).click()  # Cancel
     qtbot.waitUntil(lambda: not window.loading, timeout=60_000)
@@ -630,7 +631,7 @@ def test_cancelling_load_session_changes_nothing(qtbot, window, known_library, t
         "loading the session was cancelled; nothing changed")
     assert (scene.session, scene.truth, scene.library, scene.generation) == before
     assert window.scene_panel.object_box.currentText() == "mug_1"
-    assert window._load_dialog is None  # closed and deleted
+    assert loader.dialog is None  # closed and deleted
     enabled = [c for c in window.scene_controls() if c is not window.priors_panel.learn_button]
     assert all(control.isEnabled() for control in enabled)
 
