@@ -17,19 +17,17 @@ Two cases per object A, at the same seeded poses (trial i uses seed ``--seed`` +
   out; the filter should judge A novel (and its GPIS surface is scored against A);
 - ``known``: the same library plus A itself; the filter should judge A known, MAP class A.
 
+The trials are tasks of :mod:`~tactile_viz.experiments.runner` (the object and the real
+priors named by their files, normalised to the paper's longest side 6) and run on its pools.
+
 Writes to ``--out``: ``trials/*.json`` (the ``trial`` JSON plus ``task``), ``meshes.json``
 (the meshes used and skipped), ``summary.md`` (one row per object and case) and
 ``summary.json`` (one summary per trial).
 """
 
-import concurrent.futures as cf
-import functools
 import json
-import multiprocessing
-import os
 import sys
 import time
-import traceback
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +41,7 @@ from ..engine.errors import MeshError, TactileVizError
 from ..engine.exploration import STRATEGIES
 from ..engine.meshes import LONGEST_SIDE
 from .paper import split_names
+from .runner import open_pool, run_tasks
 from .trial_files import read_trial, trial_files, write_trial
 
 INSTALL_HINT = "pip install -e '.[realmesh]'"
@@ -234,7 +233,11 @@ def expected(case, truth, map_class, novel):
 
 def make_tasks(objects, files, cases=CASES, trials=1, seed=0, strategy="gpis-dhd",
                preset="recommended", max_steps=None, bundled="known"):
-    """One task dict per object, case and trial (picklable, JSON-ready).
+    """One :func:`~tactile_viz.experiments.runner.make_task` task per object, case and trial.
+
+    The object and the real priors are named by their files (``object_file`` and
+    ``{"name", "file"}`` extra priors), normalised to the paper's longest side 6; the task
+    also carries its ``case``.
 
     Parameters
     ----------
@@ -248,100 +251,39 @@ def make_tasks(objects, files, cases=CASES, trials=1, seed=0, strategy="gpis-dhd
     bundled : str
         The bundled set in every library: ``known``, ``novel``, ``all`` or ``none``.
     """
+    from .runner import make_task
+
     tasks = []
     for index in range(trials):
         for name in objects:
             for case in cases:
-                priors = prior_names(name, case, list(files))
-                tasks.append({"object": name, "case": case, "seed": seed + index,
-                              "strategy": strategy, "preset": preset, "max_steps": max_steps,
-                              "bundled": bundled, "truth_file": str(files[name]),
-                              "priors": [[p, str(files[p])] for p in priors]})
+                priors = [{"name": p, "file": str(files[p])}
+                          for p in prior_names(name, case, list(files))]
+                task = make_task(name, strategy, seed + index, preset, kind="realmesh",
+                                 library=bundled, extra_priors=priors, max_steps=max_steps,
+                                 object_file=files[name], longest_side=LONGEST_SIDE)
+                task["case"] = case
+                tasks.append(task)
     return tasks
 
 
 def task_key(task):
-    """A file-name-safe key of a task."""
+    """A file-name-safe key of a task: ``object__case__strategy__preset__sSEED[__mSTEPS]``
+    (the trial files' names since the first run of this check)."""
     parts = [task["object"], task["case"], task["strategy"], task["preset"], f"s{task['seed']}"]
     if task["max_steps"] is not None:
         parts.append(f"m{task['max_steps']}")
     return "__".join(parts)
 
 
-# ------------------------------------------------------------------------------ trials
-@functools.lru_cache(maxsize=64)
-def _model(path, name):
-    from ..engine.objects import ObjectModel
-
-    return ObjectModel.from_file(path, name=name, longest_side=LONGEST_SIDE)
-
-
-@functools.lru_cache(maxsize=4)
-def _bundled(which):
-    from ..engine.library import PriorLibrary
-
-    return PriorLibrary() if which == "none" else PriorLibrary.bundled(which)
-
-
-def task_library(task):
-    """The :class:`PriorLibrary` of a task: the bundled set plus its real priors."""
-    from ..engine.library import PriorLibrary
-
-    library = PriorLibrary(list(_bundled(task["bundled"])))
-    for name, path in task["priors"]:
-        library.add(_model(path, name))
-    return library
-
-
-def run_case(task, progress=False):
-    """Run one task through :func:`~tactile_viz.experiments.trial.run_trial`.
-
-    Returns the trial dict plus ``task``; a failure returns ``object``, ``seed``, ``task``
-    and the traceback under ``error`` instead of raising (the other trials go on).
-    """
-    from .trial import run_trial
-
-    meta = {key: value for key, value in task.items() if key != "priors"}
-    meta["real_priors"] = [name for name, _ in task["priors"]]
-    try:
-        result = run_trial(_model(task["truth_file"], task["object"]), task_library(task),
-                           task["strategy"], task["seed"], task["preset"], task["max_steps"],
-                           progress=progress)
-    except Exception:
-        return {"object": task["object"], "seed": task["seed"], "task": meta,
-                "error": traceback.format_exc()}
-    result["task"] = meta
-    return result
-
-
-def _spawn_pool(workers):
-    """A process pool with one BLAS thread per worker (set before they import numpy)."""
-    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
-    return cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-
-
-def run_tasks(tasks, workers=1, progress=True):
-    """Yield ``(task, result)`` as each task finishes (serially when ``workers`` is 1)."""
-    if workers <= 1:
-        for task in tasks:
-            yield task, run_case(task, progress)
-        return
-    pool = _spawn_pool(workers)
-    try:
-        futures = {pool.submit(run_case, task): task for task in tasks}
-        for future in cf.as_completed(futures):
-            yield futures[future], future.result()
-    finally:
-        pool.shutdown(wait=sys.exc_info()[0] is None, cancel_futures=True)
-
-
 # ------------------------------------------------------------------------------ summary
 def summarise(result):
     """The numbers of one trial result (final values of its last step)."""
     task = result.get("task", {})
+    # ``truth_file``: the name in trial files written before the check used the runner.
+    path = task.get("object_file") or task.get("truth_file") or ""
     summary = {"object": result["object"], "case": task.get("case"), "seed": result["seed"],
-               "file": Path(task.get("truth_file", "")).name or None}
+               "file": Path(path).name or None}
     if "error" in result or not result.get("steps"):
         summary["error"] = result.get("error", "no steps")
         return summary
@@ -552,10 +494,14 @@ def run(args):
     files = {m["name"]: str(root / m["file"]) for m in used}
     tasks = make_tasks(objects, files, cases, args.trials, args.seed, args.strategy,
                        args.preset, args.max_steps, args.bundled)
-    for task, result in run_tasks(tasks, args.workers, progress=not args.no_progress):
-        write_trial(out / "trials", task_key(task), result)
-        state = "FAILED" if "error" in result else "done"
-        print(f"{task_key(task)}: {state}", file=sys.stderr)
+    pool = open_pool(args.workers, progress=not args.no_progress)
+    try:
+        for task, result in run_tasks(tasks, pool, progress=not args.no_progress):
+            write_trial(out / "trials", task_key(task), result)
+            state = "FAILED" if "error" in result else "done"
+            print(f"{task_key(task)}: {state}", file=sys.stderr)
+    finally:
+        pool.close()
 
 
 def main(argv=None):

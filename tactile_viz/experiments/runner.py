@@ -11,11 +11,17 @@ A *task* is a plain dict (picklable, mostly JSON)::
 ``bench sizes``): the object and the bundled priors of those names are scaled to it.
 ``extra_priors`` holds ``{"name", "vertices", "faces"}`` models added to the bundled library
 (the learned prior travels this way, so remote workers need no shared disk); ``params`` is a
-``SessionParams.to_dict()`` that replaces the preset's values. :func:`run_task` runs one
-task through :func:`~tactile_viz.experiments.trial.run_trial` and adds what the benchmarks
-need (final contacts and normals, the Screened Poisson baseline, the learned surface).
-Every random choice comes from the task's seed, so where a task runs does not change its
-result (only the timing fields differ).
+``SessionParams.to_dict()`` that replaces the preset's values.
+
+A task may also take its meshes from files (``bench realmesh``): ``object_file`` names the
+object's mesh, an extra prior may be ``{"name", "file"}``, and both are normalised to the
+task's ``longest_side`` (None keeps the file's size). Files are read where the task runs
+(a local disk), once per process. ``library`` may be ``none`` (no bundled priors).
+
+:func:`run_task` runs one task through :func:`~tactile_viz.experiments.trial.run_trial` and
+adds what the benchmarks need (final contacts and normals, the Screened Poisson baseline,
+the learned surface). Every random choice comes from the task's seed, so where a task runs
+does not change its result (only the timing fields differ).
 """
 
 import concurrent.futures as cf
@@ -32,7 +38,8 @@ TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
 def make_task(object_name, strategy="gpis-dhd", seed=0, preset="recommended", kind="protocol",
               library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
-              learn_as=None, poisson_depth=9, sizes=None, sensor=None):
+              learn_as=None, poisson_depth=9, sizes=None, sensor=None, object_file=None,
+              longest_side=None):
     """A task dict (see the module docstring)."""
     task = {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
             "preset": preset, "library": library, "extra_priors": list(extra_priors),
@@ -42,6 +49,10 @@ def make_task(object_name, strategy="gpis-dhd", seed=0, preset="recommended", ki
         task["sizes"] = {str(name): float(size) for name, size in sizes.items()}
     if sensor and any(value for value in sensor.values()):
         task["sensor"] = dict(sensor)
+    if object_file is not None:
+        task["object_file"] = str(object_file)
+    if longest_side is not None:
+        task["longest_side"] = float(longest_side)
     return task
 
 
@@ -70,8 +81,8 @@ def _bundled_library(which, sizes=()):
     from ..engine.library import PriorLibrary
     from ..engine.objects import bundled_names
 
-    return PriorLibrary(_bundled_model(name, dict(sizes).get(name))
-                        for name in bundled_names(which))
+    names = [] if which == "none" else bundled_names(which)
+    return PriorLibrary(_bundled_model(name, dict(sizes).get(name)) for name in names)
 
 
 @functools.lru_cache(maxsize=64)
@@ -79,6 +90,13 @@ def _bundled_model(name, size=None):
     from ..engine.objects import load_bundled
 
     return load_bundled(name, size=size)
+
+
+@functools.lru_cache(maxsize=64)
+def _file_model(path, name, longest_side=None):
+    from ..engine.objects import ObjectModel
+
+    return ObjectModel.from_file(path, name=name, longest_side=longest_side)
 
 
 def _sizes(task):
@@ -91,6 +109,9 @@ def task_library(task):
 
     library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
+        if "file" in prior:
+            library.add(_file_model(prior["file"], prior["name"], task.get("longest_side")))
+            continue
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,
                            learned=prior.get("learned", True))
@@ -129,6 +150,13 @@ def _finisher(task):
     return finish
 
 
+def task_object(task):
+    """The truth :class:`ObjectModel` of a task: its ``object_file`` or a bundled object."""
+    if task.get("object_file"):
+        return _file_model(task["object_file"], task["object"], task.get("longest_side"))
+    return _bundled_model(task["object"], dict(_sizes(task)).get(task["object"]))
+
+
 def run_task(task, progress=False):
     """Run one task; returns the trial result dict with ``task`` (and ``error`` on failure).
 
@@ -142,8 +170,7 @@ def run_task(task, progress=False):
     meta["library_label"] = library_label(task)
     try:
         params = SessionParams.from_dict(task["params"]) if task["params"] else None
-        size = dict(_sizes(task)).get(task["object"])
-        result = run_trial(_bundled_model(task["object"], size), task_library(task),
+        result = run_trial(task_object(task), task_library(task),
                            task["strategy"], task["seed"], task["preset"], task["max_steps"],
                            progress=progress, params=params, finish=_finisher(task),
                            sensor=task.get("sensor"))

@@ -60,6 +60,7 @@ def test_mesh_is_clean_and_normalised(meshes, name):
     assert np.abs((hi + lo) / 2).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_generator_is_deterministic(tmp_path):
     from tactile_viz.assetgen import build
 

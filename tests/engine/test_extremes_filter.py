@@ -118,6 +118,7 @@ def test_two_contacts_break_the_tie(library, mug_touches):
     assert np.ptp(state.particles.log_weights) > 0 or state.n_particles == 1
 
 
+@pytest.mark.slow
 def test_a_thousand_contacts(library):
     """1,000 contacts in 40 batches of 25: right class and pose, known, finite (~6 s)."""
     truth = GroundTruth(library["bottle_1"], *random_pose(rng=5, max_translation=1.0))
@@ -169,6 +170,7 @@ def box_library(tmp_path_factory):
                                                  cache=cache)])
 
 
+@pytest.mark.slow
 def test_all_contacts_on_one_plane(box_library):
     """The top face of the box: the belief must put a flat face of some prior there."""
     rng = np.random.default_rng(2)
@@ -184,6 +186,7 @@ def test_all_contacts_on_one_plane(box_library):
     assert np.median(normals[:, 2]) > 0.99
 
 
+@pytest.mark.slow
 def test_all_contacts_on_one_line(box_library):
     """Contacts along a line with one normal: pose about the line is undetermined, but the
     weights stay finite and the contacts lie on the MAP surface."""
@@ -368,6 +371,7 @@ def test_out_of_range_simulator_parameters(library, changes, field):
         ContactSimulator(truth, **changes)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("noise", [(0.05, 0.0), (0.0, 15.0), (0.05, 15.0)])
 def test_noisy_sensing_at_the_largest_noise_stays_sound(library, noise):
     """Position noise 0.05 and normal noise 15 degrees: still finite, still the mug."""
@@ -382,6 +386,7 @@ def test_noisy_sensing_at_the_largest_noise_stays_sound(library, noise):
     assert pose_error(library["mug_1"], state.map_rotation, state.map_translation, truth) < 0.6
 
 
+@pytest.mark.slow
 def test_noise_benchmark_command(tmp_path, capsys):
     """``python -m tactile_viz bench noise`` on a tiny grid: table, rows and plot written."""
     import json

@@ -69,6 +69,7 @@ def test_one_and_two_contacts(mug, count):
     assert len(faces) > 50 and np.all(np.isfinite(vertices))
 
 
+@pytest.mark.slow
 def test_a_thousand_contacts(mug):
     """4,000 rows in the Gram matrix (about 6 s on one thread)."""
     points, normals, prior, _ = mug

@@ -294,6 +294,7 @@ WRITER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_writes_killed_midway_never_destroy_the_last_good_files(small_library, saved_session,
                                                                 tmp_path):
     """A subprocess saves a library (with an 82k-face prior) and a session over and over;

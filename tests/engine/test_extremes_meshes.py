@@ -142,6 +142,7 @@ def test_needle_thinner_than_a_voxel(needle):
         assert observation.normal[2] > np.cos(np.radians(3))
 
 
+@pytest.mark.slow
 def test_needle_is_recognised_among_blunt_priors(needle, tmp_path):
     sphere = trimesh.creation.icosphere(subdivisions=3)
     box = trimesh.creation.box(extents=(6, 3, 2))
@@ -180,6 +181,7 @@ def test_decimation_path_on_a_small_limit():
         assert len(prepare_mesh(sphere.vertices, sphere.faces, max_faces=None).faces) == 5120
 
 
+@pytest.mark.slow
 def test_two_million_faces_load_decimated_within_the_stated_time(tmp_path):
     """SLOW (about 20 s alone): a 1,996,000-face sphere file is read, checked, decimated to
     200,000 faces with a MeshWarning, and stays within 0.001 of the true sphere."""

@@ -71,6 +71,7 @@ def _check_loaded_mesh(mesh):
     assert np.all(np.isfinite(mesh.vertices))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(SEEDS))
 @FUZZ
 @given(data=st.data())
@@ -139,6 +140,7 @@ def test_library_reader_on_random_manifests(small_library, manifest):
         PriorLibrary.load(folder)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(data=st.data())
 def test_library_reader_on_mutated_meshes_with_matching_checksums(small_library, data):

@@ -46,6 +46,7 @@ def _run(library, truth, steps, seed, params=None):
     return particle_filter, state
 
 
+@pytest.mark.slow
 def test_recognition_on_the_known_set(known_library):
     """10 seeded trials, one per known object, random touches: right class and pose."""
     good = []
@@ -195,6 +196,7 @@ def _learned(model, name):
     return ObjectModel(name, model.mesh, model.params, model.cache, learned=True)
 
 
+@pytest.mark.slow
 def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
     """With refine_learned a learned prior's heaviest particle gets the least-squares pose
     (more evidence than without); a given mesh's poses are left as sampled."""

@@ -54,6 +54,7 @@ def test_the_simulated_sensor_makes_wrong_contacts(known):
     assert 5 < np.sum(distances > 0.5) < 35 and np.sum(distances < 0.02) > 5
 
 
+@pytest.mark.slow
 def test_a_noisy_sensor_widens_the_model(known):
     session = Session(make_truth(known["mug_1"], rng=0), known, seed=0,
                       sensor_noise=(0.3, 5.0), sensor_outliers=0.05)

@@ -43,6 +43,7 @@ def test_fallback_is_continuous_at_grid_border(sphere_model):
         sphere_model.sdf.distance(outside)[0], abs=1e-5)
 
 
+@pytest.mark.slow
 def test_grid_is_cached_on_disk(sphere_model, tmp_path):
     grid = sphere_model.sdf
     files = list(tmp_path.glob("sdf-*.npz"))
@@ -54,6 +55,7 @@ def test_grid_is_cached_on_disk(sphere_model, tmp_path):
     assert len(list(tmp_path.glob("sdf-*.npz"))) == 2
 
 
+@pytest.mark.slow
 def test_corrupt_cache_entry_is_rebuilt(sphere_model, tmp_path):
     values = sphere_model.sdf.values
     (entry,) = tmp_path.glob("sdf-*.npz")
@@ -62,6 +64,7 @@ def test_corrupt_cache_entry_is_rebuilt(sphere_model, tmp_path):
     np.testing.assert_allclose(rebuilt.sdf.values, values)
 
 
+@pytest.mark.slow
 def test_bundled_grid_sdf_accuracy(bundled):
     """On every bundled object: error < 2% of the length, signs right beyond one voxel."""
     for name, model in bundled.items():

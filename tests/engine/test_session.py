@@ -49,6 +49,7 @@ def test_known_object_recognised_and_terminates_by_dhd(bundled, known):
     assert last.recon_error is None and last.gpis_vertices is None
 
 
+@pytest.mark.slow
 def test_unreachable_target_is_given_up(bundled, known):
     # In this trial the farthest MAP vertex is one the probe cannot reach: every touch aimed
     # at it ends on the same earlier contact. Before such targets were given up, the trial
@@ -72,6 +73,7 @@ def test_a_repeat_is_judged_within_the_sensor_noise(bundled, known):
     assert not noisy._repeats_contact(NonContact(first))
 
 
+@pytest.mark.slow
 def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
     # With the paper preset, this asian_dragon trial ends judged novel: the MAP pose is off
     # by ~0.26 on thin parts, enough for contacts to miss the surface by several sigma_d.
@@ -85,6 +87,7 @@ def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
     assert last.pose_error < 0.1
 
 
+@pytest.mark.slow
 def test_novel_object_reconstructed_better_than_map(creature_session):
     # On vase_2 the GPIS and the vase_1 MAP shape are about equally good (the benchmark's
     # means agree to 0.03), so a single trial says nothing; noisy_dino's MAP shape is far off.
@@ -114,6 +117,7 @@ def _last_reconstruction(session):
                 if s.gpis_faces is not None and len(s.gpis_faces))
 
 
+@pytest.mark.slow
 def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     last, params = _last_reconstruction(novel_session), novel_session.params
     # Refitting from the snapshot (contacts, MAP prior, kernel scale) gives the step's surface.
@@ -129,6 +133,7 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     assert gap.max() < 2 * spacing
 
 
+@pytest.mark.slow
 def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monkeypatch):
     params = session_preset("recommended", max_steps_novel=40)
     session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", params,
@@ -148,6 +153,7 @@ def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monk
     assert len(learned.mesh.vertices) <= len(last.gpis_vertices)
 
 
+@pytest.mark.slow
 def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tmp_path):
     source = _last_reconstruction(novel_session)
     learned = novel_session.learned_model("vase_2_learned", source)
@@ -418,6 +424,7 @@ def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     assert any(np.allclose(target, queued[0]) for target in targets if target is not None)
 
 
+@pytest.mark.slow
 def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
     # A sphere against a box prior is novel; with a loose eps its estimate is covered early.
     box = trimesh.creation.box((6.0, 3.0, 3.0))
@@ -436,6 +443,7 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
 
 
 # ------------------------------------------------------------- recorded touches (issue 16)
+@pytest.mark.slow
 def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
     from tactile_viz.engine.export import export_session
     from tactile_viz.engine.observation_file import read_observations
@@ -512,6 +520,7 @@ class MissingFirst:
         return self.simulator.probe(path)
 
 
+@pytest.mark.slow
 def test_a_session_driven_by_its_caller(bundled, known):
     session = Session(None, known, seed=5)
     with pytest.raises(SessionError, match="sensor"):
@@ -573,6 +582,7 @@ def _sphere_against_a_box(sphere_model, check_lines):
     return Session(make_truth(sphere_model, rng=0), library, seed=0, params=params), library
 
 
+@pytest.mark.slow
 def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model):
     simulated, library = _sphere_against_a_box(sphere_model, 4)
     simulated.run(max_steps=60)
@@ -583,6 +593,7 @@ def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model
     assert _same_steps(simulated.snapshots, snapshots)
 
 
+@pytest.mark.slow
 def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path):
     from tactile_viz.engine.export import export_session
     from tactile_viz.engine.observation_file import read_observations
@@ -646,7 +657,8 @@ def _same_steps(first, second):
 
 
 @pytest.mark.parametrize("truth, strategy, steps", [("mug_1", "gpis-dhd", 12),
-                                                    ("vase_2", "gpis-dhd", 30),
+                                                    pytest.param("vase_2", "gpis-dhd", 30,
+                                                                 marks=pytest.mark.slow),
                                                     ("vase_2", "rrt", 8)])
 def test_a_pickled_session_steps_on_as_the_original(bundled, known, truth, strategy, steps):
     # The app steps sessions in another process: a session mid-run (a target with its

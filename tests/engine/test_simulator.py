@@ -66,6 +66,7 @@ def test_same_seed_same_noisy_observations(truth):
     assert not np.allclose(run(5), run(6))
 
 
+@pytest.mark.slow
 def test_noise_levels_are_as_asked(bundled, rng):
     truth = GroundTruth(bundled["vase_1"], np.eye(3), np.zeros(3))
     clean = ContactSimulator(truth)

@@ -27,6 +27,7 @@ def metric_mugs():
     return PriorLibrary([small, large, load_bundled("bottle_1", size=0.25)])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["mug_small", "mug_large"])
 def test_a_scaled_twin_is_another_class(metric_mugs, name):
     truth = make_truth(metric_mugs[name], rng=[1, 0])
@@ -69,6 +70,7 @@ def test_every_length_parameter_states_its_unit():
     assert length_fields(SessionParams)["gpis_noise"] == 2
 
 
+@pytest.mark.slow
 def test_a_pose_maps_back_to_the_users_file(tmp_path):
     """A mesh in millimetres, off-centre, loaded into a metric scene: the exported
     file_to_world puts the file's own vertices where the object is."""
@@ -129,6 +131,7 @@ def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
                                1000 * session.snapshots[0].new_observations[0].position)
 
 
+@pytest.mark.slow
 def test_an_object_of_another_size_is_novel_and_reconstructed_at_its_size(metric_mugs):
     """mug_1 at 35 cm against priors of 10 to 25 cm: the same shape, but no prior's size."""
     big = load_bundled("mug_1", size=0.35).renamed("big_mug")

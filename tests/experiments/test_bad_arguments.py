@@ -170,6 +170,7 @@ def test_a_benchmark_stopping_with_a_message_is_one_line(tmp_path, capsys):
     assert "cannot read the learned prior" in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["trial", "--object", "mug_1", "--max-steps", "0"],
                                   ["bench", "sdf", "--points", "-5"]])
 def test_no_traceback_from_the_real_command_line(argv):

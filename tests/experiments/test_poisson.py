@@ -14,6 +14,7 @@ def sphere_points(count, radius, rng):
     return radius * directions, directions
 
 
+@pytest.mark.slow
 def test_sphere_is_reconstructed():
     pytest.importorskip("pymeshlab")
     rng = np.random.default_rng(0)

@@ -12,6 +12,7 @@ from tactile_viz.__main__ import build_parser as cli_parser
 from tactile_viz.__main__ import main as cli_main
 from tactile_viz.engine.errors import TactileVizError
 from tactile_viz.experiments import real_meshes as rm
+from tactile_viz.experiments.runner import run_task
 from tactile_viz.experiments.trial_files import read_trial
 from tactile_viz.experiments.real_meshes import RealMesh, RealMeshError
 
@@ -112,9 +113,9 @@ def test_tasks_pair_the_cases_at_the_same_seeds():
     assert [(t["case"], t["seed"]) for t in tasks] == [
         ("novel", 5), ("known", 5), ("novel", 6), ("known", 6)]
     novel, known = tasks[0], tasks[1]
-    assert [p[0] for p in novel["priors"]] == ["block", "pill"]
-    assert [p[0] for p in known["priors"]] == ["block", "ball", "pill"]
-    assert novel["truth_file"] == "/m/ball.stl"
+    assert [p["name"] for p in novel["extra_priors"]] == ["block", "pill"]
+    assert [p["name"] for p in known["extra_priors"]] == ["block", "ball", "pill"]
+    assert novel["object_file"] == "/m/ball.stl" and novel["longest_side"] == 6.0
     assert rm.task_key(novel) == "ball__novel__gpis-dhd__recommended__s5__m3"
     json.dumps(tasks)
 
@@ -212,11 +213,13 @@ def test_run_on_a_folder_of_meshes(mesh_dir, tmp_path, monkeypatch):
     novel = read_trial(out / "trials" / trials[1])
     assert "error" not in novel, novel.get("error")
     assert novel["library"] == ["block", "ball"] and len(novel["steps"]) == 2
+    assert novel["object_size"] == pytest.approx(6.0)  # normalised to the paper's size
     known = read_trial(out / "trials" / trials[0])
     assert known["library"] == ["block", "ball", "pill"]
     meshes = json.loads((out / "meshes.json").read_text())
     assert list(meshes["skipped"]) == ["hulls"]
-    assert "skipped hulls:" in (out / "summary.md").read_text()
+    summary = (out / "summary.md").read_text()
+    assert "skipped hulls:" in summary and "| pill | novel | pill.ply | 1 |" in summary
 
 
 def test_pybullet_meshes_smoke():
@@ -229,7 +232,7 @@ def test_pybullet_meshes_smoke():
     assert used[0]["file"] == "duck.obj"  # the visual mesh, not duck_vhacd.obj
     files = {m["name"]: str(root / m["file"]) for m in used}
     task = rm.make_tasks(["duck"], files, cases=["known"], max_steps=3, bundled="none")[0]
-    result = rm.run_case(task)
+    result = run_task(task)
     assert "error" not in result, result.get("error")
     assert len(result["steps"]) == 3 and result["library"] == ["duck", "bunny"]
     assert np.isfinite(rm.summarise(result)["pose_error"])

@@ -34,6 +34,7 @@ def test_serial_results_carry_the_benchmark_fields(serial):
     assert vase["poisson"]["depth"] == 6
 
 
+@pytest.mark.slow
 def test_dask_cluster_gives_the_serial_json(serial):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
@@ -58,6 +59,7 @@ def test_a_failing_trial_is_reported_not_raised():
     assert "error" in result and result["task"]["object"] == "no_such_object"
 
 
+@pytest.mark.slow
 def test_process_pool_gives_the_serial_json(serial):
     assert _run(ProcessPool(2)) == serial
 

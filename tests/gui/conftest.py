@@ -29,6 +29,14 @@ except ImportError as exc:  # the gui extra is not installed: skip this folder
     )
 
 
+def pytest_collection_modifyitems(config, items):
+    """Every GUI test is ``slow`` (pytest -m "not slow" leaves this folder out)."""
+    here = os.path.dirname(__file__)
+    for item in items:
+        if str(item.path).startswith(here + os.sep):
+            item.add_marker(pytest.mark.slow)
+
+
 def _flush_events(app: QCoreApplication) -> None:
     for _ in range(3):
         app.processEvents()
