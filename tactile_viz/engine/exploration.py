@@ -286,7 +286,8 @@ def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
     A miss is recorded as a non-contact; the sensor then moves from the probe's end toward
     the nearest contact (a contact on the way counts) and from wherever it touched follows
     the surface in small in-contact steps toward the target, until it stands at least
-    ``spacing`` from every earlier contact. That contact is recorded.
+    ``spacing`` from every earlier contact. That contact is recorded. When the way back
+    touches nothing, only the miss is recorded (the target counts as not reached).
 
     Parameters
     ----------
@@ -309,7 +310,8 @@ def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
     -------
     paths : list of (k, 3) arrays
     observations : list of Contact / NonContact
-        ``[contact]`` on a hit, else ``[non-contact, contact]``.
+        ``[contact]`` on a hit, else ``[non-contact, contact]`` (``[non-contact]`` when the
+        way back found no contact).
     reached : bool
         False when the procedure ended within ``spacing`` of an earlier contact: the target
         is out of the sensor's reach from here.
@@ -324,8 +326,10 @@ def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
     back = np.stack([path[-1], anchor, anchor - back_depth * anchor_normal])
     touched = yield back
     paths = [path, back]
-    if not isinstance(touched, Contact):  # the sensor noise put the contact off the surface
-        touched = Contact(anchor, anchor_normal)
+    if not isinstance(touched, Contact):
+        # The nearest contact is not there again: a wrong reading, or one that noise put
+        # farther off than the way back reaches. Anchoring on it would record it again.
+        return paths, [observation], False
     follow_paths, touched = yield from follow_toward_moves(touched, target, tree, follow_step,
                                                            spacing, max_follow)
     reached = bool(tree.query(touched.position)[0] >= spacing)

@@ -235,8 +235,10 @@ class Session(Planner, Estimation, Learning):
         target, normal, estimate = self.state.target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
         clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
-        # The way back ends two simulator steps inside the anchor (1/150 of the size).
-        back = 2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
+        # The way back ends two simulator steps inside the anchor (1/150 of the size), and
+        # three position-noise stds more with a noisy sensor.
+        back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
+                + 3 * self.sensor_noise[0])
         return "target", enforce_contact_moves(
             target, normal, contacts, normals, depth, clearance, p.follow_step,
             p.contact_spacing, p.max_follow, back)
