@@ -213,7 +213,7 @@ class _CurrentStderr(logging.StreamHandler):
 def add_preset_argument(parser):
     """``--preset NAME``, one of the engine's session presets (default ``recommended``; an old
     name is taken with a note on stderr), declared here once for every command."""
-    from .engine.params import DEFAULT_PRESET, RENAMED_PRESETS, SESSION_PRESETS
+    from .engine.presets import DEFAULT_PRESET, RENAMED_PRESETS, SESSION_PRESETS
 
     def preset(text):
         if text in RENAMED_PRESETS:

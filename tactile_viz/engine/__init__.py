@@ -14,7 +14,8 @@ from .library import PriorLibrary
 from .meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .objects import ModelParams, ObjectModel, bundled_names, load_bundled
 from .observations import Contact, NonContact
-from .params import FilterParams, preset
+from .params import FilterParams
+from .presets import preset
 from .particle_filter import ParticleFilter
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 from .export import export_session

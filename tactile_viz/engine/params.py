@@ -1,5 +1,6 @@
 """Parameters of the filter and of a session, each in one dataclass with the paper's values as
-defaults, and named presets on the speed/accuracy trade.
+defaults; their declarations (component, unit, doc, range) for the GUI, the command line and
+the benchmarks. Named presets are in :mod:`.presets`.
 
 Lengths
 -------
@@ -19,7 +20,6 @@ is one scene unit, so the paper's configuration is unchanged. Fields that are le
 import functools
 import numbers
 import re
-import warnings
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 
 import numpy as np
@@ -233,69 +233,6 @@ class FilterParams:
         return cls(**values)
 
 
-PRESETS = {
-    # Coarser grids and fewer feature points: about half the time per step.
-    "fast": FilterParams(n_features=120, sdf_resolution=48, n_s=15, max_new_per_class=800),
-    # The paper's values.
-    "paper": FilterParams(),
-    # The paper's values plus the local refinement of the MAP pose (beyond the paper).
-    "refined": FilterParams(refine_map=True),
-    # Finer grids, neighbour-bin look-up and MAP refinement.
-    "accurate": FilterParams(n_features=300, sdf_resolution=96, neighbour_bins=1,
-                             init_rotations=4, max_new_per_class=4000, refine_map=True),
-}
-
-
-def preset(name, **overrides):
-    """A named preset, optionally with some parameters changed."""
-    try:
-        base = PRESETS[name]
-    except KeyError:
-        raise ParameterError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}") from None
-    return replace(base, **overrides)
-
-
-
-def noise_matched(params, position_noise, normal_noise_deg):
-    """Filter parameters for a sensor with Gaussian position and normal noise.
-
-    The likelihood widths grow in quadrature with the noise: ``sigma_d`` with the position
-    noise and ``sigma_n`` with the expected length of the normal error (a tilt by an angle
-    of std ``s`` radians moves a unit normal by about ``s``). Once the noise reaches a
-    quarter of a point-pair key bin (distance ``distance_step``, angles ``angle_step_deg``)
-    observed pairs often fall into a neighbouring bin, so the neighbour-bin look-up is
-    turned on.
-
-    Parameters
-    ----------
-    params : FilterParams
-    position_noise : float
-        Standard deviation of the reported positions, in the units of ``params``' lengths
-        (scene units once :func:`scaled_lengths` made them so).
-    normal_noise_deg : float
-        Standard deviation of the tilt of the reported normals, degrees.
-
-    Returns
-    -------
-    FilterParams
-    """
-    _check_real("position_noise", position_noise)
-    _check_real("normal_noise_deg", normal_noise_deg)
-    if not (np.isfinite(position_noise) and position_noise >= 0):
-        raise ParameterError(f"position_noise must be a finite number >= 0, got {position_noise!r}")
-    if not (np.isfinite(normal_noise_deg) and normal_noise_deg >= 0):
-        raise ParameterError(f"normal_noise_deg must be a finite number >= 0, "
-                             f"got {normal_noise_deg!r}")
-    angle = np.radians(normal_noise_deg)
-    # The pair distance carries the noise of two positions; the angles that of a normal.
-    coarse = (np.sqrt(2) * position_noise >= params.distance_step / 4
-              or normal_noise_deg >= params.angle_step_deg / 4)
-    return replace(params,
-                   sigma_d=float(np.hypot(params.sigma_d, position_noise)),
-                   sigma_n=float(np.hypot(params.sigma_n, angle)),
-                   neighbour_bins=1 if coarse else params.neighbour_bins)
-
-
 GPIS_KERNELS = ("wendland", "thin-plate")
 CHECK_LINE_AIMS = ("gap", "gap-weakest", "contact")
 
@@ -496,51 +433,6 @@ class SessionParams:
             raise ParameterError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
         values["filter"] = FilterParams.from_dict(values.get("filter", {}))
         return cls(**values)
-
-
-SESSION_PRESETS = {
-    # The project's configuration, the default: the paper's values plus shape transfer that
-    # keeps the prior where the data agree (carved prior, prior coverage, check lines,
-    # frontier) and the learned prior's pose refined.
-    "recommended": SessionParams(),
-    # The paper exactly: its GPIS as written (thin-plate kernel with R the largest distance,
-    # contacts only), the stop as soon as the estimate is covered, no pose refinement.
-    "paper": SessionParams(filter=preset("paper", refine_learned=0),
-                           gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                           gpis_noncontacts=False, gpis_carve_radius=0.0,
-                           cover_prior=False, check_lines=0, approach_clearance=0.5),
-    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, final_resolution=48,
-                          variance_points=800, metric_samples=2000),
-    "refined": SessionParams(filter=preset("refined")),
-    "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
-                              variance_points=3000, metric_samples=5000),
-}
-
-
-DEFAULT_PRESET = "recommended"
-# Old names still accepted, with a message: "faithful" was the paper's exact configuration
-# before it took the name "paper" (which was the project's configuration, now "recommended").
-RENAMED_PRESETS = {"faithful": "paper"}
-
-
-def preset_name(name):
-    """The current name of a preset name (an old one gives a FutureWarning)."""
-    if name in RENAMED_PRESETS:
-        warnings.warn(FutureWarning(f"the preset {name!r} is now called "
-                                    f"{RENAMED_PRESETS[name]!r}"), stacklevel=3)
-        return RENAMED_PRESETS[name]
-    return name
-
-
-def session_preset(name, **overrides):
-    """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`; an old
-    name of :data:`RENAMED_PRESETS` gives a FutureWarning)."""
-    name = preset_name(name)
-    try:
-        return replace(SESSION_PRESETS[name], **overrides)
-    except KeyError:
-        raise ParameterError(f"unknown preset {name!r}; choose from "
-                             f"{', '.join(SESSION_PRESETS)}") from None
 
 
 # ------------------------------------------------------------------ declarations

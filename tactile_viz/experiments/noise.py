@@ -10,7 +10,7 @@ simulator adds Gaussian noise of the given standard deviation to each reported p
 (degrees). Two filter configurations are compared:
 
 - ``paper``: the paper's parameters, whatever the noise;
-- ``matched``: :func:`~tactile_viz.engine.params.noise_matched`, which widens ``sigma_d``
+- ``matched``: :func:`~tactile_viz.engine.presets.noise_matched`, which widens ``sigma_d``
   and ``sigma_n`` with the noise and turns on the neighbour-bin look-up of the point-pair
   keys once the noise reaches a quarter of a key bin.
 
@@ -32,7 +32,7 @@ from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, finite
 from ..engine.files import write_atomic
 from ..engine.library import PriorLibrary
 from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
-from ..engine.params import noise_matched, preset
+from ..engine.presets import noise_matched, preset
 from ..engine.particle_filter import ParticleFilter
 from ..engine.simulator import ContactSimulator, GroundTruth, random_touch
 from ..engine.transforms import random_pose

@@ -6,8 +6,9 @@ from dataclasses import fields
 
 import pytest
 
-from tactile_viz.engine.params import (PRESETS, SESSION_PRESETS, FilterParams, SessionParams,
-                                       declaration, declarations, length_fields, with_changes)
+from tactile_viz.engine.params import (FilterParams, SessionParams, declaration, declarations,
+                                       length_fields, with_changes)
+from tactile_viz.engine.presets import PRESETS, SESSION_PRESETS
 from tactile_viz.engine.errors import ParameterError
 
 

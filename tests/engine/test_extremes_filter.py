@@ -18,7 +18,8 @@ from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonConta
 from tactile_viz.engine.likelihood import (log_contact_likelihood, log_noncontact_likelihood,
                                            log_normaliser, normalise_log_weights)
 from tactile_viz.engine.metrics import pose_error
-from tactile_viz.engine.params import FilterParams, noise_matched, preset
+from tactile_viz.engine.params import FilterParams
+from tactile_viz.engine.presets import noise_matched, preset
 from tactile_viz.engine.particle_filter import ParticleFilter, Particles
 from tactile_viz.engine.ppf import align_pairs, is_degenerate, local_frames, pair_features
 from tactile_viz.engine.simulator import random_touch

@@ -7,7 +7,8 @@ from scipy.special import logsumexp
 from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
                                 ObservationError, PriorLibrary, random_pose)
 from tactile_viz.engine.metrics import pose_error
-from tactile_viz.engine.params import PRESETS, FilterParams, preset
+from tactile_viz.engine.params import FilterParams
+from tactile_viz.engine.presets import PRESETS, preset
 from tactile_viz.engine.particle_filter import (ParticleFilter,
                                                 stochastic_universal_resampling)
 from tactile_viz.engine.simulator import random_touch

@@ -23,7 +23,8 @@ from ..metrics import directed_hausdorff, pose_difference, surface_samples, two_
 from ..metrics import pose_error as metric_pose_error
 from ..observation_file import RecordedStep
 from ..observations import Contact, NonContact
-from ..params import PAPER_SIZE, SessionParams, noise_matched, scaled_lengths
+from ..params import PAPER_SIZE, SessionParams, scaled_lengths
+from ..presets import noise_matched
 from ..particle_filter import ParticleFilter
 from ..simulator import ContactSimulator, GroundTruth
 from ..transforms import random_pose, transform_points
@@ -82,7 +83,7 @@ class Session(Planner, Estimation, Learning):
     sensor_noise : tuple of float
         ``(position std in scene units, normal std in degrees)`` of the sensor: the
         simulator adds it, and the model assumes it (the likelihood's widths grow with it,
-        :func:`~.params.noise_matched`, and so does the GPIS's observation noise).
+        :func:`~..presets.noise_matched`, and so does the GPIS's observation noise).
     sensor_outliers : float
         The simulated sensor's chance of a wrong contact (``ContactSimulator``); the model's
         is ``params.filter.outlier_probability``.
