@@ -21,17 +21,19 @@ from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 from .export import export_session
 from .observation_file import (ObservationFileError, RecordedStep, read_observations,
                                write_observations)
-from .session import (SESSION_PRESETS, Reconstruction, RecordedSession, Session, SessionError,
-                      SessionParams, Snapshot, Target, make_truth, session_preset)
+from .session import (SESSION_PRESETS, Move, Reconstruction, RecordedSession, Session,
+                      SessionError, SessionParams, Snapshot, Target, make_truth, session_preset)
+from .session.loop import Sensor
 from .simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
-    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "NonContact",
+    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "Move", "NonContact",
     "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
     "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep", "SDFGrid",
-    "SESSION_PRESETS", "STRATEGIES", "Session", "SessionError", "SessionParams", "Snapshot",
+    "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError", "SessionParams",
+    "Snapshot",
     "Target", "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
     "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",
     "read_observations", "session_preset", "write_observations",

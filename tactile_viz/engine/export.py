@@ -20,6 +20,8 @@ Each file is written atomically; a reconstruction file left from an earlier expo
 known object is removed, so the folder always describes one estimate.
 """
 
+from __future__ import annotations
+
 import json
 import os
 from pathlib import Path
@@ -59,7 +61,7 @@ def _ply(vertices, faces):
     return trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")
 
 
-def export_session(session, folder, units=None):
+def export_session(session, folder, units: str | None = None) -> list[Path]:
     """Write the latest estimate of ``session`` and its touches to ``folder``.
 
     Parameters

@@ -5,6 +5,8 @@ content hash in their name and are written before the manifest, which is replace
 atomically last: a failed or interrupted save leaves the previous library readable.
 """
 
+from __future__ import annotations
+
 import hashlib
 import io
 import json
@@ -59,7 +61,7 @@ class PriorLibrary:
         return f"PriorLibrary({self.names})"
 
     @property
-    def reference_size(self):
+    def reference_size(self) -> float:
         """The median longest side of the priors, scene units: the size that the filter's
         length parameters scale with (6 for the paper's objects)."""
         if not self._models:
@@ -67,18 +69,18 @@ class PriorLibrary:
         return float(np.median([model.length for model in self]))
 
     @property
-    def names(self):
+    def names(self) -> list[str]:
         """Names of the models, in the order they were added."""
         return list(self._models)
 
-    def add(self, model, replace=False):
+    def add(self, model: ObjectModel, replace: bool = False) -> ObjectModel:
         """Add a model; a name already present is an error unless ``replace``."""
         if model.name in self._models and not replace:
             raise LibraryError(f"the library already has a prior named {model.name!r}")
         self._models[model.name] = model
         return model
 
-    def add_file(self, path, name=None, **kwargs):
+    def add_file(self, path: str | Path, name: str | None = None, **kwargs) -> ObjectModel:
         """Load a mesh file as a new prior (raises MeshError and adds nothing if it is bad)."""
         return self.add(ObjectModel.from_file(path, name=name, **kwargs))
 
@@ -97,11 +99,11 @@ class PriorLibrary:
         return PriorLibrary(self[name] for name in names)
 
     @classmethod
-    def bundled(cls, which="known", params=None, cache=None):
+    def bundled(cls, which: str = "known", params=None, cache=None) -> PriorLibrary:
         """The bundled object set: ``"known"`` (the paper's priors), ``"novel"`` or ``"all"``."""
         return cls(load_bundled(name, params, cache) for name in bundled_names(which))
 
-    def save(self, folder):
+    def save(self, folder: str | Path) -> Path:
         """Write the library to ``folder`` (created if needed) without risking the old one."""
         folder = Path(folder)
         try:
@@ -119,7 +121,7 @@ class PriorLibrary:
         return folder
 
     @classmethod
-    def load(cls, folder, params=None, cache=None):
+    def load(cls, folder: str | Path, params=None, cache=None) -> PriorLibrary:
         """Read a library folder written by :meth:`save`.
 
         Raises

@@ -12,6 +12,8 @@ faces, inconsistent winding, inverted orientation, small holes); faults that can
 :class:`~tactile_viz.engine.errors.MeshError` naming the source and the reason.
 """
 
+from __future__ import annotations
+
 import hashlib
 import os
 import warnings
@@ -41,7 +43,7 @@ MAX_FACES = 500_000
 DECIMATED_FACES = 200_000
 
 
-def unit_factor(units):
+def unit_factor(units: str | float | None) -> float:
     """Scene units per file unit for ``units``: a name of :data:`UNITS` (converted to metres),
     a positive number (a factor) or None (1: the file's units are the scene's).
 
@@ -67,7 +69,8 @@ def unit_factor(units):
     return factor
 
 
-def load_mesh(path, longest_side=None, max_faces=MAX_FACES, scale=1.0):
+def load_mesh(path, longest_side: float | None = None, max_faces: int | None = MAX_FACES,
+              scale: float = 1.0) -> trimesh.Trimesh:
     """Read a mesh file and return it checked, repaired and centred (and scaled if asked).
 
     Parameters

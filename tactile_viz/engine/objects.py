@@ -6,6 +6,8 @@ distance, SDF grid and feature points are built on first use only, and the grid 
 features are cached on disk by the mesh's content hash and the parameters that made them.
 """
 
+from __future__ import annotations
+
 import json
 import os
 from dataclasses import asdict, dataclass, replace
@@ -89,8 +91,9 @@ class ObjectModel:
         return state
 
     @classmethod
-    def from_file(cls, path, name=None, params=None, cache=None, longest_side=None, scale=1.0,
-                  learned=None):
+    def from_file(cls, path: str | Path, name: str | None = None, params=None, cache=None,
+                  longest_side: float | None = None, scale: float = 1.0,
+                  learned: bool | None = None) -> ObjectModel:
         """Load a mesh file (checked, repaired, centred); the name defaults to the file stem.
 
         Parameters
@@ -136,12 +139,12 @@ class ObjectModel:
         return other
 
     @property
-    def length(self):
+    def length(self) -> float:
         """Longest side of the bounding box, scene units (6 for the paper's objects)."""
         return float(self.mesh.extents.max())
 
     @property
-    def size_unit(self):
+    def size_unit(self) -> float:
         """A sixth of :attr:`length`: the scene units of one size unit of the parameters."""
         return self.length / PAPER_SIZE
 
@@ -240,14 +243,14 @@ def bundled_manifest():
         raise MeshError(path, f"the bundled object manifest cannot be read ({error})") from error
 
 
-def bundled_names(which="all"):
+def bundled_names(which: str = "all") -> list[str]:
     """Names of the bundled objects in ``which`` set: ``"known"``, ``"novel"`` or ``"all"``."""
     if which not in ("known", "novel", "all"):
         raise ValueError(f"which must be 'known', 'novel' or 'all', not {which!r}")
     return [entry["name"] for entry in bundled_manifest() if which in ("all", entry["set"])]
 
 
-def load_bundled(name, params=None, cache=None, size=None):
+def load_bundled(name: str, params=None, cache=None, size: float | None = None) -> ObjectModel:
     """The bundled object ``name`` as an :class:`ObjectModel`.
 
     The bundled meshes are the paper's objects, stored normalised to a longest side of 6

@@ -20,6 +20,8 @@ optional comment ``# units: NAME`` before the header names the positions' unit (
 in); readers convert them to the scene's unit.
 """
 
+from __future__ import annotations
+
 import csv
 import io
 import math
@@ -190,7 +192,7 @@ def parse_observations(text, path="<text>", scale=1.0):
     return steps
 
 
-def read_observations(path, units=None):
+def read_observations(path, units: str | None = None) -> list[RecordedStep]:
     """Read a recording of touches.
 
     Parameters
@@ -257,7 +259,7 @@ def format_observations(steps, units=None):
     return out.getvalue()
 
 
-def write_observations(path, steps, units=None):
+def write_observations(path, steps, units: str | None = None):
     """Write recorded steps to ``path`` atomically; see :func:`format_observations`."""
     return write_atomic(path, format_observations(steps, units).encode("utf-8"))
 

@@ -17,6 +17,8 @@ is one scene unit, so the paper's configuration is unchanged. Fields that are le
 ``metadata["length"]``, the power of length in their unit.
 """
 
+from __future__ import annotations
+
 import functools
 import numbers
 import re
@@ -476,7 +478,7 @@ def _first_sentence(text):
 
 
 @functools.cache
-def declarations():
+def declarations() -> dict[str, Declaration]:
     """Every parameter's :class:`Declaration`, by name (filter's and session's)."""
     out = {}
     for component, cls in (("filter", FilterParams), ("session", SessionParams)):
@@ -494,7 +496,7 @@ def declarations():
     return out
 
 
-def declaration(name):
+def declaration(name: str) -> Declaration:
     """The :class:`Declaration` of one parameter (ParameterError for an unknown name)."""
     try:
         return declarations()[name]
@@ -502,7 +504,7 @@ def declaration(name):
         raise ParameterError(f"unknown parameter {name!r}") from None
 
 
-def with_changes(params, **changes):
+def with_changes(params: SessionParams, **changes) -> SessionParams:
     """``params`` (SessionParams) with declared parameters changed, each in its component."""
     by_component = {"filter": {}, "session": {}}
     for name, value in changes.items():

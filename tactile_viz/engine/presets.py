@@ -5,6 +5,8 @@ sensor.
 ``fast``, ``refined`` and ``accurate`` move along the trade (docs/bench-tradeoff.md).
 """
 
+from __future__ import annotations
+
 import warnings
 from dataclasses import replace
 
@@ -27,7 +29,7 @@ PRESETS = {
 }
 
 
-def preset(name, **overrides):
+def preset(name: str, **overrides) -> FilterParams:
     """A named preset, optionally with some parameters changed."""
     try:
         base = PRESETS[name]
@@ -111,7 +113,7 @@ def preset_name(name):
     return name
 
 
-def session_preset(name, **overrides):
+def session_preset(name: str, **overrides) -> SessionParams:
     """Session parameters of a named preset (the keys of :data:`SESSION_PRESETS`; an old
     name of :data:`RENAMED_PRESETS` gives a FutureWarning)."""
     name = preset_name(name)

@@ -19,3 +19,16 @@ def test_all_names_exist():
     missing = [name for name in engine.__all__ if not hasattr(engine, name)]
     assert missing == []
     assert len(set(engine.__all__)) == len(engine.__all__)
+
+
+def test_the_public_api_is_typed():
+    import typing
+
+    from tactile_viz.engine import (ObjectModel, PriorLibrary, Session, load_bundled,
+                                    read_observations, session_preset)
+
+    for function in (Session.__init__, Session.step, Session.propose, Session.observe,
+                     Session.run, PriorLibrary.save, PriorLibrary.load, ObjectModel.from_file,
+                     load_bundled, read_observations, session_preset):
+        hints = typing.get_type_hints(function)
+        assert "return" in hints, function.__qualname__

@@ -10,8 +10,13 @@ estimate (GPIS) and learning are mixins in their own modules; everything a step 
 besides the filter and the generators is one :class:`~.state.ExplorationState`.
 """
 
+from __future__ import annotations
+
+import os
 import time
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
+from typing import Protocol, Union
 
 import numpy as np
 import trimesh
@@ -19,8 +24,10 @@ import trimesh
 from ..errors import SessionError
 from ..exploration import (STRATEGIES, enforce_contact_moves, first_contact_moves, path_until,
                            rrt_moves)
+from ..library import PriorLibrary
 from ..metrics import directed_hausdorff, pose_difference, surface_samples, two_way_hausdorff
 from ..metrics import pose_error as metric_pose_error
+from ..objects import ObjectModel
 from ..observation_file import RecordedStep
 from ..observations import Contact, NonContact
 from ..params import PAPER_SIZE, SessionParams, scaled_lengths
@@ -34,6 +41,17 @@ from .learning import Learning
 from .planner import Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
 from .state import ExplorationState
+
+Observation = Union[Contact, NonContact]
+
+
+class Sensor(Protocol):
+    """What a session asks of a sensor: one guarded move (see :class:`Move`)."""
+
+    def probe(self, path: np.ndarray) -> Observation:
+        """Move along ``path`` ((k, 3) world frame, scene units) until the first contact;
+        the contact, or a non-contact at the path's end."""
+
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 RRT_MARGIN = 3.0  # the RRT's workspace: the contacts' box grown by this
@@ -92,8 +110,10 @@ class Session(Planner, Estimation, Learning):
         whose simulator is the sensor).
     """
 
-    def __init__(self, truth, library, strategy="gpis-dhd", params=None, seed=0,
-                 sensor_noise=(0.0, 0.0), sensor=None, sensor_outliers=0.0):
+    def __init__(self, truth: GroundTruth | None, library: PriorLibrary,
+                 strategy: str = "gpis-dhd", params: SessionParams | None = None,
+                 seed: int = 0, sensor_noise: tuple[float, float] = (0.0, 0.0),
+                 sensor: Sensor | None = None, sensor_outliers: float = 0.0) -> None:
         if strategy not in STRATEGIES:
             raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
@@ -146,7 +166,8 @@ class Session(Planner, Estimation, Learning):
     def latest(self):
         return self.snapshots[-1] if self.snapshots else None
 
-    def run(self, max_steps=None, callback=None):
+    def run(self, max_steps: int | None = None,
+            callback: Callable[[Snapshot], object] | None = None) -> Snapshot | None:
         """Step until termination (or ``max_steps`` more steps); returns the last snapshot."""
         while not self.terminated and (max_steps is None or max_steps > 0):
             snapshot = self.step()
@@ -156,7 +177,7 @@ class Session(Planner, Estimation, Learning):
                 max_steps -= 1
         return self.latest
 
-    def step(self):
+    def step(self) -> Snapshot:
         """One time step of Algorithm 2 with the sensor (the simulator or a robot given as
         ``sensor``): the guarded moves of the step, then the update; returns its
         :class:`Snapshot`.
@@ -183,7 +204,7 @@ class Session(Planner, Estimation, Learning):
             self._restore(saved)
             raise
 
-    def propose(self):
+    def propose(self) -> Move | None:
         """The next guarded move of the step in progress, or None after termination.
 
         Asking again before :meth:`observe` gives the same move.
@@ -287,7 +308,8 @@ class Session(Planner, Estimation, Learning):
                                                  self._p.contact_spacing)
         return paths, observations
 
-    def observe(self, observations, free_space=None):
+    def observe(self, observations: Observation | Sequence[Observation],
+                free_space: np.ndarray | None = None) -> Snapshot | None:
         """What the sensor found: the result of the proposed guarded move, or a whole step.
 
         Parameters
@@ -359,7 +381,7 @@ class Session(Planner, Estimation, Learning):
             self._restore(saved)
             raise
 
-    def recorded_steps(self):
+    def recorded_steps(self) -> list[RecordedStep]:
         """What was observed in each step so far: replaying them through :meth:`observe` of
         a session with the same library, parameters and seed gives the same estimates.
 
@@ -478,7 +500,7 @@ class Session(Planner, Estimation, Learning):
         return (float(pose_error), recon_error,
                 directed_hausdorff(self._truth_samples, contacts))
 
-    def save(self, path):
+    def save(self, path: str | os.PathLike) -> str | os.PathLike:
         """Save the session (its set-up and its observation history) to an ``.npz`` file;
         see :func:`tactile_viz.engine.persistence.save_session`."""
         from ..persistence import save_session
@@ -486,7 +508,8 @@ class Session(Planner, Estimation, Learning):
         return save_session(self, path)
 
     @classmethod
-    def load(cls, path, callback=None):
+    def load(cls, path: str | os.PathLike,
+             callback: Callable[[Snapshot], object] | None = None) -> Session:
         """Rebuild a saved session by replaying its steps; see
         :func:`tactile_viz.engine.persistence.load_session`."""
         from ..persistence import load_session
@@ -494,7 +517,7 @@ class Session(Planner, Estimation, Learning):
         return load_session(path, callback)
 
 
-def make_truth(model, rng=None, max_translation=1.0):
+def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0) -> GroundTruth:
     """The ground truth of a trial: ``model`` at a random pose, translated up to
     ``max_translation`` size units (a sixth of its longest side each)."""
     rotation, translation = random_pose(rng, max_translation * model.size_unit)
