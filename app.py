@@ -155,16 +155,11 @@ def load_priors(args):
         library = PriorLibrary.bundled(args.library or "known")
     else:
         library = PriorLibrary()
+    from tactile_viz.experiments.trial import mesh_options
+
     for path in args.prior_file or ():
         library.add_file(path, **mesh_options(args))
     return library
-
-
-def mesh_options(args):
-    from tactile_viz.experiments.trial import mesh_options as options
-
-    args.normalise = None
-    return options(args)
 
 
 def build_scene(args):
@@ -173,7 +168,7 @@ def build_scene(args):
     from tactile_viz.app.scene import Scene
     from tactile_viz.engine.objects import ObjectModel
 
-    from tactile_viz.experiments.trial import scene_units
+    from tactile_viz.experiments.trial import mesh_options, scene_units
 
     truth = (ObjectModel.from_file(args.object_file, **mesh_options(args)) if args.object_file
              else None)

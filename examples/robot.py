@@ -23,10 +23,8 @@ from tactile_viz.engine.objects import bundled_names, load_bundled
 from tactile_viz.engine.session import Session
 from tactile_viz.engine.simulator import GroundTruth
 from tactile_viz.engine.transforms import random_pose
+from tactile_viz.experiments.sizes import SIZES_M  # plausible sizes of the bundled objects
 
-SIZES_M = {"armadillo": 0.20, "asian_dragon": 0.30, "elephant": 0.15, "bottle_1": 0.25,
-           "mug_1": 0.10, "ice_cream_1": 0.18, "guitar_1": 0.40, "vase_1": 0.30,
-           "office_chair": 0.12, "sofa_1": 0.35, "vase_2": 0.27, "mug_2": 0.11}
 
 
 class RayCastingRobot:

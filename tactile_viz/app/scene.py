@@ -24,7 +24,7 @@ from ..engine.meshes import UNITS
 from ..engine.metrics import error_threshold
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.observation_file import read_observations
-from ..engine.params import PAPER_SIZE, declaration, declarations, length_fields, with_changes
+from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
 
@@ -43,10 +43,7 @@ def knob_length_power(name):
     field metadata: 1 for ``sigma_d`` and ``eps``, which are in size units."""
     if name not in KNOBS:
         raise ValueError(f"unknown parameter {name!r}")
-    from ..engine.params import FilterParams, SessionParams
-
-    component = FilterParams if declaration(name).component == "filter" else SessionParams
-    return length_fields(component).get(name, 0)
+    return declaration(name).length
 
 
 def knob_size_reference(name):

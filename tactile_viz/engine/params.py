@@ -452,6 +452,7 @@ class Declaration:
     doc: str
     low: object = None
     high: object = None
+    length: int = 0  # the power of length of its unit (0: not a length)
 
 
 def _docstring_entries(cls):
@@ -492,7 +493,8 @@ def declarations() -> dict[str, Declaration]:
             default = (item.default_factory() if item.default_factory is not MISSING
                        else item.default)
             low, high = item.metadata.get("range", (None, None))
-            out[item.name] = Declaration(item.name, component, default, unit, doc, low, high)
+            out[item.name] = Declaration(item.name, component, default, unit, doc, low, high,
+                                         item.metadata.get("length", 0))
     return out
 
 

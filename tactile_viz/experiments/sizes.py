@@ -24,7 +24,7 @@ import numpy as np
 
 from ..cli import ArgumentParser, count_int, name_list, nonnegative_int, output_dir, workers_int
 from ..engine.files import write_atomic
-from ..engine.metrics import PAPER_SIZE, error_threshold
+from ..engine.metrics import error_threshold
 from ..engine.objects import bundled_manifest, bundled_names
 from .runner import make_task, open_pool, run_tasks
 
@@ -59,8 +59,7 @@ def summary(result):
     """What the table needs of one trial result."""
     steps = result["steps"]
     last = steps[-1]
-    metric = result["task"]["tag"] == "metric"
-    size = SIZES_M[result["object"]] if metric else PAPER_SIZE
+    size = result["object_size"]
     threshold = error_threshold(size)
     known = result["object"] in bundled_names("known")
     recon = last.get("recon_error")

@@ -101,7 +101,7 @@ def mesh_options(args):
         factor = 1.0
     elif args.units and isinstance(args.mesh_units, str) and args.mesh_units.lower() in UNITS:
         factor = UNITS[args.mesh_units.lower()] / UNITS[args.units]
-    return {"longest_side": args.normalise, "scale": factor}
+    return {"longest_side": getattr(args, "normalise", None), "scale": factor}
 
 
 def check_learning(args, library):
