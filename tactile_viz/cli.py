@@ -210,24 +210,29 @@ class _CurrentStderr(logging.StreamHandler):
         pass
 
 
-def add_preset_argument(parser):
+def preset_name(text):
+    """An argument type: a session preset's name (an old name is taken with a note)."""
+    from .engine.presets import RENAMED_PRESETS, SESSION_PRESETS
+
+    if text in RENAMED_PRESETS:
+        print(f"note: the preset {text!r} is now called {RENAMED_PRESETS[text]!r}",
+              file=sys.stderr)
+        return RENAMED_PRESETS[text]
+    if text not in SESSION_PRESETS:
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
+                                         f"{', '.join(SESSION_PRESETS)})")
+    return text
+
+
+def add_preset_argument(parser, default=None):
     """``--preset NAME``, one of the engine's session presets (default ``recommended``; an old
     name is taken with a note on stderr), declared here once for every command."""
-    from .engine.presets import DEFAULT_PRESET, RENAMED_PRESETS, SESSION_PRESETS
+    from .engine.presets import DEFAULT_PRESET, SESSION_PRESETS
 
-    def preset(text):
-        if text in RENAMED_PRESETS:
-            print(f"note: the preset {text!r} is now called {RENAMED_PRESETS[text]!r}",
-                  file=sys.stderr)
-            return RENAMED_PRESETS[text]
-        if text not in SESSION_PRESETS:
-            raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from "
-                                             f"{', '.join(SESSION_PRESETS)})")
-        return text
-
-    parser.add_argument("--preset", type=preset, default=DEFAULT_PRESET, metavar="NAME",
+    default = default or DEFAULT_PRESET
+    parser.add_argument("--preset", type=preset_name, default=default, metavar="NAME",
                         help=f"speed/accuracy preset: {', '.join(SESSION_PRESETS)} (default "
-                             f"{DEFAULT_PRESET}; paper: the paper exactly; recommended: the "
+                             f"{default}; paper: the paper exactly; recommended: the "
                              "project's configuration)")
 
 

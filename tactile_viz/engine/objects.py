@@ -161,10 +161,17 @@ class ObjectModel:
     @cached_property
     def sdf(self):
         """:class:`~tactile_viz.engine.sdf.SDFGrid`, built on first use and cached on disk."""
+        return self.load_sdf()
+
+    def load_sdf(self):
+        """The SDF grid from the disk cache (built if missing) without keeping it here: a
+        prior bank copies it into its shared array."""
+        if "sdf" in self.__dict__:
+            return self.__dict__["sdf"]
         params = {"resolution": self.params.sdf_resolution,
                   "padding": self.params.sdf_padding * self.size_unit}
         arrays = self.cache.get_or_build(
-            "sdf", self.content_hash, params,
+            "sdf16", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
         return SDFGrid.from_arrays(arrays)
 
@@ -182,21 +189,25 @@ class ObjectModel:
         _, closest, face = self.exact.query(points)
         return {"points": closest, "normals": self.exact.surface_normal(closest, face)}
 
-    def pair_table(self, distance_step=0.1, angle_step_deg=12.0):
-        """The :class:`~tactile_viz.engine.ppf.PairTable` of the feature points (cached)."""
+    def pair_table(self, distance_step=0.1, angle_step_deg=12.0, keep=True):
+        """The :class:`~tactile_viz.engine.ppf.PairTable` of the feature points (cached on
+        disk, and here unless ``keep`` is False)."""
         key = (float(distance_step), float(angle_step_deg))
         tables = self.__dict__.setdefault("_pair_tables", {})
-        if key not in tables:
-            params = {"distance_step": key[0], "angle_step_deg": key[1],
-                      "count": self.params.n_features, "seed": self.params.feature_seed}
+        if key in tables:
+            return tables[key]
+        params = {"distance_step": key[0], "angle_step_deg": key[1],
+                  "count": self.params.n_features, "seed": self.params.feature_seed}
 
-            def build():
-                points, normals = self.features
-                return PairTable.build(points, normals, key[0], np.radians(key[1])).to_arrays()
+        def build():
+            points, normals = self.features
+            return PairTable.build(points, normals, key[0], np.radians(key[1])).to_arrays()
 
-            tables[key] = PairTable.from_arrays(
-                self.cache.get_or_build("pairs", self.content_hash, params, build))
-        return tables[key]
+        table = PairTable.from_arrays(self.cache.get_or_build("pairs2", self.content_hash,
+                                                              params, build))
+        if keep:
+            tables[key] = table
+        return table
 
     def describe(self):
         """A JSON-ready summary (name, sizes, parameters, hash)."""

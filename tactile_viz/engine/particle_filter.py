@@ -26,6 +26,7 @@ from .likelihood import (log_contact_likelihood, log_noncontact_likelihood, log_
 from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
+from .prior_bank import PriorBank, bank_for
 from .ppf import align_pairs, is_degenerate, local_frames, pair_features, rotation_about_x
 
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
@@ -138,6 +139,19 @@ class ParticleFilter:
         self.particles = None
         self.step_count = 0
         self.state = None
+        self._bank = None
+
+    @property
+    def bank(self) -> PriorBank:
+        """The priors' grids, features and one point-pair table (built on first use)."""
+        if self._bank is None:
+            self._bank = bank_for(self.models, self.params.distance_step,
+                                  self.params.angle_step_deg)
+        return self._bank
+
+    def __getstate__(self):
+        # The bank is rebuilt from the models' disk cache rather than pickled.
+        return {**self.__dict__, "_bank": None}
 
     _STATE = ("particles", "contact_positions", "contact_normals", "noncontact_positions",
               "step_count", "state")
@@ -180,22 +194,20 @@ class ParticleFilter:
             return total
         m = len(contacts)
         chunk = max(1, _CHUNK // len(points))
-        for c in np.unique(particles.classes):
-            members = np.flatnonzero(particles.classes == c)
-            sdf = self.models[c].sdf
-            for start in range(0, len(members), chunk):
-                index = members[start:start + chunk]
-                rotation, translation = particles.rotations[index], particles.translations[index]
-                local = np.einsum("kij,kmi->kmj", rotation, points[None] - translation[:, None])
-                values, gradients = sdf.evaluate(local)
-                if m:
-                    observed = np.einsum("kij,mi->kmj", rotation, normals)
-                    total[index] += log_contact_likelihood(
-                        values[:, :m], gradients[:, :m], observed, self.params.sigma_d,
-                        self.params.sigma_n, self.params.outlier_probability).sum(axis=1)
-                if len(points) > m:
-                    total[index] += log_noncontact_likelihood(
-                        values[:, m:], self.params.sigma_d).sum(axis=1)
+        for start in range(0, len(particles), chunk):
+            index = slice(start, start + chunk)
+            rotation, translation = particles.rotations[index], particles.translations[index]
+            # Observations in each hypothesis's object frame: R^T (x - t).
+            local = np.einsum("kij,kmi->kmj", rotation, points[None] - translation[:, None])
+            values, gradients = self.bank.evaluate(particles.classes[index], local)
+            if m:
+                observed = np.einsum("kij,mi->kmj", rotation, normals)
+                total[index] += log_contact_likelihood(
+                    values[:, :m], gradients[:, :m], observed, self.params.sigma_d,
+                    self.params.sigma_n, self.params.outlier_probability).sum(axis=1)
+            if len(points) > m:
+                total[index] += log_noncontact_likelihood(
+                    values[:, m:], self.params.sigma_d).sum(axis=1)
         return total
 
     def log_evidence_of(self, particles):
@@ -254,23 +266,27 @@ class ParticleFilter:
 
     # ----------------------------------------------------------------- pieces
     def _initial_particles(self, position, normal):
-        """Every feature point of every class put onto the first contact (Algorithm 1)."""
+        """Every feature point of every class put onto the first contact (Algorithm 1), or
+        beyond ``max_particles`` hypotheses a random subset of them: one contact tells the
+        hypotheses nothing apart, so a large library need not spawn them all."""
         k = self.params.init_rotations
         offset = self.rng.uniform(0, 2 * np.pi)
         angles = offset + 2 * np.pi * np.arange(k) / k
-        parts = []
-        for c, model in enumerate(self.models):
-            points, normals = model.features
-            rm, tm, _ = local_frames(points, normals, points)
-            rs, ts, _ = local_frames(position[None], normal[None], position[None])
-            rs_inv = rs[0].T
-            rotations = np.einsum("ij,ajk,bkl->bail", rs_inv, rotation_about_x(angles), rm)
-            rotations = rotations.reshape(-1, 3, 3)
-            translations = position - np.einsum("kij,kj->ki", rotations, np.repeat(points, k, 0))
-            parts.append(Particles(np.full(len(rotations), c), rotations, translations,
-                                   np.zeros(len(rotations))))
-        particles = Particles.concatenate(parts)
-        return _with_log_weights(particles, np.zeros(len(particles)))
+        bank = self.bank
+        classes, features = bank.points.shape[:2]
+        # Hypothesis i: class i // (F k), feature point (i // k) % F, angle i % k.
+        chosen = np.arange(classes * features * k)
+        if len(chosen) > self.params.max_particles:
+            chosen = np.sort(self.rng.choice(len(chosen), self.params.max_particles,
+                                             replace=False))
+        c, f, a = chosen // (features * k), (chosen // k) % features, chosen % k
+        points, normals = bank.points[c, f], bank.normals[c, f]
+        rm, _, _ = local_frames(points, normals, points)
+        rs, _, _ = local_frames(position[None], normal[None], position[None])
+        # object_to_world = T_g(s)^-1 R_x(angle) T_g(m): the feature point onto the contact.
+        rotations = rs[0].T @ rotation_about_x(angles)[a] @ rm
+        translations = position - np.einsum("kij,kj->ki", rotations, points)
+        return Particles(c, rotations, translations, np.full(len(c), -np.log(len(c))))
 
     def _resample(self, particles):
         weights = np.exp(particles.log_weights)
@@ -316,36 +332,46 @@ class ParticleFilter:
         features = pair_features(p1, n1, p2, n2)
         subset_p = np.vstack([old_p, position[None]])
         subset_n = np.vstack([old_n, normal[None]])
-        map_particle = self.particles.take([map_index])
-        parts = []
-        for c, model in enumerate(self.models):
-            table = model.pair_table(self.params.distance_step, self.params.angle_step_deg)
-            query, first, second = table.lookup(features, self.params.neighbour_bins)
-            if len(query) == 0:
-                continue
-            if len(query) > self.params.max_new_per_class:
-                pick = self.rng.choice(len(query), self.params.max_new_per_class, replace=False)
-                query, first, second = query[pick], first[pick], second[pick]
-            points, normals = model.features
-            rotations, translations = align_pairs(
-                (points[first], normals[first], points[second]), (p1[query], n1[query], p2[query]))
-            candidates = Particles(np.full(len(query), c), rotations, translations,
-                                   np.zeros(len(query)))
-            log_subset = self.log_likelihood(candidates, subset_p, subset_n)
-            best = int(np.argmax(log_subset))
-            best_evidence = self.log_evidence_of(candidates.take([best]))[0]
-            # Paper eq. new_weights: relative to the class's best candidate, which is placed
-            # relative to the MAP particle by their likelihoods over all data.
-            log_w = (log_subset - log_subset[best] + best_evidence - map_evidence
-                     + map_particle.log_weights[0])
-            parts.append(Particles(candidates.classes, rotations, translations, log_w))
-        if not parts:
+        bank = self.bank
+        query, classes, first, second = self._capped(
+            *bank.lookup(features, self.params.neighbour_bins))
+        if len(query) == 0:
             return None
-        new = Particles.concatenate(parts)
+        rotations, translations = align_pairs(
+            (bank.points[classes, first], bank.normals[classes, first],
+             bank.points[classes, second]), (p1[query], n1[query], p2[query]))
+        candidates = Particles(classes, rotations, translations, np.zeros(len(query)))
+        log_subset = self.log_likelihood(candidates, subset_p, subset_n)
+        # Each class's best candidate (the first of equals), and its evidence over all data.
+        order = np.lexsort((-log_subset, classes))
+        best = order[np.flatnonzero(np.r_[True, np.diff(classes[order]) != 0])]
+        group = np.searchsorted(classes[best], classes)
+        best_evidence = self.log_evidence_of(candidates.take(best))
+        # Paper eq. new_weights: relative to the class's best candidate, which is placed
+        # relative to the MAP particle by their likelihoods over all data.
+        log_w = (log_subset - log_subset[best][group] + best_evidence[group] - map_evidence
+                 + self.particles.log_weights[map_index])
+        new = Particles(classes, rotations, translations, log_w)
         budget = self.params.max_new_particles
         if budget and len(new) > budget:
             new = new.take(np.sort(np.argpartition(-new.log_weights, budget - 1)[:budget]))
         return new
+
+    def _capped(self, query, classes, first, second):
+        """Look-up matches sorted by class (stable), each class's cut to a random
+        ``max_new_per_class`` of them."""
+        order = np.argsort(classes, kind="stable")
+        query, classes, first, second = query[order], classes[order], first[order], second[order]
+        _, starts, counts = np.unique(classes, return_index=True, return_counts=True)
+        cap = self.params.max_new_per_class
+        if counts.max(initial=0) <= cap:
+            return query, classes, first, second
+        # Over the cap, a random subset in the order drawn.
+        index = np.concatenate([
+            np.arange(start, start + count) if count <= cap
+            else start + self.rng.choice(count, cap, replace=False)
+            for start, count in zip(starts, counts)])
+        return query[index], classes[index], first[index], second[index]
 
     def _merged(self, new):
         combined = Particles.concatenate([self.particles, new])
@@ -357,11 +383,10 @@ class ParticleFilter:
         point-pair poses can still overtake a given mesh's."""
         chosen = [map_index] if self.params.refine_map else []
         count = self.params.refine_learned
-        for c, model in enumerate(self.models):
-            if count and model.learned:
-                members = np.flatnonzero(self.particles.classes == c)
-                heaviest = members[np.argsort(-self.particles.log_weights[members])[:count]]
-                chosen += [int(index) for index in heaviest]
+        for c in np.flatnonzero(self.bank.learned) if count else ():
+            members = np.flatnonzero(self.particles.classes == c)
+            heaviest = members[np.argsort(-self.particles.log_weights[members])[:count]]
+            chosen += [int(index) for index in heaviest]
         return list(dict.fromkeys(chosen))
 
     def _refine(self, index):
@@ -370,7 +395,7 @@ class ParticleFilter:
         is none). The particle is replaced, not copied: a copy would count its weight twice."""
         particle = self.particles.take([index])
         evidence_before = self.log_evidence_of(particle)[0]
-        sdf = self.models[particle.classes[0]].sdf
+        c = particle.classes[:1]
         rotation0, translation0 = particle.rotations[0], particle.translations[0]
         centre = self.contact_positions.mean(axis=0)
         p, n, q = self.contact_positions, self.contact_normals, self.noncontact_positions
@@ -382,7 +407,9 @@ class ParticleFilter:
 
         def residuals(x):
             rotation, translation = pose(x)
-            values, gradients = sdf.evaluate((np.vstack([p, q]) - translation) @ rotation)
+            values, gradients = self.bank.evaluate(c, ((np.vstack([p, q]) - translation)
+                                                       @ rotation)[None])
+            values, gradients = values[0], gradients[0]
             normal_error = gradients[:len(p)] - n @ rotation
             outside = np.minimum(values[len(p):], 0.0)
             return np.concatenate([values[:len(p)] / sd, normal_error.ravel() / sn, outside / sd])
@@ -410,8 +437,9 @@ class ParticleFilter:
         One wrong contact cannot make a known object novel."""
         params = self.params
         rotation, translation = best.rotations[0], best.translations[0]
-        values, gradients = self.models[best.classes[0]].sdf.evaluate(
-            (self.contact_positions - translation) @ rotation)
+        values, gradients = self.bank.evaluate(
+            best.classes[:1], ((self.contact_positions - translation) @ rotation)[None])
+        values, gradients = values[0], gradients[0]
         terms = log_contact_likelihood(values, gradients, self.contact_normals @ rotation,
                                        params.sigma_d, params.sigma_n,
                                        params.outlier_probability)
@@ -441,9 +469,9 @@ class ParticleFilter:
             # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood
             # ~1 > 0.5) must not buy slack for contacts that miss its surface.
             novel = bool(tested < tested_threshold or on_noncontacts < noncontact_threshold)
-            weights = np.exp(self.particles.log_weights)
-            posterior = {name: float(weights[self.particles.classes == c].sum())
-                         for c, name in enumerate(self.class_names)}
+            summed = np.bincount(self.particles.classes, np.exp(self.particles.log_weights),
+                                 minlength=len(self.class_names))
+            posterior = dict(zip(self.class_names, summed.tolist()))
             state = FilterState(
                 self.step_count, self.particles, self.class_names, posterior,
                 self.class_names[self.particles.classes[index]],

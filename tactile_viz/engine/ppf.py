@@ -137,27 +137,47 @@ def align_pairs(model_pairs, observed_pairs):
 
 @dataclass(frozen=True, eq=False)
 class PairTable:
-    """All ordered pairs of an object's feature points, sorted by quantised feature key.
+    """Ordered pairs of feature points of one or many priors, grouped by quantised key.
+
+    One table serves every prior of a library, as Drost et al. keep one for all models: a
+    look-up costs the same for ten priors or a thousand, and the pairs are stored in
+    compact integer types (4 bytes a pair for fewer than 65,536 priors of at most 256
+    feature points each).
 
     Attributes
     ----------
-    keys : (m,) int64
-        Sorted packed keys of the non-degenerate ordered pairs.
-    first, second : (m,) int
-        Feature-point indices of each pair, in key order.
+    keys : (u,) int64
+        The distinct packed keys, sorted.
+    starts : (u + 1,) int64
+        The pairs of ``keys[i]`` are entries ``starts[i]`` to ``starts[i + 1]``.
+    classes : (m,) unsigned int
+        The prior of each pair (0 in a single object's table).
+    first, second : (m,) unsigned int
+        Feature-point indices of each pair.
     distance_step, angle_step : float
-        The quantisation the keys were made with.
+        The quantisation the keys were made with (scene units, radians).
     """
 
     keys: np.ndarray
+    starts: np.ndarray
+    classes: np.ndarray
     first: np.ndarray
     second: np.ndarray
     distance_step: float
     angle_step: float
 
+    def __len__(self):
+        return len(self.first)
+
+    @property
+    def nbytes(self):
+        return sum(a.nbytes for a in (self.keys, self.starts, self.classes, self.first,
+                                      self.second))
+
     @classmethod
     def build(cls, points, normals, distance_step=0.1, angle_step=np.radians(12.0)):
-        """Table of the ``n (n - 1)`` ordered pairs of ``(n, 3)`` points and normals."""
+        """Table of the non-degenerate ordered pairs of one object's ``(n, 3)`` points and
+        normals."""
         n = len(points)
         first, second = np.nonzero(~np.eye(n, dtype=bool))
         keep = ~is_degenerate(points[first], normals[first], points[second], normals[second])
@@ -165,21 +185,54 @@ class PairTable:
         features = pair_features(points[first], normals[first], points[second], normals[second])
         keys = pack_keys(quantise(features, distance_step, angle_step))
         order = np.argsort(keys, kind="stable")
-        return cls(keys[order], first[order], second[order], float(distance_step),
-                   float(angle_step))
+        keys, first, second = keys[order], first[order], second[order]
+        distinct, starts = _groups(keys)
+        index = np.min_scalar_type(max(n - 1, 0))
+        return cls(distinct, starts, np.zeros(len(keys), np.uint8), first.astype(index),
+                   second.astype(index), float(distance_step), float(angle_step))
+
+    @classmethod
+    def combine(cls, tables):
+        """One table over single-object tables (class ``i`` is the ``i``-th), filled in
+        place by key without a sort of all pairs."""
+        tables = list(tables)
+        if not tables:
+            raise ValueError("no pair tables to combine")
+        steps = {(t.distance_step, t.angle_step) for t in tables}
+        if len(steps) > 1:
+            raise ValueError(f"pair tables of different key steps {sorted(steps)}")
+        keys = np.unique(np.concatenate([t.keys for t in tables]))
+        counts = np.zeros(len(keys), np.int64)
+        for table in tables:
+            counts[np.searchsorted(keys, table.keys)] += np.diff(table.starts)
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        total = int(starts[-1])
+        classes = np.empty(total, np.min_scalar_type(max(len(tables) - 1, 0)))
+        index = np.result_type(*(t.first.dtype for t in tables))
+        first, second = np.empty(total, index), np.empty(total, index)
+        fill = starts[:-1].copy()
+        for c, table in enumerate(tables):
+            slots, sizes = np.searchsorted(keys, table.keys), np.diff(table.starts)
+            # Each key's pairs go after those of the tables before this one.
+            target = np.repeat(fill[slots] - table.starts[:-1], sizes) + np.arange(len(table))
+            classes[target] = c
+            first[target], second[target] = table.first, table.second
+            fill[slots] += sizes
+        return cls(keys, starts, classes, first, second, *steps.pop())
 
     def to_arrays(self):
-        return {"keys": self.keys, "first": self.first, "second": self.second,
+        return {"keys": self.keys, "starts": self.starts, "classes": self.classes,
+                "first": self.first, "second": self.second,
                 "steps": np.array([self.distance_step, self.angle_step])}
 
     @classmethod
     def from_arrays(cls, arrays):
         steps = arrays["steps"]
-        return cls(arrays["keys"], arrays["first"], arrays["second"], float(steps[0]),
-                   float(steps[1]))
+        return cls(arrays["keys"], arrays["starts"], arrays["classes"], arrays["first"],
+                   arrays["second"], float(steps[0]), float(steps[1]))
 
     def lookup(self, features, neighbours=0):
-        """Model pairs whose key matches each observed feature's (or a neighbouring) bin.
+        """Pairs whose key matches each observed feature's (or a neighbouring) bin.
 
         Parameters
         ----------
@@ -193,8 +246,10 @@ class PairTable:
         -------
         query : (r,) int
             Index of the observed pair of each match.
+        classes : (r,) int
+            The prior of each match.
         first, second : (r,) int
-            Feature-point indices of the matching model pair.
+            Feature-point indices of the matching pair.
         """
         bins = quantise(features, self.distance_step, self.angle_step)
         offsets = np.array(list(product(range(-neighbours, neighbours + 1), repeat=4)))
@@ -202,14 +257,23 @@ class PairTable:
         valid = (shifted >= 0).all(axis=1)
         query = np.repeat(np.arange(len(bins)), len(offsets))[valid]
         keys = pack_keys(shifted[valid])
-        low = np.searchsorted(self.keys, keys, side="left")
-        high = np.searchsorted(self.keys, keys, side="right")
-        counts = high - low
+        slot = np.minimum(np.searchsorted(self.keys, keys), max(len(self.keys) - 1, 0))
+        found = self.keys[slot] == keys if len(self.keys) else np.zeros(len(keys), bool)
+        query, slot = query[found], slot[found]
+        low, counts = self.starts[slot], self.starts[slot + 1] - self.starts[slot]
         total = int(counts.sum())
         if total == 0:
             empty = np.zeros(0, dtype=np.int64)
-            return empty, empty, empty
-        query = np.repeat(query, counts)
-        starts = np.repeat(low - np.cumsum(counts) + counts, counts)
-        positions = starts + np.arange(total)
-        return query, self.first[positions], self.second[positions]
+            return empty, empty, empty, empty
+        positions = np.repeat(low - np.cumsum(counts) + counts, counts) + np.arange(total)
+        return (np.repeat(query, counts), self.classes[positions].astype(np.int64),
+                self.first[positions].astype(np.int64), self.second[positions].astype(np.int64))
+
+
+def _groups(sorted_keys):
+    """Distinct keys of a sorted array and the start of each one's run (plus the end)."""
+    if len(sorted_keys) == 0:
+        return sorted_keys, np.zeros(1, np.int64)
+    new = np.flatnonzero(np.diff(sorted_keys)) + 1
+    starts = np.concatenate([[0], new, [len(sorted_keys)]]).astype(np.int64)
+    return sorted_keys[starts[:-1]], starts

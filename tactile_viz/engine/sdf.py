@@ -5,14 +5,14 @@ Two kinds, both with negative values inside:
 - :class:`ExactDistance` asks libigl for the exact distance to the mesh (AABB tree) and
   the sign from the fast winding number, so it is robust on meshes that are not perfectly
   watertight. It is the ground truth for the simulator and the tests.
-- :class:`SDFGrid` samples that field once on a regular grid over the padded bounding box
-  and interpolates trilinearly: value and gradient at any point in a few array operations.
-  Outside the grid it falls back to the distance to the box plus the value at the clamped
-  point, which is always positive.
+- :class:`SDFGrid` samples that field once on a regular grid over the padded bounding box,
+  stores it in 16 bits a node and interpolates trilinearly: value and gradient at any point
+  in a few array operations. Outside the grid it falls back to the distance to the box plus
+  the value at the clamped point, which is always positive. :func:`interpolate` does the
+  same for many grids stored one after another (the prior bank).
 """
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -22,6 +22,7 @@ import numpy as np
 
 # Below this length a gradient is taken to vanish (the medial axis or a flat grid region).
 _TINY = 1e-12
+CODE_MAX = 32767  # the largest 16-bit code of a node value
 # libigl releases the GIL in its AABB queries, so large batches split across threads.
 _PARALLEL_BATCH = 20_000
 
@@ -119,7 +120,12 @@ class ExactDistance:
 
 @dataclass(frozen=True, eq=False)
 class SDFGrid:
-    """A signed distance field sampled on a regular grid, object frame.
+    """A signed distance field sampled on a regular grid, object frame, stored compactly.
+
+    The node values are 16-bit integers in steps of ``value_step`` (a 65,535th of the
+    largest magnitude, some 1e-4 of a voxel near the surface at the default resolution) and
+    the gradient is that of the trilinear interpolant: 2 bytes a node instead of the 32 of
+    a float64 value and gradient (docs/bench-scaling.md measures the errors).
 
     Attributes
     ----------
@@ -127,26 +133,36 @@ class SDFGrid:
         Position of grid node ``(0, 0, 0)``.
     spacing : float
         Distance between neighbouring nodes (the voxel size).
-    values : (nx, ny, nz) float
-        Signed distance at the nodes.
-    gradients : (nx, ny, nz, 3) float
-        Central-difference gradient at the nodes.
+    codes : (nx, ny, nz) int16
+        Node values in units of ``value_step``.
+    value_step : float
     """
 
     origin: np.ndarray
     spacing: float
-    values: np.ndarray
-    gradients: np.ndarray
+    codes: np.ndarray
+    value_step: float
+
+    @classmethod
+    def from_values(cls, origin, spacing, values):
+        """Encode float node values ``(nx, ny, nz)``."""
+        values = np.asarray(values, dtype=float)
+        step = max(float(np.abs(values).max()), _TINY) / CODE_MAX
+        codes = np.clip(np.rint(values / step), -CODE_MAX, CODE_MAX).astype(np.int16)
+        return cls(np.asarray(origin, dtype=float), float(spacing), codes, step)
 
     @property
     def shape(self):
-        return self.values.shape
+        return self.codes.shape
 
-    @cached_property
-    def _corners(self):
-        """Value and gradient per node as one (nodes, 4) table (built once: every
-        interpolation reads it)."""
-        return np.concatenate([self.values[..., None], self.gradients], axis=-1).reshape(-1, 4)
+    @property
+    def values(self):
+        """(nx, ny, nz) float: the decoded node values."""
+        return self.codes * self.value_step
+
+    @property
+    def nbytes(self):
+        return self.codes.nbytes
 
     @property
     def upper(self):
@@ -166,16 +182,9 @@ class SDFGrid:
         gradients : (..., 3) float, unit length
         """
         points = np.asarray(points, dtype=float)
-        flat = points.reshape(-1, 3)
-        clamped = np.clip(flat, self.origin, self.upper)
-        values, gradients = _trilinear(self, clamped)
-        outside = np.linalg.norm(flat - clamped, axis=1)
-        away = outside > 0
-        if away.any():
-            values = values + outside
-            direction = (flat[away] - clamped[away]) / outside[away, None]
-            gradients[away] = direction
-        gradients = normalise_rows(gradients)
+        values, gradients = interpolate(self.codes.reshape(-1), 0, np.array(self.shape),
+                                        self.origin, self.spacing, self.value_step,
+                                        points.reshape(-1, 3))
         return values.reshape(points.shape[:-1]), gradients.reshape(points.shape)
 
     def distance(self, points):
@@ -184,16 +193,68 @@ class SDFGrid:
 
     def to_arrays(self):
         """The grid as a dict of arrays (for ``np.savez``)."""
-        return {"origin": self.origin, "spacing": np.array(self.spacing),
-                "values": self.values, "gradients": self.gradients}
+        return {"origin": self.origin, "spacing": np.array(self.spacing), "codes": self.codes,
+                "value_step": np.array(self.value_step)}
 
     @classmethod
     def from_arrays(cls, arrays):
         """Inverse of :meth:`to_arrays`."""
         return cls(origin=np.asarray(arrays["origin"], dtype=float),
                    spacing=float(arrays["spacing"]),
-                   values=np.asarray(arrays["values"], dtype=float),
-                   gradients=np.asarray(arrays["gradients"], dtype=float))
+                   codes=np.asarray(arrays["codes"], dtype=np.int16),
+                   value_step=float(arrays["value_step"]))
+
+
+def interpolate(codes, offset, shape, origin, spacing, value_step, points):
+    """Trilinear value and unit gradient of grids stored one after another in ``codes``.
+
+    Every argument but ``codes`` is per point (or one for all): the grid of point ``i``
+    starts at ``codes[offset[i]]``, has ``shape[i]`` nodes from ``origin[i]`` at
+    ``spacing[i]``, and its values are ``codes * value_step[i]``. Outside its grid a
+    point's value is the value at the clamped point plus the distance to it, always
+    positive, and its gradient points away from the grid.
+
+    Parameters
+    ----------
+    codes : (total,) int16
+    offset : (k,) or () int
+    shape : (k, 3) or (3,) int
+    origin : (k, 3) or (3,) float
+    spacing, value_step : (k,) or () float
+    points : (k, 3) float, each grid's frame
+
+    Returns
+    -------
+    values : (k,) float
+    gradients : (k, 3) float, unit length
+    """
+    spacing = np.asarray(spacing, dtype=float)
+    upper = origin + spacing[..., None] * (shape - 1)
+    clamped = np.clip(points, origin, upper)
+    position = (clamped - origin) / spacing[..., None]
+    base = np.clip(np.floor(position).astype(np.int64), 0, shape - 2)
+    frac = position - base
+    ny, nz = np.moveaxis(np.broadcast_to(shape, points.shape), -1, 0)[1:]
+    index = offset + (base[:, 0] * ny + base[:, 1]) * nz + base[:, 2]
+    corner = [codes[index + (dx * ny + dy) * nz + dz].astype(float)
+              for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)]
+    fx, fy, fz = frac.T
+    # Interpolate along z, then y, then x, keeping each partial derivative.
+    z = [corner[i] + fz * (corner[i + 1] - corner[i]) for i in (0, 2, 4, 6)]
+    dz = [corner[i + 1] - corner[i] for i in (0, 2, 4, 6)]
+    y = [z[0] + fy * (z[1] - z[0]), z[2] + fy * (z[3] - z[2])]
+    dy = [z[1] - z[0], z[3] - z[2]]
+    value = y[0] + fx * (y[1] - y[0])
+    gradient = np.stack([y[1] - y[0], dy[0] + fx * (dy[1] - dy[0]),
+                         (dz[0] + fy * (dz[1] - dz[0])) * (1 - fx)
+                         + (dz[2] + fy * (dz[3] - dz[2])) * fx], axis=-1)
+    values = value * value_step
+    outside = np.linalg.norm(points - clamped, axis=1)
+    away = outside > 0
+    if away.any():
+        values = values + outside
+        gradient[away] = (points[away] - clamped[away]) / outside[away, None]
+    return values, normalise_rows(gradient)
 
 
 def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
@@ -213,38 +274,23 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
     -------
     SDFGrid
     """
+    origin, spacing, counts = grid_layout(bounds, resolution, padding)
+    axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    values = exact.signed_distance(nodes).reshape(tuple(counts))
+    return SDFGrid.from_values(origin, spacing, values)
+
+
+def grid_layout(bounds, resolution=64, padding=1.0):
+    """Where :func:`build_sdf_grid` puts its nodes: ``origin`` (3,), ``spacing`` and
+    ``counts`` (3,) int."""
     low = np.asarray(bounds[0], dtype=float) - padding
     high = np.asarray(bounds[1], dtype=float) + padding
     spacing = float((high - low).max()) / int(resolution)
     counts = np.ceil((high - low) / spacing - 1e-9).astype(int) + 1
     # Centre the nodes on the box so the object sits symmetrically in the grid.
     origin = (low + high) / 2 - spacing * (counts - 1) / 2
-    axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
-    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = exact.signed_distance(nodes).reshape(tuple(counts))
-    gradients = np.stack(np.gradient(values, spacing), axis=-1)
-    return SDFGrid(origin=origin, spacing=spacing, values=values, gradients=gradients)
-
-
-def _trilinear(grid, points):
-    """Trilinear value and gradient of a grid at points inside it: (k,), (k, 3)."""
-    position = (points - grid.origin) / grid.spacing
-    upper_cell = np.array(grid.shape) - 2
-    base = np.clip(np.floor(position).astype(np.int64), 0, upper_cell)
-    frac = position - base
-    nx, ny, nz = grid.shape
-    flat = grid._corners
-    index = (base[:, 0] * ny + base[:, 1]) * nz + base[:, 2]
-    result = np.zeros((len(points), 4))
-    for dx in (0, 1):
-        wx = frac[:, 0] if dx else 1 - frac[:, 0]
-        for dy in (0, 1):
-            wy = frac[:, 1] if dy else 1 - frac[:, 1]
-            for dz in (0, 1):
-                wz = frac[:, 2] if dz else 1 - frac[:, 2]
-                corner = flat[index + (dx * ny + dy) * nz + dz]
-                result += (wx * wy * wz)[:, None] * corner
-    return result[:, 0], result[:, 1:]
+    return origin, spacing, counts
 
 
 def _area_weighted_vertex_normals(vertices, faces, face_normals_unscaled):

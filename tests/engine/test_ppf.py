@@ -73,8 +73,9 @@ def test_pair_table_has_all_usable_ordered_pairs(mug_features):
     table = PairTable.build(points, normals)
     first, second = np.nonzero(~np.eye(200, dtype=bool))
     usable = ~is_degenerate(points[first], normals[first], points[second], normals[second])
-    assert len(first) == 39800 and len(table.keys) == usable.sum()
-    assert np.all(np.diff(table.keys) >= 0)
+    assert len(first) == 39800 and len(table) == usable.sum()
+    assert np.all(np.diff(table.keys) > 0) and table.starts[-1] == len(table)
+    assert table.first.dtype == np.uint8  # 200 feature points fit a byte
 
 
 def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
@@ -82,7 +83,8 @@ def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
     table = PairTable.build(points, normals)
     features = pair_features(points[[3, 10]], normals[[3, 10]], points[[50, 120]],
                              normals[[50, 120]])
-    query, first, second = table.lookup(features)
+    query, classes, first, second = table.lookup(features)
+    assert np.all(classes == 0)
     for q, (i, j) in enumerate([(3, 50), (10, 120)]):
         assert np.any((query == q) & (first == i) & (second == j))
     assert len(table.lookup(features, neighbours=1)[0]) > len(query)
@@ -90,7 +92,7 @@ def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
 
 def test_lookup_of_an_unseen_feature_is_empty(mug_features):
     table = PairTable.build(*mug_features)
-    query, first, second = table.lookup(np.array([[100.0, 1.0, 1.0, 1.0]]))
+    query, _, first, second = table.lookup(np.array([[100.0, 1.0, 1.0, 1.0]]))
     assert len(query) == len(first) == len(second) == 0
 
 
@@ -99,3 +101,28 @@ def test_pair_table_cached_with_model(bundled):
     assert model.pair_table() is model.pair_table()
     coarse = model.pair_table(distance_step=0.2, angle_step_deg=20)
     assert len(np.unique(coarse.keys)) < len(np.unique(model.pair_table().keys))
+
+
+def test_combined_table_finds_each_class_as_its_own_table(mug_features, rng):
+    points, normals = mug_features
+    other = points[::-1] * 0.9, normals[::-1]
+    tables = [PairTable.build(points, normals), PairTable.build(*other)]
+    combined = PairTable.combine(tables)
+    assert len(combined) == sum(len(t) for t in tables)
+    picks = rng.integers(0, 200, size=(30, 2))
+    picks = picks[picks[:, 0] != picks[:, 1]]
+    features = pair_features(points[picks[:, 0]], normals[picks[:, 0]], points[picks[:, 1]],
+                             normals[picks[:, 1]])
+    query, classes, first, second = combined.lookup(features, neighbours=1)
+    for c, table in enumerate(tables):
+        alone = table.lookup(features, neighbours=1)
+        mine = classes == c
+        np.testing.assert_array_equal(query[mine], alone[0])
+        np.testing.assert_array_equal(first[mine], alone[2])
+        np.testing.assert_array_equal(second[mine], alone[3])
+
+
+def test_combining_tables_of_other_steps_is_an_error(mug_features):
+    with pytest.raises(ValueError, match="different key steps"):
+        PairTable.combine([PairTable.build(*mug_features),
+                           PairTable.build(*mug_features, distance_step=0.2)])

@@ -47,8 +47,8 @@ COMMANDS = {
         "--seeds": COUNT, "--objects": NAME, "--configs": NAME, "--workers": WORKERS,
         "--max-steps": STEPS, "--out": OUT_DIR, "--reuse": IN_DIR}),
     "bench scaling": (["bench", "scaling"], {
-        "--sizes": COUNT, "--repeats": COUNT, "--priors": COUNT, "--prior-steps": COUNT,
-        "--seed": SEED, "--object": NAME, "--prior-object": NAME, "--out": OUT_DIR}),
+        "--sizes": COUNT, "--repeats": COUNT, "--priors": COUNT, "--prior-trials": COUNT,
+        "--seed": SEED, "--object": NAME, "--prior-max-steps": COUNT, "--out": OUT_DIR}),
     "bench noise": (["bench", "noise"], {
         "--seeds": COUNT, "--contacts": COUNT, "--objects": NAME + ["mug_2"],
         "--levels": ["nan:1", "0:inf", "0.5:-1", "1", "x:y"], "--configs": NAME,

@@ -6,7 +6,8 @@ import pytest
 from tactile_viz.engine.session import SessionParams
 from tactile_viz.experiments import tradeoff
 from tactile_viz.experiments.aggregate import markdown_table
-from tactile_viz.experiments.scaling import growth_exponent, library_of_size
+from tactile_viz.experiments.prior_scaling import library_of_size
+from tactile_viz.experiments.scaling import growth_exponent
 
 
 def test_pareto_front():
@@ -73,7 +74,10 @@ def test_library_of_forty_priors_has_unique_names():
     library = library_of_size(40)
     assert len(library) == 40 and len(set(library.names)) == 40
     assert len({model.content_hash for model in library}) == 40
-    assert all(model.length == pytest.approx(6.0) for model in library)
+    # Variants keep their stretched size: a stretched mug is another object.
+    lengths = [model.length for model in library]
+    assert lengths[:20] == pytest.approx([6.0] * 20) and 6 * 0.75 <= min(lengths)
+    assert len({round(length, 6) for length in lengths[20:]}) == 20 and max(lengths) <= 8.0
 
 
 def test_small_values_keep_their_digits():
