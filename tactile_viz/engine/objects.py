@@ -171,7 +171,7 @@ class ObjectModel:
         params = {"resolution": self.params.sdf_resolution,
                   "padding": self.params.sdf_padding * self.size_unit}
         arrays = self.cache.get_or_build(
-            "sdf16", self.content_hash, params,
+            "sdf5", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
         return SDFGrid.from_arrays(arrays)
 

@@ -122,7 +122,12 @@ class FilterParams:
     max_new_per_class : int
         Cap on particles sampled per class and step (a random subset beyond it).
     max_particles : int
-        Cap on the number of draws of the resampling step.
+        Cap on the number of draws of the resampling step, and on the hypotheses the first
+        touch spawns (beyond it a random subset of every feature point of every class).
+    max_candidates : int
+        Beyond the paper (0: all), for large libraries: point-pair candidates scored on the
+        whole subset of earlier contacts per new contact. Beyond it, every candidate is
+        first scored on four of the subset's contacts and only the best this many go on.
     max_new_particles : int
         Particle budget (beyond the paper): at most this many of a step's new point-pair
         particles are kept, the heaviest (those resampling would keep anyway); 0 keeps all.
@@ -162,6 +167,7 @@ class FilterParams:
     init_rotations: int = 1
     max_new_per_class: int = 2000
     max_particles: int = 20000
+    max_candidates: int = 4000
     max_new_particles: int = 0
     merge_distance: float = _length(0.0)
     merge_angle_deg: float = 1.0
@@ -175,6 +181,7 @@ class FilterParams:
     def __post_init__(self):
         integers = ("n_s", "init_rotations", "max_new_per_class", "max_particles",
                     "max_new_particles", "n_features", "refine_iterations", "neighbour_bins",
+                    "max_candidates",
                     "sdf_resolution", "refine_learned")
         for item in fields(self):
             value = getattr(self, item.name)
@@ -210,6 +217,9 @@ class FilterParams:
         if self.refine_learned < 0:
             raise ParameterError("refine_learned must be at least 0 (0: off), "
                                  f"got {self.refine_learned!r}")
+        if self.max_candidates < 0:
+            raise ParameterError("max_candidates must be at least 0 (0: all), "
+                                 f"got {self.max_candidates!r}")
         if self.max_new_particles < 0:
             raise ParameterError("max_new_particles must be at least 0 (0: no budget), "
                                  f"got {self.max_new_particles!r}")

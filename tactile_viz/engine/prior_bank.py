@@ -5,7 +5,7 @@ separate object with float64 grids and its own point-pair table, visited in a Py
 A :class:`PriorBank` holds all of them together: the SDF grids' 16-bit codes one after
 another in one array (interpolated for any mix of priors in one call), the feature points
 stacked, and one point-pair table over all priors. It is built once from the models' disk
-cache, so a library of a thousand priors loads in seconds and holds some 0.6 MB a prior.
+cache, so a library of a thousand priors loads in seconds and holds some 0.8 MB a prior.
 """
 
 from __future__ import annotations
@@ -32,7 +32,8 @@ class PriorBank:
     Attributes
     ----------
     codes : (total,) int16
-        Every grid's node codes, one after another.
+        Every grid's node value codes, one after another.
+    gradient_codes : (total, 3) int8
     offsets : (C,) int64
         Where class ``c``'s grid starts in ``codes``.
     shapes : (C, 3) int64
@@ -56,6 +57,7 @@ class PriorBank:
         sizes = self.shapes.prod(axis=1)
         self.offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
         self.codes = np.empty(int(sizes.sum()), np.int16)
+        self.gradient_codes = np.empty((int(sizes.sum()), 3), np.int8)
         self.origins = np.empty((len(models), 3))
         self.spacings = np.empty(len(models))
         self.value_steps = np.empty(len(models))
@@ -65,7 +67,9 @@ class PriorBank:
             if grid.shape != tuple(self.shapes[c]):
                 raise RuntimeError(f"prior {model.name!r}: cached grid {grid.shape} is not "
                                    f"the expected {tuple(self.shapes[c])}")
-            self.codes[self.offsets[c]:self.offsets[c] + sizes[c]] = grid.codes.reshape(-1)
+            nodes = slice(self.offsets[c], self.offsets[c] + sizes[c])
+            self.codes[nodes] = grid.codes.reshape(-1)
+            self.gradient_codes[nodes] = grid.gradient_codes.reshape(-1, 3)
             self.origins[c], self.spacings[c], self.value_steps[c] = (
                 grid.origin, grid.spacing, grid.value_step)
             features.append(model.features)
@@ -80,11 +84,11 @@ class PriorBank:
     @property
     def nbytes(self) -> int:
         """Bytes of the bank's arrays."""
-        arrays = (self.codes, self.offsets, self.shapes, self.origins, self.spacings,
+        arrays = (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins, self.spacings,
                   self.value_steps, self.points, self.normals)
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
 
-    def evaluate(self, classes, points):
+    def evaluate(self, classes, points, gradients=True):
         """Signed distance and outward unit gradient of each class's grid.
 
         Parameters
@@ -92,19 +96,17 @@ class PriorBank:
         classes : (k,) int
         points : (k, m, 3) float
             Points in the object frame of their row's class.
+        gradients : bool
+            False: the distances only.
 
         Returns
         -------
         values : (k, m) float
-        gradients : (k, m, 3) float
+        gradients : (k, m, 3) float (only if ``gradients``)
         """
-        classes = np.asarray(classes)
-        k, m = points.shape[:2]
-        each = np.repeat(classes, m)
-        values, gradients = interpolate(self.codes, self.offsets[each], self.shapes[each],
-                                        self.origins[each], self.spacings[each],
-                                        self.value_steps[each], points.reshape(-1, 3))
-        return values.reshape(k, m), gradients.reshape(k, m, 3)
+        c = np.asarray(classes)[:, None]
+        return interpolate(self.codes, self.gradient_codes, self.offsets[c], self.shapes[c], self.origins[c],
+                           self.spacings[c], self.value_steps[c], points, gradients)
 
     def lookup(self, features, neighbours=0):
         """Point pairs of every class that match observed features (see

@@ -137,13 +137,17 @@ def test_presets_and_parameter_validation():
 
 
 def test_refinement_switch_does_not_hurt(known_library):
+    """Over five seeds (one seed alone can go either way: seed 6 ends 0.19 refined, 0.06
+    not), the median pose error with refinement is no worse."""
     truth = GroundTruth(known_library["guitar_1"], *random_pose(rng=11, max_translation=1.0))
-    errors = {}
-    for refine in (False, True):
-        _, state = _run(known_library, truth, 20, seed=6, params=FilterParams(refine_map=refine))
-        errors[refine] = pose_error(known_library[state.map_class], state.map_rotation,
-                                    state.map_translation, truth)
-    assert errors[True] <= errors[False] + 0.05
+    errors = {False: [], True: []}
+    for seed in range(3, 8):
+        for refine in (False, True):
+            _, state = _run(known_library, truth, 20, seed=seed,
+                            params=FilterParams(refine_map=refine))
+            errors[refine].append(pose_error(known_library[state.map_class],
+                                             state.map_rotation, state.map_translation, truth))
+    assert np.median(errors[True]) <= np.median(errors[False]) + 0.02
 
 
 vectors = st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3)

@@ -46,19 +46,19 @@ def test_fallback_is_continuous_at_grid_border(sphere_model):
 @pytest.mark.slow
 def test_grid_is_cached_on_disk(sphere_model, tmp_path):
     grid = sphere_model.sdf
-    files = list(tmp_path.glob("sdf-*.npz"))
+    files = list(tmp_path.glob("sdf5-*.npz"))
     assert len(files) == 1
     again = type(sphere_model)(sphere_model.name, sphere_model.mesh, cache=sphere_model.cache)
     np.testing.assert_array_equal(again.sdf.values, grid.values)
     finer = sphere_model.with_params(sdf_resolution=32)
     assert finer.sdf.shape != grid.shape
-    assert len(list(tmp_path.glob("sdf-*.npz"))) == 2
+    assert len(list(tmp_path.glob("sdf5-*.npz"))) == 2
 
 
 @pytest.mark.slow
 def test_corrupt_cache_entry_is_rebuilt(sphere_model, tmp_path):
     values = sphere_model.sdf.values
-    (entry,) = tmp_path.glob("sdf-*.npz")
+    (entry,) = tmp_path.glob("sdf5-*.npz")
     entry.write_bytes(entry.read_bytes()[:100])
     rebuilt = type(sphere_model)(sphere_model.name, sphere_model.mesh, cache=sphere_model.cache)
     np.testing.assert_allclose(rebuilt.sdf.values, values)
