@@ -20,14 +20,16 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from . import kernels
 from .errors import ObservationError, ParameterError
-from .likelihood import (log_contact_likelihood, log_noncontact_likelihood, log_normaliser,
+from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_likelihood,
+                         log_normaliser,
                          normalise_log_weights)
 from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 from .prior_bank import PriorBank, bank_for
-from .ppf import align_pairs, is_degenerate, local_frames, pair_features, rotation_about_x
+from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
@@ -189,26 +191,26 @@ class ParticleFilter:
         contacts = np.zeros((0, 3)) if contacts is None else contacts
         normals = np.zeros((0, 3)) if normals is None else normals
         noncontacts = np.zeros((0, 3)) if noncontacts is None else noncontacts
-        points = np.vstack([contacts, noncontacts])
         total = np.zeros(len(particles))
-        if len(points) == 0 or len(particles) == 0:
+        if len(contacts) + len(noncontacts) == 0 or len(particles) == 0:
             return total
-        m = len(contacts)
-        chunk = max(1, _CHUNK // len(points))
-        for start in range(0, len(particles), chunk):
-            index = slice(start, start + chunk)
-            rotation, translation = particles.rotations[index], particles.translations[index]
-            # Observations in each hypothesis's object frame: R^T (x - t).
-            local = np.einsum("kij,kmi->kmj", rotation, points[None] - translation[:, None])
-            values, gradients = self.bank.evaluate(particles.classes[index], local)
-            if m:
-                observed = np.einsum("kij,mi->kmj", rotation, normals)
-                total[index] += log_contact_likelihood(
-                    values[:, :m], gradients[:, :m], observed, self.params.sigma_d,
-                    self.params.sigma_n, self.params.outlier_probability).sum(axis=1)
-            if len(points) > m:
-                total[index] += log_noncontact_likelihood(
-                    values[:, m:], self.params.sigma_d).sum(axis=1)
+        params, grids = self.params, self.bank.grids
+        classes = particles.classes.astype(np.int64, copy=False)
+        if len(contacts):
+            log_z = log_normaliser(params.sigma_d, params.sigma_n)
+            total += kernels.contact_log_likelihoods(
+                *grids, classes, particles.rotations, particles.translations,
+                np.ascontiguousarray(contacts, dtype=float),
+                np.ascontiguousarray(normals, dtype=float), params.sigma_d, params.sigma_n,
+                log_z, params.outlier_probability, -OUTLIER_NATS - log_z)
+        if len(noncontacts):
+            chunk = max(1, _CHUNK // len(noncontacts))
+            for start in range(0, len(particles), chunk):
+                part = slice(start, start + chunk)
+                values = kernels.distances(*grids, classes[part], particles.rotations[part],
+                                           particles.translations[part],
+                                           np.ascontiguousarray(noncontacts, dtype=float))
+                total[part] += log_noncontact_likelihood(values, params.sigma_d).sum(axis=1)
         return total
 
     def log_evidence_of(self, particles):
@@ -338,9 +340,8 @@ class ParticleFilter:
             *bank.lookup(features, self.params.neighbour_bins))
         if len(query) == 0:
             return None
-        rotations, translations = align_pairs(
-            (bank.points[classes, first], bank.normals[classes, first],
-             bank.points[classes, second]), (p1[query], n1[query], p2[query]))
+        rotations, translations = kernels.align(bank.frames, bank.points, classes, first,
+                                                second, *local_frames(p1, n1, p2), query)
         candidates = self._screened(
             Particles(classes, rotations, translations, np.zeros(len(query))), old_p, old_n)
         classes, rotations, translations = (candidates.classes, candidates.rotations,
@@ -385,14 +386,10 @@ class ParticleFilter:
         if not budget or len(candidates) <= budget:
             return candidates
         screen = np.unique(np.linspace(0, len(positions) - 1, SCREEN_POINTS).round().astype(int))
-        score = np.zeros(len(candidates))
-        chunk = max(1, _CHUNK // len(screen))
-        for start in range(0, len(candidates), chunk):
-            part = slice(start, start + chunk)
-            rotation, translation = candidates.rotations[part], candidates.translations[part]
-            local = np.einsum("kij,kmi->kmj", rotation,
-                              positions[screen][None] - translation[:, None])
-            score[part] = -np.square(self.bank.evaluate(candidates.classes[part], local, gradients=False)).sum(1)
+        values = kernels.distances(*self.bank.grids, candidates.classes.astype(np.int64),
+                                   candidates.rotations, candidates.translations,
+                                   np.ascontiguousarray(positions[screen]))
+        score = -np.square(values).sum(axis=1)
         return candidates.take(np.sort(np.argpartition(-score, budget - 1)[:budget]))
 
     def _merged(self, new):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ppf import PairTable
+from .ppf import PairTable, rotation_to_x
 from .sdf import grid_layout, interpolate
 
 
@@ -42,6 +42,8 @@ class PriorBank:
     spacings, value_steps : (C,) float
     points, normals : (C, F, 3) float
         Feature points and their unit normals, object frame.
+    frames : (C, F, 3, 3) float
+        The rotation turning each feature normal onto +x (its point-pair frame).
     pairs : PairTable
         Over every class.
     learned : (C,) bool
@@ -76,16 +78,24 @@ class PriorBank:
             tables.append(model.pair_table(distance_step, angle_step_deg, keep=False))
         self.points = np.stack([points for points, _ in features])
         self.normals = np.stack([normals for _, normals in features])
+        classes, count = self.normals.shape[:2]
+        self.frames = rotation_to_x(self.normals.reshape(-1, 3)).reshape(classes, count, 3, 3)
         self.pairs = PairTable.combine(tables)
 
     def __len__(self):
         return len(self.names)
 
     @property
+    def grids(self):
+        """The grid arrays in the order :mod:`~tactile_viz.engine.kernels` takes them."""
+        return (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins,
+                self.spacings, self.value_steps)
+
+    @property
     def nbytes(self) -> int:
         """Bytes of the bank's arrays."""
-        arrays = (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins, self.spacings,
-                  self.value_steps, self.points, self.normals)
+        arrays = (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins,
+                  self.spacings, self.value_steps, self.points, self.normals, self.frames)
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
 
     def evaluate(self, classes, points, gradients=True):

@@ -45,8 +45,8 @@ def test_bank_pairs_are_each_models_table(models):
 
 def test_bank_is_compact(models):
     bank = PriorBank(models, 0.1, 12.0)
-    # Measured: 0.3-0.6 MB a bundled prior (grid 2 bytes a node, pairs 4 bytes a pair).
-    assert bank.nbytes / len(models) < 0.8e6
+    # Measured: 0.4-1.0 MB a bundled prior (grid 5 bytes a node, pairs 4 bytes a pair).
+    assert bank.nbytes / len(models) < 1.2e6
     assert bank.codes.dtype == np.int16 and bank.pairs.classes.dtype == np.uint8
 
 
@@ -76,3 +76,57 @@ def test_first_touch_spawns_at_most_max_particles(models):
     assert set(np.unique(state.particles.classes)) == {0, 1, 2}
     everything = ParticleFilter(PriorLibrary(models), FilterParams(), rng=0)
     assert everything.update(Contact([0.0, 0.0, 3.0], [0.0, 0.0, 1.0])).n_particles == 600
+
+
+@pytest.mark.parametrize("outliers", [0.0, 0.05])
+def test_compiled_likelihood_is_the_numpy_one(models, rng, outliers):
+    """The filter's compiled loops against the bank's numpy interpolation and the
+    likelihood module, for hypotheses of every class, contacts and non-contacts near and
+    beyond the grids."""
+    from scipy.spatial.transform import Rotation
+
+    from tactile_viz.engine.likelihood import (log_contact_likelihood,
+                                               log_noncontact_likelihood)
+    from tactile_viz.engine.particle_filter import Particles
+
+    params = FilterParams(outlier_probability=outliers)
+    particle_filter = ParticleFilter(PriorLibrary(models), params, rng=0)
+    k = 40
+    particles = Particles(rng.integers(0, 3, k), Rotation.random(k, rng).as_matrix(),
+                          rng.normal(size=(k, 3)), np.full(k, -np.log(k)))
+    contacts = rng.uniform(-5, 5, size=(6, 3))
+    normals = Rotation.random(6, rng).apply([0.0, 0.0, 1.0])
+    noncontacts = rng.uniform(-5, 5, size=(4, 3))
+    got = particle_filter.log_likelihood(particles, contacts, normals, noncontacts)
+    local = lambda x: np.einsum("kij,kmi->kmj", particles.rotations,  # noqa: E731
+                                x[None] - particles.translations[:, None])
+    bank = particle_filter.bank
+    values, gradients = bank.evaluate(particles.classes, local(contacts))
+    observed = np.einsum("kij,mi->kmj", particles.rotations, normals)
+    expected = log_contact_likelihood(values, gradients, observed, params.sigma_d,
+                                      params.sigma_n, outliers).sum(axis=1)
+    values, _ = bank.evaluate(particles.classes, local(noncontacts))
+    expected += log_noncontact_likelihood(values, params.sigma_d).sum(axis=1)
+    np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-9)
+
+
+def test_compiled_alignment_is_align_pairs(models, rng):
+    from tactile_viz.engine import kernels
+    from tactile_viz.engine.ppf import align_pairs, local_frames
+
+    bank = PriorBank(models, 0.1, 12.0)
+    classes = rng.integers(0, 3, 30)
+    first, second = rng.integers(0, 200, 30), rng.integers(0, 200, 30)
+    observed = rng.normal(size=(5, 3)), _random_normals(rng, 5), rng.normal(size=(5, 3))
+    query = rng.integers(0, 5, 30)
+    rotations, translations = kernels.align(bank.frames, bank.points, classes, first, second,
+                                            *local_frames(*observed), query)
+    expected = align_pairs((bank.points[classes, first], bank.normals[classes, first],
+                            bank.points[classes, second]), tuple(o[query] for o in observed))
+    np.testing.assert_allclose(rotations, expected[0], atol=1e-9)
+    np.testing.assert_allclose(translations, expected[1], atol=1e-9)
+
+
+def _random_normals(rng, count):
+    normals = rng.normal(size=(count, 3))
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)

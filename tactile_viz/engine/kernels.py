@@ -1,0 +1,196 @@
+"""Compiled inner loops of the likelihood over many hypotheses (numba).
+
+The particle filter scores tens of thousands of hypotheses on tens of observations each
+step. In numpy every operation of the trilinear look-up makes a temporary array of
+``hypotheses x observations`` elements; these loops move each observation into each
+hypothesis's object frame, interpolate its class's grid and add up its log-likelihood in
+one pass, with nothing but the result allocated. They compute exactly what
+:func:`~tactile_viz.engine.sdf.interpolate` and :mod:`~tactile_viz.engine.likelihood` do
+(a test holds them to it).
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+_TINY = 1e-12  # as sdf._TINY: below it a gradient vanishes
+
+
+@njit(cache=True, inline="always")
+def _lookup(codes, gradient_codes, offset, shape, origin, spacing, step, x, y, z):
+    """Value and unnormalised gradient of one grid at one point (see sdf.interpolate)."""
+    px, py, pz = x, y, z
+    upper = (origin[0] + spacing * (shape[0] - 1), origin[1] + spacing * (shape[1] - 1),
+             origin[2] + spacing * (shape[2] - 1))
+    cx = min(max(px, origin[0]), upper[0])
+    cy = min(max(py, origin[1]), upper[1])
+    cz = min(max(pz, origin[2]), upper[2])
+    fx = (cx - origin[0]) / spacing
+    fy = (cy - origin[1]) / spacing
+    fz = (cz - origin[2]) / spacing
+    ix = min(int(fx), shape[0] - 2)
+    iy = min(int(fy), shape[1] - 2)
+    iz = min(int(fz), shape[2] - 2)
+    fx -= ix
+    fy -= iy
+    fz -= iz
+    nz = shape[2]
+    nyz = shape[1] * nz
+    base = offset + ix * nyz + iy * nz + iz
+    value = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for dx in range(2):
+        wx = fx if dx else 1.0 - fx
+        for dy in range(2):
+            wy = fy if dy else 1.0 - fy
+            for dz in range(2):
+                w = wx * wy * (fz if dz else 1.0 - fz)
+                corner = base + dx * nyz + dy * nz + dz
+                value += w * codes[corner]
+                gx += w * gradient_codes[corner, 0]
+                gy += w * gradient_codes[corner, 1]
+                gz += w * gradient_codes[corner, 2]
+    ox, oy, oz = px - cx, py - cy, pz - cz
+    outside = math.sqrt(ox * ox + oy * oy + oz * oz)
+    value = value * step + outside
+    if outside > 0:
+        gx, gy, gz = ox / outside, oy / outside, oz / outside
+    return value, gx, gy, gz
+
+
+@njit(cache=True)
+def contact_log_likelihoods(codes, gradient_codes, offsets, shapes, origins, spacings, steps,
+                            classes, rotations, translations, points, normals, sigma_d,
+                            sigma_n, log_z, outlier_probability, outlier_log_density):
+    """Summed contact log-likelihood of each hypothesis.
+
+    Parameters
+    ----------
+    codes, gradient_codes, offsets, shapes, origins, spacings, steps
+        The prior bank's arrays.
+    classes : (k,) int
+    rotations : (k, 3, 3) float
+    translations : (k, 3) float
+        ``object_to_world`` of each hypothesis.
+    points, normals : (m, 3) float, world frame
+    sigma_d, sigma_n, log_z : float
+    outlier_probability, outlier_log_density : float
+        The mixture's ``eps`` (0: the Gaussian alone) and ``log(exp(-OUTLIER_NATS) / Z)``.
+
+    Returns
+    -------
+    (k,) float
+    """
+    k, m = len(classes), len(points)
+    total = np.zeros(k)
+    keep = math.log1p(-outlier_probability) if outlier_probability > 0 else 0.0
+    flat = math.log(outlier_probability) + outlier_log_density if outlier_probability > 0 else 0.0
+    for i in range(k):
+        c = classes[i]
+        r = rotations[i]
+        t = translations[i]
+        acc = 0.0
+        for j in range(m):
+            dx, dy, dz = points[j, 0] - t[0], points[j, 1] - t[1], points[j, 2] - t[2]
+            # object frame: R^T (x - t); the observed normal: R^T n
+            x = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz
+            y = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
+            z = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
+            nx = r[0, 0] * normals[j, 0] + r[1, 0] * normals[j, 1] + r[2, 0] * normals[j, 2]
+            ny = r[0, 1] * normals[j, 0] + r[1, 1] * normals[j, 1] + r[2, 1] * normals[j, 2]
+            nz = r[0, 2] * normals[j, 0] + r[1, 2] * normals[j, 1] + r[2, 2] * normals[j, 2]
+            value, gx, gy, gz = _lookup(codes, gradient_codes, offsets[c], shapes[c],
+                                        origins[c], spacings[c], steps[c], x, y, z)
+            norm = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if norm > _TINY:
+                gx, gy, gz = gx / norm, gy / norm, gz / norm
+            else:
+                gx, gy, gz = 0.0, 0.0, 1.0
+            error = (gx - nx) ** 2 + (gy - ny) ** 2 + (gz - nz) ** 2
+            gaussian = -0.5 * ((value / sigma_d) ** 2 + error / sigma_n ** 2) - log_z
+            if outlier_probability > 0:
+                a, b = keep + gaussian, flat
+                high = max(a, b)
+                gaussian = high + math.log1p(math.exp(min(a, b) - high))
+            acc += gaussian
+        total[i] = acc
+    return total
+
+
+@njit(cache=True)
+def distances(codes, gradient_codes, offsets, shapes, origins, spacings, steps, classes,
+              rotations, translations, points):
+    """Signed distance of each world point under each hypothesis: (k, m) float."""
+    k, m = len(classes), len(points)
+    out = np.empty((k, m))
+    for i in range(k):
+        c = classes[i]
+        r = rotations[i]
+        t = translations[i]
+        for j in range(m):
+            dx, dy, dz = points[j, 0] - t[0], points[j, 1] - t[1], points[j, 2] - t[2]
+            x = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz
+            y = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
+            z = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
+            out[i, j] = _lookup(codes, gradient_codes, offsets[c], shapes[c], origins[c],
+                                spacings[c], steps[c], x, y, z)[0]
+    return out
+
+
+@njit(cache=True)
+def align(frames, points, classes, first, second, observed_rotations, observed_translations,
+          observed_alpha, query):
+    """Poses putting model pairs onto observed pairs (see :func:`~.ppf.align_frames`).
+
+    Parameters
+    ----------
+    frames : (C, F, 3, 3) float
+        Each feature point's rotation of its normal onto +x.
+    points : (C, F, 3) float
+    classes, first, second : (k,) int
+        Each model pair: its class and feature points.
+    observed_rotations, observed_translations, observed_alpha : (q, 3, 3), (q, 3), (q,)
+        The observed pairs' :func:`~.ppf.local_frames`.
+    query : (k,) int
+        The observed pair of each model pair.
+
+    Returns
+    -------
+    rotations : (k, 3, 3)
+    translations : (k, 3)
+    """
+    k = len(classes)
+    rotations = np.empty((k, 3, 3))
+    translations = np.empty((k, 3))
+    turned = np.empty((3, 3))
+    shifted = np.empty(3)
+    for i in range(k):
+        rm = frames[classes[i], first[i]]
+        p1 = points[classes[i], first[i]]
+        p2 = points[classes[i], second[i]]
+        d0, d1, d2 = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+        alpha_m = -math.atan2(rm[2, 0] * d0 + rm[2, 1] * d1 + rm[2, 2] * d2,
+                              rm[1, 0] * d0 + rm[1, 1] * d1 + rm[1, 2] * d2)
+        q = query[i]
+        rs, ts = observed_rotations[q], observed_translations[q]
+        angle = alpha_m - observed_alpha[q]
+        cos, sin = math.cos(angle), math.sin(angle)
+        for col in range(3):  # R_x(angle) R_m
+            turned[0, col] = rm[0, col]
+            turned[1, col] = cos * rm[1, col] - sin * rm[2, col]
+            turned[2, col] = sin * rm[1, col] + cos * rm[2, col]
+        # object_to_world = T_g(s)^-1 R_x T_g(m): R = R_s^T R_x R_m,
+        # t = R_s^T (-(R_x R_m) p1 - t_s)
+        for row in range(3):
+            shifted[row] = -(turned[row, 0] * p1[0] + turned[row, 1] * p1[1]
+                             + turned[row, 2] * p1[2]) - ts[row]
+        for row in range(3):
+            for col in range(3):
+                rotations[i, row, col] = (rs[0, row] * turned[0, col] + rs[1, row] * turned[1, col]
+                                          + rs[2, row] * turned[2, col])
+            translations[i, row] = (rs[0, row] * shifted[0] + rs[1, row] * shifted[1]
+                                    + rs[2, row] * shifted[2])
+    return rotations, translations
