@@ -14,17 +14,15 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 7. the known/novel decision from the MAP evidence.
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from . import kernels
+from .belief import FilterState, Particles
 from .errors import ObservationError, ParameterError
 from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_likelihood,
-                         log_normaliser,
-                         normalise_log_weights)
+                         log_normaliser, normalise_log_weights)
 from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
@@ -33,85 +31,6 @@ from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
-
-
-@dataclass(frozen=True, eq=False)
-class Particles:
-    """A weighted set of hypotheses.
-
-    Attributes
-    ----------
-    classes : (N,) int
-        Index of each particle's prior in the library.
-    rotations : (N, 3, 3) float
-        ``object_to_world`` rotations.
-    translations : (N, 3) float
-    log_weights : (N,) float
-        Normalised: ``logsumexp(log_weights) == 0``.
-    """
-
-    classes: np.ndarray
-    rotations: np.ndarray
-    translations: np.ndarray
-    log_weights: np.ndarray
-
-    def __len__(self):
-        return len(self.classes)
-
-    def take(self, index):
-        return Particles(self.classes[index], self.rotations[index], self.translations[index],
-                         self.log_weights[index])
-
-    @staticmethod
-    def concatenate(parts):
-        return Particles(*(np.concatenate([getattr(p, name) for p in parts])
-                           for name in ("classes", "rotations", "translations", "log_weights")))
-
-
-@dataclass(frozen=True, eq=False)
-class FilterState:
-    """What a viewer or benchmark reads after a step (immutable).
-
-    Attributes
-    ----------
-    step : int
-    particles : Particles
-    class_names : list of str
-    class_posterior : dict
-        Summed weight per class name.
-    map_class : str or None
-    map_rotation, map_translation : (3, 3), (3,) float or None
-        ``object_to_world`` of the MAP particle.
-    log_evidence : float
-        ``log p(D | z*)`` over all observations.
-    log_threshold : float
-        The known/novel threshold on ``log_evidence``: ``n_pos (log 0.9 - log Z)`` for the
-        contacts plus ``n_neg log 0.5`` for the non-contacts.
-    novel : bool
-        True unless the contacts and the non-contacts each reach their part of the
-        threshold.
-    sampled : int
-        Particles added by point-pair sampling in this step.
-    n_contacts, n_noncontacts : int
-    """
-
-    step: int
-    particles: Particles
-    class_names: list
-    class_posterior: dict
-    map_class: object
-    map_rotation: object
-    map_translation: object
-    log_evidence: float
-    log_threshold: float
-    novel: bool
-    sampled: int
-    n_contacts: int
-    n_noncontacts: int
-
-    @property
-    def n_particles(self):
-        return len(self.particles)
 
 
 class ParticleFilter:
@@ -343,7 +262,7 @@ class ParticleFilter:
         rotations, translations = kernels.align(bank.frames, bank.points, classes, first,
                                                 second, *local_frames(p1, n1, p2), query)
         candidates = self._screened(
-            Particles(classes, rotations, translations, np.zeros(len(query))), old_p, old_n)
+            Particles(classes, rotations, translations, np.zeros(len(query))), old_p)
         classes, rotations, translations = (candidates.classes, candidates.rotations,
                                              candidates.translations)
         log_subset = self.log_likelihood(candidates, subset_p, subset_n)
@@ -378,7 +297,7 @@ class ParticleFilter:
             for start, count in zip(starts, counts)])
         return query[index], classes[index], first[index], second[index]
 
-    def _screened(self, candidates, positions, normals):
+    def _screened(self, candidates, positions):
         """At most ``max_candidates`` candidates: beyond it, those whose surfaces pass
         closest to four of the earlier contacts ``(n, 3)`` (spread along their distance
         order; the distance term of the likelihood), in their order."""
