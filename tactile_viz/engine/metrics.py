@@ -80,6 +80,7 @@ def symmetries(model, count=1000):
     cache = model.__dict__.setdefault("_symmetries", {})
     if count in cache:
         return cache[count]
+    had_exact = "exact" in model.__dict__
     points = surface_samples(model, count, seed=1)
     centre = np.asarray(model.mesh.center_mass)  # on every symmetry axis
     centred = points - centre
@@ -100,6 +101,8 @@ def symmetries(model, count=1000):
         found += [turn for turn in (_rotation(candidate, 2 * np.pi / fold) for fold in _FOLDS)
                   if symmetric(turn)]
     cache[count] = (_closure(found), axis)
+    if not had_exact:  # libigl trees of some 10 MB: not kept for one use
+        model.__dict__.pop("exact", None)
     return cache[count]
 
 

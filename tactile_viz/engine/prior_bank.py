@@ -15,7 +15,7 @@ import ctypes
 import numpy as np
 
 from .ppf import PairTable, rotation_to_x
-from .sdf import grid_layout, interpolate
+from .sdf import SDFGrid, grid_layout, interpolate
 
 
 class PriorBank:
@@ -53,6 +53,8 @@ class PriorBank:
 
     def __init__(self, models, distance_step, angle_step_deg, progress=None):
         models = list(models)
+        self._index = {id(model): c for c, model in enumerate(models)}
+        self._models = models  # keeps the ids above theirs
         self.names = [model.name for model in models]
         self.learned = np.array([model.learned for model in models], dtype=bool)
         layouts = [grid_layout(model.mesh.bounds, model.params.sdf_resolution,
@@ -102,6 +104,15 @@ class PriorBank:
                   self.spacings, self.value_steps, self.points, self.normals, self.frames)
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
 
+    def grid(self, c):
+        """Class ``c``'s :class:`~tactile_viz.engine.sdf.SDFGrid` as views into the bank's
+        arrays (no copy)."""
+        nodes = slice(self.offsets[c], self.offsets[c] + self.shapes[c].prod())
+        shape = tuple(int(n) for n in self.shapes[c])
+        return SDFGrid(self.origins[c], float(self.spacings[c]),
+                       self.codes[nodes].reshape(shape), float(self.value_steps[c]),
+                       self.gradient_codes[nodes].reshape(shape + (3,)))
+
     def evaluate(self, classes, points, gradients=True):
         """Signed distance and outward unit gradient of each class's grid.
 
@@ -138,6 +149,17 @@ def _release_freed_memory():
 
 
 _RECENT = {}  # the last bank built: sessions over one library share it
+
+
+def grid_of(model):
+    """``model``'s SDF grid: a view into the current bank if it holds the model, else the
+    model's own (built or read from the disk cache once). A long session meets many MAP
+    classes; this way their grids are not copied out of the bank one by one."""
+    for bank in _RECENT.values():
+        c = bank._index.get(id(model))
+        if c is not None:
+            return bank.grid(c)
+    return model.sdf
 
 
 def bank_for(models, distance_step, angle_step_deg, progress=None) -> PriorBank:

@@ -99,6 +99,7 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
         and ``trials``: one row per trial.
     """
     from ..engine import prior_bank
+    from ..engine.objects import ObjectModel
     from ..engine.particle_filter import ParticleFilter
     from .trial import run_trial
 
@@ -120,12 +121,17 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     start = time.perf_counter()
     bank = ParticleFilter(library, params).bank
     bank_cached_seconds = time.perf_counter() - start
-    rng = np.random.default_rng([seed, count])
-    touched = rng.choice(len(library), size=min(trials, len(library)), replace=False)
+    # Every prior once before any twice (a small library's objects at several seeds).
+    order = np.random.default_rng([seed, count]).permutation(len(library))
+    touched = [order[i % len(library)] for i in range(trials)]
     rows = []
     for i, index in enumerate(bar(touched, f"trials, {count} priors") if bar else touched):
         model = list(library)[index]
-        result = run_trial(model, library, "gpis-dhd", seed=seed + i, preset=preset,
+        # The truth on a copy of the prior: its exact distance (libigl trees, some 10 MB)
+        # goes with the trial instead of staying on the library's model.
+        truth = ObjectModel(model.name, model.mesh, model.params, model.cache,
+                            model.learned, model.file_to_object)
+        result = run_trial(truth, library, "gpis-dhd", seed=seed + i, preset=preset,
                            max_steps=max_steps)
         rows.append(_trial_row(result, library))
     return {"priors": count, "models_seconds": models_seconds, "bank_seconds": bank_seconds,

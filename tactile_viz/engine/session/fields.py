@@ -5,6 +5,8 @@ how far a probe goes. The callables are classes, not closures, so that a session
 
 import numpy as np
 
+from ..prior_bank import grid_of
+
 
 class PosedSDF:
     """A model's SDF placed at a pose: ``field(points) -> (values (k,), gradients (k, 3))``
@@ -16,7 +18,7 @@ class PosedSDF:
         self.model, self.rotation, self.translation = model, rotation, translation
 
     def __call__(self, points):
-        values, gradients = self.model.sdf.evaluate(
+        values, gradients = grid_of(self.model).evaluate(
             (np.atleast_2d(points) - self.translation) @ self.rotation)
         return values, gradients @ self.rotation.T
 
