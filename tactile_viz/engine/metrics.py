@@ -38,7 +38,7 @@ def surface_samples(model, count=4000, seed=0):
     """Area-uniform surface points of a model, object frame, cached per model and count."""
     cache = model.__dict__.setdefault("_surface_samples", {})
     if (count, seed) not in cache:
-        points, _ = trimesh.sample.sample_surface(model.mesh, count,
+        points, _ = trimesh.sample.sample_surface(_bare(model.mesh), count,
                                                   seed=np.random.default_rng(seed))
         cache[(count, seed)] = points
     return cache[(count, seed)]
@@ -82,7 +82,8 @@ def symmetries(model, count=1000):
         return cache[count]
     had_exact = "exact" in model.__dict__
     points = surface_samples(model, count, seed=1)
-    centre = np.asarray(model.mesh.center_mass)  # on every symmetry axis
+    mesh = _bare(model.mesh)
+    centre = np.asarray(mesh.center_mass)  # on every symmetry axis
     centred = points - centre
     tolerance = SYMMETRY_TOLERANCE * model.length
 
@@ -91,7 +92,7 @@ def symmetries(model, count=1000):
         moved = centred @ rotation.T + centre
         return np.abs(model.exact.signed_distance(moved)).max() <= tolerance
 
-    axes = np.asarray(model.mesh.principal_inertia_vectors)
+    axes = np.asarray(mesh.principal_inertia_vectors)
     found, axis = [], None
     for candidate in axes:
         if axis is None and all(symmetric(_rotation(candidate, np.radians(a))) for a in (45, 30)):
@@ -104,6 +105,13 @@ def symmetries(model, count=1000):
     if not had_exact:  # libigl trees of some 10 MB: not kept for one use
         model.__dict__.pop("exact", None)
     return cache[count]
+
+
+def _bare(mesh):
+    """The mesh without its derived-data cache: what one metric derives (2 MB of triangles
+    and their cross products for a 20,000-face prior) goes with it rather than staying on a
+    library's mesh."""
+    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
 
 
 def _closure(generators, limit=48):

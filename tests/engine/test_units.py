@@ -30,13 +30,13 @@ def metric_mugs():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["mug_small", "mug_large"])
 def test_a_scaled_twin_is_another_class(metric_mugs, name):
-    """Three seeds of 40 steps: the right twin, known, every time; a mug's handle can still
-    be on the wrong side after 40 steps, so the pose is under the threshold in two of
-    three (7 of 10 over seeds 1-5, before and after the 16-bit grids)."""
+    """Three seeds of 60 steps: the right twin, known, every time; a mug's handle can still
+    be on the wrong side by then, so the pose is under the threshold in two of three
+    (measured over seeds 1-4: 4 and 3 of 4)."""
     posed = 0
     for seed in (1, 2, 3):
         session = Session(make_truth(metric_mugs[name], rng=[seed, 0]), metric_mugs, seed=seed)
-        snapshot = session.run(max_steps=40)
+        snapshot = session.run(max_steps=60)
         assert snapshot.map_class == name and not snapshot.novel
         posed += snapshot.pose_error < error_threshold(metric_mugs[name].length)
     assert posed >= 2
