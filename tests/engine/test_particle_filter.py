@@ -203,18 +203,27 @@ def _learned(model, name):
 
 @pytest.mark.slow
 def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
-    """With refine_learned a learned prior's heaviest particle gets the least-squares pose
-    (more evidence than without); a given mesh's poses are left as sampled."""
+    """With refine_learned a given mesh's poses are left as sampled (the same run), and a
+    learned prior's heaviest particles are chosen for the least-squares pose, which never
+    lowers their evidence. (The final MAP evidence of two runs is no test: refining changes
+    the rest of the run, and over seeds 3-8 it came out higher in four of six.)"""
     truth = GroundTruth(bundled["guitar_1"], *random_pose(rng=11, max_translation=1.0))
     evidence = {}
-    for learned in (False, True):
-        model = _learned(bundled["guitar_1"], "guitar") if learned else bundled["guitar_1"]
-        for refine in (False, True):
-            _, state = _run(PriorLibrary([model, bundled["mug_1"]]), truth, 12, seed=3,
-                            params=FilterParams(refine_learned=3 if refine else 0))
-            evidence[learned, refine] = state.log_evidence
-    assert evidence[False, True] == evidence[False, False]
-    assert evidence[True, True] > evidence[True, False]
+    for refine in (False, True):
+        _, state = _run(PriorLibrary([bundled["guitar_1"], bundled["mug_1"]]), truth, 12,
+                        seed=3, params=FilterParams(refine_learned=3 if refine else 0))
+        evidence[refine] = state.log_evidence
+    assert evidence[True] == evidence[False]
+    library = PriorLibrary([_learned(bundled["guitar_1"], "guitar"), bundled["mug_1"]])
+    particle_filter, state = _run(library, truth, 12, seed=3,
+                                  params=FilterParams(refine_learned=3))
+    chosen = particle_filter._to_refine(int(np.argmax(state.particles.log_weights)))
+    assert chosen and all(particle_filter.particles.classes[i] == 0 for i in chosen)
+    for index in chosen:
+        before = particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0]
+        particle_filter._refine(index)
+        after = particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0]
+        assert after >= before
 
 
 def test_merging_sums_the_weights_of_one_pose_and_keeps_classes_apart():
