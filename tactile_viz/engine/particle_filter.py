@@ -26,7 +26,7 @@ from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_li
 from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
-from .prior_bank import PriorBank, bank_for
+from .prior_bank import PriorBank, bank_for, release_freed_memory
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
@@ -184,6 +184,8 @@ class ParticleFilter:
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
+        if self.bank.large:
+            release_freed_memory()
         return self._record(sampled)
 
     # ----------------------------------------------------------------- pieces

@@ -9,7 +9,10 @@ A mixin of :class:`~.loop.Session`: it reads the session's filter, parameters in
 units (``_p``, ``_unit``) and exploration state (``state``).
 """
 
+import functools
+
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
 from ..exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
@@ -88,7 +91,7 @@ class Planner:
             _, gradient = recon.fit.mean(target[None])
             return Aim(target, normalise_rows(gradient)[0], recon.fit.mean_value)
         index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
-        normal = model.mesh.vertex_normals[index] @ rotation.T
+        normal = vertex_normals(model)[index] @ rotation.T
         estimate = ValueOf(self._prior(model, rotation, translation))
         return Aim(surface[index], normalise_rows(normal[None])[0], estimate)
 
@@ -266,3 +269,11 @@ class Planner:
                      else CONTACT_PRECISION * self._filter_unit)
         tolerance = max(4.0 * self.sensor_noise[0], precision)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
+
+
+@functools.lru_cache(maxsize=8)
+def vertex_normals(model):
+    """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh: trimesh
+    would otherwise keep some 3 MB of derived arrays on the library's mesh of every MAP
+    class a long run meets."""
+    return trimesh.Trimesh(model.mesh.vertices, model.mesh.faces, process=False).vertex_normals
