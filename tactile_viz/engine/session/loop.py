@@ -19,28 +19,26 @@ from contextlib import contextmanager
 from typing import Protocol, Union
 
 import numpy as np
-import trimesh
 
 from ..errors import SessionError
 from ..exploration import (STRATEGIES, enforce_contact_moves, first_contact_moves, path_until,
                            rrt_moves)
 from ..library import PriorLibrary
-from ..metrics import directed_hausdorff, pose_difference, surface_samples, two_way_hausdorff
-from ..metrics import pose_error as metric_pose_error
-from ..objects import ObjectModel
+from ..metrics import surface_samples
 from ..observation_file import RecordedStep
 from ..observations import Contact, NonContact
 from ..params import PAPER_SIZE, SessionParams, scaled_lengths
 from ..presets import noise_matched
 from ..particle_filter import ParticleFilter
 from ..simulator import ContactSimulator, GroundTruth
-from ..transforms import random_pose, transform_points
+from ..transforms import transform_points
 from .estimate import Estimation
 from .fields import deepest_inside, free_approach, free_space_points, thin_points
 from .learning import Learning
 from .planner import Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
 from .state import ExplorationState
+from .truth import TruthMetrics, make_truth  # noqa: F401 (make_truth: public here too)
 
 Observation = Union[Contact, NonContact]
 
@@ -71,7 +69,7 @@ def _one_move(path):
     return [path], [result]
 
 
-class Session(Planner, Estimation, Learning):
+class Session(Planner, Estimation, Learning, TruthMetrics):
     """Active exploration of one object with one prior library: Algorithm 2, step by step.
 
     The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
@@ -477,29 +475,6 @@ class Session(Planner, Estimation, Learning):
         self.snapshots.append(snapshot)
         return snapshot
 
-    def _pose_difference(self, model, rotation, translation):
-        """``rotation_error_deg`` and ``translation_error`` of the MAP against the simulated
-        object (None without one, or when the MAP is another shape)."""
-        if self.truth is None:
-            return {}
-        angle, distance = pose_difference(model, rotation, translation, self.truth)
-        return {"rotation_error_deg": angle, "translation_error": distance}
-
-    def _truth_metrics(self, model, rotation, translation, recon, contacts):
-        """Pose error, reconstruction error and truth coverage against the simulated
-        object (None without one; the reconstruction error also while known)."""
-        if self.truth is None:
-            return None, None, None
-        pose_error = metric_pose_error(model, rotation, translation, self.truth,
-                                       self._p.metric_samples)
-        recon_error = None
-        if recon is not None and len(recon.faces):
-            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
-            samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
-            recon_error = float(two_way_hausdorff(samples, self._truth_samples))
-        return (float(pose_error), recon_error,
-                directed_hausdorff(self._truth_samples, contacts))
-
     def save(self, path: str | os.PathLike) -> str | os.PathLike:
         """Save the session (its set-up and its observation history) to an ``.npz`` file;
         see :func:`tactile_viz.engine.persistence.save_session`."""
@@ -515,10 +490,3 @@ class Session(Planner, Estimation, Learning):
         from ..persistence import load_session
 
         return load_session(path, callback)
-
-
-def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0) -> GroundTruth:
-    """The ground truth of a trial: ``model`` at a random pose, translated up to
-    ``max_translation`` size units (a sixth of its longest side each)."""
-    rotation, translation = random_pose(rng, max_translation * model.size_unit)
-    return GroundTruth(model, rotation, translation)

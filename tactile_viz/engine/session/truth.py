@@ -1,0 +1,44 @@
+"""What a simulated trial measures against its ground truth (a mixin of
+:class:`~.loop.Session`), and the ground truth of a trial."""
+
+import trimesh
+
+from ..metrics import directed_hausdorff, pose_difference, two_way_hausdorff
+from ..metrics import pose_error as metric_pose_error
+from ..objects import ObjectModel
+from ..simulator import GroundTruth
+from ..transforms import random_pose
+
+
+class TruthMetrics:
+    """Errors against ``self.truth`` (None without a simulated object)."""
+
+    def _pose_difference(self, model, rotation, translation):
+        """``rotation_error_deg`` and ``translation_error`` of the MAP against the simulated
+        object (None without one, or when the MAP is another shape)."""
+        if self.truth is None:
+            return {}
+        angle, distance = pose_difference(model, rotation, translation, self.truth)
+        return {"rotation_error_deg": angle, "translation_error": distance}
+
+    def _truth_metrics(self, model, rotation, translation, recon, contacts):
+        """Pose error, reconstruction error and truth coverage against the simulated
+        object (None without one; the reconstruction error also while known)."""
+        if self.truth is None:
+            return None, None, None
+        pose_error = metric_pose_error(model, rotation, translation, self.truth,
+                                       self._p.metric_samples)
+        recon_error = None
+        if recon is not None and len(recon.faces):
+            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
+            samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
+            recon_error = float(two_way_hausdorff(samples, self._truth_samples))
+        return (float(pose_error), recon_error,
+                directed_hausdorff(self._truth_samples, contacts))
+
+
+def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0) -> GroundTruth:
+    """The ground truth of a trial: ``model`` at a random pose, translated up to
+    ``max_translation`` size units (a sixth of its longest side each)."""
+    rotation, translation = random_pose(rng, max_translation * model.size_unit)
+    return GroundTruth(model, rotation, translation)
