@@ -69,6 +69,7 @@ class PriorBank:
         self.value_steps = np.empty(len(models))
         features, tables = [], []
         for c, model in enumerate(progress(models) if progress else models):
+            had_exact = "exact" in model.__dict__
             grid = model.load_sdf()
             if grid.shape != tuple(self.shapes[c]):
                 raise RuntimeError(f"prior {model.name!r}: cached grid {grid.shape} is not "
@@ -80,6 +81,8 @@ class PriorBank:
                 grid.origin, grid.spacing, grid.value_step)
             features.append(model.features)
             tables.append(model.pair_table(distance_step, angle_step_deg, keep=False))
+            if not had_exact:  # built only to make the grid or features: libigl trees of
+                model.__dict__.pop("exact", None)  # some 8 MB, a thousand times over
         self.points = np.stack([points for points, _ in features])
         self.normals = np.stack([normals for _, normals in features])
         classes, count = self.normals.shape[:2]

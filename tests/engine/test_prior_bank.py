@@ -130,3 +130,19 @@ def test_compiled_alignment_is_align_pairs(models, rng):
 def _random_normals(rng, count):
     normals = rng.normal(size=(count, 3))
     return normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def test_building_a_bank_does_not_keep_the_exact_distances(tmp_path):
+    """The libigl trees a cold build needs (some 8 MB a prior) go with the build."""
+    import trimesh
+
+    from tactile_viz.engine import ObjectModel
+    from tactile_viz.engine.cache import ArrayCache
+
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    model = ObjectModel.from_arrays(box.vertices, box.faces, "box", cache=ArrayCache(tmp_path))
+    PriorBank([model], 0.1, 12.0)
+    assert "exact" not in model.__dict__
+    model.exact  # a model that had them keeps them
+    PriorBank([model], 0.2, 12.0)
+    assert "exact" in model.__dict__
