@@ -104,3 +104,24 @@ def test_matching_trials_of_another_run_are_reused(tmp_path):
     assert copied["task"]["tag"] == "recommended" and copied["task"]["reused"]
     reused = next(t for t in tasks if t["tag"] == "recommended" and t["seed"] == 1)
     assert (out / f"{task_key(reused)}.json.gz").exists()
+
+
+def test_prior_sweep_measures_whole_trials_on_a_small_library():
+    """bench scaling's prior sweep end to end on 3 priors and 4 short trials (every prior
+    once before any twice), and the projection from two sizes."""
+    from tactile_viz.experiments import prior_scaling
+
+    result = prior_scaling.measure_size(3, trials=4, max_steps=3)
+    rows = result["trials"]
+    assert len(rows) == 4 and rows[3]["object"] == rows[0]["object"]
+    assert len({row["object"] for row in rows[:3]}) == 3
+    assert all(row["steps"] == 3 and row["filter_mean"] > 0 for row in rows)
+    summary = prior_scaling.summary_row(result)
+    assert summary["trials"] == 4 and 0 < summary["bank_megabytes"] < 5
+    assert summary["resident_megabytes"] > 0 and summary["peak_megabytes"] > 0
+    other = {**summary, "priors": 30, "resident_megabytes": summary["resident_megabytes"] + 27,
+             "bank_megabytes": summary["bank_megabytes"] * 10,
+             "filter_mean": summary["filter_mean"] * 2}
+    projected = prior_scaling.projection([summary, other], target=300)
+    assert projected["megabytes_per_prior"] == pytest.approx(1.0)
+    assert projected["update_seconds"] > other["filter_mean"]
