@@ -143,7 +143,7 @@ def distances(codes, gradient_codes, offsets, shapes, origins, spacings, steps, 
 @njit(cache=True)
 def align(frames, points, classes, first, second, observed_rotations, observed_translations,
           observed_alpha, query):
-    """Poses putting model pairs onto observed pairs (see :func:`~.ppf.align_frames`).
+    """Poses putting model pairs onto observed pairs (what :func:`~.ppf.align_pairs` computes).
 
     Parameters
     ----------

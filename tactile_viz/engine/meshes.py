@@ -242,6 +242,13 @@ def _decimated(mesh, source, max_faces):
     return smaller
 
 
+def bare_mesh(mesh):
+    """A copy of ``mesh`` sharing its arrays but not its derived-data cache: what one use
+    derives (2-3 MB of triangles, cross products and normals for a 20,000-face prior) goes
+    with the copy instead of staying on a library's mesh."""
+    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+
+
 def content_hash(mesh):
     """SHA-256 hex digest of a mesh's vertex and face arrays (its identity in caches)."""
     digest = hashlib.sha256()

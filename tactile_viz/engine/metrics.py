@@ -5,6 +5,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from .meshes import bare_mesh
 from .transforms import transform_points
 
 # The paper's success threshold for the pose and reconstruction errors (TWD, for objects
@@ -38,7 +39,7 @@ def surface_samples(model, count=4000, seed=0):
     """Area-uniform surface points of a model, object frame, cached per model and count."""
     cache = model.__dict__.setdefault("_surface_samples", {})
     if (count, seed) not in cache:
-        points, _ = trimesh.sample.sample_surface(_bare(model.mesh), count,
+        points, _ = trimesh.sample.sample_surface(bare_mesh(model.mesh), count,
                                                   seed=np.random.default_rng(seed))
         cache[(count, seed)] = points
     return cache[(count, seed)]
@@ -80,9 +81,8 @@ def symmetries(model, count=1000):
     cache = model.__dict__.setdefault("_symmetries", {})
     if count in cache:
         return cache[count]
-    had_exact = "exact" in model.__dict__
     points = surface_samples(model, count, seed=1)
-    mesh = _bare(model.mesh)
+    mesh = bare_mesh(model.mesh)
     centre = np.asarray(mesh.center_mass)  # on every symmetry axis
     centred = points - centre
     tolerance = SYMMETRY_TOLERANCE * model.length
@@ -94,24 +94,17 @@ def symmetries(model, count=1000):
 
     axes = np.asarray(mesh.principal_inertia_vectors)
     found, axis = [], None
-    for candidate in axes:
-        if axis is None and all(symmetric(_rotation(candidate, np.radians(a))) for a in (45, 30)):
-            axis = candidate
-            continue
-        # A fold's generator (one turn of 2 pi / fold) generates the rest with the closure.
-        found += [turn for turn in (_rotation(candidate, 2 * np.pi / fold) for fold in _FOLDS)
-                  if symmetric(turn)]
+    with model.transient_exact():
+        for candidate in axes:
+            if axis is None and all(symmetric(_rotation(candidate, np.radians(a)))
+                                    for a in (45, 30)):
+                axis = candidate
+                continue
+            # A fold's generator (one turn of 2 pi / fold) generates the rest with the closure.
+            found += [turn for turn in (_rotation(candidate, 2 * np.pi / fold)
+                                        for fold in _FOLDS) if symmetric(turn)]
     cache[count] = (_closure(found), axis)
-    if not had_exact:  # libigl trees of some 10 MB: not kept for one use
-        model.__dict__.pop("exact", None)
     return cache[count]
-
-
-def _bare(mesh):
-    """The mesh without its derived-data cache: what one metric derives (2 MB of triangles
-    and their cross products for a 20,000-face prior) goes with it rather than staying on a
-    library's mesh."""
-    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
 
 
 def _closure(generators, limit=48):

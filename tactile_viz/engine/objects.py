@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
 from functools import cached_property
 from pathlib import Path
@@ -157,6 +158,18 @@ class ObjectModel:
     def exact(self):
         """:class:`~tactile_viz.engine.sdf.ExactDistance` of the mesh."""
         return ExactDistance(self.mesh.vertices, self.mesh.faces)
+
+    @contextmanager
+    def transient_exact(self):
+        """Within the block :attr:`exact` may be built; if it was not there before, it is
+        dropped after (libigl trees of some 8 MB: a library of a thousand priors must not
+        keep one per prior that a grid build or a metric needed once)."""
+        had = "exact" in self.__dict__
+        try:
+            yield
+        finally:
+            if not had:
+                self.__dict__.pop("exact", None)
 
     @cached_property
     def sdf(self):

@@ -204,8 +204,7 @@ class ParticleFilter:
             chosen = np.sort(self.rng.choice(len(chosen), self.params.max_particles,
                                              replace=False))
         c, f, a = chosen // (features * k), (chosen // k) % features, chosen % k
-        points, normals = bank.points[c, f], bank.normals[c, f]
-        rm, _, _ = local_frames(points, normals, points)
+        points, rm = bank.points[c, f], bank.frames[c, f]
         rs, _, _ = local_frames(position[None], normal[None], position[None])
         # object_to_world = T_g(s)^-1 R_x(angle) T_g(m): the feature point onto the contact.
         rotations = rs[0].T @ rotation_about_x(angles)[a] @ rm

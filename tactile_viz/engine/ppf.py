@@ -88,20 +88,14 @@ def rotation_to_x(normals):
 def rotation_about_x(angles):
     """Rotations about +x by angles: (k, 3, 3)."""
     angles = np.atleast_1d(np.asarray(angles, dtype=float))
-    cos, sin = np.cos(angles), np.sin(angles)
-    rotations = np.zeros((len(angles), 3, 3))
-    rotations[:, 0, 0] = 1.0
-    rotations[:, 1, 1], rotations[:, 1, 2] = cos, -sin
-    rotations[:, 2, 1], rotations[:, 2, 2] = sin, cos
-    return rotations
+    return Rotation.from_rotvec(angles[:, None] * [1.0, 0.0, 0.0]).as_matrix()
 
 
-def local_frames(p1, n1, p2, rotation=None):
+def local_frames(p1, n1, p2):
     """The canonical frame of ordered pairs: ``T_g`` and the angle ``alpha``.
 
     ``T_g = (R_g, -R_g p1)`` moves ``p1`` to the origin and turns ``n1`` onto +x; ``alpha``
     is the rotation about x that brings ``T_g p2`` into the half plane ``y > 0, z = 0``.
-    ``rotation``, if given, is ``R_g`` already (``rotation_to_x(n1)``).
 
     Returns
     -------
@@ -109,7 +103,7 @@ def local_frames(p1, n1, p2, rotation=None):
     translation : (k, 3)
     alpha : (k,)
     """
-    rotation = rotation_to_x(n1) if rotation is None else rotation
+    rotation = rotation_to_x(n1)
     translation = -np.einsum("kij,kj->ki", rotation, np.atleast_2d(p1))
     moved = np.einsum("kij,kj->ki", rotation, np.atleast_2d(p2)) + translation
     alpha = -np.arctan2(moved[:, 2], moved[:, 1])
@@ -131,13 +125,8 @@ def align_pairs(model_pairs, observed_pairs):
     rotation : (k, 3, 3)
     translation : (k, 3)
     """
-    return align_frames(local_frames(*model_pairs), local_frames(*observed_pairs))
-
-
-def align_frames(model_frames, observed_frames):
-    """:func:`align_pairs` from the pairs' :func:`local_frames` (each ``(rotation,
-    translation, alpha)`` of k pairs)."""
-    (rm, tm, alpha_m), (rs, ts, alpha_s) = model_frames, observed_frames
+    rm, tm, alpha_m = local_frames(*model_pairs)
+    rs, ts, alpha_s = local_frames(*observed_pairs)
     # object_to_world = T_g(s)^-1  R_x(alpha_m - alpha_s)  T_g(m)
     rx = rotation_about_x(alpha_m - alpha_s)
     rs_inv = np.transpose(rs, (0, 2, 1))

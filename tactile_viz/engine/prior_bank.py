@@ -2,15 +2,16 @@
 
 The filter's cost and memory grew with the number of priors because each prior was a
 separate object with float64 grids and its own point-pair table, visited in a Python loop.
-A :class:`PriorBank` holds all of them together: the SDF grids' 16-bit codes one after
-another in one array (interpolated for any mix of priors in one call), the feature points
-stacked, and one point-pair table over all priors. It is built once from the models' disk
+A :class:`PriorBank` holds all of them together: the SDF grids' codes (16-bit values, 8-bit
+gradients) one after another, interpolated for any mix of priors in one call; the feature
+points stacked; and one point-pair table over all priors. It is built once from the models' disk
 cache, so a library of a thousand priors loads in seconds and holds some 0.8 MB a prior.
 """
 
 from __future__ import annotations
 
 import ctypes
+from functools import cached_property
 
 import numpy as np
 
@@ -69,8 +70,10 @@ class PriorBank:
         self.value_steps = np.empty(len(models))
         features, tables = [], []
         for c, model in enumerate(progress(models) if progress else models):
-            had_exact = "exact" in model.__dict__
-            grid = model.load_sdf()
+            with model.transient_exact():
+                grid = model.load_sdf()
+                features.append(model.features)
+                tables.append(model.pair_table(distance_step, angle_step_deg, keep=False))
             if grid.shape != tuple(self.shapes[c]):
                 raise RuntimeError(f"prior {model.name!r}: cached grid {grid.shape} is not "
                                    f"the expected {tuple(self.shapes[c])}")
@@ -79,10 +82,6 @@ class PriorBank:
             self.gradient_codes[nodes] = grid.gradient_codes.reshape(-1, 3)
             self.origins[c], self.spacings[c], self.value_steps[c] = (
                 grid.origin, grid.spacing, grid.value_step)
-            features.append(model.features)
-            tables.append(model.pair_table(distance_step, angle_step_deg, keep=False))
-            if not had_exact:  # built only to make the grid or features: libigl trees of
-                model.__dict__.pop("exact", None)  # some 8 MB, a thousand times over
         self.points = np.stack([points for points, _ in features])
         self.normals = np.stack([normals for _, normals in features])
         classes, count = self.normals.shape[:2]
@@ -105,9 +104,9 @@ class PriorBank:
         return (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins,
                 self.spacings, self.value_steps)
 
-    @property
+    @cached_property
     def nbytes(self) -> int:
-        """Bytes of the bank's arrays."""
+        """Bytes of the bank's arrays (fixed once built)."""
         arrays = (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins,
                   self.spacings, self.value_steps, self.points, self.normals, self.frames)
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
@@ -121,7 +120,7 @@ class PriorBank:
                        self.codes[nodes].reshape(shape), float(self.value_steps[c]),
                        self.gradient_codes[nodes].reshape(shape + (3,)))
 
-    def evaluate(self, classes, points, gradients=True):
+    def evaluate(self, classes, points):
         """Signed distance and outward unit gradient of each class's grid.
 
         Parameters
@@ -129,17 +128,15 @@ class PriorBank:
         classes : (k,) int
         points : (k, m, 3) float
             Points in the object frame of their row's class.
-        gradients : bool
-            False: the distances only.
 
         Returns
         -------
         values : (k, m) float
-        gradients : (k, m, 3) float (only if ``gradients``)
+        gradients : (k, m, 3) float
         """
         c = np.asarray(classes)[:, None]
-        return interpolate(self.codes, self.gradient_codes, self.offsets[c], self.shapes[c], self.origins[c],
-                           self.spacings[c], self.value_steps[c], points, gradients)
+        return interpolate(self.codes, self.gradient_codes, self.offsets[c], self.shapes[c],
+                           self.origins[c], self.spacings[c], self.value_steps[c], points)
 
     def lookup(self, features, neighbours=0):
         """Point pairs of every class that match observed features (see

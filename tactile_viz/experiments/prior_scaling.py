@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import concurrent.futures
 import multiprocessing
+import os
 import resource
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -47,15 +49,27 @@ def library_of_size(count, seed=0):
     return PriorLibrary(models)
 
 
+def growth_exponent(sizes, seconds):
+    """Least-squares slope of ``log t`` against ``log n`` (NaN with fewer than 2 points)."""
+    sizes, seconds = np.asarray(sizes, float), np.asarray(seconds, float)
+    keep = (sizes > 0) & (seconds > 0)
+    if keep.sum() < 2:
+        return float("nan")
+    slope, _ = np.polyfit(np.log(sizes[keep]), np.log(seconds[keep]), 1)
+    return float(slope)
+
+
 def _peak_megabytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3  # Linux: kB
 
 
 def _resident_megabytes():
-    from .scaling import resident_bytes
-
-    resident = resident_bytes()
-    return None if resident is None else resident / 1e6
+    """This process's resident memory now (Linux ``/proc``; None elsewhere)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return pages * os.sysconf("SC_PAGE_SIZE") / 1e6
 
 
 def _filter_params(library, preset):
@@ -65,7 +79,7 @@ def _filter_params(library, preset):
     return scaled_lengths(session_preset(preset).filter, library.reference_size / PAPER_SIZE)
 
 
-def _trial_row(result, library):
+def _trial_row(result):
     from ..engine.metrics import error_threshold
 
     steps = result["steps"]
@@ -133,7 +147,7 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
                             model.learned, model.file_to_object)
         result = run_trial(truth, library, "gpis-dhd", seed=seed + i, preset=preset,
                            max_steps=max_steps)
-        rows.append(_trial_row(result, library))
+        rows.append(_trial_row(result))
     return {"priors": count, "models_seconds": models_seconds, "bank_seconds": bank_seconds,
             "bank_cached_seconds": bank_cached_seconds, "bank_megabytes": bank.nbytes / 1e6,
             "resident_megabytes": _resident_megabytes(), "peak_megabytes": _peak_megabytes(),
@@ -173,8 +187,6 @@ def summary_row(result):
 def projection(rows, target=10_000):
     """Memory and update time at ``target`` priors from a least-squares line through the
     measured memory and a power law through the mean update times."""
-    from .scaling import growth_exponent
-
     priors = np.array([row["priors"] for row in rows], float)
     if len(priors) < 2:
         return None

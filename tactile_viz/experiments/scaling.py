@@ -12,37 +12,17 @@
 """
 
 import json
-import os
 import sys
 from pathlib import Path
 
-import numpy as np
 
 from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
                    output_dir, seed_int)
 from ..engine.files import write_atomic
 from . import prior_scaling
+from .prior_scaling import growth_exponent
 from .aggregate import markdown_table
 from .paper import machine_description
-
-
-def growth_exponent(sizes, seconds):
-    """Least-squares slope of ``log t`` against ``log n`` (NaN with fewer than 2 points)."""
-    sizes, seconds = np.asarray(sizes, float), np.asarray(seconds, float)
-    keep = (sizes > 0) & (seconds > 0)
-    if keep.sum() < 2:
-        return float("nan")
-    slope, _ = np.polyfit(np.log(sizes[keep]), np.log(seconds[keep]), 1)
-    return float(slope)
-
-
-def resident_bytes():
-    """This process's resident memory now (Linux ``/proc``; None elsewhere)."""
-    try:
-        pages = int(Path("/proc/self/statm").read_text().split()[1])
-    except (OSError, ValueError, IndexError):
-        return None
-    return pages * os.sysconf("SC_PAGE_SIZE")
 
 
 def build_parser():

@@ -224,6 +224,17 @@ def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
         particle_filter._refine(index)
         after = particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0]
         assert after >= before
+    # The refinement does move a pose: knocked 0.2 units off, the heaviest comes back.
+    from tactile_viz.engine.particle_filter import Particles
+
+    index, particles = chosen[0], particle_filter.particles
+    translations = particles.translations.copy()
+    translations[index] += [0.2, 0.0, 0.0]
+    particle_filter.particles = Particles(particles.classes, particles.rotations, translations,
+                                          particles.log_weights)
+    knocked = particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0]
+    particle_filter._refine(index)
+    assert particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0] > knocked
 
 
 def test_merging_sums_the_weights_of_one_pose_and_keeps_classes_apart():

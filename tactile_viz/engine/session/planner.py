@@ -12,11 +12,11 @@ units (``_p``, ``_unit``) and exploration state (``state``).
 import functools
 
 import numpy as np
-import trimesh
 from scipy.spatial import cKDTree
 
 from ..exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                            path_until, raster_path, variance_target, widest_gap)
+from ..meshes import bare_mesh
 from ..metrics import directed_hausdorff
 from ..observations import Contact
 from ..sdf import normalise_rows
@@ -273,7 +273,6 @@ class Planner:
 
 @functools.lru_cache(maxsize=8)
 def vertex_normals(model):
-    """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh: trimesh
-    would otherwise keep some 3 MB of derived arrays on the library's mesh of every MAP
-    class a long run meets."""
-    return trimesh.Trimesh(model.mesh.vertices, model.mesh.faces, process=False).vertex_normals
+    """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
+    :func:`~tactile_viz.engine.meshes.bare_mesh`): a long run meets many MAP classes."""
+    return bare_mesh(model.mesh).vertex_normals
