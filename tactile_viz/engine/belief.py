@@ -67,6 +67,9 @@ class FilterState:
     sampled : int
         Particles added by point-pair sampling in this step.
     n_contacts, n_noncontacts : int
+    map_index : int or None
+        The MAP's index in ``particles``: the heaviest, unless contending classes were
+        told apart by their fit (:mod:`.discrimination`).
     """
 
     step: int
@@ -82,6 +85,7 @@ class FilterState:
     sampled: int
     n_contacts: int
     n_noncontacts: int
+    map_index: object = None
 
     @property
     def n_particles(self):

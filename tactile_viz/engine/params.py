@@ -145,6 +145,15 @@ class FilterParams:
         learned home chair the MAP's normals missed the contacts' by a median 33-39 degrees,
         against 8.5 on the bundled chair), and the novelty test failed at them.
     refine_iterations : int
+    contenders : int
+        Beyond the paper (0 off), for libraries of near twins (:mod:`.discrimination`):
+        the heaviest particle of each of this many heaviest classes holding at least
+        ``contender_mass`` of the posterior, and this many classes that fit the contacts
+        best at the MAP's pose, have their poses refined (``refine_iterations`` steps); a
+        lookalike that fits better than every contender joins the belief, and while
+        several classes contend the MAP is the one whose evidence is highest.
+    contender_mass : float
+        The share of the posterior a class must hold to contend (0-1).
     outlier_probability : float
         Beyond the paper (0 off, the paper's Gaussian): the chance that a contact is a
         wrong reading, a mixture with a flat density (see :mod:`.likelihood`), so that one
@@ -174,6 +183,8 @@ class FilterParams:
     refine_map: bool = False
     refine_learned: int = 3
     refine_iterations: int = 10
+    contenders: int = _ranged(4, 0, 50)
+    contender_mass: float = _ranged(0.05, 0.0, 1.0)
     outlier_probability: float = _ranged(0.0, 0.0, 0.49)
     n_features: int = 200
     sdf_resolution: int = 64
@@ -181,7 +192,7 @@ class FilterParams:
     def __post_init__(self):
         integers = ("n_s", "init_rotations", "max_new_per_class", "max_particles",
                     "max_new_particles", "n_features", "refine_iterations", "neighbour_bins",
-                    "max_candidates",
+                    "max_candidates", "contenders",
                     "sdf_resolution", "refine_learned")
         for item in fields(self):
             value = getattr(self, item.name)
@@ -217,6 +228,10 @@ class FilterParams:
         if self.refine_learned < 0:
             raise ParameterError("refine_learned must be at least 0 (0: off), "
                                  f"got {self.refine_learned!r}")
+        if self.contenders < 0:
+            raise ParameterError(f"contenders must be at least 0 (0: off), got {self.contenders!r}")
+        if not 0 <= self.contender_mass <= 1:
+            raise ParameterError(f"contender_mass must lie in [0, 1], got {self.contender_mass!r}")
         if self.max_candidates < 0:
             raise ParameterError("max_candidates must be at least 0 (0: all), "
                                  f"got {self.max_candidates!r}")

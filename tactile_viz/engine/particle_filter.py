@@ -11,7 +11,9 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 5. optionally a local refinement of the MAP pose and of each learned prior's heaviest
    particles, in place;
 6. optionally, particles whose poses lie within a merge tolerance of each other merged;
-7. the known/novel decision from the MAP evidence.
+7. beyond the paper, when several classes hold a share of the posterior, each one's
+   heaviest particle refined and the MAP the one that fits best;
+8. the known/novel decision from the MAP evidence.
 """
 
 import numpy as np
@@ -26,6 +28,7 @@ from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_li
 from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
+from .discrimination import discriminate
 from .prior_bank import PriorBank, bank_for, release_freed_memory
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
@@ -184,9 +187,10 @@ class ParticleFilter:
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
+        chosen = self._discriminate() if len(self.contact_positions) >= 3 else None
         if self.bank.large:
             release_freed_memory()
-        return self._record(sampled)
+        return self._record(sampled, chosen)
 
     # ----------------------------------------------------------------- pieces
     def _initial_particles(self, position, normal):
@@ -370,6 +374,13 @@ class ParticleFilter:
         self.particles = Particles(self.particles.classes, rotations, translations,
                                    normalise_log_weights(log_weights))
 
+    def _discriminate(self):
+        """Contending classes' fits compared (:func:`.discrimination.discriminate`): the
+        belief it returns replaces this one; the index is the MAP, or None for the heaviest."""
+        particles, chosen = discriminate(self, self.particles)
+        self.particles = particles
+        return chosen
+
     def _trimmed_contact_test(self, best):
         """The novelty test's contact part without the worst ``ceil(eps n)`` contacts of
         the MAP (``eps = outlier_probability``): ``(their log-likelihood, its threshold)``.
@@ -386,7 +397,7 @@ class ParticleFilter:
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
 
-    def _record(self, sampled):
+    def _record(self, sampled, chosen=None):
         params = self.params
         n_pos, n_neg = len(self.contact_positions), len(self.noncontact_positions)
         contact_threshold = n_pos * (np.log(params.known_fraction)
@@ -397,7 +408,7 @@ class ParticleFilter:
             state = FilterState(self.step_count, None, self.class_names, {}, None, None, None,
                                 -np.inf, threshold, False, 0, n_pos, n_neg)
         else:
-            index = int(np.argmax(self.particles.log_weights))
+            index = int(np.argmax(self.particles.log_weights)) if chosen is None else chosen
             best = self.particles.take([index])
             on_contacts = self.log_likelihood(best, self.contact_positions,
                                               self.contact_normals)[0]
@@ -415,7 +426,7 @@ class ParticleFilter:
                 self.step_count, self.particles, self.class_names, posterior,
                 self.class_names[self.particles.classes[index]],
                 self.particles.rotations[index].copy(), self.particles.translations[index].copy(),
-                float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg)
+                float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg, index)
         self.state = state
         return state
 

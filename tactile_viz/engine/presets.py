@@ -19,9 +19,9 @@ from .params import FilterParams, SessionParams, _check_real
 PRESETS = {
     # Coarser grids and fewer feature points: about half the time per step.
     "fast": FilterParams(n_features=120, sdf_resolution=48, n_s=15, max_new_per_class=800),
-    # The paper's values.
-    "paper": FilterParams(),
-    # The paper's values plus the local refinement of the MAP pose (beyond the paper).
+    # The paper's values (without the discrimination of near twins, which is beyond it).
+    "paper": FilterParams(contenders=0),
+    # The default filter plus the local refinement of the MAP pose (beyond the paper).
     "refined": FilterParams(refine_map=True),
     # Finer grids, neighbour-bin look-up and MAP refinement.
     "accurate": FilterParams(n_features=300, sdf_resolution=96, neighbour_bins=1,

@@ -123,13 +123,14 @@ def test_contact_normal_is_renormalised():
 
 
 def test_presets_and_parameter_validation():
-    assert PRESETS["paper"] == FilterParams()
+    assert PRESETS["paper"] == FilterParams(contenders=0)
     assert preset("fast").n_features < FilterParams().n_features
     assert preset("accurate").refine_map
     with pytest.raises(ValueError, match="unknown preset"):
         preset("fastest")
     for bad in [dict(sigma_d=-1.0), dict(sigma_n=0.0), dict(n_s=0), dict(lam=1.5),
-                dict(sigma_d=float("nan")), dict(neighbour_bins=2)]:
+                dict(sigma_d=float("nan")), dict(neighbour_bins=2), dict(contenders=-1),
+                dict(contender_mass=1.5)]:
         with pytest.raises(ValueError):
             FilterParams(**bad)
     with pytest.raises(ValueError, match="unknown"):

@@ -1,0 +1,86 @@
+"""Point-to-plane Gauss-Newton refinement of several poses at once.
+
+Each pose ``(R, t)`` maps its class's object frame into the world. The residual of a
+contact ``p`` is the class's signed distance at ``x = R^T (p - t)``; a non-contact adds
+``min(s(x), 0)`` (it only counts inside the shape). A step turns the pose by a small
+rotation ``w`` about the contacts' centre ``c`` and shifts it by ``d``; with the world-frame
+gradient ``n = R grad s(x)`` and ``a = p - c`` the residual's derivative is
+``-(a x n, n) . (w, d)``, so the step solves the damped normal equations
+``(J^T J + mu diag(J^T J)) (w, d) = -J^T r`` (Levenberg-Marquardt). A step that does not
+lower a pose's sum of squares is undone and its damping raised.
+"""
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+_DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
+_FLOOR = 1e-9  # added to that diagonal: a direction no point constrains stays put
+
+
+def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
+                 iterations=10):
+    """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(classes (k,), points (k, m, 3))`` -> ``values (k, m), gradients
+        (k, m, 3)``, signed distance and outward gradient in each class's object frame
+        (:meth:`~tactile_viz.engine.prior_bank.PriorBank.evaluate`).
+    classes : (k,) int
+    rotations : (k, 3, 3) float
+        Object-to-world rotations.
+    translations : (k, 3) float, world frame
+    contacts : (m, 3) float, world frame
+        At least one.
+    noncontacts : (q, 3) float, world frame, optional
+    iterations : int
+        Gauss-Newton steps.
+
+    Returns
+    -------
+    rotations : (k, 3, 3) float
+    translations : (k, 3) float
+        The refined poses; a pose whose fit no step improved is returned unchanged.
+    misfit : (k,) float, squared length units
+        Their sum of squared residuals.
+    """
+    contacts = np.asarray(contacts, dtype=float)
+    noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
+    points = np.vstack([contacts, noncontacts])
+    inside_only = np.arange(len(points)) >= len(contacts)
+    centre = contacts.mean(axis=0)
+    arm = points - centre  # a = p - c, (m + q, 3)
+    classes = np.asarray(classes)
+    rotations, translations = np.array(rotations, float), np.array(translations, float)
+
+    def residuals(rotations, translations):
+        local = np.einsum("kij,mi->kmj", rotations, points) - np.einsum(
+            "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
+        values, gradients = evaluate(classes, local)
+        active = ~inside_only | (values < 0)
+        values = np.where(active, values, 0.0)
+        normals = np.einsum("kij,kmj->kmi", rotations, gradients) * active[..., None]
+        jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)
+        return values, jacobian
+
+    values, jacobian = residuals(rotations, translations)
+    cost = np.square(values).sum(axis=1)
+    damping = np.full(len(classes), _DAMPING)
+    for _ in range(iterations):
+        normal = np.einsum("kmi,kmj->kij", jacobian, jacobian)
+        diagonal = np.einsum("kii->ki", normal) + _FLOOR
+        lhs = normal + (damping[:, None] * diagonal)[:, :, None] * np.eye(6)
+        step = np.linalg.solve(lhs, -np.einsum("kmi,km->ki", jacobian, values)[..., None])[..., 0]
+        turn = Rotation.from_rotvec(step[:, :3]).as_matrix()
+        new_rotations = turn @ rotations
+        new_translations = (np.einsum("kij,kj->ki", turn, translations - centre) + centre
+                            + step[:, 3:])
+        new_values, new_jacobian = residuals(new_rotations, new_translations)
+        new_cost = np.square(new_values).sum(axis=1)
+        better = new_cost < cost
+        rotations[better], translations[better] = new_rotations[better], new_translations[better]
+        values[better], jacobian[better], cost[better] = (new_values[better],
+                                                          new_jacobian[better], new_cost[better])
+        damping = np.where(better, damping / 3, damping * 10)
+    return rotations, translations, cost
