@@ -16,7 +16,8 @@ class's refined RMS distance to the contacts was about 0.01 size units, its twin
    contacts at the MAP's pose, if within ``sigma_d`` RMS (twins in a shared frame:
    variants, canonically aligned data sets);
 3. all their poses are refined to the least squared distance to the contacts (plus the
-   depth of non-contacts inside), :func:`.pose_refinement.refine_poses`;
+   depth of non-contacts inside; with ``outlier_probability`` the farthest such fraction
+   of the contacts left out), :func:`.pose_refinement.refine_poses`;
 4. the contenders move to their refined poses, each weight times its likelihood ratio; a
    lookalike that fits better than every contender joins the belief with the paper's
    relative weight against the MAP;
@@ -96,7 +97,8 @@ def discriminate(pf, particles):
     try:
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, candidates.classes, candidates.rotations, candidates.translations,
-            pf.contact_positions, pf.noncontact_positions, params.refine_iterations)
+            pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
+            trim=params.outlier_probability)
     except np.linalg.LinAlgError:
         return particles, None
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)

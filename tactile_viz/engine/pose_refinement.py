@@ -7,7 +7,9 @@ rotation ``w`` about the contacts' centre ``c`` and shifts it by ``d``; with the
 gradient ``n = R grad s(x)`` and ``a = p - c`` the residual's derivative is
 ``-(a x n, n) . (w, d)``, so the step solves the damped normal equations
 ``(J^T J + mu diag(J^T J)) (w, d) = -J^T r`` (Levenberg-Marquardt). A step that does not
-lower a pose's sum of squares is undone and its damping raised.
+lower a pose's sum of squares is undone and its damping raised. With ``trim`` the
+``ceil(trim m)`` contacts farthest from each pose are left out of its sum (trimmed least
+squares: a wrong reading cannot pull the pose).
 """
 
 import numpy as np
@@ -18,7 +20,7 @@ _FLOOR = 1e-9  # added to that diagonal: a direction no point constrains stays p
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
-                 iterations=10):
+                 iterations=10, trim=0.0):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -36,6 +38,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     noncontacts : (q, 3) float, world frame, optional
     iterations : int
         Gauss-Newton steps.
+    trim : float
+        Fraction of the contacts (the farthest from each pose) left out, 0-0.5.
 
     Returns
     -------
@@ -49,6 +53,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
     points = np.vstack([contacts, noncontacts])
     inside_only = np.arange(len(points)) >= len(contacts)
+    drop = int(np.ceil(trim * len(contacts)))
     centre = contacts.mean(axis=0)
     arm = points - centre  # a = p - c, (m + q, 3)
     classes = np.asarray(classes)
@@ -59,6 +64,9 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
         values, gradients = evaluate(classes, local)
         active = ~inside_only | (values < 0)
+        if drop:
+            farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]
+            np.put_along_axis(active, farthest, False, axis=1)
         values = np.where(active, values, 0.0)
         normals = np.einsum("kij,kmj->kmi", rotations, gradients) * active[..., None]
         jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)

@@ -156,3 +156,17 @@ def test_the_filter_tells_twins_apart_over_seeds(twins):
 
 def test_the_paper_preset_does_not_discriminate():
     assert preset("paper").contenders == 0 and FilterParams().contenders > 0
+
+
+def test_trimming_leaves_a_wrong_reading_out(rng):
+    contacts = box_points(rng, 40)
+    contacts[0] += [0.0, 0.0, 1.5]  # one reading far off the surface
+    turn = Rotation.from_rotvec([0.0, np.radians(3), 0.0]).as_matrix()
+    plain, shift, _ = refine_poses(box_sdf, [0], turn[None], [[0.05, 0, 0]], contacts,
+                                   iterations=20)
+    trimmed, trimmed_shift, misfit = refine_poses(box_sdf, [0], turn[None], [[0.05, 0, 0]],
+                                                  contacts, iterations=20, trim=0.02)
+    np.testing.assert_allclose(trimmed[0], np.eye(3), atol=1e-5)
+    np.testing.assert_allclose(trimmed_shift[0], 0, atol=1e-5)
+    assert misfit[0] < 1e-9
+    assert np.abs(shift[0]).max() > 1e-3  # the untrimmed fit is pulled off
