@@ -15,6 +15,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 
 from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
                    output_dir, seed_int)
@@ -68,7 +69,7 @@ def plot(contact_rows, exponents, prior_rows, path):
     from .plots import _pyplot
 
     plt = _pyplot()
-    panels = (1 if contact_rows else 0) + (2 if prior_rows else 0)
+    panels = (1 if contact_rows else 0) + (3 if prior_rows else 0)
     figure, axes = plt.subplots(1, max(panels, 1), figsize=(5 * max(panels, 1), 4),
                                 squeeze=False)
     axes = list(axes[0])
@@ -105,9 +106,28 @@ def plot(contact_rows, exponents, prior_rows, path):
         axis.set_ylabel("megabytes")
         axis.legend(fontsize=7)
         axis.set_title("memory vs number of priors", fontsize=10)
+        axis = axes.pop(0)
+        _plot_outcomes(axis, prior_rows)
     figure.tight_layout()
     figure.savefig(path, dpi=80)
     plt.close(figure)
+
+
+def _plot_outcomes(axis, prior_rows):
+    """Stacked bars: the share of trials right, wrong but indistinct, and wrong, per size."""
+    labels = [f"{row['priors']:,}" for row in prior_rows]
+    right = np.array([row["right"] / row["trials"] for row in prior_rows])
+    indistinct = np.array([row["indistinct"] / row["trials"] for row in prior_rows])
+    axis.bar(labels, right, color="tab:green", label="right class and pose")
+    axis.bar(labels, indistinct, bottom=right, color="tab:orange",
+             label="wrong but indistinct")
+    axis.bar(labels, 1 - right - indistinct, bottom=right + indistinct, color="tab:red",
+             label="wrong")
+    axis.set_ylim(0, 1)
+    axis.set_xlabel("priors in the library")
+    axis.set_ylabel(f"share of trials ({prior_rows[0]['trials']} a size)")
+    axis.legend(fontsize=7, loc="lower left")
+    axis.set_title("outcome vs number of priors", fontsize=10)
 
 
 def contact_section(args):
