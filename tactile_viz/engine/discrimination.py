@@ -112,7 +112,8 @@ def discriminate(pf, particles):
     all_rotations, all_translations = particles.rotations.copy(), particles.translations.copy()
     all_rotations[held], all_translations[held] = rotations[:n], translations[:n]
     log_weights = particles.log_weights.copy()
-    log_weights[held] += after[:n] - before
+    ratio = after[:n] - before
+    log_weights[held] += np.where(np.isfinite(ratio), ratio, 0.0)
     # Lookalikes: the paper's new-particle weight, relative to the (refined) MAP.
     joined = Particles(candidates.classes[joining], rotations[joining], translations[joining],
                        log_weights[heaviest] + after[n:] - after[0])

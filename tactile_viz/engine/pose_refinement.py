@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
-_FLOOR = 1e-9  # added to that diagonal: a direction no point constrains stays put
+_FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothing constrains stays put
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
@@ -77,7 +77,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     damping = np.full(len(classes), _DAMPING)
     for _ in range(iterations):
         normal = np.einsum("kmi,kmj->kij", jacobian, jacobian)
-        diagonal = np.einsum("kii->ki", normal) + _FLOOR
+        diagonal = np.einsum("kii->ki", normal)
+        diagonal = diagonal + _FLOOR * diagonal.max(axis=1, keepdims=True) + np.finfo(float).tiny
         lhs = normal + (damping[:, None] * diagonal)[:, :, None] * np.eye(6)
         step = np.linalg.solve(lhs, -np.einsum("kmi,km->ki", jacobian, values)[..., None])[..., 0]
         turn = Rotation.from_rotvec(step[:, :3]).as_matrix()

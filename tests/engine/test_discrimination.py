@@ -17,15 +17,15 @@ from tactile_viz.engine.presets import preset
 HALF = np.array([1.0, 2.0, 3.0])  # half-extents of the test box
 
 
-def box_sdf(classes, points):
-    """Exact signed distance of an axis-aligned box, and its gradient by central
-    differences: the ``evaluate`` that :func:`refine_poses` takes."""
+def box_sdf(classes, points, scale=1.0):
+    """Exact signed distance of an axis-aligned box (half-extents ``HALF * scale``), and
+    its gradient by central differences: the ``evaluate`` that :func:`refine_poses` takes."""
     def value(x):
-        q = np.abs(x) - HALF
+        q = np.abs(x) - HALF * scale
         return (np.linalg.norm(np.maximum(q, 0), axis=-1)
                 + np.minimum(q.max(axis=-1), 0))
 
-    step = 1e-6
+    step = 1e-6 * scale
     gradients = np.stack([(value(points + step * e) - value(points - step * e)) / (2 * step)
                           for e in np.eye(3)], axis=-1)
     return value(points), gradients
@@ -39,14 +39,17 @@ def box_points(rng, count):
     return points
 
 
-def test_refinement_recovers_perturbed_poses(rng):
-    contacts = box_points(rng, 60)
+@pytest.mark.parametrize("scale", [1e-4, 1.0, 1e3])
+def test_refinement_recovers_perturbed_poses(rng, scale):
+    """From 4 degrees and 2% of the size off, at any size."""
+    contacts = box_points(rng, 60) * scale
     turns = Rotation.from_rotvec(rng.normal(scale=np.radians(4), size=(3, 3))).as_matrix()
-    shifts = rng.normal(scale=0.1, size=(3, 3))
-    rotations, translations, _ = refine_poses(box_sdf, np.zeros(3, int), turns, shifts, contacts,
-                                           iterations=20)
+    shifts = rng.normal(scale=0.1, size=(3, 3)) * scale
+    rotations, translations, _ = refine_poses(lambda c, x: box_sdf(c, x, scale),
+                                              np.zeros(3, int), turns, shifts, contacts,
+                                              iterations=20)
     np.testing.assert_allclose(rotations, np.broadcast_to(np.eye(3), (3, 3, 3)), atol=1e-5)
-    np.testing.assert_allclose(translations, 0, atol=1e-5)
+    np.testing.assert_allclose(translations / scale, 0, atol=1e-5)
 
 
 def test_refinement_keeps_a_fitting_pose_and_survives_one_contact(rng):
