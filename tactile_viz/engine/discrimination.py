@@ -8,7 +8,7 @@ the other back. The evidence cannot tell them apart either: at ``sigma_d`` of 8%
 size their distance terms differ by a fraction of a nat, less than what the broad normal
 and non-contact terms vary. Their best fits still differ (on the bench's variants the true
 class's refined RMS distance to the contacts was about 0.01 size units, its twins'
-0.02-0.09), so each step:
+0.02-0.13), so each step:
 
 1. the contenders are the MAP particle and the heaviest particle of each of the
    ``contenders`` heaviest classes holding at least ``contender_mass`` of the posterior;
@@ -18,12 +18,14 @@ class's refined RMS distance to the contacts was about 0.01 size units, its twin
 3. all their poses are refined to the least squared distance to the contacts (plus the
    depth of non-contacts inside; with ``outlier_probability`` the farthest such fraction
    of the contacts left out), :func:`.pose_refinement.refine_poses`;
-4. the contenders move to their refined poses, each weight times its likelihood ratio; a
-   lookalike that fits better than every contender joins the belief with the paper's
-   relative weight against the MAP;
-5. the MAP is the candidate with the least squared distance.
+4. a lookalike that then fits better than every contender joins the belief at its refined
+   pose, with the paper's relative weight against the MAP;
+5. the MAP is the candidate whose refined pose has the least squared distance: a
+   contender's own particle, or the lookalike that joined.
 
-With one class holding the belief and no lookalike close enough nothing changes.
+The contenders' particles are left as they are: moving the heaviest particle of a class to
+its refined pose (and its weight by the gain) made that pose's mode win over the class's
+other modes, a mug's handle on the wrong side among them. With one class holding the belief and no lookalike close enough nothing changes.
 """
 
 import numpy as np
@@ -105,21 +107,16 @@ def discriminate(pf, particles):
     joining = n + np.flatnonzero(misfit[n:] < misfit[:n].min())
     if n < 2 and not len(joining):
         return particles, None
-    refined = Particles(candidates.classes, rotations, translations, candidates.log_weights)
-    before = pf.log_evidence_of(candidates.take(np.arange(n)))
-    after = pf.log_evidence_of(refined.take(np.r_[np.arange(n), joining]))
-    # Contenders: moved to their refined poses, each weight times its likelihood ratio.
-    all_rotations, all_translations = particles.rotations.copy(), particles.translations.copy()
-    all_rotations[held], all_translations[held] = rotations[:n], translations[:n]
-    log_weights = particles.log_weights.copy()
-    ratio = after[:n] - before
-    log_weights[held] += np.where(np.isfinite(ratio), ratio, 0.0)
-    # Lookalikes: the paper's new-particle weight, relative to the (refined) MAP.
-    joined = Particles(candidates.classes[joining], rotations[joining], translations[joining],
-                       log_weights[heaviest] + after[n:] - after[0])
-    belief = Particles.concatenate([
-        Particles(particles.classes, all_rotations, all_translations, log_weights), joined])
-    belief = Particles(belief.classes, belief.rotations, belief.translations,
-                       normalise_log_weights(belief.log_weights))
     positions = np.r_[held, len(particles) + np.arange(len(joining))]
-    return belief, int(positions[int(np.argmin(misfit[np.r_[np.arange(n), joining]]))])
+    if len(joining):
+        # Lookalikes: the paper's new-particle weight, relative to the MAP.
+        evidence = pf.log_evidence_of(Particles.concatenate([
+            particles.take([heaviest]),
+            Particles(candidates.classes[joining], rotations[joining], translations[joining],
+                      np.zeros(len(joining)))]))
+        joined = Particles(candidates.classes[joining], rotations[joining], translations[joining],
+                           particles.log_weights[heaviest] + evidence[1:] - evidence[0])
+        belief = Particles.concatenate([particles, joined])
+        particles = Particles(belief.classes, belief.rotations, belief.translations,
+                              normalise_log_weights(belief.log_weights))
+    return particles, int(positions[int(np.argmin(misfit[np.r_[np.arange(n), joining]]))])

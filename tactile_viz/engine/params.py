@@ -151,7 +151,7 @@ class FilterParams:
         ``contender_mass`` of the posterior, and this many classes that fit the contacts
         best at the MAP's pose, have their poses refined (``refine_iterations`` steps); a
         lookalike that fits better than every contender joins the belief, and while
-        several classes contend the MAP is the one whose evidence is highest.
+        several classes contend the MAP is the one whose refined pose fits best.
     contender_mass : float
         The share of the posterior a class must hold to contend (0-1).
     outlier_probability : float
