@@ -75,13 +75,17 @@ def test_step_adds_contacts_and_advances_counter(qtbot, window):
 
 
 def test_run_then_pause_stops_within_one_step(qtbot, window):
+    """At most one step ends after the pause: the one in progress. The step shown is not the
+    measure: the engine runs ahead of the drawing (1 run in 8 ended two steps past the one
+    shown at the pause)."""
     window.loop_panel.run_button.setChecked(True)
     qtbot.waitUntil(lambda: window.scene.latest is not None and window.scene.latest.step >= 3,
                     timeout=60_000)
-    at_pause = window.scene.latest.step
     window.loop_panel.run_button.setChecked(False)
     _wait_idle(qtbot, window)
-    assert window.scene.latest.step <= at_pause + 1
+    runner = window.runner
+    assert runner.stop_requested_at is not None and len(runner.step_ends) >= 3
+    assert sum(end > runner.stop_requested_at for end in runner.step_ends) <= 1
     loop = window.loop_panel
     assert not loop.run_button.isChecked() and loop.step_button.isEnabled()
 
