@@ -11,8 +11,9 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 5. optionally a local refinement of the MAP pose and of each learned prior's heaviest
    particles, in place;
 6. optionally, particles whose poses lie within a merge tolerance of each other merged;
-7. beyond the paper, when several classes hold a share of the posterior, each one's
-   heaviest particle refined and the MAP the one that fits best;
+7. beyond the paper, near twins told apart: when several classes hold a share of the
+   posterior, or another class fits the contacts at the MAP's pose, their poses are refined
+   and the MAP is the one that then fits best (a better-fitting lookalike joins);
 8. the known/novel decision from the MAP evidence.
 """
 
@@ -187,7 +188,7 @@ class ParticleFilter:
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
-        chosen = self._discriminate() if len(self.contact_positions) >= 3 else None
+        self.particles, chosen = discriminate(self, self.particles)
         if self.bank.large:
             release_freed_memory()
         return self._record(sampled, chosen)
@@ -373,13 +374,6 @@ class ParticleFilter:
         log_weights[index] += evidence - evidence_before
         self.particles = Particles(self.particles.classes, rotations, translations,
                                    normalise_log_weights(log_weights))
-
-    def _discriminate(self):
-        """Contending classes' fits compared (:func:`.discrimination.discriminate`): the
-        belief it returns replaces this one; the index is the MAP, or None for the heaviest."""
-        particles, chosen = discriminate(self, self.particles)
-        self.particles = particles
-        return chosen
 
     def _trimmed_contact_test(self, best):
         """The novelty test's contact part without the worst ``ceil(eps n)`` contacts of

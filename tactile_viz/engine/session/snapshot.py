@@ -85,8 +85,8 @@ def hypotheses(state, count=HYPOTHESES):
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     totals = np.bincount(inverse, weights, minlength=len(first))
-    map_index = getattr(state, "map_index", None)
-    map_group = inverse[np.argmax(particles.log_weights) if map_index is None else map_index]
+    map_index = np.argmax(particles.log_weights) if state.map_index is None else state.map_index
+    map_group = inverse[map_index]  # drawn on its own
     order = [k for k in np.argsort(-totals) if k != map_group][:count]
     return tuple((state.class_names[particles.classes[first[k]]],
                   frozen(particles.rotations[first[k]]),
