@@ -346,6 +346,7 @@ class MainWindow(QMainWindow):
         QMessageBox.critical(self, "tactile_viz", str(error))
 
     def closeEvent(self, event):
+        self.runner.stop()  # first: saving and closing below take time the engine would step on
         self.stop_recording()
         self._save_settings()
         self.wait_for_worker()
