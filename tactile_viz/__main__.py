@@ -48,7 +48,7 @@ def _bench(args):
         from .experiments.step_timing import main as step_timing
 
         return step_timing(args.rest)
-    if args.what in ("paper", "tradeoff", "scaling", "noise", "sizes"):
+    if args.what in ("paper", "tradeoff", "scaling", "noise", "sizes", "decide"):
         import importlib
 
         module = importlib.import_module(f".experiments.{args.what}", __package__)
@@ -97,10 +97,10 @@ def build_parser():
     replay.set_defaults(run=_replay)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
-                                              "scaling, noise, sizes, realmesh, gui)",
+                                              "scaling, noise, sizes, decide, realmesh, gui)",
                                 description="Benchmarks; each has its own --help.")
     bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise",
-                                        "sizes", "realmesh", "gui"],
+                                        "sizes", "decide", "realmesh", "gui"],
                        help="sdf: grid SDF vs exact queries per second; step: time of each "
                             "part of a step at 50/200/400 contacts, full vs incremental GPIS; "
                             "paper: the paper's protocol, tables and plots; tradeoff: time "
@@ -108,7 +108,8 @@ def build_parser():
                             "scaling: time per step vs contacts and vs number of priors; "
                             "noise: recognition and pose error vs sensor noise; sizes: the "
                             "objects at real sizes in one metric library vs the paper's "
-                            "scale; realmesh: "
+                            "scale; decide: right at the decision, steps to it, known "
+                            "judged novel, on real sizes and hard pairs under noise; realmesh: "
                             "known/novel trials on meshes pybullet ships (extra realmesh); "
                             "gui: does the desktop app keep up with the engine (under Xvfb)")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")

@@ -364,6 +364,25 @@ class SessionParams:
     rrt_step : float, size units
     metric_samples : int
         Surface samples per shape for the error metrics (TWD).
+    decision_confidence : float
+        Beyond the paper: a known object is decided once the MAP class holds this share of
+        the class posterior and the MAP this share of the fit posterior of the distinct
+        hypotheses (:mod:`~tactile_viz.engine.decision`).
+    decision_floor : float, size units
+        The least noise scale of the fit posterior (with a noisy sensor, at least its
+        position noise): how well a right hypothesis can fit, model error included.
+    decision_same_mode : float, size units
+        Poses of one class whose surfaces agree within this RMS distance (or twice the
+        position noise) are one hypothesis: symmetries of the shape are not rivals.
+    decision_targets : bool
+        Beyond the paper: while the object is known but not decided, touch where the
+        plausible hypotheses' surfaces disagree most, and hold the DHD stop for up to
+        ``decision_patience`` steps; False: the paper's targets and stop.
+    decision_patience : int
+        Steps a covered but undecided known object is explored further at most.
+    stop_at_decision : bool
+        Stop as soon as the object is decided (a robot that only needs to recognise);
+        False: go on to the DHD stop for shape.
     length_unit : float or None
         Scene units per size unit for every length parameter. None (the default): the
         filter's lengths scale with the library's reference size and the others with the
@@ -399,6 +418,12 @@ class SessionParams:
     max_follow: float = _length(3.0)
     rrt_step: float = _length(0.3)
     metric_samples: int = 3000
+    decision_confidence: float = _ranged(0.99, 0.5, 0.999999)
+    decision_floor: float = _length(0.02, low=1e-4, high=1.0)
+    decision_same_mode: float = _length(0.1, low=1e-3, high=2.0)
+    decision_targets: bool = True
+    decision_patience: int = _ranged(30, 0, 300)
+    stop_at_decision: bool = False
     length_unit: object = None
 
     def __post_init__(self):
@@ -416,14 +441,16 @@ class SessionParams:
         if self.gpis_kernel not in GPIS_KERNELS:
             raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
                                  f"got {self.gpis_kernel!r}")
-        for name in ("gpis_noncontacts", "cover_prior", "target_uncovered"):
+        for name in ("gpis_noncontacts", "cover_prior", "target_uncovered", "decision_targets",
+                     "stop_at_decision"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} must be True or False, "
                                      f"got {getattr(self, name)!r}")
         for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
                      "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
                      "approach_clearance",
-                     "follow_step", "contact_spacing", "max_follow", "rrt_step"):
+                     "follow_step", "contact_spacing", "max_follow", "rrt_step",
+                     "decision_floor", "decision_same_mode"):
             value = getattr(self, name)
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
@@ -432,6 +459,15 @@ class SessionParams:
         if not (np.isfinite(self.gpis_carve_radius) and self.gpis_carve_radius >= 0):
             raise ParameterError("gpis_carve_radius must be a finite number >= 0, "
                                  f"got {self.gpis_carve_radius!r}")
+        _check_real("decision_confidence", self.decision_confidence)
+        if not 0.5 <= self.decision_confidence < 1:
+            raise ParameterError("decision_confidence must be in [0.5, 1), "
+                                 f"got {self.decision_confidence!r}")
+        object.__setattr__(self, "decision_patience",
+                           _check_integer("decision_patience", self.decision_patience))
+        if self.decision_patience < 0:
+            raise ParameterError(f"decision_patience must be at least 0, "
+                                 f"got {self.decision_patience!r}")
         object.__setattr__(self, "check_lines", _check_integer("check_lines", self.check_lines))
         if self.check_lines < 0:
             raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")

@@ -89,7 +89,11 @@ SESSION_PRESETS = {
     "paper": SessionParams(filter=preset("paper", refine_learned=0),
                            gpis_kernel="thin-plate", gpis_radius_factor=1.0,
                            gpis_noncontacts=False, gpis_carve_radius=0.0,
-                           cover_prior=False, check_lines=0, approach_clearance=0.5),
+                           cover_prior=False, check_lines=0, approach_clearance=0.5,
+                           decision_targets=False),
+    # A robot that only needs to know what and where the object is: the default, stopped
+    # as soon as the object is decided.
+    "recognise": SessionParams(stop_at_decision=True),
     "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, final_resolution=48,
                           variance_points=800, metric_samples=2000),
     "refined": SessionParams(filter=preset("refined")),

@@ -13,9 +13,10 @@ A *task* is a plain dict (picklable, mostly JSON)::
 (the learned prior travels this way, so remote workers need no shared disk); ``params`` is a
 ``SessionParams.to_dict()`` that replaces the preset's values.
 
-A task may also take its meshes from files (``bench realmesh``): ``object_file`` names the
-object's mesh, an extra prior may be ``{"name", "file"}``, and both are normalised to the
-task's ``longest_side`` (None keeps the file's size). Files are read where the task runs
+A task may also take its meshes from files (``bench realmesh``, ``bench decide``):
+``object_file`` names the object's mesh, an extra prior may be ``{"name", "file"}`` (and its
+own ``"longest_side"``), and both are scaled to the task's ``longest_side`` (None keeps the
+file's size). Files are read where the task runs
 (a local disk), once per process. ``library`` may be ``none`` (no bundled priors).
 
 :func:`run_task` runs one task through :func:`~tactile_viz.experiments.trial.run_trial` and
@@ -110,7 +111,8 @@ def task_library(task):
     library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
         if "file" in prior:
-            library.add(_file_model(prior["file"], prior["name"], task.get("longest_side")))
+            library.add(_file_model(prior["file"], prior["name"],
+                                    prior.get("longest_side", task.get("longest_side"))))
             continue
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,

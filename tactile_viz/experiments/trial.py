@@ -309,6 +309,7 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
                            "translation": truth.translation.tolist(),
                            "file_to_world": (truth_pose @ truth_model.file_to_object).tolist()},
             "sensor": sensor, "terminated_at": last.step if last.terminated else None,
+            "decided_at": next((s["t"] for s in steps if s["decided"]), None),
             "code_version": code_version(),
             "seconds": time.perf_counter() - start, "steps": steps}
     if finish is not None:

@@ -437,18 +437,20 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         recon = None
         if belief.novel:                                       # l.3: p(D|z*) below threshold
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
+        with _timed(timings, "decision"):                      # beyond the paper
+            decision = self._decide(belief)
         with _timed(timings, "target"):                        # l.8, l.1: d_H(S*, X_c) <= eps
             dhd, terminated = self._stop_and_target(           # l.4 / l.6: the next target
-                belief, model, *pose, map_vertices, recon, contacts)
+                belief, model, *pose, map_vertices, recon, contacts, decision)
         if terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings)
         with _timed(timings, "metrics"):
             errors = self._truth_metrics(model, *pose, recon, contacts)
         return self._snapshot(belief, model, pose, map_vertices, recon, dhd, terminated,
-                              paths, observations, timings, errors)
+                              paths, observations, timings, errors, decision)
 
     def _snapshot(self, belief, model, pose, map_vertices, recon, dhd, terminated, paths,
-                  observations, timings, errors):
+                  observations, timings, errors, decision):
         """Record the step's :class:`Snapshot`."""
         (rotation, translation), (pose_error, recon_error, truth_coverage) = pose, errors
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
@@ -471,6 +473,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             recon_error=recon_error, terminated=terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
+            decided=decision.decided, decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)
         return snapshot

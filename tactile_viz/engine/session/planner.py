@@ -14,6 +14,7 @@ import functools
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..decision import UNDECIDED, decide, disagreement_target
 from ..exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                            path_until, raster_path, variance_target, widest_gap)
 from ..meshes import bare_mesh
@@ -33,8 +34,18 @@ CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are o
 class Planner:
     """Targets, checks, frontier and the stop rule of a session (see the module)."""
 
+    def _decide(self, belief):
+        """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
+        the object is judged novel)."""
+        if belief.novel:
+            return UNDECIDED
+        p, noise = self._p, self.sensor_noise[0]
+        return decide(self.filter, belief, p.decision_confidence,
+                      floor=max(p.decision_floor, noise),
+                      same_mode=max(p.decision_same_mode, 2 * noise))
+
     def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
-                         contacts):
+                         contacts, decision=UNDECIDED):
         """The DHD of the estimate, whether to stop, and the next target (kept in
         ``self.state.target``); returns ``(dhd, terminated)``."""
         surface = recon.vertices if recon is not None and not recon.empty else map_vertices
@@ -52,7 +63,15 @@ class Planner:
         frontier = exploring and bool(self.state.frontier)
         checking = (covered and exploring and not frontier
                     and self.state.checks_passed < self._p.check_lines)
-        terminated = bool((covered and not checking and not frontier)
+        rivals = (self._p.decision_targets and not state.novel and not decision.decided
+                  and len(decision.rivals) > 0)
+        if covered and rivals and self.state.covered_at is None:
+            self.state.covered_at = self.step_count + 1
+        # Covered but undecided: the rivals get up to decision_patience more steps.
+        holding = rivals and (self.step_count + 1 - (self.state.covered_at or 0)
+                              < self._p.decision_patience)
+        terminated = bool((covered and not checking and not frontier and not holding)
+                          or (self._p.stop_at_decision and decision.decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
         if recon is not None and not recon.empty:
@@ -70,6 +89,8 @@ class Planner:
         elif checking:
             self.state.target = None
             self.state.check = self._plan_check_line(surface, contacts, outside)
+        elif rivals and (aim := self._telling_apart(decision, contacts)) is not None:
+            self.state.target = aim
         elif dhd <= self._p.eps < prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
@@ -79,6 +100,19 @@ class Planner:
             self.state.target = self._next_target(surface, reachable, recon, model,
                                                   rotation, translation, contacts)
         return max(dhd, prior_dhd), terminated
+
+    def _telling_apart(self, decision, contacts):
+        """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
+        hypotheses = (decision.hypotheses[0],) + decision.rivals
+        found = disagreement_target(self.filter.bank, hypotheses, contacts,
+                                    self._p.contact_spacing, self._p.probe_depth)
+        if found is None:
+            return None
+        position, normal, owner = found
+        hypothesis = hypotheses[owner]
+        prior = self.filter.models[hypothesis.class_index]
+        estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
+        return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
         """The :class:`Aim` of the next step: the novel or the known rule of

@@ -21,7 +21,9 @@ class Snapshot:
     Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
     ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
-    stops; None without a surface).
+    stops; None without a surface). ``decided`` (beyond the paper): the object is judged
+    known and no other class or pose mode fits the contacts comparably
+    (:mod:`~tactile_viz.engine.decision`); ``decision_confidence`` the share the MAP holds.
     """
 
     step: int
@@ -56,6 +58,8 @@ class Snapshot:
     gpis_resolution: object = None
     rotation_error_deg: object = None
     translation_error: object = None
+    decided: bool = False
+    decision_confidence: float = 0.0
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -68,7 +72,8 @@ class Snapshot:
                 "timings": {k: float(v) for k, v in self.timings.items()},
                 "rotation_error_deg": self.rotation_error_deg,
                 "translation_error": self.translation_error,
-                "gpis_scale": self.gpis_scale,
+                "gpis_scale": self.gpis_scale, "decided": bool(self.decided),
+                "decision_confidence": float(self.decision_confidence),
                 "map_rotation": self.map_rotation.tolist(),
                 "map_translation": self.map_translation.tolist()}
 

@@ -58,6 +58,8 @@ class ExplorationState:
         The directions of the checks so far.
     checks_passed : int
         Checks in a row that touched nothing unpredicted.
+    covered_at : int or None
+        The step at which a known but undecided object's estimate was first covered.
     moves_rng : dict or None
         The session rng's state when the step in progress began (None between steps).
     results : list of Contact or NonContact
@@ -76,6 +78,7 @@ class ExplorationState:
     check: Any = None
     check_directions: list = field(default_factory=list)
     checks_passed: int = 0
+    covered_at: Any = None
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None

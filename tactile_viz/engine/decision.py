@@ -1,0 +1,268 @@
+"""Deciding a known object, and where to touch to decide it (beyond the paper).
+
+The paper stops when the MAP surface is covered, which says nothing about whether another
+class or another pose would explain the contacts as well: two screwdrivers that share a
+handle are both covered before the tip is touched. Here a step's belief is *decided* when
+
+1. the object is judged known,
+2. the MAP class holds at least ``decision_confidence`` of the class posterior, and
+3. among the distinct hypotheses that could explain the contacts, the MAP holds at least
+   ``decision_confidence`` of their fit posterior, and
+4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
+   ``decision_confidence`` with the noise scale ``floor`` and ``n - 6`` degrees of freedom
+   (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
+   residuals beyond the noise).
+
+The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
+classes, and the classes whose surfaces pass close to the contacts at the MAP's pose. Each
+is refined to its best pose (:func:`~.pose_refinement.refine_poses`); two hypotheses of one
+class whose posed surfaces agree (a symmetry of the shape, or two particles of one mode)
+are one. Their fit posterior is Gaussian in the refined residuals with one noise scale,
+``s^2 = max(RSS_best / (n - 6), floor^2)``: the residual scatter of the best fit (six pose
+parameters spent), at least the sensor's position noise and ``decision_floor``::
+
+    log p_k = -(RSS_k - RSS_best) / (2 s^2)        (normalised over the hypotheses)
+
+While hypotheses other than the MAP stay plausible, :func:`disagreement_target` picks the
+point that tells them apart best: a point on one hypothesis's surface where the others'
+surfaces lie farthest, weighted by both posteriors.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from .discrimination import contenders, lookalikes
+from .pose_refinement import refine_poses
+from .transforms import transform_points
+
+POSE_PARAMETERS = 6
+TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
+OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
+OTHER_MODES = 3  # pose modes of the MAP's class besides its own
+MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
+SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
+PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
+
+
+@dataclass(frozen=True, eq=False)
+class Hypothesis:
+    """One distinct explanation of the contacts.
+
+    Attributes
+    ----------
+    class_index : int
+    rotation : (3, 3) float
+        Refined ``object_to_world`` rotation.
+    translation : (3,) float, scene units
+    misfit : float, squared scene units
+        Sum of squared signed distances of the contacts (and of non-contacts inside).
+    probability : float
+        Fit posterior among the hypotheses.
+    """
+
+    class_index: int
+    rotation: np.ndarray
+    translation: np.ndarray
+    misfit: float
+    probability: float
+
+
+@dataclass(frozen=True, eq=False)
+class Decision:
+    """Whether a step's belief is decided (see the module).
+
+    Attributes
+    ----------
+    decided : bool
+    confidence : float
+        The smaller of the MAP class's posterior and the MAP's fit posterior (0 when not
+        assessed: novel, fewer than three contacts).
+    hypotheses : tuple of Hypothesis
+        The MAP first, then the rivals by fit; empty when not assessed.
+    """
+
+    decided: bool
+    confidence: float
+    hypotheses: tuple = ()
+
+    @property
+    def rivals(self):
+        """The hypotheses besides the MAP that are still plausible."""
+        return tuple(h for h in self.hypotheses[1:] if h.probability >= PLAUSIBLE)
+
+
+UNDECIDED = Decision(False, 0.0)
+
+
+def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
+    """The :class:`Decision` of a filter's belief.
+
+    Parameters
+    ----------
+    pf : ParticleFilter
+        Its bank, parameters and observations are read (nothing is changed).
+    belief : FilterState
+    confidence : float
+        ``decision_confidence``.
+    floor : float, scene units
+        Least noise scale of the fit posterior (the sensor's position noise and the model's
+        own error, whichever is larger).
+    same_mode : float, scene units
+        Hypotheses of one class whose posed surfaces agree within this RMS are one.
+
+    Returns
+    -------
+    Decision
+    """
+    contacts = pf.contact_positions
+    if belief.particles is None or len(contacts) < 3:
+        return UNDECIDED
+    particles = belief.particles
+    chosen = int(np.argmax(particles.log_weights)) if belief.map_index is None else belief.map_index
+    candidates = _candidates(pf, particles, chosen, same_mode)
+    classes = particles.classes[candidates]
+    others = lookalikes(pf.bank, particles.rotations[chosen], particles.translations[chosen],
+                        contacts, classes, 4, pf.params.sigma_d)
+    classes = np.r_[classes, others].astype(np.int64)
+    rotations = np.concatenate([particles.rotations[candidates],
+                                np.repeat(particles.rotations[chosen][None], len(others), 0)])
+    translations = np.concatenate([particles.translations[candidates],
+                                   np.repeat(particles.translations[chosen][None], len(others), 0)])
+    try:
+        rotations, translations, misfit = refine_poses(
+            pf.bank.evaluate, classes, rotations, translations, contacts,
+            pf.noncontact_positions, pf.params.refine_iterations,
+            trim=pf.params.outlier_probability)
+    except np.linalg.LinAlgError:
+        return UNDECIDED
+    misfit = np.where(np.isfinite(misfit), misfit, np.inf)
+    keep = _distinct(pf.bank, classes, rotations, translations, misfit, same_mode)
+    best = float(misfit[keep].min())
+    scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor**2, 1e-300)
+    log_p = -(misfit[keep] - best) / (2 * scale2)  # the fit posterior, Gaussian
+    probability = np.exp(log_p - np.logaddexp.reduce(log_p))
+    order = np.argsort(-probability, kind="stable")
+    order = np.r_[0, order[order != 0]]  # the MAP candidate leads
+    hypotheses = tuple(Hypothesis(int(classes[keep[k]]), rotations[keep[k]],
+                                  translations[keep[k]], float(misfit[keep[k]]),
+                                  float(probability[k])) for k in order)
+    class_share = belief.class_posterior.get(belief.map_class, 0.0)
+    level = min(class_share, hypotheses[0].probability)
+    # The MAP must also fit within the noise: a rival that was never sampled cannot be
+    # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
+    dof = len(contacts) - POSE_PARAMETERS
+    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor, 1e-300) ** 2
+    return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
+                    hypotheses)
+
+
+def _candidates(pf, particles, chosen, same_mode):
+    """Indices of the MAP particle, the heaviest particle of each of the other classes held
+    (up to ``OTHER_CLASSES``, heaviest class first) and the heaviest particles of up to
+    ``OTHER_MODES`` other pose modes of the MAP's class (poses apart by more than
+    ``MODE_ANGLE_DEG`` or ``same_mode``, whose surfaces differ: a symmetry is not a mode)."""
+    kept = [chosen]
+    held = contenders(particles, OTHER_CLASSES + 1, 0.0)
+    kept += [int(i) for i in held if particles.classes[i] != particles.classes[chosen]]
+    kept = kept[:OTHER_CLASSES + 1]
+    order = np.argsort(-particles.log_weights, kind="stable")[:TOP_PARTICLES]
+    mine = [int(i) for i in order if particles.classes[i] == particles.classes[chosen]]
+    modes = [chosen]
+    for index in mine:
+        if len(modes) > OTHER_MODES:
+            break
+        if all(_poses_apart(particles, index, k, same_mode) for k in modes) and all(
+                _apart(pf.bank, particles, index, k, same_mode) for k in modes):
+            modes.append(index)
+    return np.array(kept + modes[1:], dtype=np.int64)
+
+
+def _poses_apart(particles, a, b, distance):
+    """Whether two particles' poses differ by more than ``MODE_ANGLE_DEG`` or ``distance``."""
+    turn = particles.rotations[a] @ particles.rotations[b].T
+    angle = np.degrees(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1.0, 1.0)))
+    gap = np.linalg.norm(particles.translations[a] - particles.translations[b])
+    return bool(angle > MODE_ANGLE_DEG or gap > distance)
+
+
+def _apart(bank, particles, a, b, tolerance):
+    """Whether particles ``a`` and ``b`` are distinct hypotheses: other classes, or their
+    posed surfaces further apart than ``tolerance`` (RMS)."""
+    if particles.classes[a] != particles.classes[b]:
+        return True
+    return surface_disagreement(bank, particles.classes[a], particles.rotations[[a, b]],
+                                particles.translations[[a, b]]) > tolerance
+
+
+def _distinct(bank, classes, rotations, translations, misfit, tolerance):
+    """Indices of the refined hypotheses that are distinct, each kept once (the first of a
+    mode; the MAP candidate, index 0, always)."""
+    kept = [0]
+    for index in np.argsort(misfit, kind="stable"):
+        if index == 0 or not np.isfinite(misfit[index]):
+            continue
+        if all(classes[index] != classes[k] or surface_disagreement(
+                bank, classes[index], rotations[[index, k]], translations[[index, k]]) > tolerance
+               for k in kept):
+            kept.append(int(index))
+    return np.array(kept, dtype=np.int64)
+
+
+def surface_disagreement(bank, class_index, rotations, translations):
+    """RMS signed distance between one class's surface at two poses, both ways: its feature
+    points at each pose evaluated in the other (scene units; 0 for poses related by a
+    symmetry of the shape)."""
+    points = bank.points[class_index][::SURFACE_STRIDE]
+    total = 0.0
+    for i, j in ((0, 1), (1, 0)):
+        world = transform_points(points, rotations[i], translations[i])
+        local = (world - translations[j]) @ rotations[j]
+        values, _ = bank.evaluate(np.array([class_index]), local[None])
+        total += float(np.mean(np.square(values)))
+    return float(np.sqrt(total / 2))
+
+
+def disagreement_target(bank, hypotheses, contacts, spacing, reach):
+    """Where a touch tells the hypotheses apart best.
+
+    Every feature point ``x`` of every hypothesis (posed) is a candidate unless a contact
+    lies within ``spacing``; its score is ``p_k sum_j p_j min(f_j(x)^2, reach^2)``, with
+    ``f_j`` the signed distance of hypothesis ``j`` (a touch at ``x`` refutes ``j`` by
+    about ``f_j(x)^2 / 2 s^2``) and ``p`` the fit posteriors.
+
+    Parameters
+    ----------
+    bank : PriorBank
+    hypotheses : sequence of Hypothesis
+        At least two.
+    contacts : (m, 3) float, world frame
+    spacing, reach : float, scene units
+
+    Returns
+    -------
+    (position (3,), outward normal (3,), index of the hypothesis it lies on) or None
+        None when no candidate would separate them.
+    """
+    points, normals, owner = [], [], []
+    for k, h in enumerate(hypotheses):
+        points.append(transform_points(bank.points[h.class_index], h.rotation, h.translation))
+        normals.append(bank.normals[h.class_index] @ h.rotation.T)
+        owner.append(np.full(len(points[-1]), k))
+    points, normals, owner = np.vstack(points), np.vstack(normals), np.concatenate(owner)
+    weights = np.array([h.probability for h in hypotheses])
+    spread = np.zeros(len(points))
+    for j, h in enumerate(hypotheses):
+        local = (points - h.translation) @ h.rotation
+        values, _ = bank.evaluate(np.array([h.class_index]), local[None])
+        spread += weights[j] * np.minimum(np.square(values[0]), reach**2) * (owner != j)
+    score = weights[owner] * spread
+    if len(contacts):
+        from scipy.spatial import cKDTree
+
+        score[cKDTree(contacts).query(points)[0] < spacing] = 0.0
+    best = int(np.argmax(score))
+    if score[best] <= 0:
+        return None
+    return points[best], normals[best], int(owner[best])

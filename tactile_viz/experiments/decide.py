@@ -1,0 +1,199 @@
+"""Benchmark: the decision (beyond the paper) on objects at real sizes, under sensor noise.
+
+``python -m tactile_viz bench decide [--noise 0:0 0.001:1 0.002:2] [--seeds 2]
+[--novel-seeds 1] [--preset recognise] [--set NAME=VALUE ...] [--objects ...]
+[--workers 2] [--out DIR] [--no-progress]``
+
+One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
+40 cm, :data:`~.sizes.SIZES_M`) and the objects of :mod:`.hard_objects`, made to be hard:
+two screwdrivers that differ only at the tip, a smooth and a bumpy ball of one size, the
+mug and a copy 4% larger, a knife and a pencil, a block and a plank (symmetric). Each
+known object is placed at a random pose per seed and explored until the session stops (at
+the decision with the ``recognise`` preset); the bundled novel objects (at their sizes,
+not in the library) are explored for ``--novel-steps`` steps and must not be decided.
+The simulated sensor adds Gaussian noise (position std in metres, normal tilt std in
+degrees) and the model is told the same noise.
+
+Per trial: the step of the decision (the first step the session reports ``decided``),
+whether the class was right and the pose within 10% of the object's size (two-way
+Hausdorff distance) there, the rotation error up to the shape's symmetries, whether the
+final state judged a known object novel, and seconds. Writes ``decide.md`` (tables),
+``decide.json`` (every trial's summary) to ``--out`` and prints the tables.
+"""
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..cli import ArgumentParser, ExtendList, count_int, nonnegative_int, output_dir, workers_int
+from ..engine.files import write_atomic
+from ..engine.metrics import error_threshold
+from ..engine.objects import bundled_names
+from ..engine.params import declaration, with_changes
+from ..engine.presets import session_preset
+from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
+from .runner import make_task, open_pool, run_tasks
+from .sizes import SIZES_M
+
+DEFAULT_NOISE = ((0.0, 0.0), (0.001, 1.0), (0.002, 2.0))
+NOVEL = ("neptune", "dragon", "noisy_dino", "mug_2", "home_chair", "sofa_2")
+
+
+def noise_level(text):
+    """An argument type: ``POSITION:DEGREES`` (metres, degrees), both >= 0."""
+    try:
+        position, degrees = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected POSITION:DEGREES, got {text!r}") from None
+    if not (np.isfinite(position) and np.isfinite(degrees) and position >= 0 and degrees >= 0):
+        raise argparse.ArgumentTypeError(f"noise must be finite and >= 0, got {text!r}")
+    return position, degrees
+
+
+def setting(text):
+    """An argument type: ``NAME=VALUE`` of a declared parameter (VALUE as JSON)."""
+    name, _, value = text.partition("=")
+    try:
+        declaration(name)
+        return name, json.loads(value)
+    except Exception as error:  # ParameterError or JSONDecodeError: one line for the user
+        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
+
+
+def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps):
+    """The trials: every known object over ``seeds`` and every novel one over
+    ``novel_seeds``, at each noise level."""
+    extra = [{"name": name, "file": str(path), "longest_side": HARD_SIZES_M[name],
+              "learned": False} for name, path in files.items()]
+    out = []
+    for position, degrees in noises:
+        sensor = {"position_noise": position, "normal_noise_deg": degrees}
+        for name in known + novel:
+            is_novel = name in novel
+            for seed in range(novel_seeds if is_novel else seeds):
+                task = make_task(name, seed=seed, preset=preset, params=params, sizes=SIZES_M,
+                                 sensor=sensor, extra_priors=extra,
+                                 max_steps=novel_steps if is_novel else None,
+                                 object_file=files.get(name),
+                                 longest_side=HARD_SIZES_M.get(name))
+                task["tag"] = "novel" if is_novel else "known"
+                out.append(task)
+    return out
+
+
+def summary(result):
+    """What the tables need of one trial."""
+    steps, truth = result["steps"], result["object"]
+    size = result["object_size"]
+    decided = next((s for s in steps if s.get("decided")), None)
+    last = steps[-1]
+    at = decided or last
+    pose = at["pose_error"]
+    return {
+        "object": truth, "seed": result["seed"], "known_object": result["task"]["tag"] == "known",
+        "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
+        "size": size, "decided_at": None if decided is None else decided["t"],
+        "decided_class": None if decided is None else decided["map_class"],
+        "right": bool(decided is not None and decided["map_class"] == truth
+                      and pose is not None and pose < error_threshold(size)),
+        "right_class": bool(decided is not None and decided["map_class"] == truth),
+        "pose_error": pose, "rotation_error_deg": at.get("rotation_error_deg"),
+        "final_class": last["map_class"], "final_novel": bool(last["novel"]),
+        "steps": len(steps), "seconds": result["seconds"],
+        "twin": COUNTERPARTS.get(truth)}
+
+
+def _median(values):
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
+def _fmt(value, spec=".1f"):
+    return "-" if value is None else format(value, spec)
+
+
+def markdown(summaries):
+    """One table row per noise level, then every known trial that was not right."""
+    lines = ["| noise (m, deg) | known trials | right at the decision | undecided | "
+             "steps to the decision (median) | rotation error (median, deg) | "
+             "known judged novel (final) | novel judged novel | novel decided | "
+             "s/trial (median) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for noise in sorted({tuple(s["noise"]) for s in summaries}):
+        mine = [s for s in summaries if tuple(s["noise"]) == noise]
+        known = [s for s in mine if s["known_object"]]
+        novel = [s for s in mine if not s["known_object"]]
+        right = sum(s["right"] for s in known)
+        lines.append(
+            f"| {noise[0]:g}, {noise[1]:g} | {len(known)} | {right} ({100 * right / max(len(known), 1):.1f}%) | "
+            f"{sum(s['decided_at'] is None for s in known)} | "
+            f"{_fmt(_median([s['decided_at'] for s in known]))} | "
+            f"{_fmt(_median([s['rotation_error_deg'] for s in known if s['right']]), '.2f')} | "
+            f"{sum(s['final_novel'] for s in known)} | "
+            f"{sum(s['final_novel'] for s in novel)}/{len(novel)} | "
+            f"{sum(s['decided_at'] is not None for s in novel)} | "
+            f"{_fmt(_median([s['seconds'] for s in mine]))} |")
+    misses = [s for s in summaries if s["known_object"] and not s["right"]]
+    if misses:
+        lines += ["", "Known trials not right at the decision:", "",
+                  "| object | seed | noise | decided at | class there | pose error (m) | "
+                  "final class | final novel |", "|---|---|---|---|---|---|---|---|"]
+        for s in misses:
+            lines.append(f"| {s['object']} | {s['seed']} | {s['noise'][0]:g}, {s['noise'][1]:g} | "
+                         f"{_fmt(s['decided_at'], 'd')} | {s['decided_class'] or '-'} | "
+                         f"{_fmt(s['pose_error'], '.4f')} | {s['final_class']} | "
+                         f"{s['final_novel']} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = ArgumentParser(prog="python -m tactile_viz bench decide", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--noise", type=noise_level, action=ExtendList, default=None,
+                        metavar="M:DEG", help="sensor noise levels: position std in metres, "
+                        "normal std in degrees (default 0:0 0.001:1 0.002:2)")
+    parser.add_argument("--seeds", type=count_int, default=2, help="seeds per known object")
+    parser.add_argument("--novel-seeds", type=nonnegative_int, default=1,
+                        help="seeds per novel object (0: none)")
+    parser.add_argument("--novel-steps", type=count_int, default=60,
+                        help="steps each novel trial runs (it only has to stay undecided)")
+    parser.add_argument("--preset", default="recognise", help="session preset")
+    parser.add_argument("--set", type=setting, action=ExtendList, default=[],
+                        metavar="NAME=VALUE", help="change a declared parameter (JSON value)")
+    parser.add_argument("--objects", default=None, metavar="NAME[,NAME...]",
+                        help="known objects to run (default: all)")
+    parser.add_argument("--workers", type=workers_int, default=2, help="trials in parallel")
+    parser.add_argument("--out", type=output_dir, default="results/decide",
+                        help="folder for decide.md and decide.json")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    params = with_changes(session_preset(args.preset), **dict(args.set)).to_dict()
+    files = {name: path for name, path in hard_meshes(out / "objects").items()}
+    known = list(bundled_names("known")) + list(files)
+    if args.objects:
+        known = [n for n in args.objects.split(",") if n]
+    novel = list(NOVEL) if args.novel_seeds else []
+    pool = open_pool(args.workers)
+    try:
+        results = [result for _, result in run_tasks(
+            tasks(known, novel, args.noise or DEFAULT_NOISE, args.seeds, args.novel_seeds,
+                  params, args.preset, files, args.novel_steps),
+            pool, progress=not args.no_progress, description="decide")]
+    finally:
+        pool.close()
+    failed = [r for r in results if "error" in r]
+    for result in failed:
+        print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
+    summaries = [summary(r) for r in results if "error" not in r]
+    write_atomic(out / "decide.json", json.dumps(summaries, indent=1).encode())
+    text = markdown(summaries)
+    write_atomic(out / "decide.md", text.encode())
+    print(text, end="")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
