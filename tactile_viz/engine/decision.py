@@ -5,7 +5,9 @@ class or another pose would explain the contacts as well: two screwdrivers that 
 handle are both covered before the tip is touched. Here a step's belief is *decided* when
 
 1. the object is judged known,
-2. the MAP class holds at least ``decision_confidence`` of the class posterior, and
+2. the classes weighed below hold at least ``decision_confidence`` of the filter's class
+   posterior (its broad likelihood cannot tell near twins apart, but it does say which
+   classes matter),
 3. among the distinct hypotheses that could explain the contacts, the MAP holds at least
    ``decision_confidence`` of their fit posterior, and
 4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
@@ -77,8 +79,8 @@ class Decision:
     ----------
     decided : bool
     confidence : float
-        The smaller of the MAP class's posterior and the MAP's fit posterior (0 when not
-        assessed: novel, fewer than three contacts).
+        The smaller of the weighed classes' share of the class posterior and the MAP's fit
+        posterior (0 when not assessed: novel, fewer than three contacts).
     hypotheses : tuple of Hypothesis
         The MAP first, then the rivals by fit; empty when not assessed.
     """
@@ -148,8 +150,11 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     hypotheses = tuple(Hypothesis(int(classes[keep[k]]), rotations[keep[k]],
                                   translations[keep[k]], float(misfit[keep[k]]),
                                   float(probability[k])) for k in order)
-    class_share = belief.class_posterior.get(belief.map_class, 0.0)
-    level = min(class_share, hypotheses[0].probability)
+    # The filter's broad likelihood cannot tell near twins apart, but it does say which
+    # classes matter: those weighed here must hold the confidence between them.
+    weighed = {belief.class_names[c] for c in classes[keep]}
+    weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
+    level = min(weighed_share, hypotheses[0].probability)
     # The MAP must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
     dof = len(contacts) - POSE_PARAMETERS

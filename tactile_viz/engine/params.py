@@ -377,7 +377,8 @@ class SessionParams:
     decision_targets : bool
         Beyond the paper: while the object is known but not decided, touch where the
         plausible hypotheses' surfaces disagree most, and hold the DHD stop for up to
-        ``decision_patience`` steps; False: the paper's targets and stop.
+        ``decision_patience`` steps; the MAP pose reported and aimed from is its refined
+        fit. False: the paper's targets, stop and MAP particle.
     decision_patience : int
         Steps a covered but undecided known object is explored further at most.
     stop_at_decision : bool

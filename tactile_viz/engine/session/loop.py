@@ -439,6 +439,9 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                      # beyond the paper
             decision = self._decide(belief)
+        if decision.hypotheses and self._p.decision_targets:
+            pose = decision.hypotheses[0].rotation, decision.hypotheses[0].translation
+            map_vertices = transform_points(model.mesh.vertices, *pose)
         with _timed(timings, "target"):                        # l.8, l.1: d_H(S*, X_c) <= eps
             dhd, terminated = self._stop_and_target(           # l.4 / l.6: the next target
                 belief, model, *pose, map_vertices, recon, contacts, decision)
