@@ -19,9 +19,9 @@ from .errors import MeshError
 # A hole is closed only when the patch is a small part of its piece's surface; a larger
 # opening means an open scan or sheet whose inside is a guess.
 MAX_HOLE_AREA_FRACTION = 0.05
-# Open pieces that cannot be closed are dropped when they are this small a part of the
-# whole surface (fins, flaps, loose triangles); larger ones make the mesh refused.
-MAX_STRAY_AREA_FRACTION = 0.05
+# Open pieces that cannot be closed (fins split off, flaps, loose triangles) are dropped
+# while the closed parts hold most of the surface; a mesh that is mostly open is refused.
+MAX_STRAY_AREA_FRACTION = 0.5
 
 
 def needs_repair(mesh):
@@ -140,8 +140,7 @@ def _closed_parts(parts, source):
     MeshError
         If the open pieces are too large a part of the surface to drop.
     """
-    closed, stray, holes = [], [], 0
-    largest = None  # (added fraction, hole count) of the worst open piece, for the error
+    closed, stray, holes, worst = [], [], 0, None
     for part in parts:
         if part.is_watertight:
             closed.append(part)
@@ -152,16 +151,21 @@ def _closed_parts(parts, source):
             holes += count
         else:
             stray.append(part)
-            if largest is None or part.area > largest[2]:
-                largest = (fraction, count, part.area)
+            if worst is None or part.area > worst[2]:
+                worst = (count, fraction, part.area)
     total = sum(part.area for part in parts)
     stray_area = sum(part.area for part in stray)
-    if not closed or stray_area > MAX_STRAY_AREA_FRACTION * total:
-        fraction, count = largest[:2]
-        raise MeshError(source, f"is an open surface with no inside: closing its {count} open "
-                                f"hole(s) would add {100 * fraction:.0f}% of its area (at most "
-                                f"{100 * MAX_HOLE_AREA_FRACTION:.0f}% is closed); close it in "
-                                "a mesh editor")
+    if not closed:
+        count, fraction, _ = worst
+        added = (f"closing them would add {100 * fraction:.0f}% of its area (at most "
+                 f"{100 * MAX_HOLE_AREA_FRACTION:.0f}% is closed)" if np.isfinite(fraction)
+                 and fraction > MAX_HOLE_AREA_FRACTION else "they cannot be closed")
+        raise MeshError(source, f"is an open surface with no inside: it has {count} open "
+                                f"hole(s) and {added}; close it in a mesh editor")
+    if stray_area > MAX_STRAY_AREA_FRACTION * total:
+        raise MeshError(source, f"is mostly an open surface with no inside: {len(stray)} open "
+                                f"piece(s) make {100 * stray_area / total:.0f}% of its area; "
+                                "close them in a mesh editor")
     return closed, stray, holes
 
 
@@ -222,7 +226,8 @@ def _merge_overlapping(closed):
 
 def _overlapping_groups(closed):
     """Index groups of pieces that cross or contain each other (connected components of
-    the 'some vertex of one lies inside the other' relation, by the winding number)."""
+    the relation 'some vertex of one lies inside the other, by the winding number, or
+    some faces of the two intersect')."""
     import igl
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
@@ -234,7 +239,7 @@ def _overlapping_groups(closed):
         for j, b in enumerate(closed):
             if i != j and _boxes_overlap(a.bounds, b.bounds):
                 inside = tree.winding_number(np.ascontiguousarray(b.vertices)) > 0.5
-                if inside.any():
+                if inside.any() or (i < j and _crossing(a, b)):
                     pairs.append((i, j))
     if not pairs:
         return [[i] for i in range(len(closed))]
@@ -242,6 +247,13 @@ def _overlapping_groups(closed):
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(closed),) * 2)
     _, labels = connected_components(graph, directed=False)
     return [list(np.flatnonzero(labels == label)) for label in np.unique(labels)]
+
+
+def _crossing(a, b):
+    """Whether faces of two pieces intersect (MeshLab's self-intersection test on both)."""
+    meshset = _meshset(_concatenated([a, b]))
+    meshset.compute_selection_by_self_intersections_per_face()
+    return meshset.current_mesh().selected_face_number() > 0
 
 
 def _boxes_overlap(a, b):
