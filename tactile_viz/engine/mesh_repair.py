@@ -67,10 +67,15 @@ def repair_surface(mesh, source):
     MeshError
         If the surface has no inside: open pieces too large to close or to drop.
     """
+    try:
+        _pymeshlab()
+    except ImportError:
+        raise MeshError(source, "is not one closed surface and its repair needs pymeshlab, "
+                                "which is not installed (pip install pymeshlab)") from None
     notes = []
-    split = _split_non_manifold(mesh)
-    if split is not mesh:
-        count = _non_manifold_edge_count(mesh)
+    count = _non_manifold_edge_count(mesh)
+    split = _split_non_manifold(mesh, count)
+    if count:
         notes.append(f"{count} non-manifold edge{'s' * (count != 1)} split")
     parts = split.split(only_watertight=False, repair=False)
     closed, stray, holes = _closed_parts(parts, source)
@@ -96,7 +101,10 @@ def repair_surface(mesh, source):
 
 
 def _non_manifold_edge_count(mesh):
-    _, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    """Edges shared by more than two faces."""
+    edges = mesh.edges_sorted.astype(np.int64)
+    keys = edges[:, 0] * (len(mesh.vertices) + 1) + edges[:, 1]  # 1-D: a fast unique
+    _, counts = np.unique(keys, return_counts=True)
     return int((counts > 2).sum())
 
 
@@ -120,9 +128,10 @@ def _from_meshset(meshset):
     return trimesh.Trimesh(current.vertex_matrix(), current.face_matrix(), process=False)
 
 
-def _split_non_manifold(mesh):
-    """``mesh`` with its non-manifold edges and vertices split (itself if there are none)."""
-    if _non_manifold_edge_count(mesh) == 0:
+def _split_non_manifold(mesh, count=None):
+    """``mesh`` with its non-manifold edges and vertices split (itself if there are none);
+    ``count`` is its number of non-manifold edges, if known."""
+    if (_non_manifold_edge_count(mesh) if count is None else count) == 0:
         return mesh
     meshset = _meshset(mesh)
     # 'Split Vertices' keeps every face: a fin becomes a loose piece, two solids glued

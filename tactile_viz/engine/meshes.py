@@ -8,7 +8,10 @@ normalises every object to ``LONGEST_SIDE``. The similarity from the file's coor
 the object frame is kept in ``mesh.metadata["file_to_object"]`` (4x4), so that poses map back
 onto the user's file.
 Faults that can be repaired are repaired (duplicate vertices, degenerate or duplicate
-faces, inconsistent winding, inverted orientation, small holes); faults that cannot raise
+faces, inconsistent winding, inverted orientation; non-manifold edges, small holes, stray
+open pieces and overlapping parts in :mod:`~tactile_viz.engine.mesh_repair`), with one
+:class:`~tactile_viz.engine.errors.MeshWarning` saying what was done; a mesh with no inside
+(an open sheet) or a file that cannot be parsed raises
 :class:`~tactile_viz.engine.errors.MeshError` naming the source and the reason.
 """
 
