@@ -8,7 +8,10 @@ normalises every object to ``LONGEST_SIDE``. The similarity from the file's coor
 the object frame is kept in ``mesh.metadata["file_to_object"]`` (4x4), so that poses map back
 onto the user's file.
 Faults that can be repaired are repaired (duplicate vertices, degenerate or duplicate
-faces, inconsistent winding, inverted orientation, small holes); faults that cannot raise
+faces, inconsistent winding, inverted orientation; non-manifold edges, small holes, stray
+open pieces and overlapping parts in :mod:`~tactile_viz.engine.mesh_repair`), with one
+:class:`~tactile_viz.engine.errors.MeshWarning` saying what was done; a mesh with no inside
+(an open sheet) or a file that cannot be parsed raises
 :class:`~tactile_viz.engine.errors.MeshError` naming the source and the reason.
 """
 
@@ -22,6 +25,7 @@ import numpy as np
 import trimesh
 
 from .errors import MeshError, MeshWarning
+from .mesh_repair import needs_repair, repair_surface
 
 LONGEST_SIDE = 6.0  # the paper's normalisation (an explicit choice: meshes keep their size)
 # Length units a file or a recording may be in, as metres: a scene given in named units is
@@ -31,9 +35,6 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 # merges vertices within 1e-8) and squared distances lose the shape.
 MIN_SIZE, MAX_SIZE = 1e-4, 1e6
 SUPPORTED_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
-# A hole is closed by a fan of triangles only when the patch is a small part of the surface;
-# a larger opening means the file is an open scan or sheet whose inside is a guess.
-MAX_HOLE_AREA_FRACTION = 0.05
 # Meshes with more faces are decimated to DECIMATED_FACES (with a MeshWarning): the filter
 # sees an object through a 64^3 SDF grid, and the exact distance, the grid and the
 # viewport cost time in proportion to the faces. A 2-million-face mesh loads in about 20 s
@@ -109,10 +110,13 @@ def load_mesh(path, longest_side: float | None = None, max_faces: int | None = M
         raise MeshError(name, "the file is empty")
     if suffix == ".stl":
         _check_binary_stl_size(path, name)
+    if suffix == ".off":
+        check_off(path, name)
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as error:  # trimesh raises many types on bad bytes
-        raise MeshError(name, f"cannot be read as {suffix[1:].upper()} ({error})") from error
+        raise MeshError(name, f"cannot be read as {suffix[1:].upper()} "
+                              f"({_in_user_words(error)})") from error
     vertices = getattr(loaded, "vertices", None)
     faces = getattr(loaded, "faces", None)
     if vertices is None or faces is None or len(faces) == 0:
@@ -173,26 +177,39 @@ def _resized(mesh, factor):
 def _repaired(vertices, faces, source, max_faces):
     """Repairs and checks at the paper's size (trimesh merges vertices within an absolute
     tolerance, so a surface is repaired alike whatever its units), recentred; its
-    ``file_to_object`` is the recentring."""
+    ``file_to_object`` is the recentring. What was repaired beyond duplicate vertices,
+    degenerate faces and the orientation is said in one :class:`MeshWarning`."""
     mesh = trimesh.Trimesh(vertices, faces, process=True, validate=False)
     mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.update_faces(mesh.unique_faces())
-    mesh.remove_unreferenced_vertices()
     if len(mesh.faces) == 0:
         raise MeshError(source, "every face is degenerate (zero area)")
+    notes = []
+    unique = mesh.unique_faces()
+    duplicates = int(len(mesh.faces) - unique.sum())
+    if duplicates:
+        mesh.update_faces(unique)
+        notes.append(f"{duplicates} duplicate face{'s' * (duplicates != 1)} removed")
+    mesh.remove_unreferenced_vertices()
+    before = mesh.faces.copy()
     trimesh.repair.fix_winding(mesh)
+    flipped = int((mesh.faces != before).any(axis=1).sum())
+    flipped = min(flipped, len(mesh.faces) - flipped)  # the minority was turned
+    if flipped:
+        notes.append(f"{flipped} flipped face{'s' * (flipped != 1)} turned")
+    if needs_repair(mesh):
+        mesh, repairs = repair_surface(mesh, source)
+        notes += repairs
     if not mesh.is_watertight:
-        _close_holes(mesh, source)
-    if not mesh.is_watertight:
-        raise MeshError(source, "not watertight and could not be repaired "
-                                "(edges shared by more than two faces)")
-    trimesh.repair.fix_winding(mesh)
+        raise MeshError(source, "not watertight and could not be repaired")
     if not mesh.is_winding_consistent:
         raise MeshError(source, "face winding is inconsistent (the surface is not orientable)")
     if mesh.volume < 0:
         mesh.invert()
     if mesh.volume <= 1e-6 * float(mesh.extents.max())**3:
         raise MeshError(source, "encloses no volume (a flat or degenerate surface)")
+    if notes:
+        warnings.warn(MeshWarning(f"{source}: repaired on loading: {'; '.join(notes)}"),
+                      stacklevel=3)
     # Repairs move the box a little; recentre so the object frame stays the box centre.
     # Vertices are kept float32-exact so saving to PLY and reading back changes nothing.
     centre = mesh.bounds.mean(axis=0)
@@ -270,6 +287,70 @@ def _check_binary_stl_size(path, name):
                               f"but the file holds {(size - 84) // 50}")
 
 
+def check_off(path, name):
+    """Raise a :class:`MeshError` naming the line of the first fault of an OFF file.
+
+    trimesh reads an OFF file with numpy, whose errors speak of arrays, and reads a face
+    row that lists more corners than it gives, or a file holding fewer rows than its
+    counts announce, without complaint; this checks the rows against the counts first.
+    """
+    with open(path, "rb") as stream:
+        text = stream.read().decode("utf-8", errors="replace")
+    rows = [(number, line.split("#", 1)[0].split())
+            for number, line in enumerate(text.splitlines(), start=1)]
+    rows = [(number, fields) for number, fields in rows if fields]
+    if not rows or not rows[0][1][0].upper().endswith("OFF"):
+        raise MeshError(name, "cannot be read as OFF: the first line must say OFF")
+    first = rows[0][1][1:]  # the counts may follow the keyword on its line
+    rows = rows[1:] if not first else [(rows[0][0], first)] + rows[1:]
+    if not rows:
+        raise MeshError(name, "cannot be read as OFF: the line of counts is missing")
+    number, counts = rows[0]
+    try:
+        n_vertices, n_faces = int(counts[0]), int(counts[1])
+    except (ValueError, IndexError):
+        raise MeshError(name, f"cannot be read as OFF: line {number}: expected the vertex "
+                              f"and face counts, found {' '.join(counts)!r}") from None
+    body = rows[1:]
+    if len(body) < n_vertices + n_faces:
+        raise MeshError(name, f"cannot be read as OFF: it announces {n_vertices} vertices "
+                              f"and {n_faces} faces but holds {len(body)} rows")
+    for number, fields in body[:n_vertices]:
+        _check_off_row(name, number, fields, 3, "a vertex row needs 3 numbers (x y z)", float)
+    for number, fields in body[n_vertices:n_vertices + n_faces]:
+        _check_off_row(name, number, fields, 1, "a face row needs its corner count", int)
+        corners = int(fields[0])
+        if corners < 3 or len(fields) < corners + 1:
+            raise MeshError(name, f"cannot be read as OFF: line {number}: the face lists "
+                                  f"{corners} corners but gives {len(fields) - 1}")
+        _check_off_row(name, number, fields[1:corners + 1], corners, "", int)
+
+
+def _check_off_row(name, number, fields, count, need, kind):
+    if len(fields) < count:
+        raise MeshError(name, f"cannot be read as OFF: line {number}: {need}, found "
+                              f"{len(fields)}")
+    for field in fields[:count]:
+        try:
+            kind(field)
+        except ValueError:
+            expected = "a whole number" if kind is int else "a number"
+            raise MeshError(name, f"cannot be read as OFF: line {number}: {field!r} is not "
+                                  f"{expected}") from None
+
+
+def _in_user_words(error):
+    """A reader's error without numpy's vocabulary."""
+    text = str(error)
+    if "inhomogeneous" in text or "setting an array element with a sequence" in text:
+        return "rows of unequal length"
+    if "could not convert string to float" in text:
+        return "a value is not a number: " + text.rsplit(":", 1)[-1].strip()
+    if "cannot reshape array" in text:
+        return "the number of values does not match the counts in the header"
+    return text
+
+
 def check_arrays(vertices, faces, source="arrays"):
     """Vertices and faces read back from storage, checked but not repaired or moved.
 
@@ -326,61 +407,3 @@ def _normalised_vertices(vertices, faces, source):
         raise MeshError(source, "degenerate: all vertices coincide")
     centre = (low + high) / 2
     return (vertices - centre) * factor, factor, -factor * centre
-
-
-def _close_holes(mesh, source):
-    """Fill each open boundary loop with a fan around its centroid, if the loops are simple."""
-    loops = _boundary_loops(mesh, source)
-    new_vertices, new_faces = [], []
-    next_index = len(mesh.vertices)
-    for loop in loops:
-        centre = mesh.vertices[loop].mean(axis=0)
-        # Boundary edges run a->b in their face; the patch must use them as b->a.
-        for a, b in zip(loop, np.roll(loop, -1)):
-            new_faces.append((b, a, next_index))
-        new_vertices.append(centre)
-        next_index += 1
-    patch = trimesh.Trimesh(np.vstack([mesh.vertices, new_vertices]), new_faces, process=False)
-    patch_area = patch.area
-    if patch_area > MAX_HOLE_AREA_FRACTION * mesh.area:
-        raise MeshError(source, f"has {len(loops)} open hole(s) too large to close "
-                                f"(they would add {100 * patch_area / mesh.area:.0f}% "
-                                "of the surface)")
-    repaired = trimesh.Trimesh(patch.vertices, np.vstack([mesh.faces, new_faces]), process=True)
-    mesh.vertices, mesh.faces = repaired.vertices, repaired.faces
-
-
-def _boundary_loops(mesh, source):
-    """Directed boundary loops (vertex index arrays) of a mesh with consistent winding."""
-    edges = mesh.edges  # directed, three per face, in face order
-    keys = mesh.edges_sorted
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    if (counts > 2).any():
-        raise MeshError(source, f"not watertight and not repairable: {int((counts > 2).sum())} "
-                                "edges are shared by more than two faces (non-manifold)")
-    boundary = edges[counts[inverse.ravel()] == 1]
-    outgoing = {}
-    for a, b in boundary:
-        outgoing.setdefault(int(a), []).append(int(b))
-    # Decompose the directed boundary into closed cycles; a vertex where two holes touch
-    # simply starts or ends two cycles.
-    loops = []
-    while outgoing:
-        start = next(iter(outgoing))
-        loop, vertex = [start], _pop_successor(outgoing, start)
-        while vertex != start:
-            if vertex not in outgoing:
-                raise MeshError(source, "not watertight and not repairable: an open boundary "
-                                        "does not close into a loop")
-            loop.append(vertex)
-            vertex = _pop_successor(outgoing, vertex)
-        loops.append(np.array(loop))
-    return loops
-
-
-def _pop_successor(outgoing, vertex):
-    successors = outgoing[vertex]
-    following = successors.pop()
-    if not successors:
-        del outgoing[vertex]
-    return following

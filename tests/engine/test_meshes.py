@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import MeshError, ObjectModel, PriorLibrary, load_mesh, prepare_mesh
+from tactile_viz.engine import MeshError, MeshWarning, ObjectModel, PriorLibrary, load_mesh, prepare_mesh
 from tactile_viz.engine.meshes import content_hash
 
 from .conftest import snapshot
@@ -93,7 +93,6 @@ BAD_FILES = {
     "nan.obj": (_write_nan_obj, "not finite"),
     "open.stl": (_write_open_cylinder, "open hole"),
     "sheet.obj": (_write_flat_sheet, "hole"),
-    "fin.ply": (_write_non_manifold, "not watertight"),
     "mesh.xyz": (lambda p: p.write_text("1 2 3\n"), "unsupported file type"),
 }
 
@@ -112,6 +111,15 @@ def test_bad_files_raise_one_clear_error(tmp_path, filename, small_library):
     assert library.names == ["box", "cylinder"]
     assert snapshot(folder) == before
     assert PriorLibrary.load(folder).names == ["box", "cylinder"]
+
+
+def test_a_fin_on_an_edge_is_split_off_with_a_warning(tmp_path):
+    path = tmp_path / "fin.ply"
+    _write_non_manifold(path)
+    with pytest.warns(MeshWarning, match="fin.ply: repaired on loading: 1 non-manifold edge "
+                                         "split; 1 open piece dropped"):
+        mesh = load_mesh(path)
+    assert mesh.is_watertight and mesh.volume == pytest.approx(1.0)
 
 
 def test_missing_file(tmp_path):

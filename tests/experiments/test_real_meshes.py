@@ -47,12 +47,14 @@ def test_registered_as_a_benchmark():
 @pytest.fixture(scope="module")
 def mesh_dir(tmp_path_factory):
     """Primitives standing in for pybullet_data: a box, its 'collision hulls' (two
-    overlapping boxes), an icosphere, a capsule and an empty file."""
+    overlapping boxes), an open sheet, an icosphere, a capsule and an empty file."""
     folder = tmp_path_factory.mktemp("pybullet_data")
     trimesh.creation.box(extents=(1.0, 2.0, 3.0)).export(folder / "box.obj")
     hulls = trimesh.util.concatenate([trimesh.creation.box(extents=(2.0, 1.0, 1.0)),
                                       trimesh.creation.box(extents=(1.0, 1.0, 2.0))])
     hulls.export(folder / "box_vhacd.obj")
+    trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+                    [[0, 1, 2], [0, 2, 3]]).export(folder / "sheet.obj")
     (folder / "shapes").mkdir()
     trimesh.creation.icosphere(subdivisions=2).export(folder / "shapes" / "ball.stl")
     trimesh.creation.capsule(height=2.0, radius=0.5).export(folder / "pill.ply")
@@ -62,7 +64,7 @@ def mesh_dir(tmp_path_factory):
 
 CATALOGUE = (
     RealMesh("block", ("box.obj", "box_vhacd.obj"), "visual mesh first"),
-    RealMesh("hulls", ("missing.obj", "box_vhacd.obj"), "nothing usable"),
+    RealMesh("hulls", ("missing.obj", "sheet.obj"), "nothing usable"),
     RealMesh("ball", ("empty.obj", "shapes/ball.stl"), "falls back to the second file"),
     RealMesh("pill", ("pill.ply",), "a capsule"),
 )
@@ -87,16 +89,20 @@ def test_unusable_entries_are_skipped_with_every_reason(loaded):
     assert list(skipped) == ["hulls"]
     reason = skipped["hulls"]
     assert "missing.obj: no such file" in reason
-    assert "box_vhacd.obj:" in reason and "inside the object" in reason
+    assert "sheet.obj:" in reason and "no inside" in reason
 
 
 def test_overlapping_parts_are_measured(mesh_dir):
     from tactile_viz.engine.objects import ObjectModel
 
-    hulls = ObjectModel.from_file(mesh_dir / "box_vhacd.obj")
+    raw = trimesh.load(mesh_dir / "box_vhacd.obj", force="mesh", process=False)
+    hulls = ObjectModel("hulls", raw)  # the parts as they are, inner walls and all
     box = ObjectModel.from_file(mesh_dir / "box.obj")
     assert rm.inner_surface_fraction(hulls, rng=1) > 0.1
     assert rm.inner_surface_fraction(box, rng=1) == 0.0
+    # Loading unites overlapping parts, so no inner wall is left.
+    united = ObjectModel.from_file(mesh_dir / "box_vhacd.obj")
+    assert rm.inner_surface_fraction(united, rng=1) == 0.0
 
 
 def test_pairs_leave_the_truth_out_only_when_novel():
