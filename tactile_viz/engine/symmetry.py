@@ -58,6 +58,10 @@ class SymmetryGroup:
     is_sphere: bool
     centre: np.ndarray
 
+    def __iter__(self):
+        """``rotations, axis, is_sphere, centre = group`` unpacks it."""
+        return iter((self.rotations, self.axis, self.is_sphere, self.centre))
+
     @property
     def name(self):
         """Schoenflies-like name: C1, C4, D2, D6, T, O, I, C∞ (cone), D∞ (cylinder), SO(3)."""
