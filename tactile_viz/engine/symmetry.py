@@ -33,6 +33,7 @@ _ODD_TURNS = 2 * np.pi * np.array([0.1093, 0.2871, 0.4393])  # no n-fold turn fo
 _SAME_ELEMENT_DEG = 15.0  # distinct elements of a group with folds <= 12 are >= 30 degrees apart
 _MAX_ORDER = 60  # the icosahedral group's
 _MAX_FEATURES = 24
+_MAX_MISSES = 12
 _SCREENS, _TEST_COUNT = (12, 48), 600  # samples of the quick screens, of the full test
 
 
@@ -258,19 +259,22 @@ class _GroupBuilder:
         self.test = test
         self.generators = []
         self.group = np.eye(3)[None]
+        self.misses = 0  # candidates rejected in a row
 
     def offer(self, turn):
         """Add (3, 3) ``turn`` to the generators if it and the whole group it then generates
         are symmetries."""
-        if _contains(self.group, turn) or not self.test.passes(turn[None])[0]:
+        if _contains(self.group, turn):
             return
-        group = closure(self.generators + [turn])
-        if group is None:
-            return
-        new = np.array([g for g in group if not _contains(self.group, g)])
-        if self.test.passes(new).all():
-            self.generators.append(turn)
-            self.group = group
+        group = closure(self.generators + [turn]) if self.test.passes(turn[None])[0] else None
+        if group is not None:
+            new = np.array([g for g in group if not _contains(self.group, g)])
+            if len(self.test.screen(new)) == len(new) and all(
+                    self.test.passes(new[i:i + 4]).all() for i in range(0, len(new), 4)):
+                self.generators.append(turn)
+                self.group, self.misses = group, 0
+                return
+        self.misses += 1
 
 
 def _perpendicular(axis):
@@ -325,8 +329,10 @@ def find_symmetry_group(vertices, faces, tolerance=SYMMETRY_TOLERANCE, seed=1):
         builder.offer(rotation(_perpendicular(axis), np.pi))
         return SymmetryGroup(builder.group, axis, False, centre)
     turns = _candidate_turns(mesh, centre, length, vectors, equal)
-    for turn in test.screen(turns):
+    for turn in test.screen(turns):  # the likeliest first
         builder.offer(turn)
+        if builder.misses >= _MAX_MISSES:  # a rough scan's near misses: the rest are worse
+            break
     return SymmetryGroup(builder.group, None, False, centre)
 
 
