@@ -1,11 +1,15 @@
 """Shape distances (directed and two-way Hausdorff distances on dense surface samples) and
-pose differences; every length in scene units."""
+pose differences up to the shape's symmetries (:mod:`.symmetry`); every length in scene
+units."""
 
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from .meshes import bare_mesh
+from .symmetry import (SYMMETRY_TOLERANCE, SymmetryGroup, closure as _closure,  # noqa: F401
+                       rotation as _rotation, rotation_angles, symmetry_group)
 from .transforms import transform_points
 
 # The paper's success threshold for the pose and reconstruction errors (TWD, for objects
@@ -53,88 +57,129 @@ def pose_error(model, rotation, translation, truth, count=4000):
     return two_way_hausdorff(estimate, actual)
 
 
-SYMMETRY_TOLERANCE = 0.02  # of the longest side: a rotation mapping the surface this close is a symmetry
-_FOLDS = (2, 3, 4, 5, 6, 8)
-
-
-def _rotation(axis, angle):
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec(angle * np.asarray(axis, float)).as_matrix()
-
-
-def symmetries(model, count=1000):
-    """The shape's rotational symmetries about its principal axes, object frame.
-
-    A rotation about the centre of mass is a symmetry when it maps every surface sample
-    within ``SYMMETRY_TOLERANCE`` of the longest side of the surface; the candidate axes are
-    the principal axes of inertia. An axis about which rotations by 45 and
-    by 30 degrees are symmetries is taken as continuous (a bottle's, a vase's).
+def symmetries(model):
+    """The shape's rotational symmetries, object frame, about ``symmetry_group(model).centre``.
 
     Returns
     -------
     discrete : (g, 3, 3) float
-        The group the discrete symmetries found generate (the identity first).
+        The discrete group (the identity first); with a continuous axis its discrete part.
     axis : (3,) float or None
-        The continuous symmetry axis, if any.
+        The continuous symmetry axis, if any (a sphere has none here: see
+        :func:`~tactile_viz.engine.symmetry.symmetry_group`).
     """
-    cache = model.__dict__.setdefault("_symmetries", {})
-    if count in cache:
-        return cache[count]
-    points = surface_samples(model, count, seed=1)
-    mesh = bare_mesh(model.mesh)
-    centre = np.asarray(mesh.center_mass)  # on every symmetry axis
-    centred = points - centre
-    tolerance = SYMMETRY_TOLERANCE * model.length
-
-    def symmetric(rotation):
-        # A rotation keeps area, so the samples all landing on the surface is enough.
-        moved = centred @ rotation.T + centre
-        return np.abs(model.exact.signed_distance(moved)).max() <= tolerance
-
-    axes = np.asarray(mesh.principal_inertia_vectors)
-    found, axis = [], None
-    with model.transient_exact():
-        for candidate in axes:
-            if axis is None and all(symmetric(_rotation(candidate, np.radians(a)))
-                                    for a in (45, 30)):
-                axis = candidate
-                continue
-            # A fold's generator (one turn of 2 pi / fold) generates the rest with the closure.
-            found += [turn for turn in (_rotation(candidate, 2 * np.pi / fold)
-                                        for fold in _FOLDS) if symmetric(turn)]
-    cache[count] = (_closure(found), axis)
-    return cache[count]
+    group = symmetry_group(model)
+    return group.rotations, group.axis
 
 
-def _closure(generators, limit=48):
-    """The group ``generators`` generate (at most ``limit`` elements), the identity first."""
-    group = [np.eye(3)]
-    frontier = list(generators)
-    while frontier and len(group) < limit:
-        element = frontier.pop()
-        if any(np.allclose(element, other, atol=1e-6) for other in group):
-            continue
-        group.append(element)
-        frontier += [element @ g for g in generators]
-    return np.array(group)
+def _twist_to_best(relative, axis):
+    """(n, 3, 3) turns ``T`` about ``axis`` that bring (n, 3, 3) ``relative @ T`` closest to
+    the identity (the twist removed, only the swing, the axis's tilt, is left)."""
+    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    along = np.einsum("i,nij,j->n", axis, relative, axis)
+    angle = np.arctan2(np.einsum("nij,ji->n", relative, cross),
+                       np.trace(relative, axis1=1, axis2=2) - along)
+    return Rotation.from_rotvec(angle[:, None] * axis).as_matrix()
+
+
+def best_symmetry(model, rotations, truth_rotation):
+    """The symmetry that brings each of the poses' rotations nearest to ``truth_rotation``.
+
+    Parameters
+    ----------
+    model : ObjectModel
+    rotations : (n, 3, 3) or (3, 3) float
+        Object-to-world rotations.
+    truth_rotation : (3, 3) float
+
+    Returns
+    -------
+    symmetry : (n, 3, 3) float
+        ``S`` with ``rotations @ S`` nearest to ``truth_rotation``; a turn about the group's
+        centre, object frame.
+    angle_deg : (n,) float
+        The remaining angle, degrees: the error up to symmetry.
+    """
+    group = symmetry_group(model)
+    rotations = np.asarray(rotations, float).reshape(-1, 3, 3)
+    truth_rotation = np.asarray(truth_rotation, float)
+    relative = np.einsum("ji,njk->nik", truth_rotation, rotations)
+    if group.is_sphere:
+        symmetry = np.einsum("nji,jk->nik", rotations, truth_rotation)
+        return symmetry, np.zeros(len(rotations))
+    # (n, g, 3, 3) candidates: every discrete element, each with its best twist.
+    candidates = np.broadcast_to(group.rotations, (len(rotations),) + group.rotations.shape)
+    if group.axis is not None:
+        turned = np.einsum("nij,gjk->ngik", relative, group.rotations).reshape(-1, 3, 3)
+        twist = _twist_to_best(turned, group.axis).reshape(candidates.shape)
+        candidates = np.einsum("gij,ngjk->ngik", group.rotations, twist)
+    angles = rotation_angles(np.einsum("nij,ngjk->ngik", relative, candidates))
+    best = np.argmin(angles, axis=1)
+    index = np.arange(len(rotations))
+    return candidates[index, best], np.degrees(angles[index, best])
 
 
 def rotation_error_deg(model, rotation, truth_rotation):
-    """The angle between two orientations of ``model``, degrees, up to its symmetries:
-    the smallest over its discrete symmetries, and about a continuous axis only the axis's
-    tilt counts."""
-    discrete, axis = symmetries(model)
-    relative = np.asarray(truth_rotation).T @ np.asarray(rotation)
-    best = np.pi
-    for symmetry in discrete:
-        turned = relative @ symmetry
-        if axis is None:
-            cosine = (np.trace(turned) - 1) / 2
-        else:
-            cosine = axis @ turned @ axis
-        best = min(best, float(np.arccos(np.clip(cosine, -1.0, 1.0))))
-    return float(np.degrees(best))
+    """The angle between two orientations of ``model``, degrees, up to its symmetries: the
+    smallest over its discrete symmetries; about a continuous axis only the axis's tilt
+    counts (and the flip of the axis, if a symmetry, not at all); for a sphere 0."""
+    return float(best_symmetry(model, rotation, truth_rotation)[1][0])
+
+
+def symmetric_pose_difference(model, rotations, translations, rotation, translation):
+    """Rotation and translation differences of poses of one shape, up to its symmetries.
+
+    A symmetry ``S`` (a turn about the centre ``c``) maps the pose ``(R, t)`` to the same
+    placed shape ``(R S, t + R (c - S c))``; the one that brings ``R S`` nearest to
+    ``rotation`` is used.
+
+    Parameters
+    ----------
+    model : ObjectModel
+    rotations : (n, 3, 3) or (3, 3) float
+    translations : (n, 3) or (3,) float, scene units
+        Object-to-world poses to compare.
+    rotation : (3, 3) float
+    translation : (3,) float, scene units
+        The reference pose.
+
+    Returns
+    -------
+    angle_deg : (n,) float
+    distance : (n,) float, scene units
+        How far the equivalent pose's object centre (bounding-box centre) is from the
+        reference's.
+    """
+    rotations = np.asarray(rotations, float).reshape(-1, 3, 3)
+    translations = np.asarray(translations, float).reshape(-1, 3)
+    symmetry, angle = best_symmetry(model, rotations, rotation)
+    centre = symmetry_group(model).centre
+    shift = centre - symmetry @ centre
+    moved = translations + np.einsum("nij,nj->ni", rotations, shift)
+    return angle, np.linalg.norm(moved - np.asarray(translation, float), axis=1)
+
+
+def same_pose_mode(model, pose_a, pose_b, angle_tol_deg, translation_tol):
+    """Whether two poses of ``model`` place the same surface, up to its symmetries.
+
+    Parameters
+    ----------
+    pose_a, pose_b : (4, 4) float or ((3, 3), (3,)) pairs
+        Object-to-world poses.
+    angle_tol_deg : float
+    translation_tol : float, scene units
+    """
+    (rotation_a, translation_a), (rotation_b, translation_b) = map(_split_pose, (pose_a, pose_b))
+    angle, distance = symmetric_pose_difference(model, rotation_a, translation_a, rotation_b,
+                                                translation_b)
+    return bool(angle[0] <= angle_tol_deg and distance[0] <= translation_tol)
+
+
+def _split_pose(pose):
+    if isinstance(pose, np.ndarray) and pose.shape == (4, 4):
+        return pose[:3, :3], pose[:3, 3]
+    rotation, translation = pose
+    return np.asarray(rotation, float), np.asarray(translation, float)
 
 
 def pose_difference(model, rotation, translation, truth):
@@ -153,14 +198,16 @@ def pose_difference(model, rotation, translation, truth):
     Returns
     -------
     angle_deg : float or None
-        :func:`rotation_error_deg`: the angle of ``R_truth^T R``, degrees, up to the shape's
-        symmetries (about a continuous axis, a bottle's, only the axis's tilt counts);
-        None for another shape.
+        :func:`rotation_error_deg`: the angle of ``R_truth^T R S``, degrees, for the shape's
+        symmetry ``S`` that makes it least (about a continuous axis, a bottle's, only the
+        axis's tilt counts); None for another shape.
     distance : float or None
-        ``|t - t_truth|``: how far the estimate's object centre (the bounding box's) is from
-        the truth's, scene units; None for another shape.
+        How far the estimate's object centre (the bounding box's), moved by that symmetry,
+        is from the truth's: ``|t + R (c - S c) - t_truth|`` with ``c`` the symmetry centre,
+        scene units; None for another shape.
     """
     if model.content_hash != truth.model.content_hash:
         return None, None
-    return (rotation_error_deg(model, rotation, truth.rotation),
-            float(np.linalg.norm(np.asarray(translation) - truth.translation)))
+    angle, distance = symmetric_pose_difference(model, rotation, translation, truth.rotation,
+                                                truth.translation)
+    return float(angle[0]), float(distance[0])
