@@ -324,7 +324,9 @@ def size_warning(source, size, reference, units=None, remedy="", smaller=True):
                f"{reference:.3g} {name} long")
     guess = likely_unit(size, reference, units)
     if guess is None:
-        return f"{message} ({size / reference:.3g} times): are they in the same unit?"
+        ratio = size / reference
+        how = f"{ratio:.3g} times larger" if ratio > 1 else f"{1 / ratio:.3g} times smaller"
+        return f"{message} ({how}): are they in the same unit?"
     return f"{message}: is the file in {guess}?" + (f" {remedy.format(unit=guess)}"
                                                      if remedy else "")
 

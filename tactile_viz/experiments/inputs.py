@@ -132,8 +132,8 @@ def options_problem(args):
     there is none), found before anything is read."""
     normalise = getattr(args, "normalise", None)
     if normalise is not None:
-        units = [units for _, units in map(lambda t: file_units(args, t), mesh_texts(args))
-                 if units is not None]
+        units = [units for units in [getattr(args, "mesh_units", None)]
+                 + [split_units(text)[1] for text in mesh_texts(args)] if units is not None]
         if units:
             return (f"--normalise {normalise:g} and the mesh unit {units[0]} both set the "
                     "meshes' size: give one of them")
@@ -244,7 +244,8 @@ def say(args, kind, message):
     """One line on stderr, ``PROG: KIND: MESSAGE`` (``kind`` ``warning`` or ``note``); the
     log file keeps it too."""
     prog = getattr(args, "prog", None) or "python -m tactile_viz"
-    log.warning("%s: %s", kind, message, extra={"file_only": True})
+    level = logging.WARNING if kind == "warning" else logging.INFO
+    log.log(level, "%s: %s", kind, message, extra={"file_only": True})
     print(f"{prog}: {kind}: {one_line(message)}", file=sys.stderr)
 
 
