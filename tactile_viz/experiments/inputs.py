@@ -140,7 +140,7 @@ def options_problem(args):
     learn, learn_to = getattr(args, "learn", None), getattr(args, "learn_to", None)
     if learn_to and not learn:
         return f"--learn-to {learn_to} needs --learn NAME (the learned prior's name)"
-    if learn and not (learn_to or args.library_dir):
+    if learn and not (learn_to or getattr(args, "library_dir", None)):
         return "--learn needs a library folder to write: --learn-to DIR (or --library-dir DIR)"
     folder = getattr(args, "library_dir", None)
     if folder is not None:
@@ -155,6 +155,7 @@ def options_problem(args):
 
 
 def output_problem(folder):
+    """Why ``--library-dir`` cannot be made where it is named (None if it can)."""
     try:
         output_dir(folder)
     except argparse.ArgumentTypeError as error:
