@@ -5,6 +5,7 @@
     python app.py --object vase_2 --seed 3          # another object and pose
     python app.py --object mug_1 --steps 40 --screenshot out.png   # headless picture
     python app.py --object-file cup.stl --library known --prior-file cup.stl   # own meshes
+    python app.py --object-file can.stl:mm --prior-file cup.stl:mm bowl.stl:m  # with units
     python app.py --observations touches.csv --library-dir my_library  # recorded touches
 """
 
@@ -14,9 +15,10 @@ import os
 import sys
 
 from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
-                             default_log_file, setup_logging)
+                             default_log_file, one_line, setup_logging)
 
 log = logging.getLogger("tactile_viz.app.launcher")
+PROG = "app.py"  # errors are one line, "app.py: error: MESSAGE", as the command line's
 GUI_HINT = "the desktop app needs the GUI extra: pip install -e '.[gui]'"
 
 
@@ -24,19 +26,21 @@ class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on stderr (exit status 2)."""
 
     def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
 
 
 def parse_args(argv=None):
     from tactile_viz.app.engine_process import ENGINES
     from tactile_viz.engine import STRATEGIES
 
-    parser = Parser(description="tactile_viz desktop app: watch and steer active tactile "
+    parser = Parser(prog=PROG, description="tactile_viz desktop app: watch and steer active tactile "
                                 "recognition and shape learning")
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--object", metavar="NAME",
                       help="bundled ground-truth object (default mug_1)")
-    what.add_argument("--object-file", metavar="MESH", help="a mesh file as the ground truth")
+    what.add_argument("--object-file", metavar="MESH[:UNIT]",
+                      help="a mesh file as the ground truth; a suffix :mm, :m, ... or "
+                           ":FACTOR gives its unit")
     what.add_argument("--observations", metavar="FILE",
                       help="step through recorded touches (CSV: kind,x,y,z,nx,ny,nz) "
                            "instead of touching an object")
@@ -44,9 +48,10 @@ def parse_args(argv=None):
     library.add_argument("--library", choices=["known", "novel", "all"],
                          help="the priors: a bundled set (default known)")
     library.add_argument("--library-dir", metavar="DIR", help="a saved prior library folder")
-    parser.add_argument("--prior-file", metavar="MESH", action=ExtendList,
+    parser.add_argument("--prior-file", metavar="MESH[:UNIT]", action=ExtendList,
                         help="mesh files as priors (repeats add up): added to --library or "
-                             "--library-dir when given, else the only priors")
+                             "--library-dir when given, else the only priors; a suffix :mm, "
+                             ":m, ... or :FACTOR gives a file's unit")
     parser.add_argument("--seed", type=int, default=0, help="pose and session seed (default 0)")
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     add_preset_argument(parser)
@@ -61,17 +66,14 @@ def parse_args(argv=None):
                              "as a prior, then place it at the next seed's pose")
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
-    from tactile_viz.experiments.trial import add_sensor_arguments, mesh_units
+    from tactile_viz.experiments.inputs import add_unit_arguments
+    from tactile_viz.experiments.trial import add_sensor_arguments
 
-    parser.add_argument("--units", choices=["m", "cm", "mm", "in"], default=None,
-                        help="the scene's length unit, shown on the plots and written to "
-                             "exports (default: m when --mesh-units names a unit)")
-    parser.add_argument("--mesh-units", type=mesh_units, default=None, metavar="UNIT",
-                        help="the unit of --object-file and --prior-file meshes: m, cm, mm, "
-                             "in (converted to metres) or a factor")
+    add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)
     add_logging_arguments(parser, log_file_default=str(default_log_file()))
     args = parser.parse_args(argv)
+    args.prog = PROG
     problem = argument_problem(args)
     if problem:
         parser.error(problem)
@@ -114,14 +116,24 @@ def argument_problem(args):
         return f"--steps must be 0 or more, not {args.steps}"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
-    paths = [("--object-file", args.object_file), ("--observations", args.observations)]
-    paths += [("--prior-file", path) for path in args.prior_file or ()]
-    for option, path in paths:
-        if path and (problem := _path_problem(option, path)):
+    from tactile_viz.engine.meshes import split_units
+    from tactile_viz.experiments.inputs import mesh_units, options_problem
+
+    if args.observations and (problem := _path_problem("--observations", args.observations)):
+        return problem
+    meshes = [("--object-file", args.object_file)] if args.object_file else []
+    for option, text in meshes + [("--prior-file", text) for text in args.prior_file or ()]:
+        path, units = split_units(text)
+        if problem := _path_problem(option, path):
             return problem
-    if args.library_dir:
-        return _path_problem("--library-dir", args.library_dir, folder=True)
-    return None
+        try:
+            units is None or mesh_units(units)
+        except argparse.ArgumentTypeError as error:
+            return f"{option} {text}: {error}"
+    if args.library_dir and (problem := _path_problem("--library-dir", args.library_dir,
+                                                      folder=True)):
+        return problem
+    return options_problem(args)
 
 
 def log_errors_shown(window):
@@ -145,36 +157,29 @@ def log_errors_shown(window):
 
 
 def load_priors(args):
-    """The priors of the options: the bundled set or the saved library (known when neither
-    is given and no --prior-file is), plus every --prior-file."""
-    from tactile_viz.engine.library import PriorLibrary
+    """The priors of the options, read as ``trial`` and ``replay`` read them: the bundled
+    set or the saved library (known when neither is given and no --prior-file is), plus
+    every --prior-file, in the scene's unit."""
+    from tactile_viz.experiments.inputs import load_priors as load
 
-    if args.library_dir:
-        library = PriorLibrary.load(args.library_dir)
-    elif args.library or not args.prior_file:
-        library = PriorLibrary.bundled(args.library or "known")
-    else:
-        library = PriorLibrary()
-    from tactile_viz.experiments.trial import mesh_options
-
-    for path in args.prior_file or ():
-        library.add_file(path, **mesh_options(args))
-    return library
+    return load(args)
 
 
 def build_scene(args):
-    """The scene of the options; a bad mesh, library or recording raises the project's
-    error (before any window opens)."""
+    """The scene of the options, read as ``trial`` and ``replay`` read them (units, a
+    recording's ``# units:`` line, warnings about files likely in another unit); a bad mesh,
+    library or recording raises the project's error (before any window opens)."""
     from tactile_viz.app.scene import Scene
-    from tactile_viz.engine.objects import ObjectModel
+    from tactile_viz.experiments.inputs import load_mesh, scene_units, size_warnings
 
-    from tactile_viz.experiments.trial import mesh_options, scene_units
-
-    truth = (ObjectModel.from_file(args.object_file, **mesh_options(args)) if args.object_file
-             else None)
+    library = load_priors(args)
+    units = scene_units(args, library)
+    truth = load_mesh(args, args.object_file, units) if args.object_file else None
+    for message in size_warnings(args, library, truth):
+        log.warning("%s", message)
     scene = Scene(truth_name=args.object or "mug_1", truth_model=truth, seed=args.seed,
-                  library=load_priors(args), strategy=args.strategy, preset=args.preset,
-                  units=scene_units(args),
+                  library=library, strategy=args.strategy, preset=args.preset,
+                  units=units,
                   sensor_noise=(args.position_noise, args.normal_noise),
                   sensor_outliers=args.outliers)
     if args.outlier_probability is not None:
@@ -198,11 +203,11 @@ def main(argv=None):
         from tactile_viz.gui.main_window import MainWindow
     except ImportError as error:
         log.debug("no GUI", exc_info=True)
-        print(f"error: {error}\n{GUI_HINT}", file=sys.stderr)
+        print(f"{PROG}: error: {error}; {GUI_HINT}", file=sys.stderr)
         return 2
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                  or os.environ.get("WAYLAND_DISPLAY")):
-        print("error: no display (DISPLAY is not set); on a headless machine run it under "
+        print(f"{PROG}: error: no display (DISPLAY is not set); on a headless machine run it under "
               "Xvfb, e.g. `xvfb-run -a make run`", file=sys.stderr)
         return 2
 
@@ -212,7 +217,7 @@ def main(argv=None):
         scene = build_scene(args)
     except (TactileVizError, ValueError, OSError) as error:
         log.debug("the scene could not be built", exc_info=True)
-        print(f"error: {error}", file=sys.stderr)
+        print(f"{PROG}: error: {one_line(error)}", file=sys.stderr)
         return 2
     app = QApplication.instance() or QApplication(sys.argv[:1])
     window = MainWindow(scene, engine=args.engine)
@@ -234,7 +239,8 @@ def main(argv=None):
         app.processEvents()
         sys.excepthook = default_hook
         if not saved:
-            print(f"error: cannot write the screenshot {args.screenshot}", file=sys.stderr)
+            print(f"{PROG}: error: cannot write the screenshot {args.screenshot}",
+                  file=sys.stderr)
             return 1
         print(f"saved {args.screenshot}")
         return 0

@@ -75,7 +75,7 @@ def build_parser():
     objects.add_argument("--json", action="store_true",
                          help='print a JSON list of {"name": ..., "set": "known"|"novel", '
                               '"variant_of": NAME or null}')
-    objects.set_defaults(run=_objects)
+    objects.set_defaults(run=_objects, prog=objects.prog)
 
     from .experiments.trial import add_trial_arguments
 
@@ -84,7 +84,9 @@ def build_parser():
         description="Run one trial of Algorithm 2 on a bundled object or a mesh file at a "
                     "random pose (from --seed) and write one JSON record per step.")
     add_trial_arguments(trial)
-    trial.set_defaults(run=_trial)
+    from .experiments.inputs import options_problem
+
+    trial.set_defaults(run=_trial, prog=trial.prog, check=options_problem)
 
     from .experiments.replay import add_replay_arguments
 
@@ -94,7 +96,7 @@ def build_parser():
                     "column; kind contact, noncontact or free) through the filter and the "
                     "GPIS and write the trial command's per-step JSON (truth metrics null).")
     add_replay_arguments(replay)
-    replay.set_defaults(run=_replay)
+    replay.set_defaults(run=_replay, prog=replay.prog, check=options_problem)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
                                               "scaling, noise, sizes, decide, realmesh, gui)",
@@ -113,16 +115,17 @@ def build_parser():
                             "known/novel trials on meshes pybullet ships (extra realmesh); "
                             "gui: does the desktop app keep up with the engine (under Xvfb)")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
-    bench.set_defaults(run=_bench)
+    bench.set_defaults(run=_bench, prog=bench.prog)
     return parser
 
 
-def _fail(message, status, verbose, hint=""):
+def _fail(prog, message, status, verbose, hint=""):
     """Log the exception being handled with its traceback (to the log file; on stderr too
-    with ``--verbose``) and show ``message`` as one line; returns ``status``."""
+    with ``--verbose``) and show ``message`` as one line, ``PROG: error: MESSAGE`` as the
+    parser's errors; returns ``status``."""
     log.error("the command failed: %s", message, exc_info=True,
               extra={"file_only": not verbose})
-    print(f"error: {one_line(message)}{hint}", file=sys.stderr)
+    print(f"{prog}: error: {one_line(message)}{hint}", file=sys.stderr)
     return status
 
 
@@ -136,14 +139,21 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     log_file = setup_logging(args.verbose, args.log_file)
     log.debug("command: %s", sys.argv if argv is None else argv)
+    prog = getattr(args, "prog", "python -m tactile_viz")
+    if args.command == "bench":
+        prog = f"{prog} {args.what}"
+    check = getattr(args, "check", None)
+    if check is not None and (problem := check(args)):
+        print(f"{prog}: error: {one_line(problem)}", file=sys.stderr)
+        return 2
     try:
         return args.run(args)
     except TactileVizError as error:
-        return _fail(str(error), 2, args.verbose)
+        return _fail(prog, str(error), 2, args.verbose)
     except SystemExit as stop:
         if not isinstance(stop.code, str):  # argparse's exits and plain exit statuses
             raise
-        return _fail(stop.code, 2, args.verbose)
+        return _fail(prog, stop.code, 2, args.verbose)
     except KeyboardInterrupt:
         log.info("interrupted", exc_info=True, extra={"file_only": True})
         print("interrupted", file=sys.stderr)
@@ -151,7 +161,7 @@ def main(argv=None):
     except Exception as error:
         where = (f"traceback in {log_file}" if log_file
                  else "--log-file FILE or --verbose shows the traceback")
-        return _fail(f"{type(error).__name__}: {error}", 1, args.verbose, f" ({where})")
+        return _fail(prog, f"{type(error).__name__}: {error}", 1, args.verbose, f" ({where})")
 
 
 if __name__ == "__main__":

@@ -19,11 +19,11 @@ from pathlib import Path
 from ..engine.errors import LibraryError
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
-from ..engine.library import PriorLibrary
+from ..engine.library import PriorLibrary, size_warning
 from ..engine.meshes import UNITS
 from ..engine.metrics import error_threshold
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.observation_file import read_observations
+from ..engine.observation_file import read_observations, recording_warning
 from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
@@ -92,7 +92,8 @@ class Scene:
     units : str, optional
         The name of the scene's length unit where it has one (a key of
         :data:`tactile_viz.engine.meshes.UNITS`, e.g. ``"m"``), shown on the plots and written
-        to exports; None: "scene units".
+        to exports, and the unit recordings and saved libraries are converted to; None: the
+        library's when all its priors name one, else "scene units".
     sensor_noise : tuple of float
         ``(position std in scene units, normal std in degrees)``: what the simulated sensor
         adds and the model assumes (see :class:`~tactile_viz.engine.session.Session`).
@@ -114,7 +115,8 @@ class Scene:
         self.seed = int(seed)
         if units is not None and units not in UNITS:
             raise ValueError(f"unknown units {units!r}: use one of {', '.join(UNITS)}")
-        self.units = units
+        self.units = units if units is not None else self.library.units
+        self.warnings = []  # why the last file read is likely in another unit (one line each)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
         self.sensor_outliers = float(sensor_outliers)
         self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
@@ -244,8 +246,21 @@ class Scene:
         self._set_truth(load_bundled(name))
 
     def set_truth_file(self, path):
-        """Use a mesh file as the ground truth (MeshError, and no change, if it is bad)."""
-        self._set_truth(ObjectModel.from_file(path))
+        """Use a mesh file as the ground truth (MeshError, and no change, if it is bad); a
+        file likely in another unit than the priors is taken with a warning."""
+        model = ObjectModel.from_file(path)
+        self._check_size(path, model, self.library)
+        self._set_truth(model)
+
+    def _check_size(self, path, model, library):
+        """Keep (and log) the warning of a mesh without a unit whose size is far off the
+        priors' (:func:`~tactile_viz.engine.library.size_warning`)."""
+        others = [m for m in library if m is not model]
+        message = others and size_warning(Path(path).name, model.length,
+                                          PriorLibrary(others).reference_size, self.units)
+        self.warnings = [message] if message else []
+        if message:
+            log.warning("%s", message)
 
     def _set_truth(self, model):
         self.truth_model = model
@@ -281,19 +296,21 @@ class Scene:
         model = ObjectModel.from_file(path, name=name)
         if model.name in self.library:
             raise LibraryError(f"the library already has a prior named {model.name!r}")
+        self._check_size(path, model, self.library)
         self._add_prior(model)
         return model
 
     def _add_prior(self, model):
-        self.library.add(model)
+        self.library.add(model, units=self.units)
         self.enabled[model.name] = True
         log.info("prior %s added", model.name)
         self.reset()
         self.library_changed.emit(self.library)
 
     def load_library(self, folder):
-        """Replace the priors by a saved library (LibraryError, and no change, if corrupt)."""
-        library = PriorLibrary.load(folder)
+        """Replace the priors by a saved library (LibraryError, and no change, if corrupt);
+        priors saved in another named unit are converted to the scene's."""
+        library = PriorLibrary.load(folder, units=self.units)
         self.library = library
         self.enabled = {name: True for name in library.names}
         self.reset()
@@ -352,9 +369,15 @@ class Scene:
     def open_observations(self, path):
         """Step through recorded touches (an observation file) instead of the simulator,
         with the current priors and settings; the truth is hidden (a recording has none).
-        A bad file raises ObservationFileError and changes nothing. Returns the number of
-        recorded steps."""
-        steps = read_observations(path)
+        Positions are converted to the scene's unit as ``replay`` does (a ``# units:``
+        line naming another); :attr:`warnings` says when the file is likely in another unit
+        than the priors. A bad file raises ObservationFileError and changes nothing. Returns
+        the number of recorded steps."""
+        steps = read_observations(path, self.units)
+        message = recording_warning(path, steps, self.active_library(), self.units)
+        self.warnings = [message] if message else []
+        if message:
+            log.warning("%s", message)
         self.recording = (str(path), steps)
         self.truth = None
         log.info("replaying %s (%d steps)", path, len(steps))

@@ -3,6 +3,12 @@
 A library is saved as a folder of PLY meshes plus ``library.json``. Mesh files carry the
 content hash in their name and are written before the manifest, which is replaced
 atomically last: a failed or interrupted save leaves the previous library readable.
+
+Each prior may name the length unit of its mesh (``units``: a name of
+:data:`~tactile_viz.engine.meshes.UNITS`, or None when unknown, as for the bundled objects at
+the paper's scale). The manifest keeps it, so that a library saved in metres loads into a
+millimetre scene converted; manifests written before it was kept load with unknown units.
+:func:`size_warning` is the one check that a file without a unit is in the library's.
 """
 
 from __future__ import annotations
@@ -19,13 +25,16 @@ import trimesh
 
 from .errors import LibraryError, MeshError
 from .files import write_atomic
-from .meshes import check_arrays
+from .meshes import UNITS, check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
 
 log = logging.getLogger(__name__)
 
 MANIFEST = "library.json"
 FORMAT = "tactile_viz-prior-library"
+# A file whose size is this many times off the library's reference size (either way) is
+# likely in another unit.
+MISMATCH = 10.0
 
 
 class PriorLibrary:
@@ -38,6 +47,7 @@ class PriorLibrary:
 
     def __init__(self, models=()):
         self._models = {}
+        self._units = {}
         for model in models:
             self.add(model)
 
@@ -73,30 +83,57 @@ class PriorLibrary:
         """Names of the models, in the order they were added."""
         return list(self._models)
 
-    def add(self, model: ObjectModel, replace: bool = False) -> ObjectModel:
-        """Add a model; a name already present is an error unless ``replace``."""
+    def add(self, model: ObjectModel, replace: bool = False,
+            units: str | None = None) -> ObjectModel:
+        """Add a model; a name already present is an error unless ``replace``.
+
+        ``units`` names the unit of the model's coordinates (a key of ``UNITS``; None:
+        unknown), kept by :meth:`save`.
+        """
         if model.name in self._models and not replace:
             raise LibraryError(f"the library already has a prior named {model.name!r}")
+        if units is not None and units not in UNITS:
+            raise LibraryError(f"prior {model.name!r}: unknown units {units!r}; use one of "
+                               f"{', '.join(UNITS)}")
         self._models[model.name] = model
+        self._units[model.name] = units
         return model
 
-    def add_file(self, path: str | Path, name: str | None = None, **kwargs) -> ObjectModel:
-        """Load a mesh file as a new prior (raises MeshError and adds nothing if it is bad)."""
-        return self.add(ObjectModel.from_file(path, name=name, **kwargs))
+    def add_file(self, path: str | Path, name: str | None = None, units: str | None = None,
+                 **kwargs) -> ObjectModel:
+        """Load a mesh file as a new prior (raises MeshError and adds nothing if it is bad);
+        ``units`` names the unit of the loaded model (after ``scale``), see :meth:`add`."""
+        return self.add(ObjectModel.from_file(path, name=name, **kwargs), units=units)
 
-    def add_arrays(self, vertices, faces, name, **kwargs):
+    def add_arrays(self, vertices, faces, name, units=None, **kwargs):
         """Add a prior from ``(n, 3)`` vertices and ``(m, 3)`` faces."""
-        return self.add(ObjectModel.from_arrays(vertices, faces, name, **kwargs))
+        return self.add(ObjectModel.from_arrays(vertices, faces, name, **kwargs), units=units)
 
     def remove(self, name):
         """Remove and return the model ``name``."""
         model = self[name]
         del self._models[name]
+        self._units.pop(name, None)
         return model
 
     def subset(self, names):
-        """A new library with only the named models (sharing them)."""
-        return PriorLibrary(self[name] for name in names)
+        """A new library with only the named models (sharing them and their units)."""
+        library = PriorLibrary()
+        for name in names:
+            library.add(self[name], units=self.units_of(name))
+        return library
+
+    def units_of(self, name) -> str | None:
+        """The unit of the prior ``name``'s coordinates (None: unknown)."""
+        self[name]  # raises LibraryError for an unknown name
+        return self._units.get(name)
+
+    @property
+    def units(self) -> str | None:
+        """The unit all priors share, None when any is unknown or they differ (or there
+        are none)."""
+        found = {self._units.get(name) for name in self._models}
+        return found.pop() if len(found) == 1 else None
 
     @classmethod
     def bundled(cls, which: str = "known", params=None, cache=None) -> PriorLibrary:
@@ -104,11 +141,17 @@ class PriorLibrary:
         return cls(load_bundled(name, params, cache) for name in bundled_names(which))
 
     def save(self, folder: str | Path) -> Path:
-        """Write the library to ``folder`` (created if needed) without risking the old one."""
+        """Write the library to ``folder`` (created if needed) without risking the old one.
+
+        Each entry of the manifest has the prior's ``name``, mesh ``file`` and its
+        ``sha256``, ``learned``, ``longest_side``, ``file_to_object`` (4x4) and ``units``
+        (None when unknown).
+        """
         folder = Path(folder)
         try:
             folder.mkdir(parents=True, exist_ok=True)
-            entries = [_save_mesh(folder, model) for model in self]
+            entries = [{**_save_mesh(folder, model), "units": self._units.get(model.name)}
+                       for model in self]
             manifest = {"format": FORMAT, "version": 1, "objects": entries}
             write_atomic(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
         except OSError as error:
@@ -121,8 +164,16 @@ class PriorLibrary:
         return folder
 
     @classmethod
-    def load(cls, folder: str | Path, params=None, cache=None) -> PriorLibrary:
+    def load(cls, folder: str | Path, params=None, cache=None,
+             units: str | None = None) -> PriorLibrary:
         """Read a library folder written by :meth:`save`.
+
+        Parameters
+        ----------
+        units : str, optional
+            The scene's unit: priors saved in another named unit are converted to it. None:
+            priors are kept as saved, except that priors in different named units are all
+            converted to metres. Priors saved without a unit are never converted.
 
         Raises
         ------
@@ -131,7 +182,12 @@ class PriorLibrary:
         """
         folder = Path(folder)
         entries = _read_manifest(folder)
-        models = []
+        if units is not None and units not in UNITS:
+            raise LibraryError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
+        named = {entry.get("units") for entry in entries} - {None}
+        if units is None and len(named) > 1:
+            units = "m"
+        library = cls()
         for entry in entries:
             path = folder / entry["file"]
             try:
@@ -142,11 +198,15 @@ class PriorLibrary:
             if hashlib.sha256(data).hexdigest() != entry["sha256"]:
                 raise LibraryError(f"library {folder}: mesh file {entry['file']} of prior "
                                    f"{entry['name']!r} is corrupt (checksum mismatch)")
-            models.append(ObjectModel(entry["name"], _mesh_from_ply(data, path), params, cache,
-                                      learned=entry.get("learned") is True,
-                                      file_to_object=_matrix(entry, path)))
-        log.info("loaded %d priors from %s", len(models), folder)
-        return cls(models)
+            mesh, saved = _mesh_from_ply(data, path), entry.get("units")
+            scale = 1.0 if units is None or saved is None else UNITS[saved] / UNITS[units]
+            mesh.apply_scale(scale)
+            model = ObjectModel(entry["name"], mesh, params, cache,
+                                learned=entry.get("learned") is True,
+                                file_to_object=np.diag([scale] * 3 + [1.0]) @ _matrix(entry, path))
+            library.add(model, units=units if saved is not None and units else saved)
+        log.info("loaded %d priors from %s", len(library), folder)
+        return library
 
 
 def _slug(name):
@@ -211,9 +271,64 @@ def _read_manifest(folder):
                 raise TypeError("name, file and sha256 must be strings")
             if Path(entry["file"]).name != entry["file"]:
                 raise ValueError(f"file {entry['file']!r} is outside the folder")
+            if entry.get("units") is not None and entry["units"] not in UNITS:
+                raise ValueError(f"prior {entry['name']!r} has unknown units "
+                                 f"{entry['units']!r}")
     except (KeyError, TypeError, ValueError) as error:
         raise LibraryError(f"{path} is corrupt ({error!r})") from error
     return entries
 
 
-__all__ = ["PriorLibrary"]
+def likely_unit(size, reference, units):
+    """The unit a file of ``size`` (in the scene unit ``units``) is most likely in, given
+    that it should be about ``reference`` long: the name of ``UNITS`` that brings it
+    closest; None when the scene's unit is unknown or no other unit comes closer."""
+    if units not in UNITS:
+        return None
+    error = {name: abs(np.log(size * UNITS[name] / UNITS[units] / reference))
+             for name in UNITS}
+    best = min(error, key=error.get)
+    return None if best == units else best
+
+
+def size_warning(source, size, reference, units=None, remedy="", smaller=True):
+    """Why a file without a unit is likely not in the library's unit, or None.
+
+    Parameters
+    ----------
+    source : str
+        Names the file (a mesh or a recording).
+    size : float
+        Its extent in scene units: a mesh's longest side, a recording's span.
+    reference : float
+        The library's reference size (:attr:`PriorLibrary.reference_size`), scene units.
+    units : str, optional
+        The scene's unit name (None: "scene units").
+    remedy : str
+        What to do, with ``{unit}`` for the likely unit (used only when one is found).
+    smaller : bool
+        Also warn when ``size`` is too small (False for a few touches, which may cover a
+        small part of the object).
+
+    Returns
+    -------
+    str or None
+        One line naming both sizes and the likely unit, when they differ more than
+        :data:`MISMATCH` times either way.
+    """
+    if not (size > 0 and reference > 0) or (1 / MISMATCH if smaller else 0.0) <= (
+            size / reference) <= MISMATCH:
+        return None
+    name = units or "scene units"
+    message = (f"{source} spans {size:.3g} {name} but the library's objects are "
+               f"{reference:.3g} {name} long")
+    guess = likely_unit(size, reference, units)
+    if guess is None:
+        ratio = size / reference
+        how = f"{ratio:.3g} times larger" if ratio > 1 else f"{1 / ratio:.3g} times smaller"
+        return f"{message} ({how}): are they in the same unit?"
+    return f"{message}: is the file in {guess}?" + (f" {remedy.format(unit=guess)}"
+                                                     if remedy else "")
+
+
+__all__ = ["MISMATCH", "PriorLibrary", "likely_unit", "size_warning"]

@@ -70,6 +70,25 @@ def unit_factor(units: str | float | None) -> float:
     return factor
 
 
+def split_units(text: str) -> tuple[str, str | None]:
+    """``(path, units)`` of a file named with its unit, ``cup.stl:mm`` or ``cup.stl:0.001``.
+
+    Only a name of :data:`UNITS` or a number after the last colon is a unit, so paths with
+    colons of their own (``C:\\cup.stl``) are kept whole: ``(text, None)``.
+    """
+    path, colon, suffix = str(text).rpartition(":")
+    if not colon or not path:
+        return str(text), None
+    name = suffix.strip().lower()
+    if name in UNITS:
+        return path, name
+    try:
+        float(name)
+    except ValueError:
+        return str(text), None
+    return path, suffix.strip()
+
+
 def load_mesh(path, longest_side: float | None = None, max_faces: int | None = MAX_FACES,
               scale: float = 1.0) -> trimesh.Trimesh:
     """Read a mesh file and return it checked, repaired and centred (and scaled if asked).

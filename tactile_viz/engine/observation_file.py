@@ -37,6 +37,7 @@ from .observations import Contact, NonContact
 
 HEADER = ("kind", "x", "y", "z", "nx", "ny", "nz")
 KINDS = ("contact", "noncontact", "free")
+SPAN_CONTACTS = 10  # fewer touches may cover a small part of the object: their span says little
 
 
 class ObservationFileError(ObservationError):
@@ -226,6 +227,42 @@ def read_observations(path, units: str | None = None) -> list[RecordedStep]:
     return parse_observations(text, path, scale)
 
 
+def recorded_units(path):
+    """The unit a recording's ``# units:`` line names, or None (also for an unreadable
+    file: :func:`read_observations` reports that)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+    return file_units(text, path)
+
+
+def recording_span(steps):
+    """The longest side of the bounding box of a recording's contacts (0 with fewer than
+    two), in the units its steps are in: what the touched object's size is at least."""
+    points = [o.position for step in steps for o in step.observations if isinstance(o, Contact)]
+    if len(points) < 2:
+        return 0.0
+    points = np.asarray(points, dtype=float)
+    return float(np.max(points.max(axis=0) - points.min(axis=0)))
+
+
+def recording_warning(path, steps, library, units=None):
+    """Why the recording ``path`` (read into ``steps``, scene units) is likely not in the
+    unit of ``library``, or None: checked unless both the file and the library name their
+    unit (see :func:`tactile_viz.engine.library.size_warning`). A recording that spans more
+    than ten times the priors' size is suspicious, and so is one of at least
+    :data:`SPAN_CONTACTS` contacts that spans less than a tenth of it."""
+    from .library import size_warning
+
+    if len(library) == 0 or (recorded_units(path) is not None and library.units is not None):
+        return None
+    contacts = sum(isinstance(o, Contact) for step in steps for o in step.observations)
+    return size_warning(Path(path).name, recording_span(steps), library.reference_size, units,
+                        remedy="add a first line '# units: {unit}' to the file",
+                        smaller=contacts >= SPAN_CONTACTS)
+
+
 def format_observations(steps, units=None):
     """CSV text of recorded steps (a ``step`` column, numbers written exactly).
 
@@ -265,4 +302,5 @@ def write_observations(path, steps, units: str | None = None):
 
 
 __all__ = ["HEADER", "KINDS", "ObservationFileError", "RecordedStep", "format_observations",
-           "parse_observations", "read_observations", "write_observations"]
+           "parse_observations", "read_observations", "recorded_units", "recording_span",
+           "recording_warning", "write_observations"]

@@ -340,14 +340,14 @@ def main(argv=None):
     args = _parser().parse_args(argv)
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                  or os.environ.get("WAYLAND_DISPLAY")):
-        print("error: bench gui needs a display; run it under Xvfb: "
+        print("python -m tactile_viz bench gui: error: needs a display; run it under Xvfb: "
               "xvfb-run -a python -m tactile_viz bench gui", file=sys.stderr)
         return 2
     try:
         import PySide6  # noqa: F401
         import pyvistaqt  # noqa: F401
     except ImportError as error:
-        print(f"error: {error}; bench gui needs the gui extra: pip install -e '.[gui]'",
+        print(f"python -m tactile_viz bench gui: error: {error}; it needs the gui extra: pip install -e '.[gui]'",
               file=sys.stderr)
         return 2
     rows = run(args)

@@ -526,5 +526,5 @@ if __name__ == "__main__":
     try:
         sys.exit(main())
     except TactileVizError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"python -m tactile_viz.experiments.real_meshes: error: {error}", file=sys.stderr)
         sys.exit(2)

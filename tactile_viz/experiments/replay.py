@@ -13,11 +13,12 @@ import time
 from ..cli import add_preset_argument, existing_file, seed_int
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
-from ..engine.observation_file import read_observations
+from ..engine.observation_file import read_observations, recording_warning
 from ..engine.session import RecordedSession, session_preset
-from .trial import (add_output_arguments, add_prior_arguments, add_sensor_arguments,
-                    add_unit_arguments, check_learning, code_version, learn, load_priors,
-                    scene_units, with_outliers, write_output)
+from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn,
+                     load_priors, say, scene_units, size_warnings)
+from .trial import (add_output_arguments, add_sensor_arguments, code_version, with_outliers,
+                    write_output)
 
 
 def add_replay_arguments(parser):
@@ -73,10 +74,23 @@ def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, pr
     return session, records
 
 
-def run_replay_command(args):
-    units = scene_units(args)
+def read_recording(args, library):
+    """The recorded steps of ``--observations`` in the scene's unit, with a warning when
+    the file is likely in another unit than the library (the app reads it the same way)."""
+    units = scene_units(args, library)
     steps = read_observations(args.observations, units)
+    message = recording_warning(args.observations, steps, library, units)
+    if message:
+        say(args, "warning", message)
+    return steps
+
+
+def run_replay_command(args):
     library = load_priors(args)
+    units = scene_units(args, library)
+    steps = read_recording(args, library)
+    for message in size_warnings(args, library):
+        say(args, "warning", message)
     learn_to = check_learning(args, library)
     start = time.perf_counter()
     session, records = replay(steps, library, args.preset, args.strategy, args.seed,
@@ -93,6 +107,6 @@ def run_replay_command(args):
     if args.export:
         export_session(session, args.export, units)
     if learn_to:
-        result["learned"] = learn(session, library, args.learn, learn_to)
+        result["learned"] = learn(session, library, args.learn, learn_to, units, args)
     write_output(json.dumps(result, indent=1), args.json)
     return 0

@@ -18,116 +18,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ExtendList, add_preset_argument, bundled_object, existing_dir,
-                  existing_file, finite_float, output_dir, positive_int, seed_int,
-                  writable_output)
-from ..engine.errors import LibraryError, ParameterError, TactileVizError
+from ..cli import (add_preset_argument, bundled_object, finite_float, output_dir,
+                   positive_int, seed_int, writable_output)
+from ..engine.errors import ParameterError
 from ..engine.exploration import STRATEGIES
 from ..engine.export import export_session
 from ..engine.files import write_atomic
-from ..engine.library import PriorLibrary
-from ..engine.meshes import UNITS, unit_factor
-from ..engine.objects import ObjectModel, bundled_names, load_bundled
+from ..engine.objects import load_bundled
 from ..engine.session import Session, make_truth, session_preset
+from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
+                     load_priors, mesh_file, say, scene_units, size_warnings)
 
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
              "outlier_probability": None}
-
-
-def add_prior_arguments(parser):
-    """``--library`` or ``--library-dir``, plus any ``--prior-file`` (see :func:`load_priors`)."""
-    priors = parser.add_mutually_exclusive_group()
-    priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
-                        help="the filter's priors: a bundled set (default known)")
-    priors.add_argument("--library-dir", metavar="DIR", type=existing_dir,
-                        help="a saved prior library folder")
-    parser.add_argument("--prior-file", metavar="MESH", action=ExtendList, type=existing_file,
-                        help="mesh files added to --library or --library-dir as priors; "
-                             "alone, the only priors (repeats add up)")
-
-
-def positive_float(text):
-    """An argument type: a positive finite number."""
-    value = finite_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
-
-
-def mesh_units(text):
-    """An argument type: a mesh file's unit (m, cm, mm, in) or a factor (scene units per
-    file unit)."""
-    try:
-        unit_factor(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
-    return text
-
-
-def add_unit_arguments(parser):
-    """``--units`` (the scene's), ``--mesh-units`` and ``--normalise`` (see the README's
-    "Frames, units and poses")."""
-    parser.add_argument("--units", choices=list(UNITS), default=None,
-                        help="the scene's length unit, written in the outputs; a recording "
-                             "whose '# units:' line names another is converted (default: "
-                             "m when --mesh-units names a unit, else the files' own)")
-    parser.add_argument("--mesh-units", type=mesh_units, default=None, metavar="UNIT",
-                        help="the unit of --object-file and --prior-file meshes: m, cm, mm, "
-                             "in (converted to metres) or a factor (default: the scene's)")
-    parser.add_argument("--normalise", type=positive_float, default=None, metavar="SIZE",
-                        help="scale --object-file and --prior-file meshes to this longest "
-                             "side (the paper's normalisation is 6); default: their size")
-    parser.add_argument("--learn", metavar="NAME",
-                        help="when the object ends judged novel, add its reconstruction as "
-                             "the learned prior NAME to the library folder --learn-to")
-    parser.add_argument("--learn-to", metavar="DIR", type=output_dir,
-                        help="library folder --learn writes (default --library-dir): the "
-                             "session's priors plus the learned shape, saved atomically")
-
-
-def scene_units(args):
-    """The scene's unit name, or None when the files' own units are kept."""
-    if args.units:
-        return args.units
-    named = isinstance(args.mesh_units, str) and args.mesh_units.strip().lower() in UNITS
-    return "m" if named else None
-
-
-def mesh_options(args):
-    """Keyword arguments of ``ObjectModel.from_file`` for the command's mesh files."""
-    factor = unit_factor(args.mesh_units)
-    if args.units and args.mesh_units is None:
-        factor = 1.0
-    elif args.units and isinstance(args.mesh_units, str) and args.mesh_units.lower() in UNITS:
-        factor = UNITS[args.mesh_units.lower()] / UNITS[args.units]
-    return {"longest_side": getattr(args, "normalise", None), "scale": factor}
-
-
-def check_learning(args, library):
-    """Where ``--learn`` writes (None without it); refused before any work when the name is
-    taken or there is no folder to write."""
-    if not args.learn:
-        return None
-    folder = args.learn_to or args.library_dir
-    if folder is None:
-        raise LibraryError("--learn needs a library folder to write: --learn-to DIR "
-                           "(or --library-dir DIR)")
-    if args.learn in library:
-        raise LibraryError(f"--learn {args.learn}: the library already has a prior of that "
-                           "name; choose another")
-    return folder
-
-
-def learn(session, library, name, folder):
-    """Add the session's reconstruction to ``library`` as the learned prior ``name`` and
-    save the library to ``folder``; returns a JSON-ready note."""
-    try:
-        model = session.learned_model(name)
-    except TactileVizError as error:
-        return {"name": name, "saved_to": None, "reason": str(error)}
-    PriorLibrary([*library, model]).save(folder)
-    return {"name": name, "saved_to": str(folder), "longest_side": model.length}
 
 
 def nonnegative_float(text):
@@ -189,8 +93,9 @@ def add_trial_arguments(parser):
     what = parser.add_mutually_exclusive_group(required=True)
     what.add_argument("--object", metavar="NAME", type=bundled_object(),
                       help="a bundled object (see `objects`)")
-    what.add_argument("--object-file", metavar="MESH", type=existing_file,
-                      help="any mesh file trimesh reads")
+    what.add_argument("--object-file", metavar="MESH[:UNIT]", type=mesh_file,
+                      help="any mesh file trimesh reads; a suffix :mm, :m, ... or :FACTOR "
+                           "gives its unit")
     add_prior_arguments(parser)
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--seed", type=seed_int, default=0,
@@ -202,35 +107,6 @@ def add_trial_arguments(parser):
     add_sensor_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json of the last step to DIR")
-
-
-def load_priors(args):
-    """The priors of ``args``: the bundled set (``--library``, default known) or the saved
-    library (``--library-dir``), plus the ``--prior-file`` meshes; ``--prior-file`` alone
-    gives only those.
-
-    Raises
-    ------
-    LibraryError
-        If an extra file would have the name (its stem) of a prior already there.
-    """
-    extra = args.prior_file or []
-    bundled = args.library or (None if extra or args.library_dir else "known")
-    library = PriorLibrary.load(args.library_dir) if args.library_dir else PriorLibrary()
-    # Names are checked before the bundled and extra meshes are read: a clash shows at once.
-    names = library.names + (bundled_names(bundled) if bundled else [])
-    for path in extra:
-        name = Path(path).stem
-        if name in names:
-            raise LibraryError(f"--prior-file {path}: there is already a prior named "
-                               f"{name!r}; rename the file")
-        names.append(name)
-    if bundled:
-        library = PriorLibrary.bundled(bundled)
-    options = mesh_options(args) if hasattr(args, "mesh_units") else {}
-    for path in extra:
-        library.add_file(path, **options)
-    return library
 
 
 def write_output(text, path):
@@ -318,18 +194,20 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
 
 
 def run_trial_command(args):
-    truth_model = (load_bundled(args.object) if args.object
-                   else ObjectModel.from_file(args.object_file, **mesh_options(args)))
     library = load_priors(args)
+    units = scene_units(args, library)
+    truth_model = (load_bundled(args.object) if args.object
+                   else load_mesh(args, args.object_file, units))
+    for message in size_warnings(args, library, truth_model):
+        say(args, "warning", message)
     learn_to = check_learning(args, library)
-    units = scene_units(args)
 
     def finish(session):
         extra = {}
         if args.export:
             export_session(session, args.export, units)
         if learn_to:
-            extra["learned"] = learn(session, library, args.learn, learn_to)
+            extra["learned"] = learn(session, library, args.learn, learn_to, units, args)
         return extra
 
     result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,

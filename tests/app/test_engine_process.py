@@ -38,7 +38,8 @@ def test_steps_in_the_process_match_steps_here(bundled, library, engine):
     remote, local = _session(bundled, library), _session(bundled, library)
     yielded = list(engine.steps(remote, 6))
     local.run(max_steps=6)
-    assert yielded == remote.snapshots and remote.step_count == 6
+    assert [id(s) for s in yielded] == [id(s) for s in remote.snapshots]
+    assert remote.step_count == local.step_count <= 6
     _same(remote.snapshots, local.snapshots)
     # The process holds the session now: the next run continues it without sending it.
     assert engine.holds(remote)

@@ -127,7 +127,7 @@ def test_broken_mesh_exits_2_before_the_window(launcher, capsys, tmp_path, monke
     for argv in (["--object-file", str(broken)], ["--prior-file", str(broken)]):
         assert launcher.main(["--log-file", "", *argv]) == 2
         err = capsys.readouterr().err
-        assert err.startswith("error: ") and "broken.stl" in err
+        assert err.startswith("app.py: error: ") and "broken.stl" in err
         assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
 

@@ -179,3 +179,69 @@ def test_lengths_in_scene_units_follow_the_object_size(bundled):
         (6.0, 0.6, 0.6))
     with pytest.raises(ValueError):
         Scene("mug_1", library=PriorLibrary([mug]), units="furlong")
+
+
+# ---------------------------------------------------------------- units of recordings
+@pytest.fixture(scope="module")
+def metric_recording(tmp_path_factory):
+    """A library in metres (mug_1 at 10 and 20 cm, a 25 cm bottle) and 12 touches of the
+    20 cm mug written in millimetres: with a ``# units: mm`` line and without one."""
+    from tactile_viz.engine.objects import load_bundled
+    from tactile_viz.engine.observation_file import format_observations, read_observations
+    from tactile_viz.engine.session import make_truth
+    from tactile_viz.engine.simulator import ContactSimulator, random_touch
+
+    library = PriorLibrary()
+    for name, size in [("mug_1", 0.10), ("mug_1", 0.20), ("bottle_1", 0.25)]:
+        library.add(load_bundled(name, size=size).renamed(f"{name}_{size:g}"), units="m")
+    truth = make_truth(library["mug_1_0.2"], rng=[3, 0])
+    simulator, rng = ContactSimulator(truth), np.random.default_rng(3)
+    steps = [([simulator.probe(random_touch(truth, rng))], np.zeros((0, 3))) for _ in range(12)]
+    folder = tmp_path_factory.mktemp("recording")
+    (folder / "m.csv").write_text(format_observations(steps, units="m"))
+    text = format_observations(read_observations(folder / "m.csv", units="mm"), units="mm")
+    (folder / "touches_mm.csv").write_text(text)
+    (folder / "no_units.csv").write_text(text.split("\n", 1)[1])
+    return library, folder
+
+
+def test_the_app_and_replay_give_one_estimate_of_a_millimetre_recording(metric_recording):
+    from tactile_viz.engine.observation_file import read_observations
+    from tactile_viz.experiments.replay import replay
+
+    library, folder = metric_recording
+    path = folder / "touches_mm.csv"
+    replayed, _ = replay(read_observations(path, "m"), library, seed=3)
+    scene = Scene(seed=3, library=library)  # in metres: the library's unit
+    assert scene.units == "m" and scene.open_observations(path) == 12 and scene.warnings == []
+    session = scene.ensure_session()
+    while not session.terminated:
+        scene.step()
+    ours, theirs = scene.latest, replayed.latest
+    assert ours.step == theirs.step and ours.map_class == theirs.map_class
+    assert ours.novel == theirs.novel
+    np.testing.assert_allclose(ours.contacts, theirs.contacts, rtol=1e-12)
+    np.testing.assert_allclose(ours.map_translation, theirs.map_translation, atol=1e-9)
+    np.testing.assert_allclose(ours.map_rotation, theirs.map_rotation, atol=1e-9)
+    assert np.abs(ours.contacts).max() < 1.0  # metres, not millimetres
+
+
+def test_a_recording_likely_in_another_unit_warns(metric_recording):
+    library, folder = metric_recording
+    scene = Scene(seed=3, library=library, units="m")
+    assert scene.open_observations(folder / "no_units.csv") == 12
+    (message,) = scene.warnings
+    assert "no_units.csv spans" in message and "0.2 m long" in message
+    assert "is the file in mm?" in message
+    scene.open_observations(folder / "m.csv")
+    assert scene.warnings == []
+
+
+def test_a_library_saved_in_metres_loads_into_a_millimetre_scene(metric_recording, tmp_path):
+    library, _ = metric_recording
+    library.save(tmp_path / "lib")
+    scene = Scene(seed=3, library=library, units="mm")
+    scene.load_library(tmp_path / "lib")
+    np.testing.assert_allclose([m.length for m in scene.library], [100.0, 200.0, 250.0],
+                               rtol=1e-6)
+    assert scene.library.units == "mm"

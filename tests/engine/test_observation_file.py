@@ -105,5 +105,6 @@ def test_replay_command_reports_a_bad_file_in_one_line(tmp_path, capsys):
     assert main(["replay", "--observations", str(path), "--json", str(out),
                  "--export", str(tmp_path / "export"), "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == f"error: {path}, line 2: a contact needs its normal (nx, ny, nz)"
+    assert err == (f"python -m tactile_viz replay: error: {path}, line 2: a contact needs "
+                   "its normal (nx, ny, nz)")
     assert not out.exists() and not (tmp_path / "export").exists()

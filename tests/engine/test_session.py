@@ -192,7 +192,9 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
 def test_rrt_strategy_runs(bundled, known):
     session = Session(make_truth(bundled["sofa_1"], rng=2), known, "rrt", seed=2)
     session.run(max_steps=25)
-    assert session.step_count == 25 and len(session.latest.contacts) == 25
+    assert 1 <= session.step_count <= 25
+    assert session.step_count == 25 or session.terminated  # it stops early only when done
+    assert 1 <= len(session.latest.contacts) <= session.step_count
 
 
 def test_same_seed_same_trial(bundled, known):
@@ -209,7 +211,7 @@ def test_save_and_load_replays_the_session(bundled, known, tmp_path):
     session.run(max_steps=12)
     path = session.save(tmp_path / "trial.npz")
     loaded = Session.load(path)
-    assert loaded.step_count == 12
+    assert loaded.step_count == session.step_count
     np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
     assert loaded.latest.map_class == session.latest.map_class
 
@@ -260,7 +262,8 @@ def test_trial_command_writes_the_json_contract(tmp_path):
     result = json.loads(out.read_text())
     assert {"object", "seed", "strategy", "params", "terminated_at", "steps"} <= set(result)
     assert result["object"] == "bottle_1" and result["seed"] == 2
-    assert len(result["steps"]) == 6 and result["terminated_at"] is None
+    steps = len(result["steps"])  # 6, or fewer only when the session stopped by itself
+    assert result["terminated_at"] == (None if steps == 6 else steps) and 1 <= steps <= 6
     # The commit the trial ran with (None outside a git checkout).
     assert result["code_version"] is None or isinstance(result["code_version"], str)
     step = result["steps"][-1]
@@ -531,8 +534,15 @@ def test_a_session_driven_by_its_caller(bundled, known):
     assert snapshots[-1].map_class == "guitar_1" and not snapshots[-1].novel
     assert snapshots[-1].pose_error is None and snapshots[-1].truth_coverage is None
     assert {m.kind for m in moves} <= {"first", "target"} and moves[0].kind == "first"
-    again = session.propose()
-    assert again is None or (again.path.shape[1] == 3 and again == session.propose())
+    again, asked_twice = session.propose(), session.propose()
+    assert (again is None) == (asked_twice is None) == session.terminated
+    if again is not None:  # asking again before observing gives the same move
+        assert again.path.shape[1] == 3
+        np.testing.assert_array_equal(again.path, asked_twice.path)
+        assert (again.kind, again.number) == (asked_twice.kind, asked_twice.number)
+        assert (again.target is None) == (asked_twice.target is None)
+        if again.target is not None:
+            np.testing.assert_array_equal(again.target, asked_twice.target)
 
 
 def test_ask_tell_and_callback_give_the_same_trajectory(bundled, known):
@@ -630,10 +640,11 @@ def test_a_session_without_truth_saves_and_loads(bundled, known, tmp_path):
     session = Session(None, known, seed=2)
     robot = ContactSimulator(make_truth(bundled["bottle_1"], rng=2))
     _ask_and_tell(session, robot, 5)
-    touched = robot.probe(session.propose().path)
-    session.observe([touched], free_space=[[0.0, 0.0, 20.0]])  # a whole step, free space
+    if not session.terminated:
+        touched = robot.probe(session.propose().path)
+        session.observe([touched], free_space=[[0.0, 0.0, 20.0]])  # a whole step, free space
     loaded = Session.load(session.save(tmp_path / "recorded.npz"))
-    assert loaded.truth is None and loaded.step_count == 6
+    assert loaded.truth is None and loaded.step_count == session.step_count
     np.testing.assert_array_equal(loaded.latest.contacts, session.latest.contacts)
     np.testing.assert_array_equal(loaded.latest.free_space, session.latest.free_space)
     np.testing.assert_allclose(loaded.latest.map_translation, session.latest.map_translation)

@@ -1,6 +1,7 @@
 """Real sizes and units: meshes keep their size, lengths scale with it, poses map back to
 the user's file, recordings and exports say their units."""
 
+import json
 import re
 
 import numpy as np
@@ -166,3 +167,93 @@ def test_rotation_errors_are_taken_up_to_the_shapes_symmetries(tmp_path):
     assert rotation_error_deg(cylinder, spun, np.eye(3)) == pytest.approx(0.0, abs=0.5)
     tilted = _rotation([1, 0, 0], np.radians(10)) @ spun
     assert rotation_error_deg(cylinder, tilted, np.eye(3)) == pytest.approx(10.0, abs=0.5)
+
+
+# ---------------------------------------------------------------- units of files and priors
+@pytest.mark.parametrize("text, expected", [
+    ("cup.stl:mm", ("cup.stl", "mm")), ("cup.stl:M", ("cup.stl", "m")),
+    ("cup.stl:0.001", ("cup.stl", "0.001")), ("cup.stl", ("cup.stl", None)),
+    (r"C:\meshes\cup.stl", (r"C:\meshes\cup.stl", None)),
+    (r"C:\meshes\cup.stl:in", (r"C:\meshes\cup.stl", "in")),
+    ("a:b/cup.stl", ("a:b/cup.stl", None)), ("cup.stl:furlong", ("cup.stl:furlong", None)),
+    (":mm", (":mm", None))])
+def test_a_files_unit_is_a_known_name_or_a_number_after_the_last_colon(text, expected):
+    from tactile_viz.engine.meshes import split_units
+
+    assert split_units(text) == expected
+
+
+def test_a_saved_library_keeps_each_priors_units_and_converts_them(tmp_path):
+    library = PriorLibrary()
+    library.add(load_bundled("mug_1", size=0.10).renamed("mug"), units="m")
+    library.add(load_bundled("bottle_1", size=250.0).renamed("bottle"), units="mm")
+    library.add(load_bundled("vase_1").renamed("vase"))  # unknown: never converted
+    library.save(tmp_path / "lib")
+    manifest = json.loads((tmp_path / "lib" / "library.json").read_text())
+    assert [e["units"] for e in manifest["objects"]] == ["m", "mm", None]
+    mixed = PriorLibrary.load(tmp_path / "lib")  # named units differ: all in metres
+    assert [mixed.units_of(n) for n in mixed.names] == ["m", "m", None]
+    np.testing.assert_allclose([m.length for m in mixed], [0.10, 0.25, 6.0], rtol=1e-6)
+    in_mm = PriorLibrary.load(tmp_path / "lib", units="mm")
+    np.testing.assert_allclose([m.length for m in in_mm], [100.0, 250.0, 6.0], rtol=1e-6)
+    # The file-to-object transform follows: the same file point lands on the scaled object.
+    np.testing.assert_allclose(in_mm["mug"].file_to_object[:3, :3],
+                               1000 * mixed["mug"].file_to_object[:3, :3], rtol=1e-9)
+    # A manifest written before units were kept loads with unknown units, unconverted.
+    for entry in manifest["objects"]:
+        del entry["units"]
+    (tmp_path / "lib" / "library.json").write_text(json.dumps(manifest))
+    old = PriorLibrary.load(tmp_path / "lib", units="mm")
+    assert old.units is None and old.units_of("mug") is None
+    np.testing.assert_allclose([m.length for m in old], [0.10, 250.0, 6.0], rtol=1e-6)
+
+
+def test_a_library_shares_a_unit_only_when_every_prior_names_it():
+    mug = load_bundled("mug_1", size=0.10)
+    library = PriorLibrary()
+    library.add(mug, units="m")
+    assert library.units == "m" and library.subset(["mug_1"]).units == "m"
+    library.add(load_bundled("vase_1"))
+    assert library.units is None
+
+
+@pytest.mark.parametrize("size, reference, units, expected", [
+    (118.0, 0.12, "m", "is the file in mm?"),
+    (0.12, 118.0, "mm", "is the file in m?"),
+    (12.0, 0.12, "m", "is the file in cm?"),
+    (0.12, 6.0, None, "50 times smaller"),  # no named unit: the ratio, no guess
+])
+def test_a_size_far_from_the_librarys_names_both_sizes_and_the_likely_unit(
+        size, reference, units, expected):
+    from tactile_viz.engine.library import size_warning
+
+    message = size_warning("touches.csv", size, reference, units, remedy="use {unit}")
+    assert expected in message and f"{size:.3g}" in message and f"{reference:.3g}" in message
+    assert "\n" not in message
+    assert size_warning("touches.csv", 0.9 * reference, reference, units) is None
+    assert size_warning("touches.csv", 9 * reference, reference, units) is None
+
+
+def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, tmp_path):
+    from tactile_viz.engine.observation_file import recording_warning
+
+    library = PriorLibrary()
+    for model in metric_mugs:
+        library.add(model, units="m")
+    truth = make_truth(metric_mugs["mug_large"], rng=[3, 0])
+    simulator = ContactSimulator(truth)
+    rng = np.random.default_rng(3)
+    steps = [([simulator.probe(random_touch(truth, rng))], np.zeros((0, 3))) for _ in range(12)]
+    (tmp_path / "m.csv").write_text(format_observations(steps, units="m"))
+    in_mm = read_observations(tmp_path / "m.csv", units="mm")
+    text = format_observations(in_mm)  # millimetres, but no units line
+    (tmp_path / "touches.csv").write_text(text)
+    (tmp_path / "named.csv").write_text("# units: mm\n" + text)
+    message = recording_warning(tmp_path / "touches.csv",
+                                read_observations(tmp_path / "touches.csv", "m"), library, "m")
+    assert "touches.csv spans" in message and "is the file in mm?" in message
+    assert "# units: mm" in message
+    assert recording_warning(tmp_path / "named.csv",
+                             read_observations(tmp_path / "named.csv", "m"), library, "m") is None
+    assert recording_warning(tmp_path / "m.csv", read_observations(tmp_path / "m.csv", "m"),
+                             library, "m") is None

@@ -69,3 +69,104 @@ def test_a_learned_library_is_saved_with_the_learned_flag(mm_meshes):
     assert library.names == ["block_mm", "ball_learned"]
     assert library["ball_learned"].learned and not library["block_mm"].learned
     assert library["ball_learned"].length == pytest.approx(0.04, rel=0.4)
+
+
+def _parse(argv):
+    from tactile_viz.__main__ import build_parser
+
+    return build_parser().parse_args(argv)
+
+
+def test_each_file_may_name_its_own_unit(mm_meshes):
+    from tactile_viz.experiments.inputs import load_mesh, load_priors, scene_units
+
+    trimesh.creation.icosphere(subdivisions=3, radius=0.02).export(mm_meshes / "ball_m.stl")
+    args = _parse(["trial", "--object-file", f"{mm_meshes / 'ball_mm.stl'}:mm",
+                   "--prior-file", f"{mm_meshes / 'block_mm.stl'}:mm",
+                   f"{mm_meshes / 'ball_m.stl'}:m", f"{mm_meshes / 'ball_mm.stl'}:0.001"])
+    library = load_priors(args)
+    assert library.names == ["block_mm", "ball_m", "ball_mm"] and library.units == "m"
+    assert scene_units(args, library) == "m"
+    np.testing.assert_allclose([m.length for m in library], [0.0554, 0.04, 0.04], rtol=0.05)
+    assert load_mesh(args, args.object_file, "m").length == pytest.approx(0.04, rel=0.05)
+    # The suffix overrides --mesh-units for its file; the others take --mesh-units.
+    args = _parse(["trial", "--object-file", str(mm_meshes / "ball_mm.stl"), "--mesh-units",
+                   "mm", "--prior-file", f"{mm_meshes / 'ball_m.stl'}:m",
+                   str(mm_meshes / "block_mm.stl")])
+    np.testing.assert_allclose([m.length for m in load_priors(args)], [0.04, 0.0554], rtol=0.05)
+
+
+@pytest.mark.parametrize("extra, fault", [
+    (["--mesh-units", "mm", "--normalise", "6"], "--normalise 6 and the mesh unit mm"),
+    (["--normalise", "6", "--prior-file", "BLOCK:mm"], "--normalise 6 and the mesh unit mm"),
+    (["--learn-to", "LIB"], "--learn-to"),
+    (["--learn", "x"], "--learn needs a library folder"),
+    (["--library-dir", "LIB"], "no such folder"),
+    (["--prior-file", "BLOCK:parsec"], "no such file"),
+])
+@pytest.mark.parametrize("command", ["trial", "replay"])
+def test_contradictions_are_refused_in_one_line(mm_meshes, capsys, extra, fault, command):
+    block, lib = str(mm_meshes / "block_mm.stl"), str(mm_meshes / "lib")
+    recording = mm_meshes / "touches.csv"
+    recording.write_text("kind,x,y,z,nx,ny,nz\ncontact,0,0,1,0,0,1\n")
+    base = (["trial", "--object-file", block] if command == "trial"
+            else ["replay", "--observations", str(recording)])
+    argv = base + [word.replace("BLOCK", block).replace("LIB", lib) for word in extra]
+    try:
+        status = main(argv + ["--no-progress"])
+    except SystemExit as stop:
+        status = stop.code
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.splitlines()) == 1 and fault in err
+    assert err.startswith(f"python -m tactile_viz {command}: error: ")
+    assert not (mm_meshes / "lib").exists()
+
+
+def test_a_millimetre_object_against_a_metre_library_warns(mm_meshes, capsys):
+    library = PriorLibrary()
+    library.add_file(mm_meshes / "block_mm.stl", scale=0.001, units="m")
+    library.save(mm_meshes / "lib")
+    _run(["trial", "--object-file", str(mm_meshes / "ball_mm.stl"), "--library-dir",
+          str(mm_meshes / "lib"), "--max-steps", "1", "--no-progress", "--json",
+          str(mm_meshes / "t.json")])
+    err = capsys.readouterr().err
+    assert "warning: ball_mm.stl spans 40 m but the library's objects are 0.0554 m long" in err
+    assert "is the file in mm?" in err and "ball_mm.stl:mm" in err
+    assert json.loads((mm_meshes / "t.json").read_text())["units"] == "m"  # the library's
+    _run(["trial", "--object-file", f"{mm_meshes / 'ball_mm.stl'}:mm", "--library-dir",
+          str(mm_meshes / "lib"), "--max-steps", "1", "--no-progress", "--json",
+          str(mm_meshes / "t.json")])
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_learning_makes_the_library_folder_it_names(mm_meshes, capsys):
+    lib = mm_meshes / "new" / "lib"
+    _run(["trial", "--object-file", str(mm_meshes / "ball_mm.stl"), "--prior-file",
+          str(mm_meshes / "block_mm.stl"), "--mesh-units", "mm", "--max-steps", "12",
+          "--no-progress", "--json", str(mm_meshes / "t.json"), "--learn", "ball_learned",
+          "--library-dir", str(lib)])
+    library = PriorLibrary.load(lib)
+    assert library.names[0] == "block_mm" and library.units == "m"
+    note = json.loads((mm_meshes / "t.json").read_text())["learned"]
+    assert note["saved_to"] == str(lib)
+    err = capsys.readouterr().err
+    assert ("note: learned ball_learned" in err) == ("ball_learned" in library)
+    # The folder now holds a library: the same command line reads it back.
+    assert PriorLibrary.load(lib).names == library.names
+
+
+def test_learning_an_object_judged_known_says_so(mm_meshes, capsys):
+    block = str(mm_meshes / "block_mm.stl")
+    _run(["trial", "--object-file", block, "--prior-file", block, str(mm_meshes / "ball_mm.stl"),
+          "--mesh-units", "mm", "--max-steps", "10", "--no-progress", "--json",
+          str(mm_meshes / "t.json"), "--learn", "again", "--learn-to", str(mm_meshes / "lib")])
+    result = json.loads((mm_meshes / "t.json").read_text())
+    last, err = result["steps"][-1], capsys.readouterr().err
+    if not last["novel"]:
+        assert (f"trial: note: not learned: the object was judged known as "
+                f"{last['map_class']}") in err
+        assert result["learned"]["reason"].startswith("the object was judged known")
+        assert "again" not in PriorLibrary.load(mm_meshes / "lib")  # made, unchanged
+    else:
+        assert "note: learned again" in err
+    assert len(err.strip().splitlines()) == 1

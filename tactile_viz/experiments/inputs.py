@@ -1,0 +1,287 @@
+"""What the commands read, and the checks that it agrees: mesh files with their units, the
+prior library, learning into a library folder. ``trial``, ``replay`` and ``app.py`` share it,
+so that one recording gives one estimate whichever of them reads it.
+
+Units (docs/units.md): ``--units`` names the scene's unit; a mesh file's own unit is the
+suffix after its last colon (``cup.stl:mm``, ``cup.stl:0.001``), else ``--mesh-units``. When
+``--units`` is not given the scene is in metres if any mesh names a unit, else in the saved
+library's unit, else in the files' own unnamed units.
+"""
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from ..cli import ExtendList, existing_file, finite_float, one_line, output_dir
+from ..engine.errors import LibraryError, TactileVizError
+from ..engine.library import MANIFEST, PriorLibrary, size_warning
+from ..engine.meshes import UNITS, split_units, unit_factor
+from ..engine.objects import ObjectModel, bundled_names
+
+log = logging.getLogger(__name__)
+
+
+def positive_float(text):
+    """An argument type: a positive finite number."""
+    value = finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def mesh_units(text):
+    """An argument type: a mesh file's unit (m, cm, mm, in) or a factor (scene units per
+    file unit)."""
+    try:
+        unit_factor(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
+
+
+def mesh_file(text):
+    """An argument type: a readable mesh file, optionally followed by its unit after a colon
+    (``cup.stl:mm``, ``cup.stl:0.001``); returned as given."""
+    path, units = split_units(text)
+    if units is not None:
+        try:
+            unit_factor(units)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(f"{text}: {error}") from None
+    try:
+        existing_file(path)
+    except argparse.ArgumentTypeError as error:
+        if ":" in text and units is None:
+            raise argparse.ArgumentTypeError(
+                f"{error} (a unit after ':' is one of {', '.join(UNITS)} or a number)") from None
+        raise
+    return text
+
+
+def add_prior_arguments(parser):
+    """``--library`` or ``--library-dir``, plus any ``--prior-file`` (see :func:`load_priors`)."""
+    priors = parser.add_mutually_exclusive_group()
+    priors.add_argument("--library", choices=["known", "novel", "all"], default=None,
+                        help="the filter's priors: a bundled set (default known)")
+    priors.add_argument("--library-dir", metavar="DIR",
+                        help="a saved prior library folder (with --learn, made if missing)")
+    parser.add_argument("--prior-file", metavar="MESH[:UNIT]", action=ExtendList,
+                        type=mesh_file,
+                        help="mesh files added to --library or --library-dir as priors; "
+                             "alone, the only priors (repeats add up); a suffix :mm, :m, ... "
+                             "or :FACTOR gives a file's unit")
+
+
+def add_unit_arguments(parser, learning=True):
+    """``--units`` (the scene's), ``--mesh-units``, ``--normalise`` and, with ``learning``,
+    ``--learn`` and ``--learn-to``."""
+    parser.add_argument("--units", choices=list(UNITS), default=None,
+                        help="the scene's length unit, written in the outputs; meshes, "
+                             "libraries and recordings in another named unit are converted "
+                             "(default: m when a mesh's unit is named, else the library's)")
+    parser.add_argument("--mesh-units", type=mesh_units, default=None, metavar="UNIT",
+                        help="the unit of mesh files without a :UNIT suffix: m, cm, mm, in "
+                             "(converted to the scene's, metres by default) or a factor")
+    parser.add_argument("--normalise", type=positive_float, default=None, metavar="SIZE",
+                        help="scale --object-file and --prior-file meshes to this longest "
+                             "side (the paper's normalisation is 6); not with mesh units")
+    if not learning:
+        return
+    parser.add_argument("--learn", metavar="NAME",
+                        help="when the object ends judged novel, add its reconstruction as "
+                             "the learned prior NAME to the library folder --learn-to")
+    parser.add_argument("--learn-to", metavar="DIR", type=output_dir,
+                        help="library folder --learn writes, made if missing (default "
+                             "--library-dir): the session's priors plus the learned shape")
+
+
+def mesh_texts(args):
+    """The mesh options as given: ``--object-file`` (if any) and every ``--prior-file``."""
+    first = getattr(args, "object_file", None)
+    return ([first] if first else []) + list(getattr(args, "prior_file", None) or ())
+
+
+def file_units(args, text):
+    """``(path, unit)`` of a mesh option: its own ``:UNIT`` suffix, else ``--mesh-units``
+    (None: none given)."""
+    path, units = split_units(text)
+    return path, units if units is not None else getattr(args, "mesh_units", None)
+
+
+def _named(units):
+    return isinstance(units, str) and units.strip().lower() in UNITS
+
+
+def given_units(args):
+    """The scene unit the options name: ``--units``, else ``m`` when a mesh's unit is a
+    name; None when they name none (the library may, see :func:`scene_units`)."""
+    if getattr(args, "units", None):
+        return args.units
+    return "m" if any(_named(file_units(args, text)[1]) for text in mesh_texts(args)) else None
+
+
+def scene_units(args, library=None):
+    """The scene's unit name: :func:`given_units`, else the one ``library`` records for all
+    its priors; None when the files' own (unnamed) units are kept."""
+    return given_units(args) or (library.units if library is not None else None)
+
+
+def options_problem(args):
+    """The first contradiction or missing piece of the unit and learning options (None if
+    there is none), found before anything is read."""
+    normalise = getattr(args, "normalise", None)
+    if normalise is not None:
+        units = [units for units in [getattr(args, "mesh_units", None)]
+                 + [split_units(text)[1] for text in mesh_texts(args)] if units is not None]
+        if units:
+            return (f"--normalise {normalise:g} and the mesh unit {units[0]} both set the "
+                    "meshes' size: give one of them")
+    learn, learn_to = getattr(args, "learn", None), getattr(args, "learn_to", None)
+    if learn_to and not learn:
+        return f"--learn-to {learn_to} needs --learn NAME (the learned prior's name)"
+    if learn and not (learn_to or getattr(args, "library_dir", None)):
+        return "--learn needs a library folder to write: --learn-to DIR (or --library-dir DIR)"
+    folder = getattr(args, "library_dir", None)
+    if folder is not None:
+        path = Path(folder)
+        if path.exists() and not path.is_dir():
+            return f"--library-dir {folder}: not a folder"
+        if not path.exists() and not learn:
+            return f"--library-dir {folder}: no such folder (with --learn NAME it is made)"
+        if not path.exists():
+            return output_problem(folder)
+    return None
+
+
+def output_problem(folder):
+    """Why ``--library-dir`` cannot be made where it is named (None if it can)."""
+    try:
+        output_dir(folder)
+    except argparse.ArgumentTypeError as error:
+        return f"--library-dir {folder}: {error}"
+    return None
+
+
+def load_mesh(args, text, units, name=None):
+    """The :class:`ObjectModel` of a mesh option in the scene unit ``units``."""
+    path, own = file_units(args, text)
+    if own is None:
+        scale = 1.0
+    elif _named(own) and units is not None:
+        scale = UNITS[own.strip().lower()] / UNITS[units]
+    else:
+        scale = unit_factor(own)
+    return ObjectModel.from_file(path, name=name, longest_side=getattr(args, "normalise", None),
+                                 scale=scale)
+
+
+def _has_size(args, text):
+    """True when a mesh option fixes its size: a unit, or ``--normalise``."""
+    return file_units(args, text)[1] is not None or getattr(args, "normalise", None) is not None
+
+
+def load_priors(args, units=None):
+    """The priors of ``args`` in the scene unit ``units`` (None: :func:`scene_units`): the
+    bundled set (``--library``, default known) or the saved library (``--library-dir``,
+    empty when missing and ``--learn`` makes it), plus the ``--prior-file`` meshes;
+    ``--prior-file`` alone gives only those.
+
+    Raises
+    ------
+    LibraryError
+        If an extra file would have the name (its stem) of a prior already there, or there
+        is no prior at all.
+    """
+    extra = list(args.prior_file or [])
+    folder = args.library_dir
+    bundled = args.library or (None if extra or folder else "known")
+    units = units or given_units(args)
+    new = getattr(args, "learn", None) and not (Path(folder or ".") / MANIFEST).exists()
+    library = PriorLibrary.load(folder, units=units) if folder and not new else PriorLibrary()
+    # Names are checked before the bundled and extra meshes are read: a clash shows at once.
+    names = library.names + (bundled_names(bundled) if bundled else [])
+    for text in extra:
+        name = Path(split_units(text)[0]).stem
+        if name in names:
+            raise LibraryError(f"--prior-file {text}: there is already a prior named "
+                               f"{name!r}; rename the file")
+        names.append(name)
+    if bundled:
+        library = PriorLibrary.bundled(bundled)
+    units = units or library.units
+    for text in extra:
+        library.add(load_mesh(args, text, units), units=units)
+    if not len(library):
+        raise LibraryError(f"--library-dir {folder}: the folder holds no library yet, and no "
+                           "--prior-file gives priors: add --prior-file MESH ...")
+    return library
+
+
+def size_warnings(args, library, truth=None):
+    """Why the meshes of ``args`` are likely not in the library's unit: one line per
+    suspicious file (:func:`tactile_viz.engine.library.size_warning`). A file is checked
+    against the other priors unless both have their units."""
+    units = scene_units(args, library)
+    found = []
+    priors = [(text, library[Path(split_units(text)[0]).stem])
+              for text in getattr(args, "prior_file", None) or ()]
+    if truth is not None and getattr(args, "object_file", None):
+        priors.append((args.object_file, truth))
+    for text, model in priors:
+        others = [m for m in library if m is not model]
+        if _has_size(args, text) and library.units is not None or not others:
+            continue
+        message = size_warning(Path(split_units(text)[0]).name, model.length,
+                               PriorLibrary(others).reference_size, units,
+                               remedy=f"use {split_units(text)[0]}:{{unit}} (or --mesh-units "
+                                      f"{{unit}})")
+        if message:
+            found.append(message)
+    return found
+
+
+def say(args, kind, message):
+    """One line on stderr, ``PROG: KIND: MESSAGE`` (``kind`` ``warning`` or ``note``); the
+    log file keeps it too."""
+    prog = getattr(args, "prog", None) or "python -m tactile_viz"
+    level = logging.WARNING if kind == "warning" else logging.INFO
+    log.log(level, "%s: %s", kind, message, extra={"file_only": True})
+    print(f"{prog}: {kind}: {one_line(message)}", file=sys.stderr)
+
+
+def check_learning(args, library):
+    """Where ``--learn`` writes (None without it); refused before any work when the name is
+    taken."""
+    if not getattr(args, "learn", None):
+        return None
+    if args.learn in library:
+        raise LibraryError(f"--learn {args.learn}: the library already has a prior of that "
+                           "name; choose another")
+    return args.learn_to or args.library_dir
+
+
+def learn(session, library, name, folder, units=None, args=None):
+    """Add the session's reconstruction to ``library`` as the learned prior ``name`` (in
+    the scene unit ``units``) and save the library to ``folder``; when the object was not
+    judged novel, save the library unchanged if ``folder`` holds none yet (so that
+    ``--library-dir`` finds it next time). Says what happened on stderr; returns a
+    JSON-ready note."""
+    saved = library.subset(library.names)
+    try:
+        model = session.learned_model(name)
+    except TactileVizError as error:
+        latest = session.latest
+        reason = (f"the object was judged known as {latest.map_class}"
+                  if latest is not None and not latest.novel else str(error))
+        made = not (Path(folder) / MANIFEST).exists()
+        if made:
+            saved.save(folder)
+        say(args, "note", f"not learned: {reason}" + (f"; {folder} saved with the session's "
+                                                        "priors" if made else ""))
+        return {"name": name, "saved_to": str(folder) if made else None, "reason": reason}
+    saved.add(model, units=units)
+    saved.save(folder)
+    say(args, "note", f"learned {name} ({model.length:.3g} {units or 'scene units'} long), "
+                      f"saved to {folder}")
+    return {"name": name, "saved_to": str(folder), "longest_side": model.length}
