@@ -371,6 +371,10 @@ class SessionParams:
     decision_floor : float, size units
         The least noise scale of the fit posterior (with a noisy sensor, at least its
         position noise): how well a right hypothesis can fit, model error included.
+    decision_cover : float, size units
+        A decision also needs every point of the MAP surface within this distance of a
+        contact (its DHD; 2.4 is 40% of the object's longest side): a wrong pose or class
+        can fit contacts on one part within the noise.
     decision_same_mode : float, size units
         Poses of one class whose surfaces agree within this RMS distance (or twice the
         position noise) are one hypothesis: symmetries of the shape are not rivals.
@@ -421,6 +425,7 @@ class SessionParams:
     metric_samples: int = 3000
     decision_confidence: float = _ranged(0.99, 0.5, 0.999999)
     decision_floor: float = _length(0.02, low=1e-4, high=1.0)
+    decision_cover: float = _length(2.4, low=0.1, high=12.0)
     decision_same_mode: float = _length(0.1, low=1e-3, high=2.0)
     decision_targets: bool = True
     decision_patience: int = _ranged(30, 0, 300)
@@ -451,7 +456,7 @@ class SessionParams:
                      "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
                      "approach_clearance",
                      "follow_step", "contact_spacing", "max_follow", "rrt_step",
-                     "decision_floor", "decision_same_mode"):
+                     "decision_floor", "decision_cover", "decision_same_mode"):
             value = getattr(self, name)
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):

@@ -443,17 +443,17 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             pose = decision.hypotheses[0].rotation, decision.hypotheses[0].translation
             map_vertices = transform_points(model.mesh.vertices, *pose)
         with _timed(timings, "target"):                        # l.8, l.1: d_H(S*, X_c) <= eps
-            dhd, terminated = self._stop_and_target(           # l.4 / l.6: the next target
+            dhd, terminated, decided = self._stop_and_target(  # l.4 / l.6: the next target
                 belief, model, *pose, map_vertices, recon, contacts, decision)
         if terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings)
         with _timed(timings, "metrics"):
             errors = self._truth_metrics(model, *pose, recon, contacts)
         return self._snapshot(belief, model, pose, map_vertices, recon, dhd, terminated,
-                              paths, observations, timings, errors, decision)
+                              paths, observations, timings, errors, decision, decided)
 
     def _snapshot(self, belief, model, pose, map_vertices, recon, dhd, terminated, paths,
-                  observations, timings, errors, decision):
+                  observations, timings, errors, decision, decided):
         """Record the step's :class:`Snapshot`."""
         (rotation, translation), (pose_error, recon_error, truth_coverage) = pose, errors
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
@@ -476,7 +476,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             recon_error=recon_error, terminated=terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
-            decided=decision.decided, decision_confidence=decision.confidence,
+            decided=bool(decided), decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)
         return snapshot

@@ -46,8 +46,12 @@ class Planner:
 
     def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
                          contacts, decision=UNDECIDED):
-        """The DHD of the estimate, whether to stop, and the next target (kept in
-        ``self.state.target``); returns ``(dhd, terminated)``."""
+        """The DHD of the estimate, whether to stop, whether the object is decided, and the
+        next target (kept in ``self.state.target``); returns ``(dhd, terminated, decided)``.
+
+        A decision also needs contacts all around the MAP surface (its DHD within
+        ``decision_cover``): a wrong pose or class can fit contacts on one part within
+        the noise, and nothing else would refute it."""
         surface = recon.vertices if recon is not None and not recon.empty else map_vertices
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
@@ -63,7 +67,8 @@ class Planner:
         frontier = exploring and bool(self.state.frontier)
         checking = (covered and exploring and not frontier
                     and self.state.checks_passed < self._p.check_lines)
-        rivals = (self._p.decision_targets and not state.novel and not decision.decided
+        decided = decision.decided and dhd <= self._p.decision_cover
+        rivals = (self._p.decision_targets and not state.novel and not decided
                   and len(decision.rivals) > 0)
         if covered and rivals and self.state.covered_at is None:
             self.state.covered_at = self.step_count + 1
@@ -71,7 +76,7 @@ class Planner:
         holding = rivals and (self.step_count + 1 - (self.state.covered_at or 0)
                               < self._p.decision_patience)
         terminated = bool((covered and not checking and not frontier and not holding)
-                          or (self._p.stop_at_decision and decision.decided)
+                          or (self._p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
         if recon is not None and not recon.empty:
@@ -99,7 +104,7 @@ class Planner:
         else:
             self.state.target = self._next_target(surface, reachable, recon, model,
                                                   rotation, translation, contacts)
-        return max(dhd, prior_dhd), terminated
+        return max(dhd, prior_dhd), terminated, decided
 
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""

@@ -1,0 +1,161 @@
+"""The decision beyond the paper: when a known object is decided, symmetric poses as one
+mode, where to touch to tell rivals apart, and the session's use of it."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.belief import Particles
+from tactile_viz.engine.decision import (Hypothesis, decide, disagreement_target,
+                                         surface_disagreement)
+from tactile_viz.engine.errors import ParameterError
+from tactile_viz.engine.observations import Contact
+from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
+from tactile_viz.engine.particle_filter import ParticleFilter
+from tactile_viz.engine.session import Session, make_truth, session_preset
+
+
+pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
+
+
+@pytest.fixture(scope="module")
+def shapes(tmp_path_factory):
+    """A box 6 x 3 x 2, the same box with a knob on one end, and a cylinder."""
+    from tactile_viz.engine.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path_factory.mktemp("cache"))
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    knob = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
+    knob.apply_translation([2.0, 0.0, 1.4])
+    knobbed = trimesh.util.concatenate([box, knob])  # overlapping parts: united on loading
+    cylinder = trimesh.creation.cylinder(radius=1.5, height=6, sections=48)
+    models = [ObjectModel.from_arrays(m.vertices, m.faces, name, cache=cache)
+              for m, name in ((box, "box"), (knobbed, "knobbed"), (cylinder, "cylinder"))]
+    return PriorLibrary(models)
+
+
+def _touches(model, count, seed, noise=0.0):
+    points, faces = trimesh.sample.sample_surface_even(model.mesh, count, seed=seed)
+    points = points + np.random.default_rng(seed).normal(0.0, noise, points.shape)
+    return [Contact(p, n) for p, n in zip(points, model.mesh.face_normals[faces])]
+
+
+def _filter(library, touches, seed=0):
+    params = scaled_lengths(FilterParams(), library.reference_size / PAPER_SIZE)
+    pf = ParticleFilter(library, params, rng=seed)
+    for touch in touches:
+        state = pf.update(touch)
+    return pf, state
+
+
+def test_well_spread_touches_of_a_distinct_shape_are_decided(shapes):
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    assert state.map_class == "cylinder"
+    assert decision.decided and decision.confidence >= 0.99
+    assert shapes.names[decision.hypotheses[0].class_index] == "cylinder"
+
+
+def test_too_few_contacts_or_a_novel_belief_are_not_decided(shapes):
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 2, seed=1))
+    assert not decide(pf, state).decided and decide(pf, state).hypotheses == ()
+
+
+def test_a_rival_that_fits_as_well_blocks_the_decision(shapes):
+    """Touches that miss the knob: the box and the knobbed box both fit; neither is
+    decided, and the target that tells them apart lies on the knob."""
+    knobbed = shapes["knobbed"]
+    touches = [t for t in _touches(knobbed, 80, seed=2)
+               if not (t.position[0] > 1.4 and t.position[2] > 0.9)][:40]
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    pf.contact_positions = np.array([t.position for t in touches])
+    pf.contact_normals = np.array([t.normal for t in touches])
+    both = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0), np.zeros((2, 3)),
+                     np.log([0.5, 0.5]))
+    pf.particles = both
+    state = pf._record(0)
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    assert not decision.decided
+    names = {shapes.names[h.class_index] for h in decision.hypotheses}
+    assert {"box", "knobbed"} <= names
+    rivals = (decision.hypotheses[0],) + decision.rivals
+    position, normal, _ = disagreement_target(pf.bank, rivals, pf.contact_positions,
+                                              spacing=0.3, reach=1.0)
+    assert position[0] > 1.4 and position[2] > 0.9  # on the knob
+    np.testing.assert_allclose(np.linalg.norm(normal), 1.0, atol=1e-6)
+
+
+def test_a_symmetry_of_the_shape_is_one_mode(shapes):
+    """The box turned half about z is the same surface; a quarter turn is not."""
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    half = Rotation.from_euler("z", 180, degrees=True).as_matrix()
+    quarter = Rotation.from_euler("z", 90, degrees=True).as_matrix()
+    same = surface_disagreement(pf.bank, 0, np.stack([np.eye(3), half]), np.zeros((2, 3)))
+    other = surface_disagreement(pf.bank, 0, np.stack([np.eye(3), quarter]), np.zeros((2, 3)))
+    assert same < 0.02 and other > 0.5
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_the_decision_holds_at_any_size(tmp_path, scale):
+    from tactile_viz.engine.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path)
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    cylinder = trimesh.creation.cylinder(radius=1.5, height=6, sections=48)
+    library = PriorLibrary([ObjectModel.from_arrays(m.vertices * scale, m.faces, name, cache=cache)
+                            for m, name in ((box, "box"), (cylinder, "cylinder"))])
+    pf, state = _filter(library, _touches(library["cylinder"], 40, seed=3))
+    floor = 0.02 * library["cylinder"].size_unit
+    decision = decide(pf, state, 0.99, floor=floor, same_mode=0.1 * library["cylinder"].size_unit)
+    assert decision.decided and library.names[decision.hypotheses[0].class_index] == "cylinder"
+    assert all(np.isfinite(h.misfit) for h in decision.hypotheses)
+
+
+def test_hypotheses_are_normalised_and_the_map_leads(shapes):
+    pf, state = _filter(shapes, _touches(shapes["box"], 30, seed=4, noise=0.02))
+    decision = decide(pf, state, 0.99, floor=0.05, same_mode=0.1)
+    total = sum(h.probability for h in decision.hypotheses)
+    assert total == pytest.approx(1.0)
+    assert isinstance(decision.hypotheses[0], Hypothesis)
+    assert decision.hypotheses[0].class_index == shapes.names.index(state.map_class)
+
+
+def test_a_recognising_session_stops_at_its_decision(shapes):
+    truth = make_truth(shapes["cylinder"], rng=[5, 0])
+    session = Session(truth, shapes, params=session_preset("recognise"), seed=5)
+    last = session.run(max_steps=80)
+    decided = [s.step for s in session.snapshots if s.decided]
+    if last.terminated and last.step < 80:  # stopped by the decision or the DHD stop
+        assert not decided or decided[0] == last.step
+    assert all(not s.novel for s in session.snapshots if s.decided)
+    records = [s.record() for s in session.snapshots]
+    assert all(isinstance(r["decided"], bool) for r in records)
+    assert all(0.0 <= r["decision_confidence"] <= 1.0 for r in records)
+
+
+def test_the_paper_preset_ignores_the_decision_parameters(shapes):
+    """The decision is reported in every preset, but the paper's steps do not depend on it."""
+    def run(**changes):
+        params = session_preset("paper", **changes)
+        session = Session(make_truth(shapes["box"], rng=[6, 0]), shapes, params=params, seed=6)
+        session.run(max_steps=12)
+        return session.snapshots
+
+    plain, changed = run(), run(decision_confidence=0.5, decision_cover=12.0,
+                                stop_at_decision=False)
+    assert len(plain) == len(changed)
+    for a, b in zip(plain, changed):
+        assert a.map_class == b.map_class and a.novel == b.novel
+        np.testing.assert_array_equal(a.contacts, b.contacts)
+        np.testing.assert_array_equal(a.map_rotation, b.map_rotation)
+    assert session_preset("paper").decision_targets is False
+
+
+@pytest.mark.parametrize("changes", [{"decision_confidence": 1.0}, {"decision_confidence": 0.2},
+                                     {"decision_floor": 0.0}, {"decision_cover": -1.0},
+                                     {"decision_patience": -1}, {"stop_at_decision": "yes"}])
+def test_bad_decision_parameters_are_refused(changes):
+    with pytest.raises(ParameterError):
+        SessionParams(**changes)
