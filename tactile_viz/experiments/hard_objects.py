@@ -1,6 +1,6 @@
 """Objects made to be hard to tell apart, for ``bench decide``: pairs that differ in one small
 part, same-size balls that differ in surface detail, a copy a few percent larger, thin long
-objects and a symmetric block.
+objects, a thin-walled cup and two symmetric blocks, 2 cm to 33 cm.
 
 Each is a distance function of :mod:`tactile_viz.assetgen.sdf`, meshed like the bundled
 objects (:func:`~tactile_viz.assetgen.build.build_mesh`, longest side 6) and then scaled to
@@ -58,6 +58,12 @@ def _pencil(p):
     return s.union(body, tip)
 
 
+def _cup(p):
+    outer = s.capped_cylinder(p, (0, 0, 0.0), (0, 0, 6.0), 2.6)
+    inner = s.capped_cylinder(p, (0, 0, 0.2), (0, 0, 7.0), 2.45)
+    return s.subtract(outer, inner)
+
+
 def _block(p):
     return s.round_box(p, (0, 0, 1.5), (1.5, 1.5, 1.5), 0.08)
 
@@ -74,16 +80,17 @@ HARD_SPECS = (
     ObjectSpec("ball_bumpy", "known", None, _ball(True), WIDE),
     ObjectSpec("knife", "known", None, _knife, WIDE),
     ObjectSpec("pencil", "known", None, _pencil, WIDE),
+    ObjectSpec("cup", "known", None, _cup, WIDE),
     ObjectSpec("block", "known", None, _block, WIDE),
     ObjectSpec("plank", "known", None, _plank, WIDE),
 )
 
-# Longest sides in metres. mug_1_large is the bundled mug_1 4% larger than its 10 cm copy
+# Longest sides in metres, 2 cm (a die-sized block) to 33 cm. mug_1_large is the bundled mug_1 4% larger than its 10 cm copy
 # in the known set (a scaled twin).
 HARD_SIZES_M = {
     "screwdriver_flat": 0.20, "screwdriver_cross": 0.20, "ball_smooth": 0.10,
-    "ball_bumpy": 0.10, "knife": 0.25, "pencil": 0.18, "block": 0.10, "plank": 0.30,
-    "mug_1_large": 0.104,
+    "ball_bumpy": 0.10, "knife": 0.25, "pencil": 0.18, "cup": 0.08, "block": 0.02,
+    "plank": 0.33, "mug_1_large": 0.104,
 }
 # Which pairs are twins (for the table): each name's hard counterpart, if any.
 COUNTERPARTS = {"screwdriver_flat": "screwdriver_cross", "screwdriver_cross": "screwdriver_flat",
