@@ -75,7 +75,9 @@ class PlotsWidget(FigureCanvasQTAgg):
                                            linewidth=1)
         self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1)
         for key, label in ERROR_SERIES:
-            (self._lines[key],) = axes.plot([], [], label=label, animated=True)
+            # Small dots on the line: a value between gaps (one step judged novel, say) shows.
+            (self._lines[key],) = axes.plot([], [], label=label, animated=True, marker=".",
+                                            markersize=3)
         axes.set_yscale("log")
         # Plain labels on the decades only: the log axis' default mathtext labels on minor
         # ticks were most of the text of a full draw (about half its 0.15 s).
