@@ -23,7 +23,7 @@ def snapshot():
 def _render(session, hidden=()):
     plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
     plotter.set_background("white")
-    layers = ViewportLayers(plotter, snapshot.library.reference_size)
+    layers = ViewportLayers(plotter)
     layers.show_truth(session.truth)
     layers.show_snapshot(session.latest)
     for name in hidden:
@@ -65,7 +65,7 @@ def _with_surface(snapshot, variance_scale):
 
 def test_colour_bar_range_follows_the_current_surface(snapshot):
     plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
-    layers = ViewportLayers(plotter, snapshot.library.reference_size)
+    layers = ViewportLayers(plotter)
     layers.show_truth(snapshot.truth)
     for scale in (1e-3, 5e-2):
         step = _with_surface(snapshot.latest, scale)
@@ -92,7 +92,7 @@ def test_nothing_drawn_shows_through_the_legend(snapshot):
     # The same legend over the scene filling the view and over an empty view.
     plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
     plotter.set_background("white")
-    layers = ViewportLayers(plotter, snapshot.library.reference_size)
+    layers = ViewportLayers(plotter)
     layers.show_truth(snapshot.truth)
     layers.show_snapshot(snapshot.latest)
     centre = np.asarray(snapshot.truth.translation, dtype=float)
@@ -125,7 +125,7 @@ def test_the_target_is_drawn_over_the_surfaces(snapshot):
     fractions = []
     for shown in (True, False):
         plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
-        layers = ViewportLayers(plotter, snapshot.library.reference_size)
+        layers = ViewportLayers(plotter)
         layers.show_truth(snapshot.truth)
         layers.show_snapshot(inside)
         layers.set_visible("target", shown)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from PySide6.QtCore import QSettings
+from PySide6.QtTest import QTest
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine import PriorLibrary, load_bundled
@@ -38,26 +39,37 @@ def _coloured(image):
 def pictures(qapp, tmp_path_factory):
     """Per scale: the viewport after a few steps (legend hidden: its gold marker is not the
     target), the scene's length scale and the truth's longest side."""
-    out = {}
-    for key, (factor, units) in SCALES.items():
-        library = PriorLibrary(_model(name, factor) for name in PRIORS)
-        scene = Scene(truth_model=_model("mug_1", factor), seed=0, library=library,
-                      units=units)
-        settings = QSettings(str(tmp_path_factory.mktemp(key) / "s.ini"), QSettings.IniFormat)
-        window = MainWindow(scene, settings=settings, engine="thread")
-        window.resize(1280, 720)
-        window.show()
-        for _ in range(STEPS):
-            scene.step()
-        qapp.processEvents()
-        window.frame_truth()
-        window.layers.legend.SetVisibility(False)
-        image = window.plotter.screenshot(return_img=True)[..., :3]
-        out[key] = (image, window.layers.scene_length, scene.truth.model.length,
-                    window.plotter.camera.clipping_range, window.layers.bounds())
-        window.close()
-        qapp.processEvents()
+    import pyvista as pv
+
+    out, off_screen = {}, pv.OFF_SCREEN
+    pv.OFF_SCREEN = False  # an on-screen view, as the app's (test_render sets it for all)
+    try:
+        for key, scale in SCALES.items():
+            out[key] = _picture(qapp, tmp_path_factory.mktemp(key), *scale)
+    finally:
+        pv.OFF_SCREEN = off_screen
     return out
+
+
+def _picture(qapp, folder, factor, units):
+    library = PriorLibrary(_model(name, factor) for name in PRIORS)
+    scene = Scene(truth_model=_model("mug_1", factor), seed=0, library=library, units=units)
+    settings = QSettings(str(folder / "settings.ini"), QSettings.IniFormat)
+    window = MainWindow(scene, settings=settings, engine="thread")
+    window.resize(1280, 720)
+    window.show()
+    assert QTest.qWaitForWindowExposed(window)
+    for _ in range(STEPS):
+        scene.step()
+    qapp.processEvents()
+    window.frame_truth()
+    window.layers.legend.SetVisibility(False)
+    image = window.plotter.screenshot(return_img=True)[..., :3]
+    picture = (image, window.layers.scene_length, scene.truth.model.length,
+               window.plotter.camera.clipping_range, window.layers.bounds())
+    window.close()
+    qapp.processEvents()
+    return picture
 
 
 def _spread(values):
