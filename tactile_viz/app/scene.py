@@ -211,6 +211,11 @@ class Scene:
                 return library.reference_size
         return PAPER_SIZE
 
+    @property
+    def reference_size(self):
+        """The active priors' median longest side, scene units (a view's length scale)."""
+        return self._reference_size()
+
     def truth_size(self, snapshot=None):
         """The longest side (scene units) errors are judged against: the simulated truth's,
         else the MAP object's of ``snapshot`` (default the latest), else the priors' median."""

@@ -4,12 +4,18 @@ All methods touch VTK and must run on the GUI thread. Each layer's actor is crea
 then updated in place (its mapper's data set is swapped with ``copy_from``), nothing renders
 while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a single
 render. The camera is never moved by a step.
+
+Everything drawn in world units (contact and target spheres) is a share of the scene's length
+scale, :attr:`ViewportLayers.scene_length` (the window sets it to the priors' reference size,
+:attr:`tactile_viz.app.scene.Scene.reference_size`), so a scene in metres, millimetres or
+the paper's 6 units looks the same; the legend, the colour bar and line widths are in pixels.
 """
 
 import numpy as np
 import pyvista as pv
 import vtk
 
+from ..engine.params import PAPER_SIZE
 from ..engine.transforms import transform_points
 
 # name -> (legend label, colour)
@@ -23,7 +29,9 @@ LAYERS = {
     "target": ("target", "gold"),
     "path": ("sensor path", "dimgray"),
 }
-CONTACT_RADIUS = 0.07
+# Sphere radii as shares of the scene's length scale: 0.07 and 0.154 on the paper's 6 units.
+CONTACT_RADIUS = 0.07 / PAPER_SIZE
+TARGET_RADIUS = 2.2 * CONTACT_RADIUS
 LEGEND_ROW_PIXELS = 18  # height of one legend entry, whatever the viewport's size
 LEGEND_WIDTH_PIXELS = 230
 # The legend: dark labels on a light box, each beside a framed marker of its layer's colour
@@ -74,12 +82,12 @@ def vertex_normals(vertices, faces):
 _SPHERE = None
 
 
-def spheres(points, radius=CONTACT_RADIUS):
-    """Small spheres at (k, 3) points, as one mesh."""
+def spheres(points, radius):
+    """Small spheres of ``radius`` (scene units) at (k, 3) points, as one mesh."""
     global _SPHERE
     if _SPHERE is None:
-        # 8 x 8: 96 triangles a contact (10 x 10: 160); at 0.07 the difference does not show,
-        # the software renderer's time on a few hundred contacts does.
+        # 8 x 8: 96 triangles a contact (10 x 10: 160); at a contact's size the difference
+        # does not show, the software renderer's time on a few hundred contacts does.
         _SPHERE = pv.Sphere(radius=1.0, theta_resolution=8, phi_resolution=8)
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     unit = np.asarray(_SPHERE.points)
@@ -164,10 +172,13 @@ class ViewportLayers:
     Parameters
     ----------
     plotter : pyvista.Plotter or pyvistaqt.QtInteractor
+    scene_length : float
+        The scene's length scale, scene units (see :meth:`set_scene_length`).
     """
 
-    def __init__(self, plotter):
+    def __init__(self, plotter, scene_length=PAPER_SIZE):
         self.plotter = plotter
+        self.scene_length = float(scene_length)
         self.visible = {name: name not in HIDDEN_AT_START for name in LAYERS}
         self.models = None  # class name -> ObjectModel, for the hypotheses' shapes
         self.present = {name: False for name in LAYERS}
@@ -185,6 +196,44 @@ class ViewportLayers:
         self._apply_visibility(name)
         self._sync_overlays()
         self.plotter.render()
+
+    def set_scene_length(self, length, render=False):
+        """Size what is drawn in world units as shares of ``length`` (scene units: the
+        priors' reference size, 6 for the paper's objects); the current step is redrawn
+        when it changes."""
+        length = float(length)
+        if not (np.isfinite(length) and length > 0):
+            raise ValueError(f"the scene's length must be positive, got {length!r}")
+        if length == self.scene_length:
+            return
+        self.scene_length = length
+        if self.latest is not None:
+            for name in ("contacts", "noncontacts", "target"):
+                if self.visible[name]:
+                    self._update(name, self.latest)
+        if render:
+            self.plotter.render()
+
+    def radius(self, name):
+        """The radius of a contact, non-contact or target sphere, scene units."""
+        return (TARGET_RADIUS if name == "target" else CONTACT_RADIUS) * self.scene_length
+
+    def bounds(self):
+        """``(xmin, xmax, ymin, ymax, zmin, zmax)`` to frame, scene units: the ground truth's
+        when it is shown, else what is shown, else a cube as long as the scene's length
+        about the origin (a recording before its first step)."""
+        names = ["truth"] if self.shown("truth") else [n for n in LAYERS if self.shown(n)]
+        boxes = np.array([self.actors[n].GetBounds() for n in names if n in self.actors])
+        if not len(boxes):
+            half = self.scene_length / 2
+            return (-half, half) * 3
+        low, high = boxes[:, 0::2].min(axis=0), boxes[:, 1::2].max(axis=0)
+        return tuple(float(v) for pair in zip(low, high) for v in pair)
+
+    def fit_clipping_range(self):
+        """Near and far planes around everything drawn (a step may draw beyond the framed
+        bounds: a sensor path coming from afar)."""
+        self.plotter.renderer.ResetCameraClippingRange()
 
     def shown(self, name):
         """True when the layer has something to show and is switched on."""
@@ -217,6 +266,7 @@ class ViewportLayers:
                 self.present[name] = self._has(name, snapshot)
                 self._apply_visibility(name)
         self._sync_overlays()
+        self.fit_clipping_range()
         if render:
             self.plotter.render()
 
@@ -278,10 +328,11 @@ class ViewportLayers:
                           clim=[low, high])
                 self.actors["gpis"].mapper.scalar_range = (low, high)
             elif name in ("contacts", "noncontacts"):
-                self._put(name, spheres(getattr(snapshot, name)), color=LAYERS[name][1])
+                self._put(name, spheres(getattr(snapshot, name), self.radius(name)),
+                          color=LAYERS[name][1])
             elif name == "target":
                 self._put("target", spheres(np.asarray(snapshot.target)[None],
-                                            2.2 * CONTACT_RADIUS), color=LAYERS["target"][1])
+                                            self.radius("target")), color=LAYERS["target"][1])
             elif name == "path":
                 self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1],
                           line_width=2)
@@ -369,9 +420,15 @@ class ViewportLayers:
                                         width=0.06, height=0.5, n_labels=4, fmt="%.1e",
                                         label_font_size=11, title_font_size=12,
                                         render=False)
+            bar = self.plotter.scalar_bars[SCALAR_BAR]
             # The title stands clear of the top label (they overlapped by default).
-            self.plotter.scalar_bars[SCALAR_BAR].SetVerticalTitleSeparation(12)
+            bar.SetVerticalTitleSeparation(12)
+            # Drawn over the layers like the legend: in the plotter's renderer the target
+            # (drawn over it) and a sensor path cut letters out of the title.
+            self.plotter.renderer.RemoveViewProp(bar)
+            self.overlay().AddViewProp(bar)
         elif not self.shown("gpis") and SCALAR_BAR in bars:
+            self.overlay().RemoveViewProp(bars[SCALAR_BAR])
             self.plotter.remove_scalar_bar(SCALAR_BAR, render=False)
 
     def _viewport_pixels(self):

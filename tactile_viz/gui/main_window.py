@@ -87,7 +87,8 @@ class MainWindow(QMainWindow):
         self.plotter.drag_entered.connect(
             lambda paths, accepted: commands.drag_entered(self, paths, accepted))
         self.setCentralWidget(self.plotter)
-        self.layers = ViewportLayers(self.plotter)
+        self.layers = ViewportLayers(self.plotter, scene.reference_size)
+        self._framed_nothing = False  # the camera framed a scene with nothing shown yet
         self.plotter.resized.connect(self.layers.relayout)
         self.actions = commands.create_actions(self)
         self._build_panel()
@@ -113,14 +114,16 @@ class MainWindow(QMainWindow):
         else:
             self._update_status(None)
 
-    def frame_truth(self):
+    def frame_truth(self, render=True):
         """Point the camera at the ground truth (on a new object or pose, never per step);
-        at everything shown when there is no truth (a recording)."""
-        if self.scene.truth is not None and "truth" in self.layers.actors:
-            self.plotter.reset_camera(bounds=self.layers.actors["truth"].GetBounds())
-        else:
-            self.plotter.reset_camera()
-        self.plotter.render()
+        at everything shown when there is no truth (a recording), at a box as long as the
+        scene's length scale when nothing is shown yet (then again at the first step). The
+        clipping range holds everything drawn."""
+        self._framed_nothing = not any(self.layers.shown(name) for name in self.layers.present)
+        self.plotter.reset_camera(bounds=self.layers.bounds(), render=False)
+        self.layers.fit_clipping_range()
+        if render:
+            self.plotter.render()
 
     def look(self, method):
         """Look along an axis (``method``: the plotter's view_xy, view_isometric, ...)."""
@@ -370,6 +373,7 @@ class MainWindow(QMainWindow):
         self.scene_panel.sync(self.scene)
 
     def _on_session_reset(self):
+        self.layers.set_scene_length(self.scene.reference_size)
         self.loop_panel.set_history(0)
         self.layers.clear_session(render=False)
         self.plotter.schedule_render()
@@ -388,6 +392,8 @@ class MainWindow(QMainWindow):
     def _show_step(self, snapshot):
         self.layers.models = self.scene.session.library
         self.layers.show_snapshot(snapshot, render=False)
+        if self._framed_nothing:  # a recording's first step: nothing was there to frame
+            self.frame_truth(render=False)
         self.plotter.schedule_render()
         self._plots_step = snapshot.step
         if self.running or self._drawing_run:

@@ -19,6 +19,7 @@ from collections import deque
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from ..app.scene import SCENE_UNITS
@@ -59,6 +60,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.blits = 0  # updates drawn by blitting (the rest are full draws)
         self._background = None  # the figure without the bars and lines, after a full draw
         self._layout_key = None
+        self._legend_series = None  # the error series the legend names (those with data)
         self._setup_errors()
         self.update_plots([])
         self._relayout()
@@ -73,7 +75,9 @@ class PlotsWidget(FigureCanvasQTAgg):
                                            linewidth=1)
         self.eps_line = axes.axhline(self.eps, color="tab:green", linestyle=":", linewidth=1)
         for key, label in ERROR_SERIES:
-            (self._lines[key],) = axes.plot([], [], label=label, animated=True)
+            # Small dots on the line: a value between gaps (one step judged novel, say) shows.
+            (self._lines[key],) = axes.plot([], [], label=label, animated=True, marker=".",
+                                            markersize=3)
         axes.set_yscale("log")
         # Plain labels on the decades only: the log axis' default mathtext labels on minor
         # ticks were most of the text of a full draw (about half its 0.15 s).
@@ -96,9 +100,33 @@ class PlotsWidget(FigureCanvasQTAgg):
                                       else f"{threshold} threshold")
         self.eps_line.set_label(f"DHD stop (eps {self.eps:.3g})")
         self.eps_line.set_visible(not same)
-        handles = [self.threshold_line] + ([] if same else [self.eps_line])
-        handles += [self._lines[key] for key, _ in ERROR_SERIES]
-        self.error_axes.legend(handles=handles, fontsize=7, loc="upper right")
+        self._legend_series = None
+        self._update_legend()
+
+    def _series_with_data(self):
+        return tuple(key for key, _ in ERROR_SERIES
+                     if np.isfinite(np.asarray(self._series[key], dtype=float)).any())
+
+    def _update_legend(self):
+        """The stop lines and the error series that have data (a known object has no
+        reconstruction error, a recording no pose error). The legend is drawn with the
+        lines, over the saved background, so that a new entry is no full draw. The series
+        are named by proxies: an entry copies its line's visibility (none before data)."""
+        series = self._series_with_data()
+        if series == self._legend_series:
+            return
+        self._legend_series = series
+        handles = [self.threshold_line] + ([self.eps_line] if self.eps_line.get_visible()
+                                           else [])
+        labels = [line.get_label() for line in handles]
+        for key, label in ERROR_SERIES:
+            if key in series:
+                line = self._lines[key]
+                handles.append(Line2D([], [], color=line.get_color(),
+                                      linewidth=line.get_linewidth()))
+                labels.append(label)
+        legend = self.error_axes.legend(handles, labels, fontsize=7, loc="upper right")
+        legend.set_animated(True)
 
     def _relayout(self):
         try:
@@ -120,7 +148,8 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.draw_log.append((began, self.last_draw_seconds))
 
     def _dynamic_artists(self):
-        return list(self._bars or []) + list(self._lines.values())
+        return (list(self._bars or []) + list(self._lines.values())
+                + [self.error_axes.get_legend()])
 
     def _draw_dynamic(self):
         for artist in self._dynamic_artists():
@@ -254,6 +283,7 @@ class PlotsWidget(FigureCanvasQTAgg):
             self._lines[key].set_data(self._steps, series)
             self._lines[key].set_visible(bool(len(series)) and not np.all(np.isnan(series)))
             values.append(series[np.isfinite(series) & (series > 0)])
+        self._update_legend()
         axes = self.error_axes
         last = self._steps[-1] if self._steps else 0
         values = np.concatenate(values + [np.array([self.threshold, self.eps])])

@@ -2,8 +2,10 @@
 
 import pytest
 from PySide6.QtCore import QPoint, QSettings
+from PySide6.QtWidgets import QStyle, QStyleOptionComboBox
 
-from tactile_viz.app.scene import Scene
+from tactile_viz.app.scene import LOADED_PRESET, Scene
+from tactile_viz.engine.presets import SESSION_PRESETS
 from tactile_viz.gui.main_window import MainWindow
 
 pytestmark = pytest.mark.gui
@@ -35,4 +37,23 @@ def test_controls_fit_without_scrolling(qtbot, tmp_path, size):
     assert window.priors_panel.prior_list.height() >= 70
     for box in window.layers_panel.layer_boxes.values():  # no label cut off
         assert box.width() >= box.sizeHint().width(), box.text()
+    for text in [*SESSION_PRESETS, LOADED_PRESET]:  # "recommended" showed as "recommer"
+        assert _combo_text_room(window.exploration_panel.preset_box) >= _text_width(
+            window.exploration_panel.preset_box, text), text
+    for box in (window.scene_panel.object_box, window.exploration_panel.strategy_box):
+        for index in range(box.count()):
+            assert _combo_text_room(box) >= _text_width(box, box.itemText(index))
     window.close()
+
+
+def _text_width(box, text):
+    return box.fontMetrics().horizontalAdvance(text)
+
+
+def _combo_text_room(box):
+    """The width of a combo box's text field, pixels (its style's edit field)."""
+    option = QStyleOptionComboBox()
+    box.initStyleOption(option)
+    field = box.style().subControlRect(QStyle.ComplexControl.CC_ComboBox, option,
+                                       QStyle.SubControl.SC_ComboBoxEditField, box)
+    return field.width()

@@ -88,12 +88,40 @@ def test_the_stop_line_on_the_threshold_is_one_line_named_for_both(qtbot):
     def legend():
         return [text.get_text() for text in plots.error_axes.get_legend().get_texts()]
 
+    plots.update_plots(_snapshots(3, np.random.default_rng(0)))  # pose error and DHD
     plots.set_eps(0.6)  # the paper's eps is the error threshold
     assert not plots.eps_line.get_visible()
-    assert legend()[0] == "0.6: threshold and DHD stop (eps)" and len(legend()) == 4
+    assert legend() == ["0.6: threshold and DHD stop (eps)", "pose error", "DHD"]
     plots.set_eps(0.8)
     assert plots.eps_line.get_visible()
-    assert legend()[:2] == ["0.6 threshold", "DHD stop (eps 0.8)"] and len(legend()) == 5
+    assert legend() == ["0.6 threshold", "DHD stop (eps 0.8)", "pose error", "DHD"]
+
+
+def test_the_legend_names_only_the_series_with_data(qtbot):
+    plots = _shown_plots(qtbot)
+
+    def legend():
+        return [text.get_text() for text in plots.error_axes.get_legend().get_texts()]
+
+    plots.set_classes(NAMES)
+    plots.set_run_steps(300, now=True)
+    assert legend() == ["0.6: threshold and DHD stop (eps)"]  # nothing measured yet
+    snapshots = _snapshots(6, np.random.default_rng(3))
+    recording = [SimpleNamespace(**dict(vars(s), pose_error=None)) for s in snapshots]
+    blits = plots.blits
+    plots.update_plots(recording[:1])  # a recording: no truth, no pose error
+    assert legend()[1:] == ["DHD"] and plots.blits == blits + 1  # a new entry, still a blit
+    novel = snapshots[:3] + [SimpleNamespace(**dict(vars(s), recon_error=0.4))
+                             for s in snapshots[3:]]
+    plots.update_plots(novel[:3])
+    assert legend()[1:] == ["pose error", "DHD"]
+    plots.update_plots(novel)  # judged novel: a reconstruction error from step 4
+    assert legend()[1:] == ["pose error", "DHD", "reconstruction error"]
+    colours = [handle.get_color() for handle in plots.error_axes.get_legend().legend_handles]
+    assert colours[1:] == [plots._lines[key].get_color()
+                           for key in ("pose_error", "dhd", "recon_error")]
+    plots.update_plots([])
+    assert legend() == ["0.6: threshold and DHD stop (eps)"]
 
 
 def test_stop_lines_and_axis_in_scene_units(qtbot):

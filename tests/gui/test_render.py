@@ -135,3 +135,44 @@ def test_the_target_is_drawn_over_the_surfaces(snapshot):
         fractions.append(_fraction(image, gold, 80))
         plotter.close()
     assert fractions[0] > 0.0001 and fractions[0] > 5 * fractions[1], fractions
+
+
+def test_nothing_is_drawn_over_the_colour_bar_title(snapshot):
+    # The target is drawn over the layers; placed right under the colour bar's title it cut
+    # letters out of it ("ariance"). The title's dark pixels stay dark with it there.
+    from dataclasses import replace
+
+    centre = np.asarray(snapshot.truth.translation, dtype=float)
+    plotter = pv.Plotter(off_screen=True, window_size=(480, 480))
+    plotter.set_background("white")
+    layers = ViewportLayers(plotter, snapshot.library.reference_size)
+    layers.show_truth(snapshot.truth)
+    step = _with_surface(snapshot.latest, 1e-3)
+    layers.show_snapshot(step)
+    plotter.camera_position = [(14, -14, 10), tuple(centre), (0, 0, 1)]
+    layers.set_visible("target", False)
+    layers.legend.SetVisibility(False)
+    image = plotter.screenshot(return_img=True)[..., :3].astype(int)
+    bar = plotter.scalar_bars["variance"]
+    # The title is at the top of the bar's box, above the colours and the top label.
+    left = round(bar.GetPositionCoordinate().GetValue()[0] * 480) - 40
+    top = round((1 - bar.GetPositionCoordinate().GetValue()[1] - bar.GetHeight()) * 480)
+    band = slice(top - 6, top + 16), slice(left, None)
+    title = np.zeros(image.shape[:2], dtype=bool)
+    title[band] = image[band].sum(axis=-1) < 300
+    rows, columns = np.nonzero(title)
+    assert title.sum() > 20  # the word is there
+    renderer = plotter.renderer
+    renderer.SetWorldPoint(*centre, 1.0)
+    renderer.WorldToDisplay()
+    depth = renderer.GetDisplayPoint()[2]
+    renderer.SetDisplayPoint(columns.mean(), 480 - rows.mean(), depth)
+    renderer.DisplayToWorld()
+    world = np.asarray(renderer.GetWorldPoint())
+    layers.show_snapshot(replace(step, target=world[:3] / world[3]))
+    layers.set_visible("target", True)
+    covered = plotter.screenshot(return_img=True)[..., :3].astype(int)
+    gold = pv.Color("gold").int_rgb
+    assert _fraction(covered[band], gold, 80) > 0.005  # the target is there
+    assert (covered[title].sum(axis=-1) < 300).mean() > 0.95
+    plotter.close()

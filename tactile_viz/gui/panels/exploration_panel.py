@@ -9,9 +9,10 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel,
                                QSpinBox)
 
-from ...app.scene import knob_length_power, knob_size_reference
+from ...app.scene import LOADED_PRESET, knob_length_power, knob_size_reference
 from ...engine.exploration import STRATEGIES
 from ...engine.params import declaration
+from ...engine.presets import SESSION_PRESETS
 from .base import MARGINS, blocked
 
 # The main knobs: name -> (label, step, decimals). Their range, default and doc come from
@@ -57,6 +58,11 @@ class ExplorationPanel(QGroupBox):
                                    "paper: the paper exactly; fast: coarser grids, fewer "
                                    "features; refined: recommended plus MAP pose refinement; "
                                    "accurate: finer grids, neighbour bins, refinement")
+        # Wide enough for every preset's name from the start (the box is filled by sync,
+        # after the dock has taken its width: "recommended" showed as "recommer").
+        self.preset_box.addItems([*SESSION_PRESETS, LOADED_PRESET])
+        self.preset_box.setMinimumWidth(self.preset_box.sizeHint().width())
+        self.preset_box.removeItem(len(SESSION_PRESETS))
         self.preset_box.activated.connect(
             lambda index: self.preset_chosen.emit(self.preset_box.itemText(index)))
         rows = [("strategy", self.strategy_box), ("preset", self.preset_box)]

@@ -7,6 +7,7 @@ from PySide6.QtWidgets import QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QP
 from .base import MARGINS, blocked
 
 OPEN_FILE = "Open mesh file..."
+NO_OBJECT = "(recording)"  # shown, greyed, while recorded touches replace the object
 
 
 class ScenePanel(QGroupBox):
@@ -38,6 +39,7 @@ class ScenePanel(QGroupBox):
         self.object_box = QComboBox()
         self.object_box.addItems(list(objects) + [OPEN_FILE])
         self.object_box.setToolTip("The ground-truth object the sensor touches")
+        self.object_box.setPlaceholderText(NO_OBJECT)
         self.object_box.activated.connect(self._on_object_activated)
         self.seed_box = QSpinBox()
         self.seed_box.setRange(0, 1_000_000)
@@ -59,12 +61,16 @@ class ScenePanel(QGroupBox):
         return [self.object_box, self.seed_box, self.random_button, self.place_button]
 
     def sync(self, scene):
-        """Show the scene's truth object and seed, without emitting any signal."""
-        name = scene.truth_model.name
+        """Show the scene's truth object and seed, without emitting any signal; no object
+        (:data:`NO_OBJECT`) while a recording replaces the truth."""
         with blocked(self.object_box, self.seed_box):
-            if self.object_box.findText(name) < 0:
-                self.object_box.insertItem(self.object_box.count() - 1, name)
-            self.object_box.setCurrentText(name)
+            if scene.truth is None:
+                self.object_box.setCurrentIndex(-1)  # the placeholder text
+            else:
+                name = scene.truth_model.name
+                if self.object_box.findText(name) < 0:
+                    self.object_box.insertItem(self.object_box.count() - 1, name)
+                self.object_box.setCurrentText(name)
             self.seed_box.setValue(scene.seed)
 
     def _on_object_activated(self, index):
