@@ -126,6 +126,21 @@ def test_the_status_line_gives_errors_in_scene_units_and_shares_of_the_size():
     assert format_length(0.8) == "0.80" and format_length(0.012, 0.12) == "0.0120"
 
 
+def test_the_status_line_says_whether_a_known_object_is_decided():
+    from types import SimpleNamespace
+
+    from tactile_viz.gui.panels.loop_panel import status_text
+
+    base = dict(map_class="mug_1", dhd=1.0, pose_error=None, recon_error=None, n_particles=9,
+                timings={}, rotation_error_deg=None, translation_error=None)
+    deciding = SimpleNamespace(**base, novel=False, decided=False, decision_confidence=0.42)
+    decided = SimpleNamespace(**base, novel=False, decided=True, decision_confidence=0.9993)
+    novel = SimpleNamespace(**base, novel=True, decided=False, decision_confidence=0.0)
+    assert status_text(deciding).startswith("known, deciding (42%) | MAP mug_1")
+    assert status_text(decided).startswith("known, decided (99.9%)")
+    assert status_text(novel).startswith("NOVEL | MAP mug_1")
+
+
 def test_layers_panel_syncs_silently(qtbot):
     panel = _panel(qtbot, LayersPanel())
     emitted = _record(panel)

@@ -28,7 +28,8 @@ def format_length(value, size=None):
 
 
 def status_text(snapshot, size=None):
-    """One line on a step: known or novel, MAP class, DHD, errors, particles, time.
+    """One line on a step: known (decided or not) or novel, MAP class, DHD, errors,
+    particles, time.
 
     Lengths are in scene units; with ``size`` (the longest side the errors are judged
     against, scene units) the pose and reconstruction errors also give their share of it,
@@ -41,7 +42,7 @@ def status_text(snapshot, size=None):
         return text + (f" ({100 * value / size:.1f}%)" if size else "")
 
     seconds = sum(snapshot.timings.values())
-    fields = [f"{'NOVEL' if snapshot.novel else 'known'}", f"MAP {snapshot.map_class}",
+    fields = [_judgement(snapshot), f"MAP {snapshot.map_class}",
               f"DHD {format_length(snapshot.dhd, size)}",
               f"pose error {error(snapshot.pose_error)}"]
     rotation = getattr(snapshot, "rotation_error_deg", None)
@@ -51,6 +52,17 @@ def status_text(snapshot, size=None):
     fields += [f"recon error {error(snapshot.recon_error)}",
                f"particles {snapshot.n_particles}", f"last step {seconds:.2f} s"]
     return " | ".join(fields)
+
+
+def _judgement(snapshot):
+    """``NOVEL``, or ``known`` with the decision (beyond the paper): ``decided`` once no
+    other class or pose fits, else the share the MAP holds so far."""
+    if snapshot.novel:
+        return "NOVEL"
+    confidence = getattr(snapshot, "decision_confidence", 0.0)
+    if getattr(snapshot, "decided", False):
+        return f"known, decided ({100 * confidence:.1f}%)"
+    return f"known, deciding ({100 * confidence:.0f}%)"
 
 
 class LoopPanel(QGroupBox):
