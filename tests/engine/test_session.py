@@ -304,7 +304,7 @@ def test_failed_step_leaves_session_unchanged(bundled, known, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("simulated failure")
 
-    monkeypatch.setattr(session, "_next_target", broken)
+    monkeypatch.setattr(session, "_stop_and_target", broken)  # after the filter update
     with pytest.raises(RuntimeError, match="simulated"):
         session.step()
     assert session.step_count == 3 and session.filter.contact_positions is contacts
