@@ -11,7 +11,7 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
 3. among the distinct hypotheses that could explain the contacts, the MAP holds at least
    ``decision_confidence`` of their fit posterior, and
 4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
-   ``decision_confidence`` with the noise scale ``floor`` and ``n - 6`` degrees of freedom
+   ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
    (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
    residuals beyond the noise).
 
@@ -20,8 +20,10 @@ classes, and the classes whose surfaces pass close to the contacts at the MAP's 
 is refined to its best pose (:func:`~.pose_refinement.refine_poses`); two hypotheses of one
 class whose posed surfaces agree (a symmetry of the shape, or two particles of one mode)
 are one. Their fit posterior is Gaussian in the refined residuals with one noise scale,
-``s^2 = max(RSS_best / (n - 6), floor^2)``: the residual scatter of the best fit (six pose
-parameters spent), at least the sensor's position noise and ``decision_floor``::
+``s^2 = max(RSS_best / (n - 6), floor^2 + e^2)``: the residual scatter of the best fit (six
+pose parameters spent), at least the sensor's position noise and ``decision_floor`` in
+quadrature (``floor``) with the MAP grid's own error at its surface (``e``,
+:func:`grid_error`)::
 
     log p_k = -(RSS_k - RSS_best) / (2 s^2)        (normalised over the hypotheses)
 
@@ -44,6 +46,7 @@ TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
+GRID_ERROR_PERCENTILE = 95
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
 
@@ -109,8 +112,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     confidence : float
         ``decision_confidence``.
     floor : float, scene units
-        Least noise scale of the fit posterior (the sensor's position noise and the model's
-        own error, whichever is larger).
+        Least noise scale of the fit posterior besides the grid's own error: the sensor's
+        position noise and the contact's localisation, in quadrature.
     same_mode : float, scene units
         Hypotheses of one class whose posed surfaces agree within this RMS are one.
 
@@ -142,7 +145,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     keep = _distinct(pf.bank, classes, rotations, translations, misfit, same_mode)
     best = float(misfit[keep].min())
-    scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor**2, 1e-300)
+    floor2 = floor**2 + grid_error(pf.bank, classes[0]) ** 2  # the MAP's model error too
+    scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
     log_p = -(misfit[keep] - best) / (2 * scale2)  # the fit posterior, Gaussian
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
@@ -158,7 +162,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     # The MAP must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
     dof = len(contacts) - POSE_PARAMETERS
-    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor, 1e-300) ** 2
+    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2, 1e-300)
     return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
                     hypotheses)
 
@@ -213,6 +217,15 @@ def _distinct(bank, classes, rotations, translations, misfit, tolerance):
                for k in kept):
             kept.append(int(index))
     return np.array(kept, dtype=np.int64)
+
+
+def grid_error(bank, class_index):
+    """How far a perfect touch can seem off a class's surface, scene units: the 95th
+    percentile of its grid's signed distance at its own feature points, which lie on the
+    surface (largest for a thin blade in coarse cells; touches gather where the grid errs
+    most, on edges and thin parts, so an RMS understates it)."""
+    values, _ = bank.evaluate(np.array([class_index]), bank.points[class_index][None])
+    return float(np.percentile(np.abs(values), GRID_ERROR_PERCENTILE))
 
 
 def surface_disagreement(bank, class_index, rotations, translations):

@@ -158,6 +158,13 @@ class FilterParams:
         Beyond the paper (0 off, the paper's Gaussian): the chance that a contact is a
         wrong reading, a mixture with a flat density (see :mod:`.likelihood`), so that one
         outlier cannot kill the true hypothesis.
+    position_noise : float, size units
+        The sensor's position noise the novelty test allows for (0: the paper's test; set
+        by :func:`~.presets.noise_matched`): a reported contact may lie up to two stds off
+        the surface along its normal, so each contact's term is the best over such offsets,
+        an offset costing as a distance does (a noisy touch of a thin wall can land past
+        its middle, where the grid's normal points the other way), and the test takes the
+        MAP at its pose refined to the contacts.
     n_features : int
         Poisson-disk feature points per object (paper 200).
     sdf_resolution : int
@@ -186,6 +193,7 @@ class FilterParams:
     contenders: int = _ranged(4, 0, 50)
     contender_mass: float = _ranged(0.05, 0.0, 1.0)
     outlier_probability: float = _ranged(0.0, 0.0, 0.49)
+    position_noise: float = _length(0.0, low=0.0, high=10.0)
     n_features: int = 200
     sdf_resolution: int = 64
 
@@ -208,6 +216,10 @@ class FilterParams:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
+        _check_real("position_noise", self.position_noise)
+        if not (np.isfinite(self.position_noise) and self.position_noise >= 0):
+            raise ParameterError("position_noise must be a finite number >= 0, "
+                                 f"got {self.position_noise!r}")
         if not 0 <= self.outlier_probability < 0.5:
             raise ParameterError("outlier_probability must lie in [0, 0.5), "
                                  f"got {self.outlier_probability!r}")
@@ -369,8 +381,9 @@ class SessionParams:
         the class posterior and the MAP this share of the fit posterior of the distinct
         hypotheses (:mod:`~tactile_viz.engine.decision`).
     decision_floor : float, size units
-        The least noise scale of the fit posterior (with a noisy sensor, at least its
-        position noise): how well a right hypothesis can fit, model error included.
+        How far a right hypothesis's contacts may lie off its surface besides the sensor's
+        noise and the grid's own error (both added in quadrature): the contact's
+        localisation (the simulator's is within 0.01).
     decision_cover : float, size units
         A decision also needs every point of the MAP surface within this distance of a
         contact (its DHD; 2.4 is 40% of the object's longest side): a wrong pose or class
@@ -424,7 +437,7 @@ class SessionParams:
     rrt_step: float = _length(0.3)
     metric_samples: int = 3000
     decision_confidence: float = _ranged(0.99, 0.5, 0.999999)
-    decision_floor: float = _length(0.02, low=1e-4, high=1.0)
+    decision_floor: float = _length(0.01, low=1e-4, high=1.0)
     decision_cover: float = _length(2.4, low=0.1, high=12.0)
     decision_same_mode: float = _length(0.1, low=1e-3, high=2.0)
     decision_targets: bool = True

@@ -30,9 +30,11 @@ from .observations import Contact, NonContact
 from .params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 from .discrimination import discriminate
+from .pose_refinement import refine_poses
 from .prior_bank import PriorBank, bank_for, release_freed_memory
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
+NOISE_OFFSETS = np.array([0.0, -1.0, 1.0, -2.0, 2.0])  # position-noise stds along a normal
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
 
@@ -375,18 +377,42 @@ class ParticleFilter:
         self.particles = Particles(self.particles.classes, rotations, translations,
                                    normalise_log_weights(log_weights))
 
-    def _trimmed_contact_test(self, best):
-        """The novelty test's contact part without the worst ``ceil(eps n)`` contacts of
-        the MAP (``eps = outlier_probability``): ``(their log-likelihood, its threshold)``.
-        One wrong contact cannot make a known object novel."""
+    def _refined_map(self, best):
+        """The MAP particle's pose fitted to the observations
+        (:func:`~.pose_refinement.refine_poses`); the particle is left as it is."""
+        try:
+            rotations, translations, _ = refine_poses(
+                self.bank.evaluate, best.classes[:1].astype(np.int64), best.rotations[:1],
+                best.translations[:1], self.contact_positions, self.noncontact_positions,
+                self.params.refine_iterations, trim=self.params.outlier_probability)
+        except np.linalg.LinAlgError:
+            return best.rotations[0], best.translations[0]
+        return rotations[0], translations[0]
+
+    def _contact_test(self, best):
+        """The novelty test's contact part: ``(the MAP's log-likelihood of the contacts, its
+        threshold)``, with a noisy sensor at the MAP's refined pose and each contact at its
+        best offset within the position noise, and
+        without the worst ``ceil(eps n)`` contacts (``eps = outlier_probability``): one
+        wrong contact cannot make a known object novel."""
         params = self.params
         rotation, translation = best.rotations[0], best.translations[0]
-        values, gradients = self.bank.evaluate(
-            best.classes[:1], ((self.contact_positions - translation) @ rotation)[None])
-        values, gradients = values[0], gradients[0]
-        terms = log_contact_likelihood(values, gradients, self.contact_normals @ rotation,
-                                       params.sigma_d, params.sigma_n,
-                                       params.outlier_probability)
+        if params.position_noise > 0 and len(self.contact_positions) >= 3:
+            # The MAP particle's pose is off by more than the noise; thin walls need it
+            # closer to tell a noisy touch from a wrong shape.
+            rotation, translation = self._refined_map(best)
+        normals = self.contact_normals @ rotation  # object frame
+        local = (self.contact_positions - translation) @ rotation
+        terms = np.full(len(local), -np.inf)
+        for offset in params.position_noise * NOISE_OFFSETS[:None if params.position_noise else 1]:
+            # A reading taken ``offset`` off the surface along its normal: the offset is a
+            # position error like the distance term's, with the same sigma_d.
+            values, gradients = self.bank.evaluate(best.classes[:1],
+                                                   (local + offset * normals)[None])
+            shifted = log_contact_likelihood(values[0], gradients[0], normals, params.sigma_d,
+                                             params.sigma_n, params.outlier_probability)
+            prior = -0.5 * (offset / params.sigma_d) ** 2
+            terms = np.maximum(terms, shifted + prior)
         total, kept = _trimmed(terms, params.outlier_probability)
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
@@ -408,8 +434,8 @@ class ParticleFilter:
                                               self.contact_normals)[0]
             on_noncontacts = self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
             tested, tested_threshold = on_contacts, contact_threshold
-            if params.outlier_probability > 0 and n_pos:
-                tested, tested_threshold = self._trimmed_contact_test(best)
+            if (params.outlier_probability > 0 or params.position_noise > 0) and n_pos:
+                tested, tested_threshold = self._contact_test(best)
             # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood
             # ~1 > 0.5) must not buy slack for contacts that miss its surface.
             novel = bool(tested < tested_threshold or on_noncontacts < noncontact_threshold)

@@ -44,7 +44,8 @@ def noise_matched(params, position_noise, normal_noise_deg):
 
     The likelihood widths grow in quadrature with the noise: ``sigma_d`` with the position
     noise and ``sigma_n`` with the expected length of the normal error (a tilt by an angle
-    of std ``s`` radians moves a unit normal by about ``s``). Once the noise reaches a
+    of std ``s`` radians moves a unit normal by about ``s``), and the novelty test allows
+    for the position noise (``position_noise``). Once the noise reaches a
     quarter of a point-pair key bin (distance ``distance_step``, angles ``angle_step_deg``)
     observed pairs often fall into a neighbouring bin, so the neighbour-bin look-up is
     turned on.
@@ -76,6 +77,7 @@ def noise_matched(params, position_noise, normal_noise_deg):
     return replace(params,
                    sigma_d=float(np.hypot(params.sigma_d, position_noise)),
                    sigma_n=float(np.hypot(params.sigma_n, angle)),
+                   position_noise=float(position_noise),
                    neighbour_bins=1 if coarse else params.neighbour_bins)
 
 

@@ -41,7 +41,7 @@ class Planner:
             return UNDECIDED
         p, noise = self._p, self.sensor_noise[0]
         return decide(self.filter, belief, p.decision_confidence,
-                      floor=max(p.decision_floor, noise),
+                      floor=float(np.hypot(p.decision_floor, noise)),
                       same_mode=max(p.decision_same_mode, 2 * noise))
 
     def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
