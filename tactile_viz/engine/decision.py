@@ -35,6 +35,7 @@ surfaces lie farthest, weighted by both posteriors.
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
 from .discrimination import contenders, lookalikes
@@ -219,6 +220,12 @@ def _distinct(bank, classes, rotations, translations, misfit, tolerance):
     return np.array(kept, dtype=np.int64)
 
 
+def _posed_distance(bank, class_index, rotation, translation, points):
+    """Signed distance of one class at a pose to world points: (m,) float."""
+    values, _ = bank.evaluate(np.array([class_index]), ((points - translation) @ rotation)[None])
+    return values[0]
+
+
 def grid_error(bank, class_index):
     """How far a perfect touch can seem off a class's surface, scene units: the 95th
     percentile of its grid's signed distance at its own feature points, which lie on the
@@ -242,21 +249,27 @@ def surface_disagreement(bank, class_index, rotations, translations):
     return float(np.sqrt(total / 2))
 
 
-def disagreement_target(bank, hypotheses, contacts, spacing, reach):
+def disagreement_target(bank, hypotheses, reach, avoid=()):
     """Where a touch tells the hypotheses apart best.
 
-    Every feature point ``x`` of every hypothesis (posed) is a candidate unless a contact
-    lies within ``spacing``; its score is ``p_k sum_j p_j min(f_j(x)^2, reach^2)``, with
+    Every feature point ``x`` of every hypothesis (posed) is a candidate unless a point to
+    avoid (a contact, a target the sensor could not reach, the path of a missed probe) lies
+    within its radius; its score is ``p_k sum_j p_j min(f_j(x)^2, reach^2)``, with
     ``f_j`` the signed distance of hypothesis ``j`` (a touch at ``x`` refutes ``j`` by
-    about ``f_j(x)^2 / 2 s^2``) and ``p`` the fit posteriors.
+    about ``f_j(x)^2 / 2 s^2``) and ``p`` the fit posteriors. For ``j`` of another class
+    than ``k``, ``|f_j|`` is the smaller at ``j``'s pose and at ``k``'s: what their shapes
+    differ in, not what a refit would absorb.
 
     Parameters
     ----------
     bank : PriorBank
     hypotheses : sequence of Hypothesis
         At least two.
-    contacts : (m, 3) float, world frame
-    spacing, reach : float, scene units
+    reach : float, scene units
+        Disagreements beyond it count as it.
+    avoid : sequence of ((m, 3) float, float)
+        Points (world frame) where touching again would teach nothing, each set with its
+        radius (scene units).
 
     Returns
     -------
@@ -272,14 +285,22 @@ def disagreement_target(bank, hypotheses, contacts, spacing, reach):
     weights = np.array([h.probability for h in hypotheses])
     spread = np.zeros(len(points))
     for j, h in enumerate(hypotheses):
-        local = (points - h.translation) @ h.rotation
-        values, _ = bank.evaluate(np.array([h.class_index]), local[None])
-        spread += weights[j] * np.minimum(np.square(values[0]), reach**2) * (owner != j)
+        distance = np.abs(_posed_distance(bank, h.class_index, h.rotation, h.translation,
+                                          points))
+        for k, other in enumerate(hypotheses):
+            if other.class_index != h.class_index:
+                # Twins in a shared frame differ in shape, not in where each fits best:
+                # a rival tilted to absorb the contacts disagrees far along a shared
+                # handle, but a touch there is absorbed again by the next fit.
+                mine = owner == k
+                at_theirs = _posed_distance(bank, h.class_index, other.rotation,
+                                            other.translation, points[mine])
+                distance[mine] = np.minimum(distance[mine], np.abs(at_theirs))
+        spread += weights[j] * np.minimum(np.square(distance), reach**2) * (owner != j)
     score = weights[owner] * spread
-    if len(contacts):
-        from scipy.spatial import cKDTree
-
-        score[cKDTree(contacts).query(points)[0] < spacing] = 0.0
+    for places, radius in avoid:
+        if len(places):
+            score[cKDTree(places).query(points)[0] < radius] = 0.0
     best = int(np.argmax(score))
     if score[best] <= 0:
         return None

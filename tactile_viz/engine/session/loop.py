@@ -298,7 +298,9 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         paths, observations, reached = done
         target = self.state.target.position
         self._record_sweep(observations[0], paths[0][0])  # the approach's start
-        if not reached or self._repeats_contact(observations[-1]):
+        # A touch beside an earlier one still tells rivals apart (the noise averages).
+        repeated = self._repeats_contact(observations[-1]) and not self.state.telling_apart
+        if not reached or repeated:
             self.state.given_up.append(target)
         self._follow_frontier(observations[-1])
         if not isinstance(observations[0], Contact):

@@ -79,6 +79,7 @@ class Planner:
                           or (self._p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
+        self.state.telling_apart = False
         if recon is not None and not recon.empty:
             outside = recon.fit.mean_value
         else:
@@ -109,14 +110,20 @@ class Planner:
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
         hypotheses = (decision.hypotheses[0],) + decision.rivals
-        found = disagreement_target(self.filter.bank, hypotheses, contacts,
-                                    self._p.contact_spacing, self._p.probe_depth)
+        # Touching beside a contact again is worth it while the hypotheses differ there (a
+        # noisy sensor averages), so only its own noise is kept clear around it.
+        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
+        found = disagreement_target(
+            self.filter.bank, hypotheses, self._p.probe_depth,
+            avoid=((contacts, max(2 * self.sensor_noise[0], self._p.decision_floor)),
+                   (refuted, self._p.contact_spacing)))
         if found is None:
             return None
         position, normal, owner = found
         hypothesis = hypotheses[owner]
         prior = self.filter.models[hypothesis.class_index]
         estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
+        self.state.telling_apart = True
         return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
@@ -284,7 +291,7 @@ class Planner:
     def _reached(self, observations, contacts):
         """Whether touches made for the proposed target reached it (the rule of
         :func:`~.exploration.enforce_contact`)."""
-        if not contacts or self._repeats_contact(contacts[-1]):
+        if not contacts or (self._repeats_contact(contacts[-1]) and not self.state.telling_apart):
             return False
         if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
             return True

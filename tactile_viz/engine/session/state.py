@@ -52,6 +52,8 @@ class ExplorationState:
         Targets beside contacts on parts nothing predicted, still to visit.
     frontier_target : bool
         Whether ``target`` came from the frontier.
+    telling_apart : bool
+        Whether ``target`` is where rival hypotheses disagree (beyond the paper).
     check : Check or None
         The check the next step sweeps.
     check_directions : list of (3,) float
@@ -75,6 +77,7 @@ class ExplorationState:
     swept: np.ndarray = field(default_factory=_points)
     frontier: list = field(default_factory=list)
     frontier_target: bool = False
+    telling_apart: bool = False
     check: Any = None
     check_directions: list = field(default_factory=list)
     checks_passed: int = 0
