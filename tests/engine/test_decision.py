@@ -81,8 +81,8 @@ def test_a_rival_that_fits_as_well_blocks_the_decision(shapes):
     names = {shapes.names[h.class_index] for h in decision.hypotheses}
     assert {"box", "knobbed"} <= names
     rivals = (decision.hypotheses[0],) + decision.rivals
-    position, normal, _ = disagreement_target(pf.bank, rivals, pf.contact_positions,
-                                              spacing=0.3, reach=1.0)
+    position, normal, _ = disagreement_target(pf.bank, rivals, reach=1.0,
+                                              avoid=[(pf.contact_positions, 0.3)])
     assert position[0] > 1.4 and position[2] > 0.9  # on the knob
     np.testing.assert_allclose(np.linalg.norm(normal), 1.0, atol=1e-6)
 
