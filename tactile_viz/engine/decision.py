@@ -16,7 +16,11 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
    residuals beyond the noise).
 
 The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
-classes, and the classes whose surfaces pass close to the contacts at the MAP's pose. Each
+classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the
+MAP's pose turned half about each principal axis of its shape (:func:`flips`: a mug upside
+down fits touches of its outside as well, and the particles may never have held it), and
+the plausible hypotheses of the step before (a mode the particles lost under noise is
+weighed until it no longer fits). Each
 is refined to its best pose (:func:`~.pose_refinement.refine_poses`); two hypotheses of one
 class whose posed surfaces agree (a symmetry of the shape, or two particles of one mode)
 are one. Their fit posterior is Gaussian in the refined residuals with one noise scale,
@@ -102,7 +106,7 @@ class Decision:
 UNDECIDED = Decision(False, 0.0)
 
 
-def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
+def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -117,6 +121,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
         position noise and the contact's localisation, in quadrature.
     same_mode : float, scene units
         Hypotheses of one class whose posed surfaces agree within this RMS are one.
+    carried : sequence of Hypothesis
+        The plausible hypotheses of the step before: weighed again, so that a mode the
+        particles lost (resampling under noise) is not forgotten while it still fits.
 
     Returns
     -------
@@ -131,11 +138,19 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     classes = particles.classes[candidates]
     others = lookalikes(pf.bank, particles.rotations[chosen], particles.translations[chosen],
                         contacts, classes, 4, pf.params.sigma_d)
-    classes = np.r_[classes, others].astype(np.int64)
+    map_class = particles.classes[chosen]
+    flipped_rotations, flipped_translations = flips(pf, map_class, particles.rotations[chosen],
+                                                    particles.translations[chosen])
+    kept = [h for h in carried if h.class_index < len(pf.models)]
+    classes = np.r_[classes, others, np.full(len(flipped_rotations), map_class),
+                    [h.class_index for h in kept]].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
-                                np.repeat(particles.rotations[chosen][None], len(others), 0)])
+                                np.repeat(particles.rotations[chosen][None], len(others), 0),
+                                flipped_rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
     translations = np.concatenate([particles.translations[candidates],
-                                   np.repeat(particles.translations[chosen][None], len(others), 0)])
+                                   np.repeat(particles.translations[chosen][None], len(others), 0),
+                                   flipped_translations,
+                                   np.reshape([h.translation for h in kept], (-1, 3))])
     try:
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, classes, rotations, translations, contacts,
@@ -166,6 +181,27 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0):
     fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2, 1e-300)
     return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
                     hypotheses)
+
+
+def flips(pf, class_index, rotation, translation):
+    """The MAP's pose turned half about each principal axis of its shape (through the
+    centre of mass): the modes a near-symmetric shape is most easily mistaken in (a mug
+    upside down, a box end over end), which the particles may never have held.
+
+    Returns
+    -------
+    rotations : (3, 3, 3) float
+    translations : (3, 3) float
+    """
+    cache = pf.bank.__dict__.setdefault("_flips", {})
+    if class_index not in cache:
+        mesh = pf.models[class_index].mesh
+        axes = np.asarray(mesh.principal_inertia_vectors)
+        turns = np.stack([2 * np.outer(a, a) - np.eye(3) for a in axes])  # R(a, 180 deg)
+        cache[class_index] = turns, np.asarray(mesh.center_mass, float)
+    turns, centre = cache[class_index]
+    # x -> S (x - c) + c in the object frame, then the pose: R S and t + R (c - S c).
+    return rotation @ turns, translation + (centre - turns @ centre) @ rotation.T
 
 
 def _candidates(pf, particles, chosen, same_mode):

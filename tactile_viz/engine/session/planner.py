@@ -38,11 +38,15 @@ class Planner:
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
         the object is judged novel)."""
         if belief.novel:
+            self.state.hypotheses = ()
             return UNDECIDED
         p, noise = self._p, self.sensor_noise[0]
-        return decide(self.filter, belief, p.decision_confidence,
-                      floor=float(np.hypot(p.decision_floor, noise)),
-                      same_mode=max(p.decision_same_mode, 2 * noise))
+        decision = decide(self.filter, belief, p.decision_confidence,
+                          floor=float(np.hypot(p.decision_floor, noise)),
+                          same_mode=max(p.decision_same_mode, 2 * noise),
+                          carried=self.state.hypotheses)
+        self.state.hypotheses = decision.hypotheses[:1] + decision.rivals
+        return decision
 
     def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
                          contacts, decision=UNDECIDED):

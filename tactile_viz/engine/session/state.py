@@ -60,6 +60,9 @@ class ExplorationState:
         The directions of the checks so far.
     checks_passed : int
         Checks in a row that touched nothing unpredicted.
+    hypotheses : tuple of Hypothesis
+        The plausible hypotheses of the last decision, weighed again at the next
+        (:func:`~tactile_viz.engine.decision.decide`).
     covered_at : int or None
         The step at which a known but undecided object's estimate was first covered.
     moves_rng : dict or None
@@ -81,6 +84,7 @@ class ExplorationState:
     check: Any = None
     check_directions: list = field(default_factory=list)
     checks_passed: int = 0
+    hypotheses: tuple = ()
     covered_at: Any = None
     moves_rng: Any = None
     results: list = field(default_factory=list)
