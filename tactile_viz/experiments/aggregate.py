@@ -57,6 +57,7 @@ def summarise_trial(result):
         end), recon_error (PF-MAP-GPIS: the GPIS surface's TWD, or the MAP shape's when
         judged known), poisson_error, terminated_at, steps, steps_to_pose (first step with
         pose error < 0.6), steps_to_recon (same with the estimate's error), max_particles,
+        decided_at (the first step judged decided, beyond the paper; None if never),
         seconds, truth_coverage (distance from the farthest point of the true surface to its
         nearest contact at the end; None in trials made before it was recorded). ``error`` is set for a failed trial.
     """
@@ -81,6 +82,7 @@ def summarise_trial(result):
         "steps_to_recon": first_step_below(
             [dict(r, estimate=estimate_error(r)) for r in steps], "estimate"),
         "max_particles": max(r["n_particles"] for r in steps),
+        "decided_at": next((r["t"] for r in steps if r.get("decided")), None),
         "seconds": result.get("seconds"), "dhd": last["dhd"],
         "truth_coverage": last.get("truth_coverage")})
     return summary
@@ -192,14 +194,22 @@ def known_rows(summaries):
             mean_std([_steps(s, "steps_to_pose") for s in ok])[0],
             sum(s["steps_to_pose"] is None for s in ok),
             mean_std([s["steps"] for s in ok])[0],
+            f"{sum(s.get('decided_at') is not None for s in ok)}/{n}",
+            _median([s.get("decided_at") for s in ok]),
             max((s["max_particles"] for s in ok), default=None),
             mean_std([s["seconds"] for s in ok])[0]])
     return rows
 
 
+def _median(values):
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
 KNOWN_HEADER = ["object", "strategy", "trials", "correct class", f"pose < {THRESHOLD:g} at end",
                 "final pose error", f"steps to pose < {THRESHOLD:g}", f"never < {THRESHOLD:g}",
-                "termination step", "max particles", "seconds"]
+                "termination step", "decided", "decided at (median)", "max particles",
+                "seconds"]
 
 
 def novel_rows(summaries):

@@ -33,6 +33,19 @@ def test_summary_of_a_known_trial():
     assert summary["max_particles"] == 300
 
 
+def test_the_first_decided_step_is_reported_and_tabled():
+    decided = fake_trial("mug_1", pose=(2.0, 1.0, 0.5, 0.4))
+    for record, flag in zip(decided["steps"], (False, True, False, True)):
+        record["decided"] = flag
+    undecided = fake_trial("mug_1", seed=1)  # records made before the decision existed
+    summaries = [aggregate.summarise_trial(t) for t in (decided, undecided)]
+    assert summaries[0]["decided_at"] == 2 and summaries[1]["decided_at"] is None
+    row = aggregate.known_rows(summaries)[0]
+    header = aggregate.KNOWN_HEADER
+    assert row[header.index("decided")] == "1/2"
+    assert row[header.index("decided at (median)")] == 2.0
+
+
 def test_summary_of_a_novel_trial_uses_the_gpis_error():
     summary = aggregate.summarise_trial(
         fake_trial("vase_2", pose=(2.0, 1.5, 1.4), recon=(None, 0.7, 0.4), novel=True,
