@@ -1,7 +1,8 @@
 """Benchmark: the decision (beyond the paper) on objects at real sizes, under sensor noise.
 
 ``python -m tactile_viz bench decide [--noise 0:0 0.001:1 0.002:2] [--seeds 2]
-[--novel-seeds 1] [--preset recognise] [--set NAME=VALUE ...] [--objects ...]
+[--novel-seeds 1] [--preset recognise] [--set NAME=VALUE ...] [--outliers FRACTION]
+[--objects ...]
 [--workers 2] [--out DIR] [--no-progress]``
 
 One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
@@ -52,6 +53,17 @@ def noise_level(text):
     return position, degrees
 
 
+def fraction(text):
+    """An argument type: a number in [0, 0.5)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0 <= value < 0.5:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
+    return value
+
+
 def setting(text):
     """An argument type: ``NAME=VALUE`` of a declared parameter (VALUE as JSON)."""
     name, _, value = text.partition("=")
@@ -62,14 +74,16 @@ def setting(text):
         raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
-def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps):
+def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps,
+          outliers=0.0):
     """The trials: every known object over ``seeds`` and every novel one over
-    ``novel_seeds``, at each noise level."""
+    ``novel_seeds``, at each noise level (and a share ``outliers`` of wrong readings)."""
     extra = [{"name": name, "file": str(path), "longest_side": HARD_SIZES_M[name],
               "learned": False} for name, path in files.items()]
     out = []
     for position, degrees in noises:
-        sensor = {"position_noise": position, "normal_noise_deg": degrees}
+        sensor = {"position_noise": position, "normal_noise_deg": degrees,
+                  "outliers": outliers}
         for name in known + novel:
             is_novel = name in novel
             for seed in range(novel_seeds if is_novel else seeds):
@@ -153,6 +167,9 @@ def main(argv=None):
     parser.add_argument("--noise", type=noise_level, action=ExtendList, default=None,
                         metavar="M:DEG", help="sensor noise levels: position std in metres, "
                         "normal std in degrees (default 0:0 0.001:1 0.002:2)")
+    parser.add_argument("--outliers", type=fraction, default=0.0, metavar="FRACTION",
+                        help="share of the simulated contacts that are wrong readings "
+                             "(the model's is --set outlier_probability=P)")
     parser.add_argument("--seeds", type=count_int, default=2, help="seeds per known object")
     parser.add_argument("--novel-seeds", type=nonnegative_int, default=1,
                         help="seeds per novel object (0: none)")
@@ -180,7 +197,7 @@ def main(argv=None):
     try:
         results = [result for _, result in run_tasks(
             tasks(known, novel, args.noise or DEFAULT_NOISE, args.seeds, args.novel_seeds,
-                  params, args.preset, files, args.novel_steps),
+                  params, args.preset, files, args.novel_steps, args.outliers),
             pool, progress=not args.no_progress, description="decide")]
     finally:
         pool.close()

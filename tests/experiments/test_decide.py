@@ -1,0 +1,86 @@
+"""bench decide: its tasks, the summary of a trial, the tables, the hard objects and its
+command-line errors (no long runs)."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from tactile_viz.__main__ import main
+from tactile_viz.experiments import decide, hard_objects
+
+
+def _result(name, decided_at, map_class=None, novel=False, tag="known", noise=(0.0, 0.0),
+            pose=0.001, size=0.1):
+    steps = [{"t": t, "map_class": map_class or name, "pose_error": pose, "novel": novel,
+              "decided": decided_at is not None and t >= decided_at, "rotation_error_deg": 1.5}
+             for t in range(1, 21)]
+    return {"object": name, "seed": 0, "object_size": size, "seconds": 2.0, "steps": steps,
+            "sensor": {"position_noise": noise[0], "normal_noise_deg": noise[1]},
+            "task": {"tag": tag}}
+
+
+def test_tasks_cover_every_object_noise_and_seed(tmp_path):
+    files = {"knife": tmp_path / "knife.ply"}
+    made = decide.tasks(["mug_1", "knife"], ["neptune"], [(0.0, 0.0), (0.002, 2.0)], 2, 1,
+                        None, "recognise", files, 60, outliers=0.01)
+    assert len(made) == 2 * (2 * 2 + 1)
+    knife = [t for t in made if t["object"] == "knife"][0]
+    assert knife["object_file"] == str(files["knife"])
+    assert knife["longest_side"] == hard_objects.HARD_SIZES_M["knife"]
+    assert knife["extra_priors"][0]["longest_side"] == hard_objects.HARD_SIZES_M["knife"]
+    novel = [t for t in made if t["object"] == "neptune"]
+    assert all(t["max_steps"] == 60 and t["tag"] == "novel" for t in novel)
+    assert {t["sensor"]["outliers"] for t in made if "sensor" in t} == {0.01}
+
+
+def test_a_trial_is_right_only_if_decided_on_the_truth_within_the_threshold():
+    right = decide.summary(_result("mug_1", 7))
+    assert right["right"] and right["decided_at"] == 7
+    wrong_class = decide.summary(_result("mug_1", 7, map_class="mug_1_large"))
+    assert not wrong_class["right"] and wrong_class["decided_class"] == "mug_1_large"
+    wrong_pose = decide.summary(_result("mug_1", 7, pose=0.02))  # 20% of 10 cm
+    assert wrong_pose["right_class"] and not wrong_pose["right"]
+    undecided = decide.summary(_result("mug_1", None))
+    assert not undecided["right"] and undecided["decided_at"] is None
+
+
+def test_the_table_counts_per_noise_level_and_lists_the_misses():
+    results = [_result("mug_1", 7), _result("knife", None),
+               _result("mug_1", 9, noise=(0.002, 2.0)),
+               _result("neptune", None, novel=True, tag="novel", map_class="guitar_1")]
+    text = decide.markdown([decide.summary(r) for r in results])
+    assert "| 0, 0 | 2 | 1 (50.0%) | 1 | 7.0 |" in text
+    assert "| 0.002, 2 | 1 | 1 (100.0%) | 0 | 9.0 |" in text
+    assert "| knife | 0 | 0, 0 | - |" in text
+    assert "1/1" in text  # the novel object judged novel
+
+
+def test_the_hard_objects_are_closed_and_the_twins_differ(tmp_path):
+    specs = [s for s in hard_objects.HARD_SPECS if s.name.startswith("screwdriver")]
+    paths = {}
+    for spec in specs:
+        mesh = hard_objects.build_mesh(spec)
+        assert mesh.is_watertight and mesh.volume > 0
+        paths[spec.name] = mesh
+    flat, cross = paths["screwdriver_flat"], paths["screwdriver_cross"]
+    np.testing.assert_allclose(flat.extents[2], cross.extents[2], rtol=1e-6)
+    # They share the handle and differ only at the tip (the top tenth).
+    top = flat.bounds[1][2] - 0.6
+    for a, b in ((flat, cross), (cross, flat)):
+        far = trimesh.proximity.signed_distance(b, a.vertices[a.vertices[:, 2] < top])
+        assert np.abs(far).max() < 0.06
+    assert set(hard_objects.COUNTERPARTS) <= set(hard_objects.HARD_SIZES_M) | {"mug_1"}
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--noise", "1mm"], "POSITION:DEGREES"),
+    (["--noise", "0.001:-1"], ">= 0"),
+    (["--set", "decision_confidence"], "decision_confidence"),
+    (["--outliers", "0.6"], "[0, 0.5)"),
+])
+def test_bad_arguments_get_one_line(capsys, argv, message):
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "decide", *argv])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
