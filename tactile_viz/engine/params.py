@@ -388,6 +388,10 @@ class SessionParams:
         A decision also needs every point of the MAP surface within this distance of a
         contact (its DHD; 2.4 is 40% of the object's longest side): a wrong pose or class
         can fit contacts on one part within the noise.
+    decision_checks : int
+        With ``decision_targets``: sweeps just outside the MAP (check lines, as a novel
+        object's) that must touch nothing it does not predict before the object is decided
+        (a novel object can hold a part that a known one fits, a trident a knife).
     decision_same_mode : float, size units
         Poses of one class whose surfaces agree within this RMS distance (or twice the
         position noise) are one hypothesis: symmetries of the shape are not rivals.
@@ -439,6 +443,7 @@ class SessionParams:
     decision_confidence: float = _ranged(0.99, 0.5, 0.999999)
     decision_floor: float = _length(0.01, low=1e-4, high=1.0)
     decision_cover: float = _length(2.4, low=0.1, high=12.0)
+    decision_checks: int = _ranged(2, 0, 10)
     decision_same_mode: float = _length(0.1, low=1e-3, high=2.0)
     decision_targets: bool = True
     decision_patience: int = _ranged(30, 0, 300)
@@ -482,11 +487,10 @@ class SessionParams:
         if not 0.5 <= self.decision_confidence < 1:
             raise ParameterError("decision_confidence must be in [0.5, 1), "
                                  f"got {self.decision_confidence!r}")
-        object.__setattr__(self, "decision_patience",
-                           _check_integer("decision_patience", self.decision_patience))
-        if self.decision_patience < 0:
-            raise ParameterError(f"decision_patience must be at least 0, "
-                                 f"got {self.decision_patience!r}")
+        for name in ("decision_patience", "decision_checks"):
+            object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
+            if getattr(self, name) < 0:
+                raise ParameterError(f"{name} must be at least 0, got {getattr(self, name)!r}")
         object.__setattr__(self, "check_lines", _check_integer("check_lines", self.check_lines))
         if self.check_lines < 0:
             raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")

@@ -54,8 +54,9 @@ class Planner:
         next target (kept in ``self.state.target``); returns ``(dhd, terminated, decided)``.
 
         A decision also needs contacts all around the MAP surface (its DHD within
-        ``decision_cover``): a wrong pose or class can fit contacts on one part within
-        the noise, and nothing else would refute it."""
+        ``decision_cover``) and checks just outside it (:meth:`_decided`): a wrong pose or
+        class can fit contacts on one part within the noise (a novel statue's trident
+        fitted a knife), and nothing else would refute it."""
         surface = recon.vertices if recon is not None and not recon.empty else map_vertices
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
@@ -71,9 +72,9 @@ class Planner:
         frontier = exploring and bool(self.state.frontier)
         checking = (covered and exploring and not frontier
                     and self.state.checks_passed < self._p.check_lines)
-        decided = decision.decided and dhd <= self._p.decision_cover
+        decided, confirm = self._decided(decision, dhd)
         rivals = (self._p.decision_targets and not state.novel and not decided
-                  and len(decision.rivals) > 0)
+                  and not confirm and len(decision.rivals) > 0)
         if covered and rivals and self.state.covered_at is None:
             self.state.covered_at = self.step_count + 1
         # Covered but undecided: the rivals get up to decision_patience more steps.
@@ -83,7 +84,7 @@ class Planner:
                           or (self._p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
-        self.state.telling_apart = False
+        self.state.telling_apart = self.state.confirming = False
         if recon is not None and not recon.empty:
             outside = recon.fit.mean_value
         else:
@@ -99,6 +100,10 @@ class Planner:
         elif checking:
             self.state.target = None
             self.state.check = self._plan_check_line(surface, contacts, outside)
+        elif confirm:
+            self.state.target = None
+            self.state.check = self._plan_check_line(map_vertices, contacts, outside)
+            self.state.confirming = True
         elif rivals and (aim := self._telling_apart(decision, contacts)) is not None:
             self.state.target = aim
         elif dhd <= self._p.eps < prior_dhd:
@@ -110,6 +115,19 @@ class Planner:
             self.state.target = self._next_target(surface, reachable, recon, model,
                                                   rotation, translation, contacts)
         return max(dhd, prior_dhd), terminated, decided
+
+    def _decided(self, decision, dhd):
+        """``(decided, confirm)``: the step's decision needs contacts all around the MAP
+        (``decision_cover``) and, exploring with ``decision_targets``, ``decision_checks``
+        sweeps just outside it that touched nothing it does not predict (``confirm``: plan
+        the next); a MAP that no longer qualifies starts the count again."""
+        ready = decision.decided and dhd <= self._p.decision_cover
+        if not ready:
+            self.state.decision_checks = 0
+        if not self._p.decision_targets:
+            return ready, False
+        confirm = ready and self.state.decision_checks < self._p.decision_checks
+        return ready and not confirm, confirm
 
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
@@ -233,6 +251,9 @@ class Planner:
         surprise = isinstance(touched, Contact) and min(
             cKDTree(points).query(touched.position)[0]
             for points in known) > self._new_ground()
+        if self.state.confirming:  # a check of a decision: a surprise starts it again
+            self.state.decision_checks = 0 if surprise else self.state.decision_checks + 1
+            return
         if surprise:
             self.state.checks_passed = 0
             self._grow_frontier(touched)

@@ -63,6 +63,11 @@ class ExplorationState:
     hypotheses : tuple of Hypothesis
         The plausible hypotheses of the last decision, weighed again at the next
         (:func:`~tactile_viz.engine.decision.decide`).
+    decision_checks : int
+        Checks in a row around a MAP ready to be decided that touched nothing it does not
+        predict.
+    confirming : bool
+        Whether ``check`` is such a check.
     covered_at : int or None
         The step at which a known but undecided object's estimate was first covered.
     moves_rng : dict or None
@@ -85,6 +90,8 @@ class ExplorationState:
     check_directions: list = field(default_factory=list)
     checks_passed: int = 0
     hypotheses: tuple = ()
+    decision_checks: int = 0
+    confirming: bool = False
     covered_at: Any = None
     moves_rng: Any = None
     results: list = field(default_factory=list)
