@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from .discrimination import contenders, lookalikes
@@ -51,6 +52,7 @@ TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
+ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in eighths
 GRID_ERROR_PERCENTILE = 95
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
@@ -185,20 +187,28 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
 
 def flips(pf, class_index, rotation, translation):
     """The MAP's pose turned half about each principal axis of its shape (through the
-    centre of mass): the modes a near-symmetric shape is most easily mistaken in (a mug
-    upside down, a box end over end), which the particles may never have held.
+    centre of mass), and by every eighth of a turn about an axis the shape is nearly round
+    about (its other two moments within ``ROUND_MOMENTS``): the modes a near-symmetric
+    shape is most easily mistaken in (a mug upside down, or its handle anywhere round the
+    body while nothing touched it), which the particles may never have held.
 
     Returns
     -------
-    rotations : (3, 3, 3) float
-    translations : (3, 3) float
+    rotations : (k, 3, 3) float
+    translations : (k, 3) float
     """
     cache = pf.bank.__dict__.setdefault("_flips", {})
     if class_index not in cache:
         mesh = pf.models[class_index].mesh
         axes = np.asarray(mesh.principal_inertia_vectors)
-        turns = np.stack([2 * np.outer(a, a) - np.eye(3) for a in axes])  # R(a, 180 deg)
-        cache[class_index] = turns, np.asarray(mesh.center_mass, float)
+        moments = np.asarray(mesh.principal_inertia_components, float)
+        turns = [Rotation.from_rotvec(np.pi * a).as_matrix() for a in axes]
+        for i, axis in enumerate(axes):
+            others = np.delete(moments, i)
+            if abs(others[0] - others[1]) <= ROUND_MOMENTS * others.max():
+                turns += [Rotation.from_rotvec(angle * axis).as_matrix()
+                          for angle in np.radians(np.arange(45, 360, 45)) if angle != np.pi]
+        cache[class_index] = np.stack(turns), np.asarray(mesh.center_mass, float)
     turns, centre = cache[class_index]
     # x -> S (x - c) + c in the object frame, then the pose: R S and t + R (c - S c).
     return rotation @ turns, translation + (centre - turns @ centre) @ rotation.T
