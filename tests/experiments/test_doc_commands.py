@@ -21,13 +21,6 @@ DOCUMENTS = ["README.md", "docs/cli.md"]
 TIMEOUT = 120  # seconds; each command runs in under 30 s on a free 2-core machine
 # Commands that are not run, by their text as written (continuations joined, comments off).
 NOT_RUN = {
-    "python -m tactile_viz trial --object-file cup_mm.stl --prior-file cup_mm.stl "
-    "bowl_mm.stl --mesh-units mm --seed 1 --json trial.json --export out":
-        "README: cup_mm.stl and bowl_mm.stl are the reader's own files",
-    "python -m tactile_viz trial --object-file new_mm.stl --library-dir mylib --mesh-units mm "
-    "--learn new_object": "README: new_mm.stl is the reader's own file",
-    "python -m tactile_viz replay --observations touches.csv --library-dir mylib --units m":
-        "README: touches.csv and mylib are the reader's own",
     "python -m tactile_viz bench sdf": "a benchmark: over 2 minutes",
     "python -m tactile_viz bench step": "a benchmark: timings of 20 s",
 }
