@@ -93,11 +93,15 @@ class Decision:
         posterior (0 when not assessed: novel, fewer than three contacts).
     hypotheses : tuple of Hypothesis
         The MAP first, then the rivals by fit; empty when not assessed.
+    fits : bool
+        Whether the MAP's residuals pass the chi-squared test (rivals are worth telling
+        apart only then: otherwise the object is none of them).
     """
 
     decided: bool
     confidence: float
     hypotheses: tuple = ()
+    fits: bool = False
 
     @property
     def rivals(self):
@@ -182,7 +186,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
     dof = len(contacts) - POSE_PARAMETERS
     fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2, 1e-300)
     return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
-                    hypotheses)
+                    hypotheses, bool(fits))
 
 
 def flips(pf, class_index, rotation, translation):

@@ -396,12 +396,13 @@ class SessionParams:
         Poses of one class whose surfaces agree within this RMS distance (or twice the
         position noise) are one hypothesis: symmetries of the shape are not rivals.
     decision_targets : bool
-        Beyond the paper: while the object is known but not decided, touch where the
-        plausible hypotheses' surfaces disagree most, and hold the DHD stop for up to
-        ``decision_patience`` steps; the MAP pose reported and aimed from is its refined
+        Beyond the paper: while the object is known but not decided and its MAP fits
+        within the noise, touch where the plausible hypotheses' surfaces disagree most
+        (holding the DHD stop), for ``decision_patience`` steps at most; the MAP pose reported and aimed from is its refined
         fit. False: the paper's targets, stop and MAP particle.
     decision_patience : int
-        Steps a covered but undecided known object is explored further at most.
+        Steps of a session aimed at rival hypotheses at most (then the paper's targets and
+        stop).
     stop_at_decision : bool
         Stop as soon as the object is decided (a robot that only needs to recognise);
         False: go on to the DHD stop for shape.

@@ -67,4 +67,5 @@ def test_command_line_parameters_are_declared():
     options = {a.dest for a in trial._actions}
     known = declarations()
     parameter_options = options & set(known)
-    assert parameter_options == {"outlier_probability"}
+    # --position-noise is the sensor's noise, which noise_matched gives the filter too.
+    assert parameter_options == {"outlier_probability", "position_noise"}

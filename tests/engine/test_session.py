@@ -533,7 +533,8 @@ def test_a_session_driven_by_its_caller(bundled, known):
     snapshots, moves = _ask_and_tell(session, robot, 40)
     assert snapshots[-1].map_class == "guitar_1" and not snapshots[-1].novel
     assert snapshots[-1].pose_error is None and snapshots[-1].truth_coverage is None
-    assert {m.kind for m in moves} <= {"first", "target"} and moves[0].kind == "first"
+    # Checks: the sweeps just outside a MAP ready to be decided (decision_checks).
+    assert {m.kind for m in moves} <= {"first", "target", "check"} and moves[0].kind == "first"
     again, asked_twice = session.propose(), session.propose()
     assert (again is None) == (asked_twice is None) == session.terminated
     if again is not None:  # asking again before observing gives the same move

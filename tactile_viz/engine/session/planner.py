@@ -73,14 +73,12 @@ class Planner:
         checking = (covered and exploring and not frontier
                     and self.state.checks_passed < self._p.check_lines)
         decided, confirm = self._decided(decision, dhd)
+        # Rivals are aimed at (and the DHD stop waits) only while the MAP fits within the
+        # noise (else the object is none of them) and for decision_patience steps at most.
         rivals = (self._p.decision_targets and not state.novel and not decided
-                  and not confirm and len(decision.rivals) > 0)
-        if covered and rivals and self.state.covered_at is None:
-            self.state.covered_at = self.step_count + 1
-        # Covered but undecided: the rivals get up to decision_patience more steps.
-        holding = rivals and (self.step_count + 1 - (self.state.covered_at or 0)
-                              < self._p.decision_patience)
-        terminated = bool((covered and not checking and not frontier and not holding)
+                  and not confirm and decision.fits and len(decision.rivals) > 0
+                  and self.state.telling_steps < self._p.decision_patience)
+        terminated = bool((covered and not checking and not frontier and not rivals)
                           or (self._p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
@@ -146,6 +144,7 @@ class Planner:
         prior = self.filter.models[hypothesis.class_index]
         estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
         self.state.telling_apart = True
+        self.state.telling_steps += 1
         return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):

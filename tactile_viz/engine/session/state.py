@@ -68,8 +68,8 @@ class ExplorationState:
         predict.
     confirming : bool
         Whether ``check`` is such a check.
-    covered_at : int or None
-        The step at which a known but undecided object's estimate was first covered.
+    telling_steps : int
+        Steps whose target was where rival hypotheses disagree.
     moves_rng : dict or None
         The session rng's state when the step in progress began (None between steps).
     results : list of Contact or NonContact
@@ -92,7 +92,7 @@ class ExplorationState:
     hypotheses: tuple = ()
     decision_checks: int = 0
     confirming: bool = False
-    covered_at: Any = None
+    telling_steps: int = 0
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None
