@@ -404,12 +404,14 @@ class ParticleFilter:
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
         terms = np.full(len(local), -np.inf)
+        distance, _ = self.bank.evaluate(best.classes[:1], local[None])
         for offset in params.position_noise * NOISE_OFFSETS[:None if params.position_noise else 1]:
-            # A reading taken ``offset`` off the surface along its normal: the offset is a
-            # position error like the distance term's, with the same sigma_d.
-            values, gradients = self.bank.evaluate(best.classes[:1],
-                                                   (local + offset * normals)[None])
-            shifted = log_contact_likelihood(values[0], gradients[0], normals, params.sigma_d,
+            # The normal a reading ``offset`` off along its normal would meet (a thin wall's
+            # other side lies within the noise); the distance stays the reading's own, so
+            # a shape that merely lies near the contacts gains nothing. The offset costs
+            # as a distance does, with the same sigma_d.
+            _, gradients = self.bank.evaluate(best.classes[:1], (local + offset * normals)[None])
+            shifted = log_contact_likelihood(distance[0], gradients[0], normals, params.sigma_d,
                                              params.sigma_n, params.outlier_probability)
             prior = -0.5 * (offset / params.sigma_d) ** 2
             terms = np.maximum(terms, shifted + prior)
