@@ -35,7 +35,7 @@ from ..engine.objects import bundled_names
 from ..engine.params import declaration, with_changes
 from ..engine.presets import session_preset
 from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
-from .runner import make_task, open_pool, run_tasks
+from .runner import make_task, run_all
 from .sizes import SIZES_M
 
 DEFAULT_NOISE = ((0.0, 0.0), (0.001, 1.0), (0.002, 2.0))
@@ -193,18 +193,11 @@ def main(argv=None):
     if args.objects:
         known = [n for n in args.objects.split(",") if n]
     novel = list(NOVEL) if args.novel_seeds else []
-    pool = open_pool(args.workers)
-    try:
-        results = [result for _, result in run_tasks(
-            tasks(known, novel, args.noise or DEFAULT_NOISE, args.seeds, args.novel_seeds,
-                  params, args.preset, files, args.novel_steps, args.outliers),
-            pool, progress=not args.no_progress, description="decide")]
-    finally:
-        pool.close()
-    failed = [r for r in results if "error" in r]
-    for result in failed:
-        print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
-    summaries = [summary(r) for r in results if "error" not in r]
+    results, failed = run_all(
+        tasks(known, novel, args.noise or DEFAULT_NOISE, args.seeds, args.novel_seeds, params,
+              args.preset, files, args.novel_steps, args.outliers),
+        args.workers, progress=not args.no_progress, description="decide")
+    summaries = [summary(r) for r in results]
     write_atomic(out / "decide.json", json.dumps(summaries, indent=1).encode())
     text = markdown(summaries)
     write_atomic(out / "decide.md", text.encode())

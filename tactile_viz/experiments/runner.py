@@ -318,3 +318,18 @@ def run_tasks(tasks, pool, follow_up=None, progress=True, description="trials"):
                 yield task, result
     finally:
         bar.close()
+
+
+def run_all(tasks, workers=1, progress=True, description="trials"):
+    """Run every task on a local pool of ``workers``; returns ``(results, failed)``, the
+    failed trials' tracebacks printed (a long benchmark keeps the others)."""
+    pool = open_pool(workers)
+    try:
+        results = [result for _, result in run_tasks(tasks, pool, progress=progress,
+                                                     description=description)]
+    finally:
+        pool.close()
+    failed = [r for r in results if "error" in r]
+    for result in failed:
+        print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
+    return [r for r in results if "error" not in r], failed

@@ -26,7 +26,7 @@ from ..cli import ArgumentParser, count_int, name_list, nonnegative_int, output_
 from ..engine.files import write_atomic
 from ..engine.metrics import error_threshold
 from ..engine.objects import bundled_manifest, bundled_names
-from .runner import make_task, open_pool, run_tasks
+from .runner import make_task, run_all
 
 # Longest sides in metres: plausible for the objects, within 5 to 40 cm (a novel object
 # near its known twin's size, as real variants are).
@@ -140,17 +140,9 @@ def main(argv=None):
     args.out.mkdir(parents=True, exist_ok=True)
     names = ([n for n in args.objects.split(",") if n] if args.objects
              else [e["name"] for e in bundled_manifest()])
-    pool = open_pool(args.workers)
-    try:
-        results = [result for _, result in run_tasks(
-            tasks(names, args.seeds, args.novel_seeds), pool, progress=not args.no_progress,
-            description="sizes")]
-    finally:
-        pool.close()
-    failed = [r for r in results if "error" in r]
-    for result in failed:
-        print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
-    summaries = [summary(r) for r in results if "error" not in r]
+    results, failed = run_all(tasks(names, args.seeds, args.novel_seeds), args.workers,
+                              progress=not args.no_progress, description="sizes")
+    summaries = [summary(r) for r in results]
     rows = table_rows(summaries)
     write_atomic(args.out / "sizes.json", json.dumps(rows, indent=1).encode())
     with gzip.open(args.out / "trials.jsonl.gz", "wt") as stream:
