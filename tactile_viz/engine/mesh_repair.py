@@ -68,10 +68,21 @@ def repair_surface(mesh, source):
         If the surface has no inside: open pieces too large to close or to drop.
     """
     try:
-        _pymeshlab()
+        pymeshlab = _pymeshlab()
     except ImportError:
         raise MeshError(source, "is not one closed surface and its repair needs pymeshlab, "
                                 "which is not installed (pip install pymeshlab)") from None
+    try:
+        return _repaired_surface(mesh, source)
+    except (pymeshlab.PyMeshLabException, ValueError, IndexError) as error:
+        # A surface MeshLab's filters refuse, or too broken for trimesh to split.
+        reason = (str(error).strip().splitlines() or [type(error).__name__])[-1]
+        raise MeshError(source, f"is not one closed surface and could not be repaired "
+                                f"({reason})") from None
+
+
+def _repaired_surface(mesh, source):
+    """:func:`repair_surface` once pymeshlab is there."""
     notes = []
     count = _non_manifold_edge_count(mesh)
     split = _split_non_manifold(mesh, count)

@@ -276,3 +276,21 @@ def test_a_defective_scan_is_recognised_as_prior_and_as_truth(mug, tmp_path):
         _, _, normal = truth.closest(point[None])
         state = particle_filter.update(simulator.probe([point + normal[0], point - normal[0]]))
     assert state.map_class == "mug" and not state.novel
+
+
+def test_a_surface_meshlab_refuses_is_one_mesh_error(monkeypatch):
+    """A MeshLab filter that refuses a surface (the fuzzer found a mutated GLB whose hole
+    closing failed on a non-manifold edge) gives one MeshError naming its reason."""
+    import pymeshlab
+
+    from tactile_viz.engine import mesh_repair
+
+    def refuse(mesh, source):
+        raise pymeshlab.PyMeshLabException(
+            "Failed to apply filter: meshing_close_holes\nDetails: Mesh has some not "
+            "2-manifold edges, filter requires edge manifoldness")
+
+    monkeypatch.setattr(mesh_repair, "_repaired_surface", refuse)
+    box = trimesh.creation.box()
+    with pytest.raises(MeshError, match="could not be repaired .*2-manifold edges"):
+        mesh_repair.repair_surface(box, "broken.glb")
