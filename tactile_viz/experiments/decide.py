@@ -1,9 +1,8 @@
 """Benchmark: the decision (beyond the paper) on objects at real sizes, under sensor noise.
 
 ``python -m tactile_viz bench decide [--noise 0:0 0.001:1 0.002:2] [--seeds 2]
-[--novel-seeds 1] [--preset recognise] [--set NAME=VALUE ...] [--outliers FRACTION]
-[--objects ...]
-[--workers 2] [--out DIR] [--no-progress]``
+[--first-seed 0] [--novel-seeds 1] [--preset recognise] [--set NAME=VALUE ...]
+[--outliers FRACTION] [--objects ...] [--workers 2] [--out DIR] [--no-progress]``
 
 One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
 40 cm, :data:`~.sizes.SIZES_M`) and the objects of :mod:`.hard_objects`, made to be hard:
@@ -75,7 +74,7 @@ def setting(text):
 
 
 def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps,
-          outliers=0.0):
+          outliers=0.0, first_seed=0):
     """The trials: every known object over ``seeds`` and every novel one over
     ``novel_seeds``, at each noise level (and a share ``outliers`` of wrong readings)."""
     extra = [{"name": name, "file": str(path), "longest_side": HARD_SIZES_M[name],
@@ -86,7 +85,7 @@ def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel
                   "outliers": outliers}
         for name in known + novel:
             is_novel = name in novel
-            for seed in range(novel_seeds if is_novel else seeds):
+            for seed in range(first_seed, first_seed + (novel_seeds if is_novel else seeds)):
                 task = make_task(name, seed=seed, preset=preset, params=params, sizes=SIZES_M,
                                  sensor=sensor, extra_priors=extra,
                                  max_steps=novel_steps if is_novel else None,
@@ -171,6 +170,8 @@ def main(argv=None):
                         help="share of the simulated contacts that are wrong readings "
                              "(the model's is --set outlier_probability=P)")
     parser.add_argument("--seeds", type=count_int, default=2, help="seeds per known object")
+    parser.add_argument("--first-seed", type=nonnegative_int, default=0,
+                        help="the first seed (seeds run from it up)")
     parser.add_argument("--novel-seeds", type=nonnegative_int, default=1,
                         help="seeds per novel object (0: none)")
     parser.add_argument("--novel-steps", type=count_int, default=60,
@@ -195,7 +196,7 @@ def main(argv=None):
     novel = list(NOVEL) if args.novel_seeds else []
     results, failed = run_all(
         tasks(known, novel, args.noise or DEFAULT_NOISE, args.seeds, args.novel_seeds, params,
-              args.preset, files, args.novel_steps, args.outliers),
+              args.preset, files, args.novel_steps, args.outliers, args.first_seed),
         args.workers, progress=not args.no_progress, description="decide")
     summaries = [summary(r) for r in results]
     write_atomic(out / "decide.json", json.dumps(summaries, indent=1).encode())

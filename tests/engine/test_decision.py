@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
 from tactile_viz.engine.belief import Particles
-from tactile_viz.engine.decision import (Hypothesis, decide, disagreement_target,
+from tactile_viz.engine.decision import (Decision, Hypothesis, decide, disagreement_target,
                                          surface_disagreement)
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.observations import Contact
@@ -159,3 +159,41 @@ def test_the_paper_preset_ignores_the_decision_parameters(shapes):
 def test_bad_decision_parameters_are_refused(changes):
     with pytest.raises(ParameterError):
         SessionParams(**changes)
+
+
+def test_the_dhd_stop_waits_for_the_decisions_checks(shapes, monkeypatch):
+    """A thin object is covered before its decision's checks are swept; the session must
+    sweep them rather than stop covered and undecided."""
+    from tactile_viz.engine.session import planner
+
+    def always_decided(pf, belief, *args, **kwargs):
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 0.0, 1.0)
+        return Decision(True, 1.0, (first,), True)
+
+    monkeypatch.setattr(planner, "decide", always_decided)
+    params = session_preset("recognise", eps=12.0, decision_cover=12.0)
+    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    last = session.run(max_steps=40)
+    assert last.terminated and last.step < 39
+    assert last.decided
+    assert session.state.decision_checks >= params.decision_checks  # swept, nothing surprised
+
+
+def test_telling_touches_are_spread_over_the_parts_that_differ(shapes):
+    """Touched again and again at one spot, a rival shifts a little and absorbs it."""
+    from tactile_viz.engine.session.planner import TELL_SPACING
+
+    params = session_preset("recognise", contact_spacing=2.0)  # wider than feature spacing
+    session = Session(make_truth(shapes["knobbed"], rng=[3, 0]), shapes, params=params, seed=3)
+    session.run(max_steps=8)
+    last = session.latest
+    hypotheses = tuple(Hypothesis(shapes.names.index(name), last.map_rotation,
+                                  last.map_translation, 0.0, 0.5) for name in ("knobbed", "box"))
+    decision = Decision(False, 0.5, hypotheses, True)
+    first = session._telling_apart(decision, last.contacts)
+    touched = np.vstack([last.contacts, first.position])  # the best spot, touched
+    second = session._telling_apart(decision, touched)
+    assert second is not None
+    nearest = np.linalg.norm(touched - second.position, axis=1).min()
+    assert nearest >= TELL_SPACING * session._p.contact_spacing

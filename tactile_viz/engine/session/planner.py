@@ -29,6 +29,7 @@ SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
 CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
+TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
 
 class Planner:
@@ -78,7 +79,10 @@ class Planner:
         rivals = (self._p.decision_targets and not state.novel and not decided
                   and not confirm and decision.fits and len(decision.rivals) > 0
                   and self.state.telling_steps < self._p.decision_patience)
-        terminated = bool((covered and not checking and not frontier and not rivals)
+        # The DHD stop waits for the decision's checks too: they are a step or two, and a
+        # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
+        terminated = bool((covered and not checking and not frontier and not rivals
+                           and not confirm)
                           or (self._p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
         self.state.check, self.state.frontier_target = None, False
@@ -130,13 +134,14 @@ class Planner:
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
         hypotheses = (decision.hypotheses[0],) + decision.rivals
-        # Touching beside a contact again is worth it while the hypotheses differ there (a
-        # noisy sensor averages), so only its own noise is kept clear around it.
+        # Touches are spread over the parts that differ (half the contact spacing apart):
+        # touched again and again at one spot, a rival shifts a little and absorbs it.
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
+        spread = max(2 * self.sensor_noise[0], self._p.decision_floor,
+                     TELL_SPACING * self._p.contact_spacing)
         found = disagreement_target(
             self.filter.bank, hypotheses, self._p.probe_depth,
-            avoid=((contacts, max(2 * self.sensor_noise[0], self._p.decision_floor)),
-                   (refuted, self._p.contact_spacing)))
+            avoid=((contacts, spread), (refuted, self._p.contact_spacing)))
         if found is None:
             return None
         position, normal, owner = found
