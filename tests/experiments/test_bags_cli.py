@@ -132,3 +132,29 @@ def test_replay_of_a_bag_folder_exports_a_bag_that_replays_alike(bags, priors, t
         assert a["map_class"] == b["map_class"]
         np.testing.assert_array_equal(a["map_translation"], b["map_translation"])
         np.testing.assert_array_equal(a["map_rotation"], b["map_rotation"])
+
+
+def test_the_app_steps_through_a_bag_as_replay_does(bags, priors, tmp_path, capsys):
+    import importlib.util
+
+    from tactile_viz.app.scene import Scene
+    from tactile_viz.engine import PriorLibrary
+    from tactile_viz.engine.objects import ObjectModel
+    from tactile_viz.experiments.inputs import bag_topics
+
+    spec = importlib.util.spec_from_file_location(
+        "app_launcher", Path(__file__).resolve().parents[2] / "app.py")
+    launcher = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(launcher)
+    folder = bags[0].parent
+    args = launcher.parse_args(["--observations", str(folder), "--bag-frame", "world",
+                                "--log-file", ""])
+    files = [Path(text.split(":")[0]) for text in priors[1:]]
+    library = PriorLibrary([ObjectModel.from_file(path, name=path.stem) for path in files])
+    scene = Scene(seed=0, library=library)
+    assert scene.open_observations(args.observations, bag_topics(args)) == 4
+    csv = tmp_path / "touches.csv"
+    csv.write_text("kind,x,y,z,nx,ny,nz\ncontact,0.03,0,0,1,0,0\n")
+    with pytest.raises(SystemExit) as stop:
+        launcher.parse_args(["--observations", str(csv), "--step-gap", "1", "--log-file", ""])
+    assert stop.value.code == 2 and "--step-gap is for a bag" in capsys.readouterr().err
