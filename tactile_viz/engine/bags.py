@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import bisect
 import functools
+import importlib.util
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,11 +97,9 @@ def is_bag(path) -> bool:
 
 
 def _rosbags(path):
-    try:
-        import rosbags  # noqa: F401
-    except ImportError:
+    if importlib.util.find_spec("rosbags") is None:
         raise BagError(path, "reading or writing a ROS 2 bag needs rosbags: "
-                             "pip install rosbags") from None
+                             "pip install rosbags")
 
 
 @functools.cache

@@ -307,3 +307,20 @@ def test_the_frame_and_named_topics_are_checked(tmp_path):
     with pytest.raises(BagError, match=r"no misses topic /probe/misses; the bag has "
                                        r"/contact_normals .*, /contacts"):
         read_bag(bag, topics=BagTopics(misses="/probe/misses"))
+
+
+def test_a_failed_export_leaves_the_old_bag_and_no_temporary(trial, tmp_path, monkeypatch):
+    import tactile_viz.engine.bag_export as bag_export
+
+    path = tmp_path / "run.mcap"
+    path.write_bytes(b"old")
+
+    def broken(*args):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(bag_export, "_estimate", broken)
+    with pytest.raises(BagError, match=r"run.mcap: cannot write the bag \(disk full\)"):
+        export_bag(trial[1], path)
+    assert path.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["run.mcap"]
+    with pytest.raises(BagError, match="cannot write the bag"):
+        export_bag(trial[1], tmp_path / "missing" / "run.mcap")
