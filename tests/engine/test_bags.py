@@ -324,3 +324,11 @@ def test_a_failed_export_leaves_the_old_bag_and_no_temporary(trial, tmp_path, mo
     assert path.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["run.mcap"]
     with pytest.raises(BagError, match="cannot write the bag"):
         export_bag(trial[1], tmp_path / "missing" / "run.mcap")
+
+
+def test_export_session_writes_the_bag_beside_the_files(trial, tmp_path):
+    from tactile_viz.engine.export import export_session
+
+    written = export_session(trial[1], tmp_path, bag=True)
+    assert tmp_path / "session.mcap" in written
+    assert len(read_bag(tmp_path / "session.mcap")) == len(trial[1].snapshots)
