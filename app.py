@@ -42,8 +42,9 @@ def parse_args(argv=None):
                       help="a mesh file as the ground truth; a suffix :mm, :m, ... or "
                            ":FACTOR gives its unit")
     what.add_argument("--observations", metavar="FILE",
-                      help="step through recorded touches (CSV: kind,x,y,z,nx,ny,nz) "
-                           "instead of touching an object")
+                      help="step through recorded touches (CSV: kind,x,y,z,nx,ny,nz, or a "
+                           "ROS 2 bag: .mcap, .db3 or a bag folder) instead of touching an "
+                           "object")
     library = parser.add_mutually_exclusive_group()
     library.add_argument("--library", choices=["known", "novel", "all"],
                          help="the priors: a bundled set (default known)")
@@ -66,11 +67,12 @@ def parse_args(argv=None):
                              "as a prior, then place it at the next seed's pose")
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
-    from tactile_viz.experiments.inputs import add_unit_arguments
+    from tactile_viz.experiments.inputs import add_bag_arguments, add_unit_arguments
     from tactile_viz.experiments.trial import add_sensor_arguments
 
     add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)
+    add_bag_arguments(parser)
     add_logging_arguments(parser, log_file_default=str(default_log_file()))
     args = parser.parse_args(argv)
     args.prog = PROG
@@ -119,7 +121,11 @@ def argument_problem(args):
     from tactile_viz.engine.meshes import split_units
     from tactile_viz.experiments.inputs import mesh_units, options_problem
 
-    if args.observations and (problem := _path_problem("--observations", args.observations)):
+    from tactile_viz.engine.bags import is_bag
+
+    if args.observations and not (os.path.isdir(args.observations) and is_bag(
+            args.observations)) and (problem := _path_problem("--observations",
+                                                              args.observations)):
         return problem
     meshes = [("--object-file", args.object_file)] if args.object_file else []
     for option, text in meshes + [("--prior-file", text) for text in args.prior_file or ()]:
@@ -189,7 +195,9 @@ def build_scene(args):
         scene.add_learned_shape()
         scene.randomize_pose(args.seed + 1)
     if args.observations:
-        scene.open_observations(args.observations)
+        from tactile_viz.experiments.inputs import bag_topics
+
+        scene.open_observations(args.observations, bag_topics(args))
     return scene
 
 

@@ -91,10 +91,12 @@ def build_parser():
     from .experiments.replay import add_replay_arguments
 
     replay = commands.add_parser(
-        "replay", help="replay recorded touches (CSV) through the filter and the GPIS",
+        "replay", help="replay recorded touches (CSV or ROS 2 bag) through the filter and "
+                       "the GPIS",
         description="Replay an observation file (header kind,x,y,z,nx,ny,nz, optional step "
-                    "column; kind contact, noncontact or free) through the filter and the "
-                    "GPIS and write the trial command's per-step JSON (truth metrics null).")
+                    "column; kind contact, noncontact or free) or a ROS 2 bag (docs/robots.md) "
+                    "through the filter and the GPIS and write the trial command's per-step "
+                    "JSON (truth metrics null).")
     add_replay_arguments(replay)
     replay.set_defaults(run=_replay, prog=replay.prog, check=options_problem)
 

@@ -23,7 +23,7 @@ from ..engine.library import PriorLibrary, size_warning
 from ..engine.meshes import UNITS
 from ..engine.metrics import error_threshold
 from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.observation_file import read_observations, recording_warning
+from ..engine.bags import read_recording, recording_file_warning
 from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
@@ -371,15 +371,16 @@ class Scene:
         return self.session
 
     # ------------------------------------------------------------------ recordings
-    def open_observations(self, path):
-        """Step through recorded touches (an observation file) instead of the simulator,
+    def open_observations(self, path, topics=None):
+        """Step through recorded touches (an observation file, or a ROS 2 bag read with the
+        :class:`~tactile_viz.engine.bags.BagTopics` ``topics``) instead of the simulator,
         with the current priors and settings; the truth is hidden (a recording has none).
         Positions are converted to the scene's unit as ``replay`` does (a ``# units:``
         line naming another); :attr:`warnings` says when the file is likely in another unit
         than the priors. A bad file raises ObservationFileError and changes nothing. Returns
         the number of recorded steps."""
-        steps = read_observations(path, self.units)
-        message = recording_warning(path, steps, self.active_library(), self.units)
+        steps = read_recording(path, self.units, topics)
+        message = recording_file_warning(path, steps, self.active_library(), self.units)
         self.warnings = [message] if message else []
         if message:
             log.warning("%s", message)

@@ -12,7 +12,9 @@
   ``file_to_world`` (4x4: the prior's own mesh file, in its own coordinates, to the world:
   what to apply to the user's file to place it), ``map_longest_side``,
   ``class_posterior``, ``novel``, ``log_evidence``, ``log_threshold``, and the step, seed,
-  strategy, library and parameters it came from.
+  strategy, library and parameters it came from;
+- ``session.mcap`` with ``bag=True``: every step as a ROS 2 bag for RViz and Foxglove
+  (:func:`~tactile_viz.engine.bag_export.export_bag`, lengths in metres).
 
 Every length is in the scene's units (those of the contacts).
 
@@ -34,7 +36,8 @@ from .files import write_atomic
 from .objects import mark_learned
 from .observation_file import format_observations
 
-FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json")
+FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json",
+         "session.mcap")
 
 
 def estimate_record(session, snapshot=None, units=None):
@@ -61,7 +64,7 @@ def _ply(vertices, faces):
     return trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")
 
 
-def export_session(session, folder, units: str | None = None) -> list[Path]:
+def export_session(session, folder, units: str | None = None, bag: bool = False) -> list[Path]:
     """Write the latest estimate of ``session`` and its touches to ``folder``.
 
     Parameters
@@ -72,6 +75,8 @@ def export_session(session, folder, units: str | None = None) -> list[Path]:
         Created when missing.
     units : str, optional
         The scene's length unit, written into the files (None: the mesh files' own).
+    bag : bool
+        Also write ``session.mcap`` (needs rosbags).
 
     Returns
     -------
@@ -99,6 +104,10 @@ def export_session(session, folder, units: str | None = None) -> list[Path]:
             os.remove(reconstruction)
         text = json.dumps(estimate_record(session, snapshot, units), indent=1)
         written.append(write_atomic(folder / "estimate.json", text.encode()))
+        if bag:
+            from .bag_export import export_bag
+
+            written.append(export_bag(session, folder / "session.mcap", units))
     except OSError as error:
         raise SessionError(f"cannot export to {folder}: {error}") from error
     return [Path(path) for path in written]

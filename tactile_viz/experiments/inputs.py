@@ -13,7 +13,8 @@ import logging
 import sys
 from pathlib import Path
 
-from ..cli import ExtendList, existing_file, finite_float, one_line, output_dir
+from ..cli import (ExtendList, existing_file, finite_float, one_line, output_dir,
+                   writable_output)
 from ..engine.errors import LibraryError, TactileVizError
 from ..engine.library import MANIFEST, PriorLibrary, size_warning
 from ..engine.meshes import UNITS, split_units, unit_factor
@@ -57,6 +58,81 @@ def mesh_file(text):
                 f"{error} (a unit after ':' is one of {', '.join(UNITS)} or a number)") from None
         raise
     return text
+
+
+def recording_file(text):
+    """An argument type: a readable recording, a file or a rosbag2 folder (returned as
+    given)."""
+    from ..engine.bags import is_bag
+
+    if Path(text).is_dir() and is_bag(text):
+        return text
+    return existing_file(text)
+
+
+def bag_output(text):
+    """An argument type: an ``.mcap`` file that can be written (returned as given)."""
+    if Path(text).suffix.lower() != ".mcap":
+        raise argparse.ArgumentTypeError(f"the bag must be an .mcap file, got {text!r}")
+    return writable_output(text)
+
+
+BAG_OPTIONS = {"contacts_topic": "contacts", "normals_topic": "normals",
+               "misses_topic": "misses", "free_topic": "free", "step_topic": "steps",
+               "step_gap": "step_gap", "bag_frame": "frame"}
+
+
+def add_bag_arguments(parser):
+    """The topics, steps and frame of a ``--observations`` bag (docs/robots.md)."""
+    from ..engine.bags import DEFAULT_TOPICS as TOPICS
+
+    group = parser.add_argument_group("bags (--observations FILE.mcap, FILE.db3 or a bag "
+                                      "folder; metres, one frame)")
+    group.add_argument("--contacts-topic", metavar="TOPIC",
+                       help="gazebo_msgs/msg/ContactsState or geometry_msgs/msg/PointStamped "
+                            f"contacts (default {TOPICS['contacts']})")
+    group.add_argument("--normals-topic", metavar="TOPIC",
+                       help="geometry_msgs/msg/Vector3Stamped normals of PointStamped "
+                            f"contacts, matched by stamp (default {TOPICS['normals']})")
+    group.add_argument("--misses-topic", metavar="TOPIC",
+                       help="PointStamped ends of paths in free space (default "
+                            f"{TOPICS['misses']}, when present)")
+    group.add_argument("--free-topic", metavar="TOPIC",
+                       help="PointStamped points passed through without touching (default "
+                            f"{TOPICS['free']}, when present)")
+    group.add_argument("--step-topic", metavar="TOPIC",
+                       help="each message starts a step (default "
+                            f"{TOPICS['steps']}, when present)")
+    group.add_argument("--step-gap", metavar="SECONDS", type=positive_float,
+                       help="a new step where stamps are more than SECONDS apart (instead of "
+                            "the step topic; default: touches sharing a stamp are a step)")
+    group.add_argument("--bag-frame", metavar="FRAME",
+                       help="the frame every message must be in (default: any one frame)")
+
+
+def bag_topics(args):
+    """The :class:`~tactile_viz.engine.bags.BagTopics` of the bag options."""
+    from ..engine.bags import BagTopics
+
+    return BagTopics(**{field: getattr(args, option, None)
+                        for option, field in BAG_OPTIONS.items()})
+
+
+def bag_problem(args):
+    """Why the bag options do not fit (None if they do): given for a CSV recording, or a
+    step topic and a step gap both."""
+    from ..engine.bags import is_bag
+
+    given = [option for option in BAG_OPTIONS if getattr(args, option, None) is not None]
+    if not given:
+        return None
+    flag = "--" + given[0].replace("_", "-")
+    recording = getattr(args, "observations", None)
+    if recording is None or not is_bag(recording):
+        return f"{flag} is for a bag (--observations FILE.mcap, FILE.db3 or a bag folder)"
+    if args.step_topic is not None and args.step_gap is not None:
+        return "--step-topic and --step-gap both group the steps: give one of them"
+    return None
 
 
 def add_prior_arguments(parser):
@@ -130,6 +206,8 @@ def scene_units(args, library=None):
 def options_problem(args):
     """The first contradiction or missing piece of the unit and learning options (None if
     there is none), found before anything is read."""
+    if problem := bag_problem(args):
+        return problem
     normalise = getattr(args, "normalise", None)
     if normalise is not None:
         units = [units for units in [getattr(args, "mesh_units", None)]

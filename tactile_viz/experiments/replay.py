@@ -10,21 +10,24 @@ import json
 import sys
 import time
 
-from ..cli import add_preset_argument, existing_file, seed_int
+from ..cli import add_preset_argument, seed_int
 from ..engine.exploration import STRATEGIES
+from ..engine.bag_export import export_bag
+from ..engine.bags import read_recording as read_recording_file, recording_file_warning
 from ..engine.export import export_session
-from ..engine.observation_file import read_observations, recording_warning
 from ..engine.session import RecordedSession, session_preset
-from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn,
-                     load_priors, say, scene_units, size_warnings)
+from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
+                     check_learning, learn, load_priors, recording_file, say, scene_units,
+                     size_warnings)
 from .trial import (add_output_arguments, add_sensor_arguments, code_version, with_outliers,
                     write_output)
 
 
 def add_replay_arguments(parser):
-    parser.add_argument("--observations", metavar="FILE", required=True, type=existing_file,
+    parser.add_argument("--observations", metavar="FILE", required=True, type=recording_file,
                         help="CSV of touches: header kind,x,y,z,nx,ny,nz (optional step "
-                             "column); kind contact, noncontact or free")
+                             "column); kind contact, noncontact or free; or a ROS 2 bag "
+                             "(.mcap, .db3 or a bag folder; see the bag options)")
     add_prior_arguments(parser)
     add_preset_argument(parser)
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
@@ -33,6 +36,7 @@ def add_replay_arguments(parser):
                         help="filter seed (the trial's seed reproduces its estimate exactly)")
     add_unit_arguments(parser)
     add_sensor_arguments(parser, simulated=False)
+    add_bag_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json to DIR")
 
@@ -75,11 +79,12 @@ def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, pr
 
 
 def read_recording(args, library):
-    """The recorded steps of ``--observations`` in the scene's unit, with a warning when
-    the file is likely in another unit than the library (the app reads it the same way)."""
+    """The recorded steps of ``--observations`` (a CSV file or a bag) in the scene's unit,
+    with a warning when the file is likely in another unit than the library (the app reads
+    it the same way)."""
     units = scene_units(args, library)
-    steps = read_observations(args.observations, units)
-    message = recording_warning(args.observations, steps, library, units)
+    steps = read_recording_file(args.observations, units, bag_topics(args))
+    message = recording_file_warning(args.observations, steps, library, units)
     if message:
         say(args, "warning", message)
     return steps
@@ -106,6 +111,8 @@ def run_replay_command(args):
               "units": units, "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
         export_session(session, args.export, units)
+    if args.export_bag:
+        export_bag(session, args.export_bag, units)
     if learn_to:
         result["learned"] = learn(session, library, args.learn, learn_to, units, args)
     write_output(json.dumps(result, indent=1), args.json)

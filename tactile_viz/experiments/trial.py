@@ -22,12 +22,13 @@ from ..cli import (add_preset_argument, bundled_object, finite_float, output_dir
                    positive_int, seed_int, writable_output)
 from ..engine.errors import ParameterError
 from ..engine.exploration import STRATEGIES
+from ..engine.bag_export import export_bag
 from ..engine.export import export_session
 from ..engine.files import write_atomic
 from ..engine.objects import load_bundled
 from ..engine.session import Session, make_truth, session_preset
-from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
-                     load_priors, mesh_file, say, scene_units, size_warnings)
+from .inputs import (add_prior_arguments, add_unit_arguments, bag_output, check_learning, learn,
+                     load_mesh, load_priors, mesh_file, say, scene_units, size_warnings)
 
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
@@ -86,6 +87,10 @@ def add_output_arguments(parser, export_help):
     parser.add_argument("--json", metavar="OUT", type=writable_output,
                         help="write the JSON here (default stdout)")
     parser.add_argument("--export", metavar="DIR", type=output_dir, help=export_help)
+    parser.add_argument("--export-bag", metavar="FILE.mcap", type=bag_output,
+                        help="write every step as a ROS 2 bag (MCAP, metres) for RViz and "
+                             "Foxglove: touches, MAP pose, posterior, MAP shape and GPIS "
+                             "markers (docs/robots.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
@@ -206,6 +211,8 @@ def run_trial_command(args):
         extra = {}
         if args.export:
             export_session(session, args.export, units)
+        if args.export_bag:
+            export_bag(session, args.export_bag, units)
         if learn_to:
             extra["learned"] = learn(session, library, args.learn, learn_to, units, args)
         return extra

@@ -143,7 +143,7 @@ OPEN_SESSION = FileCommand("open", "Load session", "sessions", "load_session",
                            busy="loading a session", filter="Sessions (*.npz)")
 OPEN_OBSERVATIONS_FILE = FileCommand("open", "Open observations", "observations",
                                      "open_observations", busy="opening observations",
-                                     filter="Observations (*.csv);;All files (*)")
+                                     filter="Observations (*.csv *.mcap *.db3);;All files (*)")
 EXPORT_TO = FileCommand("folder", "Export estimate to folder", "exports", "export",
                         busy="exporting")
 SAVE_SCREENSHOT_AS = FileCommand("save", "Save screenshot", "screenshots", "save_screenshot",
@@ -179,7 +179,7 @@ def drag_entered(window, paths, accepted):
     status = window.statusBar()
     if not paths:
         status.showMessage("only mesh files (" + " ".join(MESH_SUFFIXES) + ") and recorded "
-                           "touches (.csv) can be dropped here", STATUS_SECONDS)
+                           "touches (.csv, .mcap, .db3) can be dropped here", STATUS_SECONDS)
     elif not accepted:
         window.idle("a dropped file")  # says: Pause first
     elif not is_mesh_path(paths[0]):
@@ -220,7 +220,7 @@ def show_keys(window):
                             "<p>In the viewport: drag to rotate, shift-drag to pan, "
                             "wheel to zoom; drop a mesh file to use it as the ground "
                             "truth (hold Shift to add it as a prior instead), or an "
-                            "observation file (.csv) to replay it.</p>")
+                            "observation file (.csv) or ROS 2 bag (.mcap, .db3) to replay it.</p>")
 
 
 def show_about(window):

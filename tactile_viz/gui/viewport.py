@@ -10,7 +10,7 @@ from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import QWidget
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
-OBSERVATION_SUFFIXES = (".csv",)  # recorded touches (kind,x,y,z,nx,ny,nz)
+OBSERVATION_SUFFIXES = (".csv", ".mcap", ".db3")  # recorded touches: CSV, ROS 2 bags
 # The render waits this long after the scene update: with no delay its paint followed the
 # update with no timer run in between (Qt delivers posted events first).
 RENDER_DELAY_MS = 10
