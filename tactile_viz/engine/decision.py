@@ -45,6 +45,7 @@ from scipy.stats import chi2
 
 from .discrimination import contenders, lookalikes
 from .pose_refinement import refine_poses
+from .symmetry import symmetry_group
 from .transforms import transform_points
 
 POSE_PARAMETERS = 6
@@ -112,7 +113,7 @@ class Decision:
 UNDECIDED = Decision(False, 0.0)
 
 
-def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
+def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -130,6 +131,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
     carried : sequence of Hypothesis
         The plausible hypotheses of the step before: weighed again, so that a mode the
         particles lost (resampling under noise) is not forgotten while it still fits.
+    free_space : (k, 3) float, world frame, optional
+        Points of the paths missed probes passed through: like a non-contact, each costs
+        a hypothesis its depth inside (a probe's end can lie beyond a thin blade or a
+        handle it passed through, and a pose turned a little avoids one point).
 
     Returns
     -------
@@ -157,10 +162,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
                                    np.repeat(particles.translations[chosen][None], len(others), 0),
                                    flipped_translations,
                                    np.reshape([h.translation for h in kept], (-1, 3))])
+    outside = pf.noncontact_positions if free_space is None else np.vstack(
+        [pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
     try:
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, classes, rotations, translations, contacts,
-            pf.noncontact_positions, pf.params.refine_iterations,
+            outside, pf.params.refine_iterations,
             trim=pf.params.outlier_probability)
     except np.linalg.LinAlgError:
         return UNDECIDED
@@ -183,8 +190,13 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=()):
     level = min(weighed_share, hypotheses[0].probability)
     # The MAP must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
+    # A shape round but for small detail (a bumpy ball) is posed about its round axis
+    # only by that detail, which the local refinement may not find: the MAP fits within
+    # the noise and that detail.
+    roughness = symmetry_group(pf.models[classes[0]]).roughness
     dof = len(contacts) - POSE_PARAMETERS
-    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2, 1e-300)
+    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2 + roughness**2,
+                                                                     1e-300)
     return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
                     hypotheses, bool(fits))
 

@@ -52,12 +52,17 @@ class SymmetryGroup:
         Every rotation about ``centre`` is a symmetry.
     centre : (3,) float, object frame
         The point every symmetry keeps (the surface's area centroid).
+    roughness : float, object units
+        RMS distance to the surface of surface samples turned about a continuous axis or
+        the sphere's centre (0 without one): the detail, below the tolerance, that alone
+        fixes the pose about it (a bumpy ball's bumps), which a local fit may not find.
     """
 
     rotations: np.ndarray
     axis: np.ndarray | None
     is_sphere: bool
     centre: np.ndarray
+    roughness: float = 0.0
 
     def __iter__(self):
         """``rotations, axis, is_sphere, centre = group`` unpacks it."""
@@ -153,6 +158,11 @@ class _SurfaceTest:
         distance = self.distances(rotations, count) / self.tolerance
         return np.where(np.quantile(distance, 0.9, axis=1) <= slack, distance.mean(axis=1),
                         np.inf)
+
+    def rms(self, rotations):
+        """RMS distance of all samples moved by the (k, 3, 3) turns, mesh units."""
+        return float(np.sqrt(np.mean(np.square(self.distances(np.asarray(rotations),
+                                                                len(self.centred))))))
 
     def passes(self, rotations):
         """(k,) bool: which turns map the surface onto itself within the tolerance (mean
@@ -319,15 +329,17 @@ def find_symmetry_group(vertices, faces, tolerance=SYMMETRY_TOLERANCE, seed=1):
     test = _SurfaceTest(mesh, centre, tolerance * length, seed)
     values, vectors = np.linalg.eigh(moment)
     equal = np.abs(np.diff(values)) <= EQUAL_MOMENTS * values[-1]
-    if equal.all() and test.passes(Rotation.random(3, random_state=seed).as_matrix()).all():
-        return SymmetryGroup(np.eye(3)[None], None, True, centre)
+    turns = Rotation.random(3, random_state=seed).as_matrix()
+    if equal.all() and test.passes(turns).all():
+        return SymmetryGroup(np.eye(3)[None], None, True, centre, test.rms(turns))
     unique = vectors[:, 2 if equal[0] else 0]  # the distinct moment's axis when two are equal
     continuous = [_slippage_axis(test)] + ([unique] if equal.sum() == 1 else [])
     axis = _continuous_axis(test, continuous)
     builder = _GroupBuilder(test)
     if axis is not None:
         builder.offer(rotation(_perpendicular(axis), np.pi))
-        return SymmetryGroup(builder.group, axis, False, centre)
+        roughness = test.rms([rotation(axis, angle) for angle in _ODD_TURNS])
+        return SymmetryGroup(builder.group, axis, False, centre, roughness)
     turns = _candidate_turns(mesh, centre, length, vectors, equal)
     for turn in test.screen(turns):  # the likeliest first
         builder.offer(turn)

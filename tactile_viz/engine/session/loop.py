@@ -306,6 +306,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         if not isinstance(observations[0], Contact):
             self.state.free_space = free_space_points(self.state.free_space, paths[0],
                                                  self._p.contact_spacing)
+            self.state.missed = np.vstack([self.state.missed, paths[0][[0, -1]][None]])
         return paths, observations
 
     def observe(self, observations: Observation | Sequence[Observation],

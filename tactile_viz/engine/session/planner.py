@@ -29,6 +29,7 @@ SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
 CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
+MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
 
@@ -45,7 +46,8 @@ class Planner:
         decision = decide(self.filter, belief, p.decision_confidence,
                           floor=float(np.hypot(p.decision_floor, noise)),
                           same_mode=max(p.decision_same_mode, 2 * noise),
-                          carried=self.state.hypotheses)
+                          carried=self.state.hypotheses,
+                          free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit))
         self.state.hypotheses = decision.hypotheses[:1] + decision.rivals
         return decision
 
@@ -351,3 +353,25 @@ def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
     :func:`~tactile_viz.engine.meshes.bare_mesh`): a long run meets many MAP classes."""
     return bare_mesh(model.mesh).vertex_normals
+
+
+def segment_points(segments, spacing):
+    """Points along each segment, at most ``spacing`` apart, ends included.
+
+    Parameters
+    ----------
+    segments : (k, 2, 3) float
+    spacing : float, > 0
+
+    Returns
+    -------
+    (m, 3) float
+    """
+    if len(segments) == 0:
+        return np.zeros((0, 3))
+    lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    counts = np.maximum(np.ceil(lengths / spacing).astype(int), 1) + 1
+    fractions = np.concatenate([np.linspace(0.0, 1.0, c) for c in counts])
+    starts = np.repeat(segments[:, 0], counts, axis=0)
+    ends = np.repeat(segments[:, 1], counts, axis=0)
+    return starts + fractions[:, None] * (ends - starts)

@@ -48,6 +48,9 @@ class ExplorationState:
         Samples of the paths missed probes passed through.
     swept : (k, 3) float
         Samples of the approach paths up to their first touch.
+    missed : (k, 2, 3) float
+        Start and end of each probe toward a target that touched nothing (the decision
+        weighs the whole path: a probe's end can lie beyond a thin part it passed through).
     frontier : list of (position, normal)
         Targets beside contacts on parts nothing predicted, still to visit.
     frontier_target : bool
@@ -83,6 +86,7 @@ class ExplorationState:
     given_up: list = field(default_factory=list)
     free_space: np.ndarray = field(default_factory=_points)
     swept: np.ndarray = field(default_factory=_points)
+    missed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     frontier: list = field(default_factory=list)
     frontier_target: bool = False
     telling_apart: bool = False
