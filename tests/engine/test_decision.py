@@ -197,3 +197,41 @@ def test_telling_touches_are_spread_over_the_parts_that_differ(shapes):
     assert second is not None
     nearest = np.linalg.norm(touched - second.position, axis=1).min()
     assert nearest >= TELL_SPACING * session._p.contact_spacing
+
+
+def test_a_miss_through_a_rivals_part_refutes_it(shapes):
+    """Touches that miss the knob fit the box and the knobbed box alike; a probe that
+    passed through where the knob would be, and ended beyond it, refutes the knobbed box
+    (its end alone does not)."""
+    knobbed = shapes["knobbed"]
+    touches = [t for t in _touches(knobbed, 80, seed=2)
+               if not (t.position[0] > 1.4 and t.position[2] > 0.9)][:40]
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    pf.contact_positions = np.array([t.position for t in touches])
+    pf.contact_normals = np.array([t.normal for t in touches])
+    pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
+                             np.zeros((2, 3)), np.log([0.5, 0.5]))
+    # The knob is at (2, 0, 1) in the knobbed box's frame (meshes are centred on loading).
+    pf.noncontact_positions = np.array([[2.0, 2.0, 1.0]])  # the probe's end: past the knob
+    state = pf._record(0)
+
+    def knobbed_share(free_space):
+        decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, free_space=free_space)
+        return sum(h.probability for h in decision.hypotheses
+                   if shapes.names[h.class_index] == "knobbed")
+
+    path = np.linspace([2.0, -2.0, 1.0], [2.0, 2.0, 1.0], 21)  # across the knob
+    assert knobbed_share(None) > 0.01
+    assert knobbed_share(path) < 1e-3
+
+
+def test_a_missed_probe_is_kept_whole_for_the_decision():
+    from tactile_viz.engine.session.planner import segment_points
+
+    segments = np.array([[[0.0, 0, 0], [1.0, 0, 0]], [[0.0, 1, 0], [0.0, 1, 0.25]]])
+    points = segment_points(segments, 0.1)
+    assert len(points) == 11 + 4
+    np.testing.assert_allclose(points[[0, 10, 11, -1]], [[0, 0, 0], [1, 0, 0], [0, 1, 0],
+                                                         [0, 1, 0.25]])
+    assert np.all(np.linalg.norm(np.diff(points[:11], axis=0), axis=1) <= 0.1 + 1e-12)
+    assert segment_points(np.zeros((0, 2, 3)), 0.1).shape == (0, 3)

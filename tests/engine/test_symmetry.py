@@ -181,3 +181,17 @@ def test_pose_differences_of_many_poses_at_once(tmp_path):
     np.testing.assert_allclose(angles, one_by_one)
     assert angles.shape == distances.shape == (50,)
     assert angles.max() <= 180.0 and (distances >= 0).all()
+
+
+def test_roughness_is_the_detail_that_poses_a_round_shape():
+    """A sphere with 1% bumps is still round, and its roughness is about the bumps; a smooth
+    sphere's is far smaller, and a shape without a round axis has none."""
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    bumps = 0.01 * np.sin(5 * sphere.vertices[:, 0]) * np.cos(4 * sphere.vertices[:, 1])
+    bumpy = find_symmetry_group(sphere.vertices * (1 + bumps)[:, None], sphere.faces)
+    smooth = find_symmetry_group(sphere.vertices, sphere.faces)
+    assert bumpy.is_sphere and smooth.is_sphere
+    assert 0.002 < bumpy.roughness < 0.02  # bumps of at most 0.01 on a radius of 1
+    assert smooth.roughness < 0.2 * bumpy.roughness
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    assert find_symmetry_group(box.vertices, box.faces).roughness == 0.0
