@@ -176,7 +176,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     best = float(misfit[keep].min())
     floor2 = floor**2 + grid_error(pf.bank, classes[0]) ** 2  # the MAP's model error too
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
-    log_p = -(misfit[keep] - best) / (2 * scale2)  # the fit posterior, Gaussian
+    occam = 0.5 * np.log(len(contacts)) * np.array(
+        [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
+    log_p = -(misfit[keep] - best) / (2 * scale2) - occam  # the fit posterior, Gaussian
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
     order = np.r_[0, order[order != 0]]  # the MAP candidate leads
@@ -199,6 +201,23 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                                                                      1e-300)
     return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
                     hypotheses, bool(fits))
+
+
+def used_pose_parameters(model, scale2):
+    """How many of the six pose parameters a class's fit uses (an Occam charge of
+    ``log(n) / 2`` each, the Bayesian information criterion's).
+
+    A turn about an exactly round axis moves nothing, so it is not fitted: a smooth ball
+    uses three (its position), a cylinder five. Detail that breaks the roundness (a bumpy
+    ball's bumps, RMS ``r``) makes the turn count by ``r^2 / (r^2 + s^2)`` (the share of a
+    parameter the data determine, MacKay's effective number): under noise ``s`` far above
+    the bumps a bumpy ball is charged as a smooth one, and its turns cannot fit the noise
+    for free.
+    """
+    group = symmetry_group(model)
+    free = 3 if group.is_sphere else (1 if group.axis is not None else 0)
+    r2 = group.roughness**2
+    return POSE_PARAMETERS - free * (1.0 - r2 / (r2 + scale2))
 
 
 def flips(pf, class_index, rotation, translation):

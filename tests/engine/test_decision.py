@@ -235,3 +235,28 @@ def test_a_missed_probe_is_kept_whole_for_the_decision():
                                                          [0, 1, 0.25]])
     assert np.all(np.linalg.norm(np.diff(points[:11], axis=0), axis=1) <= 0.1 + 1e-12)
     assert segment_points(np.zeros((0, 2, 3)), 0.1).shape == (0, 3)
+
+
+def test_a_fit_is_charged_for_the_pose_parameters_it_uses(tmp_path):
+    """A smooth ball's turns move nothing (three parameters used), a cylinder's about its
+    axis neither (five); bumps count fully under small noise and not at all under noise
+    far above them."""
+    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.decision import used_pose_parameters
+
+    cache = ArrayCache(tmp_path)
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    bumps = 1 + 0.01 * np.sin(5 * sphere.vertices[:, 0]) * np.cos(4 * sphere.vertices[:, 1])
+    cylinder = trimesh.creation.cylinder(radius=1.0, height=4, sections=64)
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    smooth, bumpy, round_, boxed = (
+        ObjectModel.from_arrays(v, f, name, cache=cache, scale=1.0)
+        for v, f, name in ((sphere.vertices, sphere.faces, "smooth"),
+                           (sphere.vertices * bumps[:, None], sphere.faces, "bumpy"),
+                           (cylinder.vertices, cylinder.faces, "cylinder"),
+                           (box.vertices, box.faces, "box")))
+    assert used_pose_parameters(smooth, 1e-4) == pytest.approx(3.0, abs=0.05)
+    assert used_pose_parameters(round_, 1e-4) == pytest.approx(5.0, abs=0.05)
+    assert used_pose_parameters(boxed, 1e-4) == 6.0
+    assert used_pose_parameters(bumpy, 1e-8) == pytest.approx(6.0, abs=0.05)
+    assert used_pose_parameters(bumpy, 1.0) == pytest.approx(3.0, abs=0.05)
