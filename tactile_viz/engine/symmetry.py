@@ -363,8 +363,23 @@ def _candidate_turns(mesh, centre, length, vectors, equal):
 
 
 def symmetry_group(model):
-    """:func:`find_symmetry_group` of an ``ObjectModel``'s mesh, cached on the model."""
+    """:func:`find_symmetry_group` of an ``ObjectModel``'s mesh, cached on the model and on
+    disk by its content (a decision may weigh many classes, each once)."""
     if "_symmetry_group" not in model.__dict__:
-        mesh = bare_mesh(model.mesh)
-        model.__dict__["_symmetry_group"] = find_symmetry_group(mesh.vertices, mesh.faces)
+        arrays = model.cache.get_or_build("symmetry1", model.content_hash,
+                                          {"tolerance": SYMMETRY_TOLERANCE},
+                                          lambda: _group_arrays(model))
+        axis = arrays["axis"]
+        model.__dict__["_symmetry_group"] = SymmetryGroup(
+            arrays["rotations"], None if np.isnan(axis).any() else axis,
+            bool(arrays["is_sphere"]), arrays["centre"], float(arrays["roughness"]))
     return model.__dict__["_symmetry_group"]
+
+
+def _group_arrays(model):
+    mesh = bare_mesh(model.mesh)
+    group = find_symmetry_group(mesh.vertices, mesh.faces)
+    return {"rotations": group.rotations,
+            "axis": np.full(3, np.nan) if group.axis is None else group.axis,
+            "is_sphere": np.array(group.is_sphere), "centre": group.centre,
+            "roughness": np.array(group.roughness)}

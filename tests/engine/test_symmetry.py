@@ -195,3 +195,20 @@ def test_roughness_is_the_detail_that_poses_a_round_shape():
     assert smooth.roughness < 0.2 * bumpy.roughness
     box = trimesh.creation.box(extents=(6, 3, 2))
     assert find_symmetry_group(box.vertices, box.faces).roughness == 0.0
+
+
+def test_a_group_is_found_once_per_shape(tmp_path, monkeypatch):
+    import tactile_viz.engine.symmetry as symmetry
+
+    mesh = trimesh.creation.cylinder(radius=1, height=4, sections=64)
+    first = symmetry_group(model_of(mesh, tmp_path))
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("found again")
+
+    monkeypatch.setattr(symmetry, "find_symmetry_group", refuse)
+    again = symmetry_group(model_of(mesh, tmp_path))  # a new model of the same shape
+    assert again.name == first.name == "D∞"
+    np.testing.assert_allclose(again.axis, first.axis)
+    np.testing.assert_allclose(again.rotations, first.rotations)
+    assert again.roughness == pytest.approx(first.roughness)
