@@ -1,27 +1,24 @@
-"""Surfaces for display: no more triangles than the viewport can show.
+"""Meshes for display: the layers' data sets, and a GPIS surface no finer than the viewport
+can show.
 
 A software render (Mesa's llvmpipe, as on a machine without a GPU) costs time for every
-triangle of every translucent surface, and the window shares its cores with the engine: the
-ground truth and the MAP shape (20,000 faces each for the bundled objects) and a GPIS surface
-from a fine grid (up to about 25,000 faces at a run's last step) are drawn with at most
-:func:`face_budget` triangles each. The budget grants each face :data:`PIXELS_PER_FACE`
-pixels of the viewport (a 716 x 825 viewport, that of the default 1500 x 900 window: 11,800
-faces): a surface filling the whole view would get faces of about 7 x 7 pixels, and an
-object fills a part of the view with half of its faces turned away, so the detail removed
-is smaller than a few pixels. Only the display is decimated; the engine's meshes are
-untouched.
-
-Also the builders of the layers' meshes (triangles, spheres, lines) as pyvista data sets.
+triangle, and the window shares its cores with the engine. A GPIS surface is remade every
+step from the engine's grid; at a run's last step (a finer grid) it reaches about 25,000
+faces. It is drawn with at most :func:`face_budget` triangles, which grants each face
+:data:`PIXELS_PER_FACE` pixels of the viewport (a 716 x 825 viewport, that of the default
+1500 x 900 window: 11,800 faces): a surface filling the whole view would get faces of about
+7 x 7 pixels, and a surface fills a part of the view with half of its faces turned away, so
+the detail removed is a few pixels across. Only the display is decimated.
 
 Decimation (vtkDecimatePro) removes vertices and never moves the ones it keeps, so a
-decimated surface is a subset of its vertices with new faces over them: per-vertex data
-(the GPIS variance) is taken at the kept vertices, and a shape that moves rigidly (the MAP
-shape: the same model's faces, posed anew each step) is decimated once and then only
-indexed (:class:`Decimations`).
-"""
+decimated surface is a subset of its vertices with new faces over them, and its per-vertex
+variance is taken at the kept vertices (the colours cover it as before, and the colour bar
+keeps the whole surface's range).
 
-import hashlib
-from collections import OrderedDict
+The ground truth and the MAP shape (20,000 faces each for the bundled objects) are not
+decimated: halving them saved a few ms of a 35 ms render (neptune, 716 x 825), and the MAP
+shape changes class during a run, each new one a 60 ms decimation.
+"""
 
 import numpy as np
 import pyvista as pv
@@ -72,37 +69,6 @@ def decimation(vertices, faces, budget):
                           & (triangles[:, 0] != triangles[:, 2])]
     kept, inverse = np.unique(triangles, return_inverse=True)
     return kept, inverse.reshape(-1, 3)
-
-
-class Decimations:
-    """Decimations of surfaces that come back (the MAP shape of each class, the ground
-    truth), by their faces' content, vertex count and budget: each is computed once and the
-    vertices of any pose of that surface are then only indexed.
-
-    Parameters
-    ----------
-    size : int
-        Decimations kept (the least recently used go first).
-    """
-
-    def __init__(self, size=16):
-        self.size = int(size)
-        self._cache = OrderedDict()
-
-    def __call__(self, vertices, faces, budget):
-        """``(kept, faces)`` as :func:`decimation` returns them."""
-        faces = np.ascontiguousarray(faces)
-        if len(faces) <= budget:
-            return np.arange(len(vertices)), np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-        key = (hashlib.blake2b(faces.data, digest_size=16).digest(), faces.shape,
-               len(vertices), int(budget))
-        found = self._cache.get(key)
-        if found is None:
-            found = self._cache[key] = decimation(vertices, faces, budget)
-            while len(self._cache) > self.size:
-                self._cache.popitem(last=False)
-        self._cache.move_to_end(key)
-        return found
 
 
 def faces_to_polydata(vertices, faces, normals=False):

@@ -4,9 +4,9 @@ All methods touch VTK and must run on the GUI thread. Each layer's actor is crea
 then updated in place (its mapper's data set is swapped with ``copy_from``; a layer whose data
 did not change since it was drawn is left as it is, so nothing is uploaded again), nothing
 renders while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a
-single render. The camera is never moved by a step. Surfaces are drawn with no more faces
-than the viewport can show (:mod:`tactile_viz.gui.display_mesh`); the colour bar spans the
-whole GPIS surface's variance.
+single render. The camera is never moved by a step. The GPIS surface is drawn with no more
+faces than the viewport can show (:mod:`tactile_viz.gui.display_mesh`); the colour bar spans
+the whole surface's variance.
 
 Everything drawn in world units (contact and target spheres) is a share of the scene's length
 scale, :attr:`ViewportLayers.scene_length` (the window sets it to the priors' reference size,
@@ -20,7 +20,7 @@ import vtk
 
 from ..engine.params import PAPER_SIZE
 from ..engine.transforms import transform_points
-from .display_mesh import (Decimations, decimation, face_budget, faces_to_polydata,  # noqa: F401
+from .display_mesh import (decimation, face_budget, faces_to_polydata,  # noqa: F401
                            polylines, spheres, vertex_normals)
 
 # name -> (legend label, colour)
@@ -131,9 +131,7 @@ class ViewportLayers:
         self._legend_key = None
         self._variance_range = None
         self._overlay = None
-        self.decimations = Decimations()
         self._drawn = {}  # layer name -> the inputs it was last drawn from
-        self._truth = None
         self.budget = face_budget(*self._viewport_pixels())
 
     # ------------------------------------------------------------------ public
@@ -197,9 +195,8 @@ class ViewportLayers:
             if render:
                 self.plotter.render()
             return
-        self._truth = truth
         vertices = truth.to_world(truth.model.mesh.vertices)
-        self._put("truth", self.surface(vertices, truth.model.mesh.faces),
+        self._put("truth", faces_to_polydata(vertices, truth.model.mesh.faces, normals=True),
                   color=LAYERS["truth"][1], opacity=0.35, smooth=True)
         self._sync_overlays()
         if render:
@@ -231,28 +228,20 @@ class ViewportLayers:
             self.plotter.render()
 
     def relayout(self):
-        """Size the legend and the surfaces' face budget for the current viewport (call on
-        resize; the truth is drawn again now, the other layers at the next step)."""
+        """Size the legend and the GPIS surface's face budget for the current viewport
+        (call on resize; the surface follows at the next step)."""
         self._legend_key = None
-        budget = face_budget(*self._viewport_pixels())
-        if budget != self.budget:
-            self.budget = budget
-            if self._truth is not None:
-                self.show_truth(self._truth, render=False)
+        self.budget = face_budget(*self._viewport_pixels())
         self._sync_overlays()
 
-    def surface(self, vertices, faces, variance=None, reuse=True):
-        """A surface as drawn: decimated to :attr:`budget` faces, with vertex normals (and
-        its ``variance`` at the vertices kept). ``reuse``: the faces come back posed anew
-        (the truth, the MAP shape), so their decimation is kept."""
-        if reuse:
-            kept, faces = self.decimations(vertices, faces, self.budget)
-        else:
-            kept, faces = decimation(vertices, faces, self.budget)
+    def gpis_surface(self, vertices, faces, variance):
+        """The GPIS surface as drawn: decimated to :attr:`budget` faces (a new surface every
+        step, so its decimation is not kept), with vertex normals and its variance at the
+        vertices kept."""
+        kept, faces = decimation(vertices, faces, self.budget)
         mesh = faces_to_polydata(np.asarray(vertices, dtype=float)[kept], faces, normals=True)
-        if variance is not None:
-            mesh.point_data["variance"] = np.asarray(variance, dtype=float)[kept]
-            mesh.set_active_scalars("variance")
+        mesh.point_data["variance"] = np.asarray(variance, dtype=float)[kept]
+        mesh.set_active_scalars("variance")
         return mesh
 
     # ------------------------------------------------------------------ layers
@@ -277,9 +266,10 @@ class ViewportLayers:
             return [snapshot.hypotheses]
         if name in ("contacts", "noncontacts", "target"):
             return [getattr(snapshot, name), self.radius(name)]
-        fields = {"map": ("map_vertices", "map_faces"), "path": ("paths",),
-                  "gpis": ("gpis_vertices", "gpis_faces", "gpis_variance")}[name]
-        return [getattr(snapshot, field) for field in fields] + [self.budget]
+        if name == "gpis":
+            return [snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
+                    self.budget]
+        return [snapshot.map_vertices, snapshot.map_faces] if name == "map" else [snapshot.paths]
 
     def _unchanged(self, name, inputs):
         before = self._drawn.get(name)
@@ -306,16 +296,16 @@ class ViewportLayers:
                 return
             self._drawn[name] = inputs
             if name == "map":
-                self._put("map", self.surface(snapshot.map_vertices, snapshot.map_faces),
+                self._put("map", faces_to_polydata(snapshot.map_vertices, snapshot.map_faces,
+                                                   normals=True),
                           color=LAYERS["map"][1], opacity=0.55, smooth=True)
             elif name == "hypotheses":
                 self._put("hypotheses", self._ghosts(snapshot.hypotheses), scalars="rgba",
                           rgba=True, smooth=True)
             elif name == "gpis":
                 variance = np.asarray(snapshot.gpis_variance, dtype=float)
-                # A new surface every step: its decimation (if over budget) is not kept.
-                surface = self.surface(snapshot.gpis_vertices, snapshot.gpis_faces, variance,
-                                       reuse=False)
+                surface = self.gpis_surface(snapshot.gpis_vertices, snapshot.gpis_faces,
+                                            variance)
                 finite = variance[np.isfinite(variance)]
                 low, high = (float(finite.min()), float(finite.max())) if len(finite) else (0, 1)
                 if high <= low:
