@@ -1,8 +1,9 @@
 """Viewport layers: one pyvista actor per kind of thing shown, each with a visibility toggle.
 
 All methods touch VTK and must run on the GUI thread. Each layer's actor is created once and
-then updated in place (its mapper's data set is swapped with ``copy_from``; a layer whose data
-did not change since it was drawn is left as it is, so nothing is uploaded again), nothing
+then updated in place (the mapper draws the layer's own data set, into which each new mesh
+is shallow-copied; a layer whose data did not change since it was drawn, compared with the
+snapshot's read-only arrays it was drawn from, is left as it is: nothing is uploaded), nothing
 renders while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a
 single render. The camera is never moved by a step. The GPIS surface is drawn with no more
 faces than the viewport can show (:mod:`tactile_viz.gui.display_mesh`); the colour bar spans
