@@ -1,9 +1,13 @@
 """Viewport layers: one pyvista actor per kind of thing shown, each with a visibility toggle.
 
 All methods touch VTK and must run on the GUI thread. Each layer's actor is created once and
-then updated in place (its mapper's data set is swapped with ``copy_from``), nothing renders
-while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a single
-render. The camera is never moved by a step.
+then updated in place (the mapper draws the layer's own data set, into which each new mesh
+is shallow-copied; a layer whose data did not change since it was drawn, compared with the
+snapshot's read-only arrays it was drawn from, is left as it is: nothing is uploaded), nothing
+renders while a step is being drawn and :meth:`ViewportLayers.show_snapshot` ends with a
+single render. The camera is never moved by a step. The GPIS surface is drawn with no more
+faces than the viewport can show (:mod:`tactile_viz.gui.display_mesh`); the colour bar spans
+the whole surface's variance.
 
 Everything drawn in world units (contact and target spheres) is a share of the scene's length
 scale, :attr:`ViewportLayers.scene_length` (the window sets it to the priors' reference size,
@@ -17,6 +21,8 @@ import vtk
 
 from ..engine.params import PAPER_SIZE
 from ..engine.transforms import transform_points
+from .display_mesh import (decimation, face_budget, faces_to_polydata,  # noqa: F401
+                           polylines, spheres, vertex_normals)
 
 # name -> (legend label, colour)
 LAYERS = {
@@ -48,67 +54,6 @@ TRANSLUCENT_SURFACES = ("truth", "map", "hypotheses")
 # Drawn over every other layer: the target is a point of the MAP surface, often on its far
 # side, where behind the translucent truth and MAP shape it did not show at all.
 ON_TOP = ("target",)
-
-
-def faces_to_polydata(vertices, faces, normals=False):
-    """A ``pv.PolyData`` from (n, 3) vertices and (m, 3) triangle indices, with vertex
-    normals for smooth shading if ``normals``."""
-    vertices = np.asarray(vertices, dtype=float)
-    faces = np.asarray(faces, dtype=np.int64)
-    cells = np.hstack([np.full((len(faces), 1), 3, dtype=np.int64), faces]).ravel()
-    mesh = pv.PolyData(vertices, cells)
-    if normals:
-        mesh.point_data.active_normals = vertex_normals(vertices, faces)
-    return mesh
-
-
-def vertex_normals(vertices, faces):
-    """Area-weighted unit vertex normals of a triangle mesh.
-
-    The layers' meshes carry their own normals (rather than pyvista's ``smooth_shading``,
-    which puts a filter between the mesh and the mapper) so that a layer's data set can be
-    swapped in place.
-    """
-    triangles = vertices[faces]
-    face_normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    normals = np.zeros_like(vertices)
-    for axis in range(3):
-        weights = np.repeat(face_normals[:, axis], 3)
-        normals[:, axis] = np.bincount(faces.ravel(), weights, minlength=len(vertices))
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return normals / np.where(length > 0, length, 1.0)
-
-
-_SPHERE = None
-
-
-def spheres(points, radius):
-    """Small spheres of ``radius`` (scene units) at (k, 3) points, as one mesh."""
-    global _SPHERE
-    if _SPHERE is None:
-        # 8 x 8: 96 triangles a contact (10 x 10: 160); at a contact's size the difference
-        # does not show, the software renderer's time on a few hundred contacts does.
-        _SPHERE = pv.Sphere(radius=1.0, theta_resolution=8, phi_resolution=8)
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    unit = np.asarray(_SPHERE.points)
-    cells = _SPHERE.faces.reshape(-1, 4)
-    vertices = (points[:, None, :] + radius * unit[None]).reshape(-1, 3)
-    offsets = (np.arange(len(points)) * len(unit))[:, None, None]
-    faces = (cells[None, :, 1:] + offsets).reshape(-1, 3)
-    mesh = faces_to_polydata(vertices, faces)
-    mesh.point_data.active_normals = np.tile(unit, (len(points), 1))
-    return mesh
-
-
-def polylines(paths):
-    """One ``pv.PolyData`` holding every (k, 3) path as a line."""
-    points, cells, offset = [], [], 0
-    for path in paths:
-        path = np.asarray(path, dtype=float)
-        points.append(path)
-        cells.append(np.r_[len(path), offset + np.arange(len(path))])
-        offset += len(path)
-    return pv.PolyData(np.vstack(points), lines=np.concatenate(cells))
 
 
 def relative_luminance(rgb):
@@ -187,6 +132,8 @@ class ViewportLayers:
         self._legend_key = None
         self._variance_range = None
         self._overlay = None
+        self._drawn = {}  # layer name -> the inputs it was last drawn from
+        self.budget = face_budget(*self._viewport_pixels())
 
     # ------------------------------------------------------------------ public
     def set_visible(self, name, visible):
@@ -282,9 +229,21 @@ class ViewportLayers:
             self.plotter.render()
 
     def relayout(self):
-        """Size the legend for the current viewport (call on resize)."""
+        """Size the legend and the GPIS surface's face budget for the current viewport
+        (call on resize; the surface follows at the next step)."""
         self._legend_key = None
+        self.budget = face_budget(*self._viewport_pixels())
         self._sync_overlays()
+
+    def gpis_surface(self, vertices, faces, variance):
+        """The GPIS surface as drawn: decimated to :attr:`budget` faces (a new surface every
+        step, so its decimation is not kept), with vertex normals and its variance at the
+        vertices kept."""
+        kept, faces = decimation(vertices, faces, self.budget)
+        mesh = faces_to_polydata(np.asarray(vertices, dtype=float)[kept], faces, normals=True)
+        mesh.point_data["variance"] = np.asarray(variance, dtype=float)[kept]
+        mesh.set_active_scalars("variance")
+        return mesh
 
     # ------------------------------------------------------------------ layers
     def _has(self, name, snapshot):
@@ -302,10 +261,41 @@ class ViewportLayers:
             return bool(snapshot.paths)
         return True
 
+    def _inputs(self, name, snapshot):
+        """What a layer is drawn from (compared with what it was last drawn from)."""
+        if name == "hypotheses":
+            return [snapshot.hypotheses]
+        if name in ("contacts", "noncontacts", "target"):
+            return [getattr(snapshot, name), self.radius(name)]
+        if name == "gpis":
+            return [snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
+                    self.budget]
+        return [snapshot.map_vertices, snapshot.map_faces] if name == "map" else [snapshot.paths]
+
+    def _unchanged(self, name, inputs):
+        before = self._drawn.get(name)
+        if before is None or len(before) != len(inputs) or name not in self.actors:
+            return False
+        for old, new in zip(before, inputs):
+            if old is new:
+                continue
+            if isinstance(new, (float, int)):  # a radius, the face budget
+                if old != new:
+                    return False
+            elif not (isinstance(new, np.ndarray) and isinstance(old, np.ndarray)
+                      and np.array_equal(old, new)):
+                return False  # (paths and hypotheses, sequences: drawn anew unless the same)
+        return True
+
     def _update(self, name, snapshot):
         present = self._has(name, snapshot)
         self.present[name] = present
         if present:
+            inputs = self._inputs(name, snapshot)
+            if self._unchanged(name, inputs):
+                self._apply_visibility(name)  # drawn as it is: nothing to upload
+                return
+            self._drawn[name] = inputs
             if name == "map":
                 self._put("map", faces_to_polydata(snapshot.map_vertices, snapshot.map_faces,
                                                    normals=True),
@@ -314,11 +304,9 @@ class ViewportLayers:
                 self._put("hypotheses", self._ghosts(snapshot.hypotheses), scalars="rgba",
                           rgba=True, smooth=True)
             elif name == "gpis":
-                surface = faces_to_polydata(snapshot.gpis_vertices, snapshot.gpis_faces,
-                                            normals=True)
                 variance = np.asarray(snapshot.gpis_variance, dtype=float)
-                surface.point_data["variance"] = variance
-                surface.set_active_scalars("variance")
+                surface = self.gpis_surface(snapshot.gpis_vertices, snapshot.gpis_faces,
+                                            variance)
                 finite = variance[np.isfinite(variance)]
                 low, high = (float(finite.min()), float(finite.max())) if len(finite) else (0, 1)
                 if high <= low:
@@ -389,6 +377,10 @@ class ViewportLayers:
         elif actor is None:
             actor = self.plotter.add_mesh(mesh, name=name, reset_camera=False, render=False,
                                           show_scalar_bar=False, **style)
+            # The mapper draws this data set itself: with scalars pyvista puts a filter
+            # before it, which could hand the mapper its first output again (a GPIS surface
+            # stuck at the one first drawn when it was decimated).
+            actor.mapper.SetInputData(mesh)
             if smooth:
                 actor.prop.interpolation = "gouraud"  # with the mesh's own normals
             if name in TRANSLUCENT_SURFACES:
@@ -398,7 +390,7 @@ class ViewportLayers:
                 actor.prop.culling = "back"
             self.actors[name] = actor
         else:
-            actor.mapper.dataset.copy_from(mesh, deep=False)
+            actor.GetMapper().GetInput().ShallowCopy(mesh)  # (also the arrays' roles)
         self.present[name] = True
         self._apply_visibility(name)
 
@@ -413,7 +405,11 @@ class ViewportLayers:
 
     def _sync_scalar_bar(self):
         bars = getattr(self.plotter, "scalar_bars", {})
-        if self.shown("gpis") and SCALAR_BAR not in bars:
+        if SCALAR_BAR in bars:
+            # Hidden, not removed, while a step has no GPIS surface: adding it again laid
+            # out its text anew in the next render (a GPIS surface comes and goes).
+            bars[SCALAR_BAR].SetVisibility(self.shown("gpis"))
+        elif self.shown("gpis"):
             # Inside the viewport: the bar and its labels end before the right edge.
             self.plotter.add_scalar_bar(title=SCALAR_BAR, mapper=self.actors["gpis"].mapper,
                                         vertical=True, position_x=0.84, position_y=0.12,
@@ -427,9 +423,6 @@ class ViewportLayers:
             # (drawn over it) and a sensor path cut letters out of the title.
             self.plotter.renderer.RemoveViewProp(bar)
             self.overlay().AddViewProp(bar)
-        elif not self.shown("gpis") and SCALAR_BAR in bars:
-            self.overlay().RemoveViewProp(bars[SCALAR_BAR])
-            self.plotter.remove_scalar_bar(SCALAR_BAR, render=False)
 
     def _viewport_pixels(self):
         try:

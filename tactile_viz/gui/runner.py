@@ -19,9 +19,12 @@ from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 from superqt.utils import thread_worker
 
 
-# Largest fraction of a run's wall time spent drawing. 0.07 drew fewer steps without a
-# measurable gain (engine in a thread).
-DRAW_DUTY = 0.1
+# Largest fraction of a run's wall time spent drawing. The window's drawing takes the cores
+# from the engine process, so a run's overhead follows it. 0.07 since a run's renders are lit
+# by one light (a draw about 75 ms instead of 100 ms for a novel object): about as many steps
+# drawn a second as 0.1 drew before (with the engine in a thread 0.07 had drawn fewer steps
+# without a measurable gain).
+DRAW_DUTY = 0.07
 
 
 

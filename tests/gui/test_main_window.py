@@ -771,6 +771,22 @@ def test_run_draws_without_multisampling(qtbot, window):
     assert window.scene.latest.step == 3 and samples() == IDLE_MULTISAMPLES
 
 
+def test_run_draws_with_one_headlight(qtbot, window):
+    # Each light shades every fragment of a software render again: a run is lit by one
+    # headlight, an idle view by pyvista's light kit (the same lights as before the run).
+    renderer = window.plotter.renderer
+    kit = list(renderer.lights)
+    assert len(kit) > 1
+    _cap_steps(window.scene, 3)
+    window.actions["finish"].trigger()
+    assert window.running
+    lights = list(renderer.lights)
+    assert len(lights) == 1 and lights[0].is_headlight
+    _wait_idle(qtbot, window)
+    assert window.scene.latest.step == 3
+    assert [id(light) for light in renderer.lights] == [id(light) for light in kit]
+
+
 def test_steps_run_in_the_engine_process_and_come_back(qtbot, window, known_library,
                                                        settings):
     # The default window steps in the app's engine process: the session the scene holds
