@@ -304,10 +304,19 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             self.state.given_up.append(target)
         self._follow_frontier(observations[-1])
         if not isinstance(observations[0], Contact):
+            before = len(self.state.free_space)
             self.state.free_space = free_space_points(self.state.free_space, paths[0],
                                                  self._p.contact_spacing)
-            self.state.missed = np.vstack([self.state.missed, paths[0][[0, -1]][None]])
+            self._record_miss(before)
         return paths, observations
+
+    def _record_miss(self, before):
+        """Keep a missed target probe's path for the decision: from the first to the last
+        free-space point the step added (what a recording holds, so a replay keeps the
+        same)."""
+        added = self.state.free_space[before:]
+        if len(added) >= 2:
+            self.state.missed = np.vstack([self.state.missed, added[[0, -1]][None]])
 
     def observe(self, observations: Observation | Sequence[Observation],
                 free_space: np.ndarray | None = None) -> Snapshot | None:
@@ -368,6 +377,8 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
                 self.state.held = (observations, points)  # no estimate before a contact
                 return None
             self._record_sweep(observations[0], self._approach_start())
+            missed_target = (self.state.check is None and self.state.target is not None
+                             and not isinstance(observations[0], Contact))
             if self.state.check is not None:
                 self._count_check(observations[0])
             elif self.state.target is not None:
@@ -375,8 +386,11 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
                     self.state.given_up.append(self.state.target.position)
                 self._follow_frontier(observations[-1])
             if len(points):
+                before = len(self.state.free_space)
                 self.state.free_space = thin_points(np.vstack([self.state.free_space, points]),
                                                self._p.contact_spacing)
+                if missed_target:
+                    self._record_miss(before)
             return self._update([], observations, {})
         except BaseException:
             self._restore(saved)
