@@ -50,6 +50,19 @@ def _filter(library, touches, seed=0):
     return pf, state
 
 
+def _box_or_knobbed(shapes):
+    """A filter holding 40 touches of the knobbed box that miss the knob, and two
+    particles at the identity: the box and the knobbed box."""
+    touches = [t for t in _touches(shapes["knobbed"], 80, seed=2)
+               if not (t.position[0] > 1.4 and t.position[2] > 0.9)][:40]
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    pf.contact_positions = np.array([t.position for t in touches])
+    pf.contact_normals = np.array([t.normal for t in touches])
+    pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
+                             np.zeros((2, 3)), np.log([0.5, 0.5]))
+    return pf
+
+
 def test_well_spread_touches_of_a_distinct_shape_are_decided(shapes):
     pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
     decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
@@ -66,15 +79,7 @@ def test_too_few_contacts_or_a_novel_belief_are_not_decided(shapes):
 def test_a_rival_that_fits_as_well_blocks_the_decision(shapes):
     """Touches that miss the knob: the box and the knobbed box both fit; neither is
     decided, and the target that tells them apart lies on the knob."""
-    knobbed = shapes["knobbed"]
-    touches = [t for t in _touches(knobbed, 80, seed=2)
-               if not (t.position[0] > 1.4 and t.position[2] > 0.9)][:40]
-    pf = ParticleFilter(shapes, FilterParams(), rng=0)
-    pf.contact_positions = np.array([t.position for t in touches])
-    pf.contact_normals = np.array([t.normal for t in touches])
-    both = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0), np.zeros((2, 3)),
-                     np.log([0.5, 0.5]))
-    pf.particles = both
+    pf = _box_or_knobbed(shapes)
     state = pf._record(0)
     decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
     assert not decision.decided
@@ -203,14 +208,7 @@ def test_a_miss_through_a_rivals_part_refutes_it(shapes):
     """Touches that miss the knob fit the box and the knobbed box alike; a probe that
     passed through where the knob would be, and ended beyond it, refutes the knobbed box
     (its end alone does not)."""
-    knobbed = shapes["knobbed"]
-    touches = [t for t in _touches(knobbed, 80, seed=2)
-               if not (t.position[0] > 1.4 and t.position[2] > 0.9)][:40]
-    pf = ParticleFilter(shapes, FilterParams(), rng=0)
-    pf.contact_positions = np.array([t.position for t in touches])
-    pf.contact_normals = np.array([t.normal for t in touches])
-    pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
-                             np.zeros((2, 3)), np.log([0.5, 0.5]))
+    pf = _box_or_knobbed(shapes)
     # The knob is at (2, 0, 1) in the knobbed box's frame (meshes are centred on loading).
     pf.noncontact_positions = np.array([[2.0, 2.0, 1.0]])  # the probe's end: past the knob
     state = pf._record(0)
