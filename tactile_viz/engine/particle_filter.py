@@ -403,18 +403,24 @@ class ParticleFilter:
             rotation, translation = self._refined_map(best)
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
-        terms = np.full(len(local), -np.inf)
-        distance, _ = self.bank.evaluate(best.classes[:1], local[None])
-        for offset in params.position_noise * NOISE_OFFSETS[:None if params.position_noise else 1]:
-            # The normal a reading ``offset`` off along its normal would meet (a thin wall's
-            # other side lies within the noise); the distance stays the reading's own, so
-            # a shape that merely lies near the contacts gains nothing. The offset costs
-            # as a distance does, with the same sigma_d.
+        distance, gradients = self.bank.evaluate(best.classes[:1], local[None])
+        distance, own = distance[0], gradients[0]
+        terms = log_contact_likelihood(distance, own, normals, params.sigma_d, params.sigma_n,
+                                       params.outlier_probability)
+        for offset in params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ():
+            # The normal a reading ``offset`` off along its normal would meet, where the
+            # offset crosses a fold of the distance field (a thin wall's middle: the grid's
+            # normal turns by more than 90 degrees) and nowhere else: a best-of-five normal
+            # elsewhere would grant every contact on a curved or edged near twin slack
+            # that no noise explains. The distance stays the reading's own, so a shape
+            # that merely lies near the contacts gains nothing; the offset costs as a
+            # distance does, with the same sigma_d.
             _, gradients = self.bank.evaluate(best.classes[:1], (local + offset * normals)[None])
-            shifted = log_contact_likelihood(distance[0], gradients[0], normals, params.sigma_d,
+            fold = np.einsum("ij,ij->i", gradients[0], own) < 0
+            shifted = log_contact_likelihood(distance, gradients[0], normals, params.sigma_d,
                                              params.sigma_n, params.outlier_probability)
             prior = -0.5 * (offset / params.sigma_d) ** 2
-            terms = np.maximum(terms, shifted + prior)
+            terms = np.where(fold, np.maximum(terms, shifted + prior), terms)
         total, kept = _trimmed(terms, params.outlier_probability)
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
