@@ -161,11 +161,9 @@ class FilterParams:
     position_noise : float, size units
         The sensor's position noise the novelty test allows for (0: the paper's test; set
         by :func:`~.presets.noise_matched`): a reported contact may lie up to two stds off
-        the surface along its normal, so where such an offset crosses a fold of the
-        distance field (the grid's normal turns by more than 60 degrees: a noisy touch of a
-        thin wall can land past its middle, where the normal points the other way) a
-        contact's term is the best over the offsets, an offset costing as a distance does;
-        the test takes the MAP at its pose refined to the contacts.
+        the surface along its normal; where such an offset crosses a fold (the grid's normal
+        turns over 60 degrees: past a thin wall's middle) a contact's term is the best over
+        the offsets, an offset costing as a distance does; the MAP is taken refined.
     n_features : int
         Poisson-disk feature points per object (paper 200).
     sdf_resolution : int
