@@ -1,22 +1,16 @@
 """The bag example (examples/robot_bag.py): a robot's trial logged to a ROS 2 bag replays
 to the live estimate, and the replay's export opens with the bag library."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("rosbags")
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robot_bag.py"
-
 
 @pytest.fixture(scope="module")
-def bag_example():
-    spec = importlib.util.spec_from_file_location("robot_bag_example", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def bag_example(load_example):
+    return load_example("robot_bag.py", "robot_bag_example")
 
 
 @pytest.mark.slow

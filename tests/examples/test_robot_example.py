@@ -1,20 +1,12 @@
 """The example robot (examples/robot.py): guarded moves by ray casting on a mesh in metres,
 driving a session in the callback and the ask/tell styles."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
-
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robot.py"
 
 
 @pytest.fixture(scope="module")
-def robot_example():
-    spec = importlib.util.spec_from_file_location("robot_example", EXAMPLE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def robot_example(load_example):
+    return load_example("robot.py", "robot_example")
 
 
 def test_both_styles_recognise_a_mug_as_the_simulator_does(robot_example, capsys):
