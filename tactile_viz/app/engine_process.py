@@ -7,18 +7,20 @@ process of its own the engine keeps a core and an interpreter, and the window dr
 other core meanwhile.
 
 The session stays where it was made (the app's model reads it as before); for a run its
-state goes to the engine process, every snapshot comes back as it is made (and is appended
-to the session's list) and at the end the session's state comes back (also after a failed
-step: then as before that step, which the session restored). A session the process already
+pickled state (:meth:`Session.__getstate__ <tactile_viz.engine.session.Session>`: its
+constructor's arguments, its filter and its checkpoint) goes to the engine process, every
+snapshot comes back as it is made (and is appended to the session's list) and at the end
+the session's :class:`~tactile_viz.engine.session.state.Checkpoint` comes back, what a step
+changes (also after a failed step: then as before that step, which the session restored). A session the process already
 holds (the one it ran last, not stepped elsewhere since) is not sent again, and priors are
 sent once (by name, content, parameters and learned flag; those the session sent last does
 not use are let go), so a run of a known session costs a few bytes to start. Snapshots
 refer to their MAP shape's faces rather than copy them.
 
 Protocol, parent to child: ``("models", [(key, bytes), ...])``, ``("forget", [key, ...])``,
-``("run", state bytes or None, count)``, ``("quit",)``; child to parent:
-``("snapshot", Snapshot, seconds)`` after each step, ``("done", state, error or None)`` at
-the end.
+``("run", (class, state) bytes or None, count)``, ``("quit",)``; child to parent:
+``("snapshot", Snapshot, seconds)`` after each step, ``("done", Checkpoint, error or
+None)`` at the end.
 """
 
 import atexit
@@ -46,9 +48,6 @@ log = logging.getLogger(__name__)
 ENGINE_NICENESS = 10
 POLL_SECONDS = 0.02  # how often a waiting run looks at its stop flag and at the process
 ENGINES = ("process", "thread")  # where the app steps: this process's child, or a thread
-# Not sent back after a run: the snapshots (the parent has them all) and what a step never
-# changes.
-CONSTANT_ATTRIBUTES = ("snapshots", "library", "truth", "recording", "source")
 
 
 class EngineProcessError(TactileVizError):
@@ -97,12 +96,19 @@ def _loads(data, models):
 
 
 def _outgoing_state(session):
-    """The session to send: the snapshots reduced to what a step reads (their count and
-    the latest)."""
-    state = dict(session.__dict__)
+    """The session to send, as its class and pickled state, with the snapshots reduced to
+    what a step reads (their count and the latest)."""
+    state = session.__getstate__()
     count = len(session.snapshots)
     state["snapshots"] = [None] * (count - 1) + [session.snapshots[-1]] if count else []
     return type(session), state
+
+
+def _incoming_session(cls, state):
+    """The session :func:`_outgoing_state` sent."""
+    session = cls.__new__(cls)
+    session.__setstate__(state)
+    return session
 
 
 # ---------------------------------------------------------------------------- child
@@ -135,9 +141,7 @@ def serve(connection, stop, niceness=0):
         elif kind == "run":
             _, data, count = message
             if data is not None:
-                cls, state = _loads(data, models)
-                session = cls.__new__(cls)
-                session.__dict__.update(state)
+                session = _incoming_session(*_loads(data, models))
             _serve_run(outbox, session, count, stop, keys, faces)
 
 
@@ -175,10 +179,9 @@ def _serve_run(outbox, session, count, stop, keys, faces):
         if len(session.snapshots) > 1:
             session.snapshots[-2] = None  # the parent keeps them; a step reads the latest
         outbox.put(_dumps(("snapshot", snapshot, ended), key_of, faces))
-    state = {k: v for k, v in session.__dict__.items() if k not in CONSTANT_ATTRIBUTES}
     if error is not None:
         error = _portable(error)
-    outbox.put(_dumps(("done", state, error), key_of, faces))
+    outbox.put(_dumps(("done", session.checkpoint(), error), key_of, faces))
 
 
 def _portable(error):
@@ -316,8 +319,8 @@ class EngineProcess:
             if step_ends is not None:
                 step_ends.append(ended)
             return snapshot
-        state, error = rest
-        session.__dict__.update(state)
+        checkpoint, error = rest
+        session.restore(checkpoint)
         self._resident = (weakref.ref(session), session.step_count)
         if error is not None:
             raise error

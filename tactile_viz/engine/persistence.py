@@ -5,6 +5,10 @@ meshes, the simulated object and its pose when there is one) and the history: th
 of steps, the contacts, and for a session fed by its caller the recorded observations
 (:mod:`~tactile_viz.engine.observation_file` text). Loading replays the steps, which are
 deterministic from the seed, and checks that the contacts come out the same.
+
+The session's set-up is what :meth:`Session.setup <tactile_viz.engine.session.Session.setup>`
+gives (its constructor's arguments). This module does not import the session (which
+imports it): :func:`load_session` is given the class to rebuild.
 """
 
 import io
@@ -13,14 +17,13 @@ import json
 import numpy as np
 import trimesh
 
-from .errors import TactileVizError
+from .errors import SessionError, TactileVizError
 from .files import write_atomic
 from .library import PriorLibrary
 from .meshes import check_arrays
 from .objects import ObjectModel
 from .observation_file import ObservationFileError, format_observations, parse_observations
 from .params import SessionParams, _check_integer
-from .session import Session, SessionError
 from .simulator import GroundTruth
 
 FORMAT = "tactile_viz-session"
@@ -33,13 +36,14 @@ def save_session(session, path):
     -------
     path
     """
-    truth = session.truth
+    setup = session.setup()
+    truth, library = setup.get("truth"), setup["library"]
     config = {"format": FORMAT, "version": 2 if truth is None else 1,
-              "strategy": session.strategy, "seed": session.seed,
-              "params": session.params.to_dict(), "sensor_noise": list(session.sensor_noise),
-              "sensor_outliers": session.simulator.outlier_fraction if session.simulator else 0.0,
-              "steps": session.step_count, "library": session.library.names,
-              "learned": [model.name for model in session.library if model.learned],
+              "strategy": setup["strategy"], "seed": setup["seed"],
+              "params": setup["params"].to_dict(), "sensor_noise": list(setup["sensor_noise"]),
+              "sensor_outliers": setup.get("sensor_outliers", 0.0) if truth else 0.0,
+              "steps": session.step_count, "library": library.names,
+              "learned": [model.name for model in library if model.learned],
               "truth_name": None if truth is None else truth.model.name}
     arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
               "contacts": session.filter.contact_positions,
@@ -51,7 +55,7 @@ def save_session(session, path):
         arrays.update(truth_rotation=truth.rotation, truth_translation=truth.translation,
                       truth_vertices=truth.model.mesh.vertices,
                       truth_faces=truth.model.mesh.faces)
-    for index, model in enumerate(session.library):
+    for index, model in enumerate(library):
         arrays[f"prior{index}_vertices"] = model.mesh.vertices
         arrays[f"prior{index}_faces"] = model.mesh.faces
     buffer = io.BytesIO()
@@ -63,9 +67,9 @@ def save_session(session, path):
     return path
 
 
-def _read(path):
-    """The session's set-up from ``path``: (session with no steps, steps, contacts,
-    recorded steps or None)."""
+def _read(path, build):
+    """The session's set-up from ``path``: (``build(**set-up)``, a session with no steps;
+    steps; contacts; recorded steps or None)."""
     with np.load(path, allow_pickle=False) as stored:
         arrays = {name: stored[name] for name in stored.files}
     config = json.loads(arrays["config"].tobytes().decode())
@@ -89,10 +93,10 @@ def _read(path):
         rotation, translation = _checked_pose(arrays["truth_rotation"],
                                               arrays["truth_translation"])
         truth = GroundTruth(truth_model, rotation, translation)
-    session = Session(truth, library, config["strategy"],
-                      SessionParams.from_dict(config["params"]), config["seed"],
-                      tuple(config["sensor_noise"]),
-                      sensor_outliers=float(config.get("sensor_outliers", 0.0)))
+    session = build(truth=truth, library=library, strategy=config["strategy"],
+                    params=SessionParams.from_dict(config["params"]), seed=config["seed"],
+                    sensor_noise=tuple(config["sensor_noise"]),
+                    sensor_outliers=float(config.get("sensor_outliers", 0.0)))
     steps = _check_integer("steps", config["steps"])
     cap = max(session.params.max_steps_known, session.params.max_steps_novel)
     if recorded is not None and steps != len(recorded):
@@ -102,12 +106,15 @@ def _read(path):
     return session, steps, np.asarray(arrays["contacts"], dtype=float), recorded
 
 
-def load_session(path, callback=None):
+def load_session(path, build, callback=None):
     """Rebuild a saved session by replaying its steps.
 
     Parameters
     ----------
     path : path-like
+    build : callable
+        Makes the session from the saved constructor arguments (by keyword):
+        :class:`~tactile_viz.engine.session.Session`, as ``Session.load`` gives it.
     callback : callable, optional
         Called with each replayed :class:`Snapshot` (progress, cancelling by raising).
 
@@ -122,7 +129,7 @@ def load_session(path, callback=None):
         its contacts.
     """
     try:
-        session, steps, contacts, recorded = _read(path)
+        session, steps, contacts, recorded = _read(path, build)
     except ObservationFileError as error:
         raise SessionError(f"{path}: not a readable session file ({error})") from error
     except (OSError, ValueError, KeyError, TypeError, EOFError) as error:

@@ -30,6 +30,7 @@ from ..observations import Contact, NonContact
 from ..params import PAPER_SIZE, SessionParams, scaled_lengths
 from ..presets import noise_matched
 from ..particle_filter import ParticleFilter
+from ..persistence import load_session, save_session
 from ..simulator import ContactSimulator, GroundTruth
 from ..transforms import transform_points
 from .estimate import Estimation
@@ -37,7 +38,7 @@ from .fields import deepest_inside, free_approach, free_space_points, thin_point
 from .learning import Learning
 from .planner import Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
-from .state import ExplorationState
+from .state import Checkpoint, ExplorationState
 from .truth import TruthMetrics, make_truth  # noqa: F401 (make_truth: public here too)
 
 Observation = Union[Contact, NonContact]
@@ -122,6 +123,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         self.params = params or SessionParams()
         self.seed = int(seed)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
+        self.sensor_outliers = float(sensor_outliers)
         self.rng = np.random.default_rng([self.seed, 1])
         self.simulator = None
         self.sensor = sensor
@@ -147,10 +149,25 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
         self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
 
+    def setup(self) -> dict:
+        """The constructor's arguments that made this session (by keyword): what a
+        pickle, the engine process and a saved file rebuild it from."""
+        return {"truth": self.truth, "library": self.library, "strategy": self.strategy,
+                "params": self.params, "seed": self.seed, "sensor_noise": self.sensor_noise,
+                "sensor": None if self.simulator is not None else self.sensor,
+                "sensor_outliers": self.sensor_outliers}
+
     def __getstate__(self):
-        state = dict(self.__dict__)
-        state["_live"] = None  # a running generator does not pickle; it is replayed
-        return state
+        # The filter goes whole: its models then travel as references in the engine
+        # process (ParticleFilter pickles without its bank). A running procedure of
+        # guarded moves does not pickle; it is replayed from the checkpoint.
+        return {"setup": self.setup(), "filter": self.filter,
+                "snapshots": list(self.snapshots), "checkpoint": self.checkpoint()}
+
+    def __setstate__(self, state):
+        type(self).__init__(self, **state["setup"])
+        self.filter, self.snapshots = state["filter"], list(state["snapshots"])
+        self.restore(state["checkpoint"])
 
     @property
     def step_count(self):
@@ -188,7 +205,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
                                "with observe(), or a sensor with probe(path)")
         if self.terminated:
             raise SessionError("the session has terminated; start a new one")
-        saved = self._checkpoint()
+        saved = self.checkpoint()
         try:
             sensing, snapshot = 0.0, None
             while snapshot is None:
@@ -199,7 +216,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
                 snapshot = self._observe_move(result, {"sensor": sensing})
             return snapshot
         except BaseException:
-            self._restore(saved)
+            self.restore(saved)
             raise
 
     def propose(self) -> Move | None:
@@ -346,11 +363,11 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         if isinstance(observations, (Contact, NonContact)):
             if free_space is not None:
                 raise SessionError("free_space goes with a whole step's observations")
-            saved = self._checkpoint()
+            saved = self.checkpoint()
             try:
                 return self._observe_move(observations, {})
             except BaseException:
-                self._restore(saved)
+                self.restore(saved)
                 raise
         if self.state.results:
             raise SessionError("a guarded move is pending: observe its result (one Contact "
@@ -366,7 +383,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
             raise SessionError("free_space must be a finite (k, 3) array of points")
         self._use_lengths()
-        saved = self._checkpoint()
+        saved = self.checkpoint()
         try:
             contacts = [o for o in observations if isinstance(o, Contact)]
             if self.state.held is not None:
@@ -393,7 +410,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
                     self._record_miss(before)
             return self._update([], observations, {})
         except BaseException:
-            self._restore(saved)
+            self.restore(saved)
             raise
 
     def recorded_steps(self) -> list[RecordedStep]:
@@ -411,19 +428,22 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             before = len(free)
         return steps
 
-    def _checkpoint(self):
-        """Everything a failed step must give back: the filter, the random generators, the
-        exploration state and the number of snapshots."""
-        return (self.filter.checkpoint(), [g.bit_generator.state for g in self._generators()],
-                self.state.copy(), len(self.snapshots))
+    def checkpoint(self) -> Checkpoint:
+        """Everything a step changes (what a failed step gives back): the filter's state,
+        the random generators', a copy of the exploration state and the number of
+        snapshots."""
+        return Checkpoint(self.filter.checkpoint(),
+                          tuple(g.bit_generator.state for g in self._generators()),
+                          self.state.copy(), len(self.snapshots))
 
-    def _restore(self, saved):
-        filter_state, generator_states, state, count = saved
-        self.filter.restore(filter_state)
-        for generator, generator_state in zip(self._generators(), generator_states):
+    def restore(self, saved: Checkpoint) -> None:
+        """Return to ``saved`` (:meth:`checkpoint`); snapshots made since are dropped."""
+        self.filter.restore(saved.filter)
+        for generator, generator_state in zip(self._generators(), saved.generators):
             generator.bit_generator.state = generator_state
-        self.state, self._live = state, None
-        del self.snapshots[count:]
+        self.state, self._live = saved.exploration.copy(), None
+        del self.snapshots[saved.steps:]
+        self._use_lengths()
 
     def _use_lengths(self, model=None):
         """Set ``self._p``, the parameters with their lengths in scene units, and
@@ -501,8 +521,6 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
     def save(self, path: str | os.PathLike) -> str | os.PathLike:
         """Save the session (its set-up and its observation history) to an ``.npz`` file;
         see :func:`tactile_viz.engine.persistence.save_session`."""
-        from ..persistence import save_session
-
         return save_session(self, path)
 
     @classmethod
@@ -510,6 +528,4 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
              callback: Callable[[Snapshot], object] | None = None) -> Session:
         """Rebuild a saved session by replaying its steps; see
         :func:`tactile_viz.engine.persistence.load_session`."""
-        from ..persistence import load_session
-
-        return load_session(path, callback)
+        return load_session(path, cls, callback)

@@ -24,7 +24,17 @@ class RecordedSession(Session):
         super().__init__(None, library, strategy, params, seed, sensor_noise)
         self.recording = list(steps)
         self.source = source
-        self.replayed = 0  # recorded steps given to the session (misses first are held)
+
+    def setup(self):
+        """The constructor's arguments that made this session (see :meth:`Session.setup`)."""
+        return {"steps": self.recording, "library": self.library, "strategy": self.strategy,
+                "params": self.params, "seed": self.seed, "source": self.source,
+                "sensor_noise": self.sensor_noise}
+
+    @property
+    def replayed(self):
+        """Recorded steps given to the session (misses before the first contact are held)."""
+        return self.state.replayed
 
     @property
     def terminated(self):
@@ -39,7 +49,7 @@ class RecordedSession(Session):
         while snapshot is None and not self.terminated:
             recorded = self.recording[self.replayed]
             snapshot = self.observe(recorded.observations, recorded.free_space)
-            self.replayed += 1
+            self.state.replayed += 1
         if snapshot is None:
             raise SessionError("the recording holds no contact: there is nothing to "
                                "estimate from misses alone")

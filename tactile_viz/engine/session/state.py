@@ -1,8 +1,11 @@
-"""The exploration state of a session: everything a step changes besides the filter, the
-random generators and the snapshots, in one dataclass that is checkpointed, sent to the
-engine process, pickled and restored whole (adding a field needs no other edit)."""
+"""The state of a session, in explicit objects: :class:`ExplorationState`, everything a
+step changes besides the filter, the random generators and the snapshots (adding a field
+needs no other edit), and :class:`Checkpoint`, everything a step changes. A checkpoint is
+what a failed step gives back, what the engine process sends back after a run and, with
+the session's constructor inputs and its filter, what a pickled session holds."""
 
-from dataclasses import dataclass, field, fields, replace
+import copy
+from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -79,6 +82,9 @@ class ExplorationState:
         The results of the step's guarded moves so far.
     held : tuple or None
         ``(observations, free space)`` given before the first contact ever, kept for its step.
+    replayed : int
+        Recorded steps given to a :class:`~.recorded.RecordedSession` (misses before the
+        first contact are held, so it can run ahead of the snapshots).
     """
 
     gpis_scale: float = 1.0
@@ -100,8 +106,49 @@ class ExplorationState:
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None
+    replayed: int = 0
 
     def copy(self):
-        """A copy whose lists are new (arrays and tuples are replaced, never changed)."""
-        return replace(self, **{f.name: list(getattr(self, f.name)) for f in fields(self)
-                                if isinstance(getattr(self, f.name), list)})
+        """A deep copy: changing any list, dict or array of the copy leaves this state as
+        it is. The estimates (callables of points, such as ``target.estimate``) are shared:
+        they hold priors and GPIS fits, and a step replaces them, never changes them."""
+        memo = {}
+        _shared_callables([getattr(self, item.name) for item in fields(self)], memo)
+        return copy.deepcopy(self, memo)
+
+
+def _shared_callables(value, memo):
+    """Enter in ``memo`` (a deepcopy memo) every callable within ``value``, through
+    tuples, lists and dicts, as its own copy."""
+    if callable(value):
+        memo[id(value)] = value
+    elif isinstance(value, (tuple, list)):
+        for item in value:
+            _shared_callables(item, memo)
+    elif isinstance(value, dict):
+        for item in value.values():
+            _shared_callables(item, memo)
+
+
+@dataclass
+class Checkpoint:
+    """Everything a step of a session changes.
+
+    Attributes
+    ----------
+    filter : object
+        :meth:`~tactile_viz.engine.particle_filter.ParticleFilter.checkpoint` (its arrays
+        are replaced by an update, never changed, so references suffice).
+    generators : tuple of dict
+        The bit-generator states of the session's generators (the session's, then the
+        simulator's when it has one).
+    exploration : ExplorationState
+        A copy (:meth:`ExplorationState.copy`).
+    steps : int
+        The number of snapshots.
+    """
+
+    filter: Any
+    generators: tuple
+    exploration: ExplorationState
+    steps: int
