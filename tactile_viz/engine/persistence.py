@@ -23,7 +23,8 @@ from .library import PriorLibrary
 from .meshes import check_arrays
 from .objects import ObjectModel
 from .observation_file import ObservationFileError, format_observations, parse_observations
-from .params import SessionParams, _check_integer
+from .param_schema import check_integer
+from .params import SessionParams
 from .simulator import GroundTruth
 
 FORMAT = "tactile_viz-session"
@@ -97,7 +98,7 @@ def _read(path, build):
                     params=SessionParams.from_dict(config["params"]), seed=config["seed"],
                     sensor_noise=tuple(config["sensor_noise"]),
                     sensor_outliers=float(config.get("sensor_outliers", 0.0)))
-    steps = _check_integer("steps", config["steps"])
+    steps = check_integer("steps", config["steps"])
     cap = max(session.params.max_steps_known, session.params.max_steps_novel)
     if recorded is not None and steps != len(recorded):
         raise ValueError(f"{steps} steps but {len(recorded)} recorded")

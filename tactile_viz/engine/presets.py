@@ -2,7 +2,8 @@
 sensor.
 
 ``recommended`` (the default) is the project's configuration, ``paper`` the paper exactly;
-``fast``, ``refined`` and ``accurate`` move along the trade (docs/bench-tradeoff.md).
+``fast``, ``refined`` and ``accurate`` move along the trade (docs/bench-tradeoff.md). Each
+is one row of :data:`PRESET_TABLE`.
 """
 
 from __future__ import annotations
@@ -13,20 +14,51 @@ from dataclasses import replace
 import numpy as np
 
 from .errors import ParameterError
-from .params import FilterParams, SessionParams, _check_real
+from .param_schema import check_real
+from .params import FilterParams, SessionParams, declaration, with_changes
 
 
-PRESETS = {
+# Every preset, once: name -> the declared parameters it changes from the defaults.
+PRESET_TABLE = {
+    # The project's configuration, the default: the paper's values plus shape transfer that
+    # keeps the prior where the data agree (carved prior, prior coverage, check lines,
+    # frontier) and the learned prior's pose refined.
+    "recommended": {},
+    # The paper exactly: its filter (without the discrimination of near twins and the
+    # learned prior's refinement, which are beyond it), its GPIS as written (thin-plate
+    # kernel with R the largest distance, contacts only), the stop as soon as the estimate
+    # is covered.
+    "paper": {"contenders": 0, "refine_learned": 0, "gpis_kernel": "thin-plate",
+              "gpis_radius_factor": 1.0, "gpis_noncontacts": False, "gpis_carve_radius": 0.0,
+              "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
+              "decision_targets": False},
+    # A robot that only needs to know what and where the object is: the default, stopped
+    # as soon as the object is decided.
+    "recognise": {"stop_at_decision": True},
     # Coarser grids and fewer feature points: about half the time per step.
-    "fast": FilterParams(n_features=120, sdf_resolution=48, n_s=15, max_new_per_class=800),
-    # The paper's values (without the discrimination of near twins, which is beyond it).
-    "paper": FilterParams(contenders=0),
-    # The default filter plus the local refinement of the MAP pose (beyond the paper).
-    "refined": FilterParams(refine_map=True),
+    "fast": {"n_features": 120, "sdf_resolution": 48, "n_s": 15, "max_new_per_class": 800,
+             "gpis_resolution": 24, "final_resolution": 48, "variance_points": 800,
+             "metric_samples": 2000},
+    # The default plus the local refinement of the MAP pose (beyond the paper).
+    "refined": {"refine_map": True},
     # Finer grids, neighbour-bin look-up and MAP refinement.
-    "accurate": FilterParams(n_features=300, sdf_resolution=96, neighbour_bins=1,
-                             init_rotations=4, max_new_per_class=4000, refine_map=True),
+    "accurate": {"n_features": 300, "sdf_resolution": 96, "neighbour_bins": 1,
+                 "init_rotations": 4, "max_new_per_class": 4000, "refine_map": True,
+                 "gpis_resolution": 48, "variance_points": 3000, "metric_samples": 5000},
 }
+# The filter presets (:func:`preset`) are the filter's part of these rows, except that the
+# filter preset ``paper`` keeps the learned prior's refinement (as it always has).
+FILTER_PRESET_NAMES = ("fast", "paper", "refined", "accurate")
+_FILTER_PRESET_KEEPS = {"paper": ("refine_learned",)}
+
+
+def _filter_preset(name):
+    kept = _FILTER_PRESET_KEEPS.get(name, ())
+    return FilterParams(**{key: value for key, value in PRESET_TABLE[name].items()
+                           if declaration(key).component == "filter" and key not in kept})
+
+
+PRESETS = {name: _filter_preset(name) for name in FILTER_PRESET_NAMES}
 
 
 def preset(name: str, **overrides) -> FilterParams:
@@ -63,8 +95,8 @@ def noise_matched(params, position_noise, normal_noise_deg):
     -------
     FilterParams
     """
-    _check_real("position_noise", position_noise)
-    _check_real("normal_noise_deg", normal_noise_deg)
+    check_real("position_noise", position_noise)
+    check_real("normal_noise_deg", normal_noise_deg)
     if not (np.isfinite(position_noise) and position_noise >= 0):
         raise ParameterError(f"position_noise must be a finite number >= 0, got {position_noise!r}")
     if not (np.isfinite(normal_noise_deg) and normal_noise_deg >= 0):
@@ -81,27 +113,8 @@ def noise_matched(params, position_noise, normal_noise_deg):
                    neighbour_bins=1 if coarse else params.neighbour_bins)
 
 
-SESSION_PRESETS = {
-    # The project's configuration, the default: the paper's values plus shape transfer that
-    # keeps the prior where the data agree (carved prior, prior coverage, check lines,
-    # frontier) and the learned prior's pose refined.
-    "recommended": SessionParams(),
-    # The paper exactly: its GPIS as written (thin-plate kernel with R the largest distance,
-    # contacts only), the stop as soon as the estimate is covered, no pose refinement.
-    "paper": SessionParams(filter=preset("paper", refine_learned=0),
-                           gpis_kernel="thin-plate", gpis_radius_factor=1.0,
-                           gpis_noncontacts=False, gpis_carve_radius=0.0,
-                           cover_prior=False, check_lines=0, approach_clearance=0.5,
-                           decision_targets=False),
-    # A robot that only needs to know what and where the object is: the default, stopped
-    # as soon as the object is decided.
-    "recognise": SessionParams(stop_at_decision=True),
-    "fast": SessionParams(filter=preset("fast"), gpis_resolution=24, final_resolution=48,
-                          variance_points=800, metric_samples=2000),
-    "refined": SessionParams(filter=preset("refined")),
-    "accurate": SessionParams(filter=preset("accurate"), gpis_resolution=48,
-                              variance_points=3000, metric_samples=5000),
-}
+SESSION_PRESETS = {name: with_changes(SessionParams(), **changes)
+                   for name, changes in PRESET_TABLE.items()}
 
 
 DEFAULT_PRESET = "recommended"
