@@ -6,6 +6,7 @@ Qt-free and light: the engine's commands, the benchmarks and ``app.py`` all use 
 """
 
 import argparse
+import json
 import logging
 import math
 import os
@@ -234,6 +235,51 @@ def add_preset_argument(parser, default=None):
                         help=f"speed/accuracy preset: {', '.join(SESSION_PRESETS)} (default "
                              f"{default}; paper: the paper exactly; recommended: the "
                              "project's configuration)")
+
+
+# Options that set a declared parameter besides --set: option -> the parameter's name.
+PARAMETER_OPTIONS = {"--outlier-probability": "outlier_probability"}
+_WORDS = {"True": True, "False": False, "None": None}
+
+
+def parameter_setting(text):
+    """An argument type: ``NAME=VALUE`` of a declared parameter (see
+    :func:`tactile_viz.engine.params.declarations`), VALUE as JSON (``0.4``, ``true``,
+    ``null``), ``True``/``False``/``None``, or else as text (``contact``); checked against
+    the parameter's kind and range. Returns ``(name, value)``."""
+    from .engine.errors import ParameterError
+    from .engine.params import declaration
+
+    name, equals, value = text.partition("=")
+    if not equals:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    if value in _WORDS:
+        value = _WORDS[value]
+    else:
+        try:
+            value = json.loads(value)
+        except ValueError:
+            pass  # a word such as a choice's name
+    try:
+        return name.strip(), declaration(name.strip()).check(value)
+    except ParameterError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def add_set_argument(parser):
+    """``--set NAME=VALUE ...``: change declared parameters of the preset (repeatable)."""
+    parser.add_argument("--set", type=parameter_setting, action=ExtendList, default=[],
+                        metavar="NAME=VALUE",
+                        help="change parameters of the preset, e.g. --set eps=0.4 "
+                             "sigma_d=0.3 (repeatable; the names and ranges: "
+                             "tactile_viz/engine/params.py)")
+
+
+def with_settings(params, settings):
+    """``params`` (SessionParams) with the ``--set`` pairs applied."""
+    from .engine.params import with_changes
+
+    return with_changes(params, **dict(settings))
 
 
 def default_log_file():

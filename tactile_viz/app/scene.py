@@ -15,6 +15,7 @@ snapshots of a session that is no longer current.
 
 import logging
 from pathlib import Path
+from typing import NamedTuple
 
 from ..engine.errors import LibraryError
 from ..engine.exploration import STRATEGIES
@@ -30,7 +31,25 @@ from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, Session
 
 log = logging.getLogger(__name__)
 
-KNOBS = ("sigma_d", "sigma_n", "n_s", "lam", "outlier_probability", "eps")  # the main ones
+class Knob(NamedTuple):
+    """How the window shows a main parameter: ``label``, a spin box's ``step`` and
+    ``decimals`` (0: an integer box). Its range, default, unit and doc come from its
+    declaration (:func:`tactile_viz.engine.params.declarations`)."""
+
+    label: str
+    step: float
+    decimals: int
+
+
+# The main parameters the window offers, in the order it shows them: the one list of them.
+KNOBS = {
+    "sigma_d": Knob("sigma_d", 0.05, 3),
+    "sigma_n": Knob("sigma_n", 0.1, 3),
+    "eps": Knob("eps (DHD)", 0.05, 2),
+    "n_s": Knob("n_s", 1, 0),
+    "lam": Knob("lambda", 0.01, 2),
+    "outlier_probability": Knob("outliers", 0.01, 3),
+}
 # Which dataclass each belongs to comes from its declaration (engine.params.declarations).
 FILTER_KNOBS = tuple(name for name in KNOBS if declarations()[name].component == "filter")
 SESSION_KNOBS = tuple(name for name in KNOBS if declarations()[name].component == "session")
@@ -477,4 +496,5 @@ class Scene:
         return LOADED_PRESET, {}
 
 
-__all__ = ["SCENE_UNITS", "Scene", "Signal", "knob_length_power", "knob_size_reference"]
+__all__ = ["KNOBS", "Knob", "SCENE_UNITS", "Scene", "Signal", "knob_length_power",
+           "knob_size_reference"]

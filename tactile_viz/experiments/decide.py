@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ArgumentParser, ExtendList, count_int, nonnegative_int, output_dir, workers_int
+from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
+                   output_dir, with_settings, workers_int)
 from ..engine.files import write_atomic
 from ..engine.metrics import error_threshold
 from ..engine.objects import bundled_names
-from ..engine.params import declaration, with_changes
 from ..engine.presets import session_preset
 from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from .runner import make_task, run_all
@@ -61,16 +61,6 @@ def fraction(text):
     if not 0 <= value < 0.5:
         raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
     return value
-
-
-def setting(text):
-    """An argument type: ``NAME=VALUE`` of a declared parameter (VALUE as JSON)."""
-    name, _, value = text.partition("=")
-    try:
-        declaration(name)
-        return name, json.loads(value)
-    except Exception as error:  # ParameterError or JSONDecodeError: one line for the user
-        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
 
 
 def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps,
@@ -177,8 +167,7 @@ def main(argv=None):
     parser.add_argument("--novel-steps", type=count_int, default=60,
                         help="steps each novel trial runs (it only has to stay undecided)")
     parser.add_argument("--preset", default="recognise", help="session preset")
-    parser.add_argument("--set", type=setting, action=ExtendList, default=[],
-                        metavar="NAME=VALUE", help="change a declared parameter (JSON value)")
+    add_set_argument(parser)
     parser.add_argument("--objects", default=None, metavar="NAME[,NAME...]",
                         help="known objects to run (default: all)")
     parser.add_argument("--workers", type=workers_int, default=2, help="trials in parallel")
@@ -188,7 +177,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    params = with_changes(session_preset(args.preset), **dict(args.set)).to_dict()
+    params = with_settings(session_preset(args.preset), args.set).to_dict()
     files = {name: path for name, path in hard_meshes(out / "objects").items()}
     known = list(bundled_names("known")) + list(files)
     if args.objects:

@@ -10,7 +10,7 @@ import json
 import sys
 import time
 
-from ..cli import add_preset_argument, seed_int
+from ..cli import add_preset_argument, add_set_argument, seed_int, with_settings
 from ..engine.exploration import STRATEGIES
 from ..engine.bag_export import export_bag
 from ..engine.bags import read_recording as read_recording_file, recording_file_warning
@@ -30,6 +30,7 @@ def add_replay_arguments(parser):
                              "(.mcap, .db3 or a bag folder; see the bag options)")
     add_prior_arguments(parser)
     add_preset_argument(parser)
+    add_set_argument(parser)
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd",
                         help="recorded in the JSON; it only decides the proposed targets")
     parser.add_argument("--seed", type=seed_int, default=0,
@@ -100,8 +101,9 @@ def run_replay_command(args):
     start = time.perf_counter()
     session, records = replay(steps, library, args.preset, args.strategy, args.seed,
                               progress=not args.no_progress,
-                              params=with_outliers(session_preset(args.preset),
-                                                   args.outlier_probability),
+                              params=with_outliers(
+                                  with_settings(session_preset(args.preset), args.set),
+                                  args.outlier_probability),
                               sensor_noise=(args.position_noise, args.normal_noise))
     stop = next((r["t"] for r, s in zip(records, session.snapshots) if s.terminated), None)
     result = {"object": None, "observations": str(args.observations), "seed": args.seed,

@@ -29,64 +29,63 @@ from .runner import make_task, open_pool, run_tasks, task_key
 from .trial_files import read_trials, rounded, trial_path, write_trial
 
 PRESETS = tuple(SESSION_PRESETS)
-# name -> (base preset, session overrides, filter overrides): every preset, then one-knob
-# changes of the recommended preset.
+# name -> (base preset, changes of declared parameters, which with_changes puts in the filter
+# or the session): every preset, then one-knob changes of the recommended preset.
 CONFIGS = {
-    **{name: (name, {}, {}) for name in PRESETS},
-    "sdf32": ("recommended", {}, {"sdf_resolution": 32}),
-    "sdf96": ("recommended", {}, {"sdf_resolution": 96}),
-    "features100": ("recommended", {}, {"n_features": 100}),
-    "features300": ("recommended", {}, {"n_features": 300}),
-    "coarse-keys": ("recommended", {}, {"distance_step": 0.2, "angle_step_deg": 24.0}),
-    "neighbour-bins": ("recommended", {}, {"neighbour_bins": 1}),
-    "gpis24": ("recommended", {"gpis_resolution": 24}, {}),
-    "gpis48": ("recommended", {"gpis_resolution": 48}, {}),
-    "eps0.4": ("recommended", {"eps": 0.4}, {}),
-    "eps0.8": ("recommended", {"eps": 0.8}, {}),
+    **{name: (name, {}) for name in PRESETS},
+    "sdf32": ("recommended", {"sdf_resolution": 32}),
+    "sdf96": ("recommended", {"sdf_resolution": 96}),
+    "features100": ("recommended", {"n_features": 100}),
+    "features300": ("recommended", {"n_features": 300}),
+    "coarse-keys": ("recommended", {"distance_step": 0.2, "angle_step_deg": 24.0}),
+    "neighbour-bins": ("recommended", {"neighbour_bins": 1}),
+    "gpis24": ("recommended", {"gpis_resolution": 24}),
+    "gpis48": ("recommended", {"gpis_resolution": 48}),
+    "eps0.4": ("recommended", {"eps": 0.4}),
+    "eps0.8": ("recommended", {"eps": 0.8}),
     # Particle budget: keep the heaviest new point-pair particles of a step (issue 18).
-    "budget3000": ("recommended", {}, {"max_new_particles": 3000}),
-    "budget1500": ("recommended", {}, {"max_new_particles": 1500}),
+    "budget3000": ("recommended", {"max_new_particles": 3000}),
+    "budget1500": ("recommended", {"max_new_particles": 1500}),
     # Both caps: at most 3,000 draws survive resampling and 1,500 new particles join a step.
-    "particles3000": ("recommended", {}, {"max_particles": 3000, "max_new_particles": 1500}),
+    "particles3000": ("recommended", {"max_particles": 3000, "max_new_particles": 1500}),
     # Poses within 0.05 and 1 degree of each other merged into one particle.
-    "merge0.05": ("recommended", {}, {"merge_distance": 0.05, "merge_angle_deg": 1.0}),
+    "merge0.05": ("recommended", {"merge_distance": 0.05, "merge_angle_deg": 1.0}),
     # The GPIS ablation (novel objects): the thin-plate kernel (the paper preset's) at the
     # paper's R and explicitly, the compact Wendland kernel with free space at three
     # supports (c = 4 was the paper preset at ef75223), free space with the thin-plate
     # kernel, the prior's carve off or wider.
-    "thin-plate1.0": ("recommended", {"gpis_radius_factor": 1.0}, {}),
+    "thin-plate1.0": ("recommended", {"gpis_radius_factor": 1.0}),
     "thin-plate1.2": ("recommended", {"gpis_kernel": "thin-plate", "gpis_radius_factor": 1.2,
-                                "gpis_noncontacts": False}, {}),
-    "wendland4": ("recommended", {"gpis_kernel": "wendland", "gpis_noncontacts": True}, {}),
+                                      "gpis_noncontacts": False}),
+    "wendland4": ("recommended", {"gpis_kernel": "wendland", "gpis_noncontacts": True}),
     "wendland2.5": ("recommended", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
-                              "gpis_support": 2.5}, {}),
+                                    "gpis_support": 2.5}),
     "wendland6": ("recommended", {"gpis_kernel": "wendland", "gpis_noncontacts": True,
-                            "gpis_support": 6.0}, {}),
-    "noncontacts": ("recommended", {"gpis_noncontacts": True}, {}),
-    "no-carve": ("recommended", {"gpis_carve_radius": 0.0}, {}),
-    "carve1.0": ("recommended", {"gpis_carve_radius": 1.0}, {}),
-    "target-uncovered": ("recommended", {"target_uncovered": True}, {}),
-    "check-lines8": ("recommended", {"check_lines": 8}, {}),
-    "check-lines24": ("recommended", {"check_lines": 24}, {}),
+                                  "gpis_support": 6.0}),
+    "noncontacts": ("recommended", {"gpis_noncontacts": True}),
+    "no-carve": ("recommended", {"gpis_carve_radius": 0.0}),
+    "carve1.0": ("recommended", {"gpis_carve_radius": 1.0}),
+    "target-uncovered": ("recommended", {"target_uncovered": True}),
+    "check-lines8": ("recommended", {"check_lines": 8}),
+    "check-lines24": ("recommended", {"check_lines": 24}),
     # How far outside a target the approach starts (2.0 in the paper preset; 0.5 before).
-    "approach0.5": ("recommended", {"approach_clearance": 0.5}, {}),
-    "approach1": ("recommended", {"approach_clearance": 1.0}, {}),
-    "approach4": ("recommended", {"approach_clearance": 4.0}, {}),
-    "lines-at-contacts": ("recommended", {"check_line_aim": "contact"}, {}),
+    "approach0.5": ("recommended", {"approach_clearance": 0.5}),
+    "approach1": ("recommended", {"approach_clearance": 1.0}),
+    "approach4": ("recommended", {"approach_clearance": 4.0}),
+    "lines-at-contacts": ("recommended", {"check_line_aim": "contact"}),
 }
 
 
 def config_params(name):
     """``SessionParams.to_dict()`` of a configuration (its changes are declared parameters,
-    each put in its component by its declaration)."""
-    base, session_changes, filter_changes = CONFIGS[name]
-    return with_changes(session_preset(base), **session_changes, **filter_changes).to_dict()
+    each put in its component by :func:`~tactile_viz.engine.params.with_changes`)."""
+    base, changes = CONFIGS[name]
+    return with_changes(session_preset(base), **changes).to_dict()
 
 
 def describe(name):
     """The knobs a configuration changes, for the table."""
-    base, session_changes, filter_changes = CONFIGS[name]
-    changes = {**session_changes, **filter_changes}
+    base, changes = CONFIGS[name]
     if not changes:
         return f"preset {base}"
     return ", ".join(f"{key}={value}" for key, value in changes.items())

@@ -10,7 +10,6 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 import argparse
 import functools
 import json
-from dataclasses import replace
 import subprocess
 import sys
 import time
@@ -18,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (add_preset_argument, bundled_object, finite_float, output_dir,
+from ..cli import (add_preset_argument, add_set_argument, with_settings, bundled_object, finite_float, output_dir,
                    positive_int, seed_int, writable_output)
 from ..engine.errors import ParameterError
 from ..engine.exploration import STRATEGIES
@@ -26,6 +25,7 @@ from ..engine.bag_export import export_bag
 from ..engine.export import export_session
 from ..engine.files import write_atomic
 from ..engine.objects import load_bundled
+from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
 from .inputs import (add_prior_arguments, add_unit_arguments, bag_output, check_learning, learn,
                      load_mesh, load_priors, mesh_file, say, scene_units, size_warnings)
@@ -80,7 +80,7 @@ def with_outliers(params, probability):
     """``params`` with the filter's ``outlier_probability`` (None: unchanged)."""
     if probability is None:
         return params
-    return replace(params, filter=replace(params.filter, outlier_probability=probability))
+    return with_changes(params, outlier_probability=probability)
 
 
 def add_output_arguments(parser, export_help):
@@ -108,6 +108,7 @@ def add_trial_arguments(parser):
     parser.add_argument("--max-steps", type=positive_int, default=None,
                         help="stop after this many steps (default: the paper's caps 300/400)")
     add_preset_argument(parser)
+    add_set_argument(parser)
     add_unit_arguments(parser)
     add_sensor_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
@@ -219,7 +220,8 @@ def run_trial_command(args):
 
     result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
                        args.max_steps, progress=not args.no_progress, finish=finish,
-                       sensor=sensor_settings(args))
+                       sensor=sensor_settings(args),
+                       params=with_settings(session_preset(args.preset), args.set))
     result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
     return 0

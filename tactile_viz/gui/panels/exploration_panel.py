@@ -9,22 +9,15 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel,
                                QSpinBox)
 
-from ...app.scene import LOADED_PRESET, knob_length_power, knob_size_reference
+from ...app.scene import KNOBS, LOADED_PRESET, knob_length_power, knob_size_reference
 from ...engine.exploration import STRATEGIES
 from ...engine.params import declaration
 from ...engine.presets import SESSION_PRESETS
 from .base import MARGINS, blocked
 
-# The main knobs: name -> (label, step, decimals). Their range, default and doc come from
-# the parameters' declarations (engine.params.declarations); a length's unit is added.
-PARAMETERS = {
-    "sigma_d": ("sigma_d", 0.05, 3),
-    "sigma_n": ("sigma_n", 0.1, 3),
-    "eps": ("eps (DHD)", 0.05, 2),
-    "n_s": ("n_s", 1, 0),
-    "lam": ("lambda", 0.01, 2),
-    "outlier_probability": ("outliers", 0.01, 3),
-}
+# The main knobs: name -> Knob(label, step, decimals), the scene's one list of them. Their
+# range, default and doc come from the parameters' declarations; a length's unit is added.
+PARAMETERS = KNOBS
 
 
 class ExplorationPanel(QGroupBox):
@@ -67,9 +60,10 @@ class ExplorationPanel(QGroupBox):
             lambda index: self.preset_chosen.emit(self.preset_box.itemText(index)))
         rows = [("strategy", self.strategy_box), ("preset", self.preset_box)]
         self.parameter_boxes = {}
-        for name, spec in PARAMETERS.items():
+        for name, knob in PARAMETERS.items():
             known = declaration(name)
-            box = _parameter_box(known.low, known.high, *spec[1:3], parameter_tooltip(name))
+            box = _parameter_box(known.low, known.high, knob.step, knob.decimals,
+                                 parameter_tooltip(name))
             box.valueChanged.connect(
                 lambda value, n=name: self.parameter_changed.emit(n, value))
             rows.append((parameter_label(name), box))
@@ -112,7 +106,7 @@ def unit_text(power):
 def parameter_label(name):
     """The label of a parameter's spin box: its name, and its unit when it is a length."""
     unit = unit_text(knob_length_power(name))
-    return PARAMETERS[name][0] + (f" [{unit}]" if unit else "")
+    return PARAMETERS[name].label + (f" [{unit}]" if unit else "")
 
 
 def parameter_tooltip(name):
