@@ -11,10 +11,10 @@ pickled state (:meth:`Session.__getstate__ <tactile_viz.engine.session.Session>`
 constructor's arguments, its filter and its checkpoint) goes to the engine process, every
 snapshot comes back as it is made (and is appended to the session's list) and at the end
 the session's :class:`~tactile_viz.engine.session.state.Checkpoint` comes back, what a step
-changes (also after a failed step: then as before that step, which the session restored). A session the process already
-holds (the one it ran last, not stepped elsewhere since) is not sent again, and priors are
-sent once (by name, content, parameters and learned flag; those the session sent last does
-not use are let go), so a run of a known session costs a few bytes to start. Snapshots
+changes (also after a failed step: then as before that step, which the session
+restored). A session the process already holds (the one it ran last, not stepped elsewhere
+since) is not sent again, and priors are sent once (by name, content, parameters and
+learned flag; those the session sent last does not use are let go), so a run of a known session costs a few bytes to start. Snapshots
 refer to their MAP shape's faces rather than copy them.
 
 Protocol, parent to child: ``("models", [(key, bytes), ...])``, ``("forget", [key, ...])``,

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (add_preset_argument, add_set_argument, with_settings, bundled_object, finite_float, output_dir,
-                   positive_int, seed_int, writable_output)
+from ..cli import (add_preset_argument, add_set_argument, bundled_object, finite_float,
+                   output_dir, positive_int, seed_int, with_settings, writable_output)
 from ..engine.errors import ParameterError
 from ..engine.exploration import STRATEGIES
 from ..engine.bag_export import export_bag
