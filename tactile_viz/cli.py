@@ -266,6 +266,16 @@ def parameter_setting(text):
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def parameter_value(name):
+    """An argument type: a value of the declared parameter ``name`` (as for ``--set``)."""
+
+    def value(text):
+        return parameter_setting(f"{name}={text}")[1]
+
+    value.__name__ = name  # argparse names the type in its messages
+    return value
+
+
 def add_set_argument(parser):
     """``--set NAME=VALUE ...``: change declared parameters of the preset (repeatable)."""
     parser.add_argument("--set", type=parameter_setting, action=ExtendList, default=[],

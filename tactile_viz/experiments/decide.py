@@ -36,6 +36,7 @@ from ..engine.presets import session_preset
 from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from .runner import make_task, run_all
 from .sizes import SIZES_M
+from .trial import fraction
 
 DEFAULT_NOISE = ((0.0, 0.0), (0.001, 1.0), (0.002, 2.0))
 NOVEL = ("neptune", "dragon", "noisy_dino", "mug_2", "home_chair", "sofa_2")
@@ -50,17 +51,6 @@ def noise_level(text):
     if not (np.isfinite(position) and np.isfinite(degrees) and position >= 0 and degrees >= 0):
         raise argparse.ArgumentTypeError(f"noise must be finite and >= 0, got {text!r}")
     return position, degrees
-
-
-def fraction(text):
-    """An argument type: a number in [0, 0.5)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0 <= value < 0.5:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
-    return value
 
 
 def tasks(known, novel, noises, seeds, novel_seeds, params, preset, files, novel_steps,

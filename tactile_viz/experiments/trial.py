@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..cli import (add_preset_argument, add_set_argument, bundled_object, finite_float,
-                   output_dir, positive_int, seed_int, with_settings, writable_output)
+                   output_dir, parameter_value, positive_int, seed_int, with_settings,
+                   writable_output)
 from ..engine.errors import ParameterError
 from ..engine.exploration import STRATEGIES
 from ..engine.bag_export import export_bag
@@ -44,7 +45,8 @@ def nonnegative_float(text):
 
 
 def fraction(text):
-    """An argument type: a number in [0, 0.5)."""
+    """An argument type: a number in [0, 0.5) (the simulated sensor's share of wrong
+    contacts)."""
     value = finite_float(text)
     if not 0 <= value < 0.5:
         raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
@@ -59,7 +61,8 @@ def add_sensor_arguments(parser, simulated=True):
                         help="std of the sensor's contact positions, scene units (default 0)")
     parser.add_argument("--normal-noise", type=nonnegative_float, default=0.0, metavar="DEG",
                         help="std of the tilt of the sensor's normals, degrees (default 0)")
-    parser.add_argument("--outlier-probability", type=fraction, default=None, metavar="P",
+    parser.add_argument("--outlier-probability", type=parameter_value("outlier_probability"),
+                        default=None, metavar="P",
                         help="the model's chance of a wrong contact: a robust likelihood "
                              "(default the preset's; 0 is the paper's Gaussian)")
     if simulated:
