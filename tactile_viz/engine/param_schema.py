@@ -223,7 +223,7 @@ def documented(cls):
         text = meta["doc"] + (" " + meta["notes"] if meta["notes"] else "")
         if meta["valid"] is not None:
             text += f" Valid: {meta['valid']}."
-        lines += ["        " + line for line in textwrap.wrap(text, 80)]
+        lines += ["        " + line for line in textwrap.wrap(text, 80, break_on_hyphens=False)]
     cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n    "
     return cls
 
