@@ -337,8 +337,8 @@ class SessionParams:
         control=(0, 10), notes="Check lines, as a novel object's (a novel object can hold "
         "a part that a known one fits, a trident a knife).")
     decision_same_mode: float = _session(
-        0.1, "Poses of one class whose surfaces agree within this RMS distance (or twice the "
-        "position noise) are one hypothesis.", valid=_POSITIVE, length=1,
+        0.1, "Poses of one class whose surfaces agree within this distance (all but 1% of "
+        "them; or twice the position noise) are one hypothesis.", valid=_POSITIVE, length=1,
         control=(1e-3, 2.0), notes="Symmetries of the shape are not rivals.")
     decision_targets: bool = _session(
         True, "While a known object is not decided, touch where the plausible hypotheses' "

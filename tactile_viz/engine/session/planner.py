@@ -143,7 +143,8 @@ class Planner:
                      TELL_SPACING * self._p.contact_spacing)
         found = disagreement_target(
             self.filter.bank, hypotheses, self._p.probe_depth,
-            avoid=((contacts, spread), (refuted, self._p.contact_spacing)))
+            avoid=((contacts, spread), (np.reshape(self.state.told, (-1, 3)), spread),
+                   (refuted, self._p.contact_spacing)))
         if found is None:
             return None
         position, normal, owner = found
@@ -152,6 +153,7 @@ class Planner:
         estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
         self.state.telling_apart = True
         self.state.telling_steps += 1
+        self.state.told.append(position)
         return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):

@@ -76,6 +76,9 @@ class ExplorationState:
         Whether ``check`` is such a check.
     telling_steps : int
         Steps whose target was where rival hypotheses disagree.
+    told : list of (3,) float
+        Those targets (the next keep away from them: a touch that lands beyond one, on a
+        part the rival does not have, leaves it as far from every contact as before).
     moves_rng : dict or None
         The session rng's state when the step in progress began (None between steps).
     results : list of Contact or NonContact
@@ -103,6 +106,7 @@ class ExplorationState:
     decision_checks: int = 0
     confirming: bool = False
     telling_steps: int = 0
+    told: list = field(default_factory=list)
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None
