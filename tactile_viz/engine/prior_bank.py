@@ -53,7 +53,11 @@ class PriorBank:
     """
 
     def __init__(self, models, distance_step, angle_step_deg, progress=None):
+        from .prior_build import build_in_child
+
         models = list(models)
+        if build_in_child(models, distance_step, angle_step_deg, progress):
+            progress = None  # the child's build was the long part
         self._index = {id(model): c for c, model in enumerate(models)}
         self._models = models  # keeps the ids above theirs
         self.names = [model.name for model in models]
