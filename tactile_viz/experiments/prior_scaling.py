@@ -156,7 +156,8 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
         rows.append(_trial_row(result))
     return {"priors": count, "models_seconds": models_seconds, "built": built,
             "bank_seconds": bank_seconds, "build_resident_megabytes": build_resident,
-            "build_peak_megabytes": build_peak, "bank_cached_seconds": bank_cached_seconds, "bank_megabytes": bank.nbytes / 1e6,
+            "build_peak_megabytes": build_peak, "bank_cached_seconds": bank_cached_seconds,
+            "bank_megabytes": bank.nbytes / 1e6,
             "resident_megabytes": _resident_megabytes(), "peak_megabytes": _peak_megabytes(),
             "trials": rows}
 
