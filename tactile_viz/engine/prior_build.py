@@ -92,7 +92,8 @@ def _run(priors, errors, count, progress):
     path = os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))
     with open(errors, "w") as stderr:
         child = subprocess.Popen([sys.executable, "-m", __name__, str(priors)],
-                                 stdout=subprocess.PIPE, stderr=stderr, text=True,
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                 stderr=stderr, text=True,
                                  env={**os.environ, "PYTHONPATH": path})
         with child:
             for _ in progress(range(count)) if progress else range(count):
