@@ -33,7 +33,8 @@ def build_parser():
                     "surface, Cholesky; fitted growth exponent of each) and against the "
                     "number of priors (prior bank memory and load time, filter update, "
                     "class and pose over whole trials; a first run builds and caches the "
-                    "variants' SDFs, about 0.5 s each).")
+                    "variants' SDFs, about 0.5-0.9 s each, in a child process; the memory "
+                    "right after the bank is given cold and warm).")
     parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
     parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
