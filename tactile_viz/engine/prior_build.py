@@ -73,7 +73,7 @@ def build_in_child(models, distance_step, angle_step_deg, progress=None, minimum
         One line naming the prior and the fault, if the child failed.
     """
     todo = missing(models, distance_step, angle_step_deg)
-    if len(todo) < max(minimum, 1) or not sys.executable:
+    if len(todo) < max(minimum, 1) or not sys.executable or getattr(sys, "frozen", False):
         return 0
     with tempfile.TemporaryDirectory(prefix="tactile_viz-build-") as folder:
         priors, errors = Path(folder) / "priors.pickle", Path(folder) / "errors.txt"
