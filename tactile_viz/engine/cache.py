@@ -45,6 +45,11 @@ class ArrayCache:
         text = json.dumps({"content": content_hash, "params": params}, sort_keys=True)
         return f"{kind}-{hashlib.sha256(text.encode()).hexdigest()[:32]}.npz"
 
+    def has(self, kind, content_hash, params) -> bool:
+        """Whether the entry is stored on disk (False when the disk is disabled)."""
+        return self.folder is not None and (
+            self.folder / self.key(kind, content_hash, params)).is_file()
+
     def get_or_build(self, kind, content_hash, params, build):
         """Load an entry, or build it with ``build()`` (a dict of arrays) and store it."""
         if self.folder is None:

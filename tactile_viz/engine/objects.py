@@ -21,7 +21,7 @@ import trimesh
 from .cache import ArrayCache
 from .errors import MeshError
 from .features import poisson_disk_points
-from .meshes import content_hash, load_mesh, prepare_mesh
+from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
 from .params import PAPER_SIZE
 from .ppf import PairTable
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
@@ -149,6 +149,24 @@ class ObjectModel:
         """A sixth of :attr:`length`: the scene units of one size unit of the parameters."""
         return self.length / PAPER_SIZE
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays this model holds: its mesh's, those trimesh derived from the
+        mesh and kept, and the derived data kept here (features, grid, pair tables, the
+        exact distance's arrays; libigl's trees are not counted). A model whose prior bank
+        was built from meshes holds what one read from the disk cache does."""
+        cached = getattr(getattr(self.mesh, "_cache", None), "cache", {})
+        arrays = [self.mesh.vertices, self.mesh.faces, *cached.values(),
+                  *self.__dict__.get("features", ())]
+        exact = self.__dict__.get("exact")
+        if exact is not None:
+            arrays += [exact.vertices, exact.faces, exact._face_normals, exact._vertex_normals]
+        tables = self.__dict__.get("_pair_tables", {}).values()
+        extra = sum(table.nbytes for table in tables)
+        if "sdf" in self.__dict__:
+            extra += self.sdf.nbytes
+        return int(extra + sum(getattr(array, "nbytes", 0) for array in arrays))
+
     @cached_property
     def content_hash(self):
         """SHA-256 of the mesh arrays."""
@@ -181,8 +199,7 @@ class ObjectModel:
         prior bank copies it into its shared array."""
         if "sdf" in self.__dict__:
             return self.__dict__["sdf"]
-        params = {"resolution": self.params.sdf_resolution,
-                  "padding": self.params.sdf_padding * self.size_unit}
+        params = self._sdf_params()
         arrays = self.cache.get_or_build(
             "sdf5", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
@@ -191,12 +208,14 @@ class ObjectModel:
     @cached_property
     def features(self):
         """Feature points ``(points, normals)``: (n_features, 3) each, object frame."""
-        params = {"count": self.params.n_features, "seed": self.params.feature_seed}
-        arrays = self.cache.get_or_build("features", self.content_hash, params, self._build_features)
+        arrays = self.cache.get_or_build("features", self.content_hash,
+                                         self._features_params(), self._build_features)
         return arrays["points"], arrays["normals"]
 
     def _build_features(self):
-        points, faces = poisson_disk_points(self.mesh, self.params.n_features,
+        # A bare copy: sampling derives triangles, cross products and areas (2 MB for a
+        # 10,000-face prior) that would stay on the mesh, where a warm load has none.
+        points, faces = poisson_disk_points(bare_mesh(self.mesh), self.params.n_features,
                                             rng=self.params.feature_seed)
         # Project onto the surface exactly so normals come from the same place the SDF does.
         _, closest, face = self.exact.query(points)
@@ -209,8 +228,7 @@ class ObjectModel:
         tables = self.__dict__.setdefault("_pair_tables", {})
         if key in tables:
             return tables[key]
-        params = {"distance_step": key[0], "angle_step_deg": key[1],
-                  "count": self.params.n_features, "seed": self.params.feature_seed}
+        params = self._pairs_params(*key)
 
         def build():
             points, normals = self.features
@@ -221,6 +239,27 @@ class ObjectModel:
         if keep:
             tables[key] = table
         return table
+
+    def _sdf_params(self):
+        return {"resolution": self.params.sdf_resolution,
+                "padding": self.params.sdf_padding * self.size_unit}
+
+    def _features_params(self):
+        return {"count": self.params.n_features, "seed": self.params.feature_seed}
+
+    def _pairs_params(self, distance_step, angle_step_deg):
+        return {"distance_step": float(distance_step), "angle_step_deg": float(angle_step_deg),
+                **self._features_params()}
+
+    def derived_stored(self, distance_step=0.1, angle_step_deg=12.0) -> bool:
+        """Whether the grid, features and pair table a prior bank reads are here or in the
+        disk cache (so that building the bank builds nothing)."""
+        tables = self.__dict__.get("_pair_tables", {})
+        has = lambda kind, params: self.cache.has(kind, self.content_hash, params)  # noqa: E731
+        return (("sdf" in self.__dict__ or has("sdf5", self._sdf_params()))
+                and ("features" in self.__dict__ or has("features", self._features_params()))
+                and ((float(distance_step), float(angle_step_deg)) in tables
+                     or has("pairs2", self._pairs_params(distance_step, angle_step_deg))))
 
     def describe(self):
         """A JSON-ready summary (name, sizes, parameters, hash)."""

@@ -107,14 +107,17 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     Returns
     -------
     dict
-        ``priors``, ``models_seconds`` (making the models), ``bank_seconds`` (first build,
-        from the disk cache if warm), ``bank_cached_seconds`` (again, from the disk cache),
-        ``bank_megabytes``, ``resident_megabytes`` (after the trials), ``peak_megabytes``,
-        and ``trials``: one row per trial.
+        ``priors``, ``models_seconds`` (making the models), ``built`` (priors whose grids
+        the first build made from their meshes: a cold cache), ``bank_seconds`` (first
+        build), ``build_resident_megabytes`` and ``build_peak_megabytes`` (right after it),
+        ``bank_cached_seconds`` (again, from the disk cache), ``bank_megabytes``,
+        ``resident_megabytes`` (after the trials), ``peak_megabytes``, and ``trials``: one
+        row per trial.
     """
     from ..engine import prior_bank
     from ..engine.objects import ObjectModel
     from ..engine.particle_filter import ParticleFilter
+    from ..engine.prior_build import missing
     from .trial import run_trial
 
     bar = None
@@ -126,11 +129,14 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     library = library_of_size(count, seed)
     models_seconds = time.perf_counter() - start
     params = _filter_params(library, preset)
+    models = ParticleFilter(library, params).models
+    built = len(missing(models, params.distance_step, params.angle_step_deg))
     start = time.perf_counter()
-    prior_bank.bank_for(ParticleFilter(library, params).models, params.distance_step,
-                        params.angle_step_deg,
+    prior_bank.bank_for(models, params.distance_step, params.angle_step_deg,
                         progress=(lambda m: bar(m, f"{count} priors")) if bar else None)
     bank_seconds = time.perf_counter() - start
+    build_resident, build_peak = _resident_megabytes(), _peak_megabytes()
+    del models
     prior_bank._RECENT.clear()
     start = time.perf_counter()
     bank = ParticleFilter(library, params).bank
@@ -148,20 +154,40 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
         result = run_trial(truth, library, "gpis-dhd", seed=seed + i, preset=preset,
                            max_steps=max_steps)
         rows.append(_trial_row(result))
-    return {"priors": count, "models_seconds": models_seconds, "bank_seconds": bank_seconds,
-            "bank_cached_seconds": bank_cached_seconds, "bank_megabytes": bank.nbytes / 1e6,
+    return {"priors": count, "models_seconds": models_seconds, "built": built,
+            "bank_seconds": bank_seconds, "build_resident_megabytes": build_resident,
+            "build_peak_megabytes": build_peak, "bank_cached_seconds": bank_cached_seconds,
+            "bank_megabytes": bank.nbytes / 1e6,
             "resident_megabytes": _resident_megabytes(), "peak_megabytes": _peak_megabytes(),
             "trials": rows}
 
 
+def measure_load(count, seed=0, preset="paper"):
+    """The bank of ``count`` priors read from a warm disk cache (in a fresh process, after
+    :func:`measure_size` filled it): ``warm_seconds``, ``warm_resident_megabytes`` and
+    ``warm_peak_megabytes`` right after it."""
+    from ..engine.particle_filter import ParticleFilter
+
+    library = library_of_size(count, seed)
+    start = time.perf_counter()
+    ParticleFilter(library, _filter_params(library, preset)).bank  # noqa: B018
+    return {"warm_seconds": time.perf_counter() - start,
+            "warm_resident_megabytes": _resident_megabytes(),
+            "warm_peak_megabytes": _peak_megabytes()}
+
+
 def sweep(counts, trials=10, seed=0, preset="paper", max_steps=None, progress=False):
-    """:func:`measure_size` for each library size, each in a fresh process."""
+    """:func:`measure_size` for each library size, each in a fresh process, then
+    :func:`measure_load` in another."""
     results = []
     context = multiprocessing.get_context("spawn")
     for count in counts:
         with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
-            results.append(pool.submit(measure_size, count, trials, seed, preset, max_steps,
-                                       progress).result())
+            result = pool.submit(measure_size, count, trials, seed, preset, max_steps,
+                                 progress).result()
+        with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
+            result.update(pool.submit(measure_load, count, seed, preset).result())
+        results.append(result)
     return results
 
 
@@ -181,7 +207,12 @@ def summary_row(result):
             "resident_megabytes": result["resident_megabytes"],
             "peak_megabytes": result["peak_megabytes"],
             "bank_cached_seconds": result["bank_cached_seconds"],
-            "models_seconds": result["models_seconds"]}
+            "models_seconds": result["models_seconds"],
+            **{key: result.get(key) for key in MEMORY_KEYS}}
+
+
+MEMORY_KEYS = ["built", "bank_seconds", "build_resident_megabytes", "build_peak_megabytes",
+               "warm_seconds", "warm_resident_megabytes", "warm_peak_megabytes"]
 
 
 def projection(rows, target=10_000):

@@ -33,7 +33,8 @@ def build_parser():
                     "surface, Cholesky; fitted growth exponent of each) and against the "
                     "number of priors (prior bank memory and load time, filter update, "
                     "class and pose over whole trials; a first run builds and caches the "
-                    "variants' SDFs, about 0.5 s each).")
+                    "variants' SDFs, about 0.5-0.9 s each, in a child process; the memory "
+                    "right after the bank is given cold and warm).")
     parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
     parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
@@ -63,6 +64,11 @@ PRIOR_HEADER = ["priors", "trials", "right class and pose", "right class",
 PRIOR_KEYS = ["priors", "trials", "right", "right_class", "indistinct", "pose_error_ratio",
               "filter_mean", "first_update", "max_particles", "steps", "bank_megabytes",
               "resident_megabytes", "peak_megabytes", "bank_cached_seconds"]
+
+MEMORY_HEADER = ["priors", "built from meshes", "build s", "resident after the build MB",
+                 "peak by then MB", "warm load s", "warm load resident MB",
+                 "warm load peak MB"]
+MEMORY_ROW = ["priors", *prior_scaling.MEMORY_KEYS]
 
 
 def plot(contact_rows, exponents, prior_rows, path):
@@ -157,6 +163,11 @@ def prior_section(args):
              "", "Right: the touched prior is the MAP class, judged known, with the pose "
              "error under 10% of its size. Wrong but indistinct: another prior whose posed "
              "shape lies within that threshold of the truth. Memory in MB (10^6 bytes).", ""]
+    lines += ["Memory right after building the prior bank: in the trials' process (from the "
+              "meshes when the disk cache lacked their grids: \"built\" priors), and in a "
+              "fresh process reading it from the warm cache.", "",
+              markdown_table(MEMORY_HEADER, [[row[key] for key in MEMORY_ROW]
+                                             for row in rows]), ""]
     projected = prior_scaling.projection(rows)
     if projected:
         lines += [f"Projected to {projected['target']:,} priors: "

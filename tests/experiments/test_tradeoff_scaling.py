@@ -119,6 +119,9 @@ def test_prior_sweep_measures_whole_trials_on_a_small_library():
     summary = prior_scaling.summary_row(result)
     assert summary["trials"] == 4 and 0 < summary["bank_megabytes"] < 5
     assert summary["resident_megabytes"] > 0 and summary["peak_megabytes"] > 0
+    assert 0 <= summary["built"] <= 3 and summary["build_resident_megabytes"] > 0
+    warm = prior_scaling.measure_load(3)
+    assert warm["warm_resident_megabytes"] > 0 and warm["warm_peak_megabytes"] > 0
     other = {**summary, "priors": 30, "resident_megabytes": summary["resident_megabytes"] + 27,
              "bank_megabytes": summary["bank_megabytes"] * 10,
              "filter_mean": summary["filter_mean"] * 2}
