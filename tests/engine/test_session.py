@@ -304,7 +304,7 @@ def test_failed_step_leaves_session_unchanged(bundled, known, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("simulated failure")
 
-    monkeypatch.setattr(session, "_stop_and_target", broken)  # after the filter update
+    monkeypatch.setattr(session, "_stop_test", broken)  # after the filter update
     with pytest.raises(RuntimeError, match="simulated"):
         session.step()
     assert session.step_count == 3 and session.filter.contact_positions is contacts
@@ -344,6 +344,14 @@ def test_paper_preset_is_the_papers_gpis():
     assert params.approach_clearance == 0.5
 
 
+def _plan_check(session, *args):
+    """Plan a check and adopt it as a step does (its direction joins the used ones)."""
+    check = session._plan_check_line(*args)
+    session.state.check = check
+    session.state.check_directions.append(check.direction)
+    return check
+
+
 def _sweep_check(session):
     """Sweep the planned check with the simulator and count it, as a step does."""
     path = session.state.check.path
@@ -367,10 +375,10 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     monkeypatch.setattr("tactile_viz.engine.session.planner.next_sweep_direction",
                         lambda used, rng: next(lines))
     session.state.checks_passed = 2
-    session.state.check = session._plan_check_line(top, inside[None])
+    _plan_check(session, top, inside[None])
     _sweep_check(session)  # the path starts below and runs up
     assert session.state.checks_passed == 0
-    session.state.check = session._plan_check_line(top, inside[None])
+    _plan_check(session, top, inside[None])
     _sweep_check(session)  # from above
     assert session.state.checks_passed == 1
 
@@ -384,7 +392,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
     session.state.check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
-    session.state.check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    _plan_check(session, estimate, contacts, lambda p: p[:, 2])
     _, through, _, path = session.state.check
     np.testing.assert_allclose(through, [1.5, 0.0, 0.0], atol=1e-9)
     # It comes on top of the gap checks: passing it does not count toward check_lines.
@@ -396,7 +404,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     near = near[np.linalg.norm(near - through, axis=1) < 1.0]
     assert len(near) and np.linalg.norm(near - through, axis=1).min() < 0.15
     # The fourth check is a gap inside the contacts' hull again, not the weakest support.
-    session.state.check = session._plan_check_line(estimate, contacts, lambda p: p[:, 2])
+    _plan_check(session, estimate, contacts, lambda p: p[:, 2])
     assert len(session.state.check_directions) == 4
     assert not np.allclose(session.state.check.through, through)
     session._count_check(NonContact(session.state.check.path[-1]))

@@ -57,7 +57,7 @@ def test_a_dict_field_survives_the_rollback_of_a_failed_step(bundled, library, m
         session.state.given_up.append(np.zeros(3))
         raise RuntimeError("simulated failure")
 
-    monkeypatch.setattr(session, "_stop_and_target", broken)  # after the filter update
+    monkeypatch.setattr(session, "_stop_test", broken)  # after the filter update
     with pytest.raises(RuntimeError, match="simulated"):
         session.step()
     assert isinstance(session.state, NotedState) and session.state.notes == {}

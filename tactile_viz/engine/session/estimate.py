@@ -1,4 +1,5 @@
-"""The shape estimate of a novel object: the GPIS fit on the contacts with the MAP shape,
+"""The shape estimates: the MAP particle's posed prior (and the pose targets are aimed
+from), and for a novel object the GPIS fit on the contacts with the MAP shape,
 carved where probes found free space, as its prior mean (paper, Section III-E), and its
 zero level set with the variance at the vertices.
 
@@ -12,12 +13,32 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from ..transforms import transform_points
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
 
 
 class Estimation:
-    """GPIS fit and surface of a session (see the module)."""
+    """MAP shape, GPIS fit and surface of a session (see the module).
+
+    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``rng``, ``sensor_noise``
+    and ``_use_lengths``; writes ``state.gpis_scale`` (the kernel scale the fit found)."""
+
+    def _map_shape(self, belief):
+        """The MAP particle's prior, pose ``(rotation, translation)`` and surface vertices
+        (world frame); the session's lengths follow its size (:meth:`_use_lengths`)."""
+        model = self.filter.models[self.filter.class_names.index(belief.map_class)]
+        pose = belief.map_rotation, belief.map_translation
+        self._use_lengths(model)
+        return model, pose, transform_points(model.mesh.vertices, *pose)
+
+    def _aimed_pose(self, decision, model, pose, map_vertices):
+        """The pose and vertices that targets are aimed from and snapshots report: with
+        ``decision_targets`` the decision's refined MAP pose (beyond the paper)."""
+        if decision.hypotheses and self._p.decision_targets:
+            pose = decision.hypotheses[0].rotation, decision.hypotheses[0].translation
+            map_vertices = transform_points(model.mesh.vertices, *pose)
+        return pose, map_vertices
 
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
         p = self._p

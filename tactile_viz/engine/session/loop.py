@@ -3,11 +3,19 @@
 A :class:`Session` couples a prior library, the particle filter, the GPIS and an
 exploration strategy with a sensor. A step asks the sensor for guarded moves until its
 procedure is done (the first touch, contact enforcement toward the target, a check, an RRT
-step), then updates the belief, reconstructs the surface when the object is judged novel,
-measures coverage (DHD) and, with a simulated object, the errors against it, picks the next
-target and returns an immutable :class:`Snapshot`. The planner (targets, checks, stop), the
-estimate (GPIS) and learning are mixins in their own modules; everything a step changes
-besides the filter and the generators is one :class:`~.state.ExplorationState`.
+step), keeps what they found (:mod:`.bookkeeping`), then runs the rest of the algorithm's
+loop (:meth:`Session._iteration`) and returns an immutable :class:`Snapshot`. The planner,
+the bookkeeping, the estimate (GPIS) and learning are mixins in their own modules;
+everything a step changes besides the filter and the generators is one
+:class:`~.state.ExplorationState`.
+
+Algorithm 2's lines are tagged ``l.N``, counting its statements after the initialisation,
+end lines left out: l.1 while ``d_H(S*, X_c) > eps``; l.2 update the belief (PF), MAP
+particle ``z*``; l.3 if its evidence is below the threshold; l.4 update the GPIS, target
+from its zero level set; l.5 else; l.6 target from the MAP surface; l.7 establish contact
+(the guarded moves); l.8 update ``d_H``. Equations are numbered in the order of the
+paper's LaTeX source: 14 MAP particle, 19-20 weights, 24 novelty threshold, 32 GPIS
+target, 35 DHD, 36 MAP-surface target.
 """
 
 from __future__ import annotations
@@ -21,8 +29,7 @@ from typing import Protocol, Union
 import numpy as np
 
 from ..errors import SessionError
-from ..exploration import (STRATEGIES, enforce_contact_moves, first_contact_moves, path_until,
-                           rrt_moves)
+from ..exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
 from ..library import PriorLibrary
 from ..metrics import surface_samples
 from ..observation_file import RecordedStep
@@ -34,7 +41,8 @@ from ..persistence import load_session, save_session
 from ..simulator import ContactSimulator, GroundTruth
 from ..transforms import transform_points
 from .estimate import Estimation
-from .fields import deepest_inside, free_approach, free_space_points, thin_points
+from .bookkeeping import Bookkeeping
+from .fields import deepest_inside, free_approach
 from .learning import Learning
 from .planner import Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
@@ -70,7 +78,7 @@ def _one_move(path):
     return [path], [result]
 
 
-class Session(Planner, Estimation, Learning, TruthMetrics):
+class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
     """Active exploration of one object with one prior library: Algorithm 2, step by step.
 
     The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
@@ -254,8 +262,8 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
         return self._live
 
     def _procedure(self, rng):
-        """``(kind, generator of guarded moves)`` for the step: lines 2-4 of Algorithm 2
-        (reach for the target chosen last step) or the first touch, a check, an RRT step."""
+        """``(kind, generator of guarded moves)`` for the step: l.7 of Algorithm 2 (reach
+        for the target chosen last step) or the first touch, a check, an RRT step."""
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         p, unit = self._p, self._unit
         if len(contacts) == 0 or (self.state.target is None and self.state.check is None
@@ -294,46 +302,9 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             paths, observations = self._after_moves(kind, done.value)
             if self.simulator is not None:  # the simulated sensor's wrong readings, if any
                 observations = self.simulator.corrupted(observations)
-            return self._update(paths, observations, timings)
+            return self._iteration(paths, observations, timings)
         self._live = (kind, procedure, rng, path)
         return None
-
-    def _after_moves(self, kind, done):
-        """What a finished procedure leaves besides its observations: the swept space, the
-        given-up target, the check's count, the frontier, the missed probe's free space."""
-        if kind == "check":
-            (path,), observations = done
-            self._record_sweep(observations[0])
-            self._count_check(observations[0])
-            if not isinstance(observations[0], Contact):
-                spacing = self._p.contact_spacing
-                self.state.free_space = thin_points(np.vstack([self.state.free_space, path_until(
-                    path, path[-1], spacing, 0.05 * self._unit)]), spacing)
-            return [path], observations
-        if kind != "target":
-            return done
-        paths, observations, reached = done
-        target = self.state.target.position
-        self._record_sweep(observations[0], paths[0][0])  # the approach's start
-        # A touch beside an earlier one still tells rivals apart (the noise averages).
-        repeated = self._repeats_contact(observations[-1]) and not self.state.telling_apart
-        if not reached or repeated:
-            self.state.given_up.append(target)
-        self._follow_frontier(observations[-1])
-        if not isinstance(observations[0], Contact):
-            before = len(self.state.free_space)
-            self.state.free_space = free_space_points(self.state.free_space, paths[0],
-                                                 self._p.contact_spacing)
-            self._record_miss(before)
-        return paths, observations
-
-    def _record_miss(self, before):
-        """Keep a missed target probe's path for the decision: from the first to the last
-        free-space point the step added (what a recording holds, so a replay keeps the
-        same)."""
-        added = self.state.free_space[before:]
-        if len(added) >= 2:
-            self.state.missed = np.vstack([self.state.missed, added[[0, -1]][None]])
 
     def observe(self, observations: Observation | Sequence[Observation],
                 free_space: np.ndarray | None = None) -> Snapshot | None:
@@ -353,11 +324,10 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
 
         Notes
         -----
-        The proposed target is given up as the simulated contact enforcement does: when no
-        contact was made, when the first touch missed and the last contact lies within
-        ``contact_spacing`` of an earlier one, or when a contact repeats an earlier one.
-        After a proposed check the first observation is where its sweep first touched. The session keeps
-        accepting observations after it would have stopped (``terminated``).
+        The proposed target is given up by the rule of a step taken move by move
+        (:meth:`~.bookkeeping.Bookkeeping._reached`). After a proposed check the first
+        observation is where its sweep first touched. The session keeps accepting
+        observations after it would have stopped (``terminated``).
         A step that fails leaves the session exactly as it was before it.
         """
         if isinstance(observations, (Contact, NonContact)):
@@ -393,22 +363,9 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             if not contacts and len(self.filter.contact_positions) == 0:
                 self.state.held = (observations, points)  # no estimate before a contact
                 return None
-            self._record_sweep(observations[0], self._approach_start())
-            missed_target = (self.state.check is None and self.state.target is not None
-                             and not isinstance(observations[0], Contact))
-            if self.state.check is not None:
-                self._count_check(observations[0])
-            elif self.state.target is not None:
-                if not self._reached(observations, contacts):
-                    self.state.given_up.append(self.state.target.position)
-                self._follow_frontier(observations[-1])
-            if len(points):
-                before = len(self.state.free_space)
-                self.state.free_space = thin_points(np.vstack([self.state.free_space, points]),
-                                               self._p.contact_spacing)
-                if missed_target:
-                    self._record_miss(before)
-            return self._update([], observations, {})
+            self._keep_observations(observations, points, self._approach_start(),
+                                    aimed=self.state.target is not None)
+            return self._iteration([], observations, {})
         except BaseException:
             self.restore(saved)
             raise
@@ -462,35 +419,34 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
     def _generators(self):
         return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
 
-    def _update(self, paths, observations, timings):
-        """Algorithm 2 once the step's guarded moves (line 7) are done: lines 2-6 and 8."""
+    def _iteration(self, paths, observations, timings):
+        """One pass of Algorithm 2's loop after the step's guarded moves (l.7, which reach
+        for the target the last pass chose): l.2-l.6, l.8 and l.1's test, each a call that
+        returns what it decides; the plan enters the exploration state in one place."""
         with _timed(timings, "filter"):
-            belief = self.filter.update(observations)          # l.2: update the belief (PF)
-        model = self.filter.models[self.filter.class_names.index(belief.map_class)]
-        pose = belief.map_rotation, belief.map_translation     # l.2: the MAP particle z*
-        self._use_lengths(model)
-        map_vertices = transform_points(model.mesh.vertices, *pose)
-        contacts = self.filter.contact_positions
-        recon = None
-        if belief.novel:                                       # l.3: p(D|z*) below threshold
+            belief = self.filter.update(observations)             # l.2: PF, eqs. 19-20
+        model, pose, map_vertices = self._map_shape(belief)       # l.2: z*, eq. 14
+        contacts, recon = self.filter.contact_positions, None
+        if belief.novel:                                          # l.3: below eq. 24
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
-        with _timed(timings, "decision"):                      # beyond the paper
+        with _timed(timings, "decision"):                         # beyond the paper
             decision = self._decide(belief)
-        if decision.hypotheses and self._p.decision_targets:
-            pose = decision.hypotheses[0].rotation, decision.hypotheses[0].translation
-            map_vertices = transform_points(model.mesh.vertices, *pose)
-        with _timed(timings, "target"):                        # l.8, l.1: d_H(S*, X_c) <= eps
-            dhd, terminated, decided = self._stop_and_target(  # l.4 / l.6: the next target
-                belief, model, *pose, map_vertices, recon, contacts, decision)
-        if terminated:
+        pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
+        with _timed(timings, "target"):
+            coverage = self._coverage(recon, map_vertices, contacts)  # l.8: d_H, eq. 35
+            stop = self._stop_test(coverage, belief, decision)        # l.1: d_H <= eps
+            plan = self._choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
+                                       map_vertices, recon, contacts, decision)  # l.6: 36
+        self.state.adopt(plan)
+        if plan.terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings)
         with _timed(timings, "metrics"):
             errors = self._truth_metrics(model, *pose, recon, contacts)
-        return self._snapshot(belief, model, pose, map_vertices, recon, dhd, terminated,
-                              paths, observations, timings, errors, decision, decided)
+        return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
+                              observations, timings, errors, decision)
 
-    def _snapshot(self, belief, model, pose, map_vertices, recon, dhd, terminated, paths,
-                  observations, timings, errors, decision, decided):
+    def _snapshot(self, belief, model, pose, map_vertices, recon, plan, paths,
+                  observations, timings, errors, decision):
         """Record the step's :class:`Snapshot`."""
         (rotation, translation), (pose_error, recon_error, truth_coverage) = pose, errors
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
@@ -509,11 +465,11 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             gpis_variance=None if recon is None else frozen(recon.variance),
             gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
             target=None if self.state.target is None else frozen(self.state.target.position),
-            dhd=float(dhd), truth_coverage=truth_coverage, pose_error=pose_error,
-            recon_error=recon_error, terminated=terminated, timings=timings,
+            dhd=float(plan.dhd), truth_coverage=truth_coverage, pose_error=pose_error,
+            recon_error=recon_error, terminated=plan.terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
-            decided=bool(decided), decision_confidence=decision.confidence,
+            decided=bool(plan.decided), decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)
         return snapshot

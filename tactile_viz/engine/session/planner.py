@@ -1,40 +1,148 @@
-"""Where a session touches next and when it stops: the paper's targets (the GPIS's largest
-variance while novel, the MAP surface's farthest point from the contacts while known) and
-the DHD stop, with the extensions beyond the paper behind the same entry point
-(:meth:`Planner._stop_and_target`): coverage of a novel object's prior, check lines through
-the gaps nothing was observed near, a frontier along parts nothing predicted, given-up
-targets and repeated touches.
+"""Where a session touches next and when it stops.
 
-A mixin of :class:`~.loop.Session`: it reads the session's filter, parameters in scene
-units (``_p``, ``_unit``) and exploration state (``state``).
+The paper's rules (Algorithm 2; lines and equations as tagged in :mod:`.loop`): the DHD of
+the estimate (l.8, eq. 35, :meth:`Planner._coverage`), the stop ``d_H <= eps`` (l.1,
+:meth:`Planner._stop_test`) and the next target (:meth:`Planner._choose_target`): the GPIS
+vertex of largest variance while novel (l.4, eq. 32), the MAP surface's vertex farthest from
+the contacts while known (l.6, eq. 36). Each returns what it decides; the step assigns the
+:class:`Plan` into the exploration state (:meth:`~.state.ExplorationState.adopt`).
+
+The extensions beyond the paper sit behind the same three calls; :data:`EXTENSIONS` lists
+them with the parameter that switches each off (all are off in the ``paper`` preset):
+
+=================  ===============================================  ==========================
+extension          what it does                                     off with
+=================  ===============================================  ==========================
+given-up targets   targets out of reach, and the free space of      (always on; without a
+                   missed probes, leave the DHD and the targets     miss it changes nothing)
+prior cover        a novel object's MAP prior must be covered too   ``cover_prior=False``
+uncovered target   the variance target among uncovered vertices     ``target_uncovered=False``
+check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
+frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
+                                                                    by checks' surprises)
+decision           whether a known object is decided; its checks    ``stop_at_decision=False``
+                   can stop the session                             (reported always)
+telling apart      targets where rival hypotheses disagree          ``decision_targets=False``
+confirm checks     sweeps just outside a decided MAP                ``decision_targets=False``
+=================  ===============================================  ==========================
+
+A mixin of :class:`~.loop.Session`; the attributes it reads are listed on :class:`Planner`.
 """
 
 import functools
+from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..decision import UNDECIDED, decide, disagreement_target
 from ..exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
-                           path_until, raster_path, variance_target, widest_gap)
+                           raster_path, variance_target, widest_gap)
 from ..meshes import bare_mesh
 from ..metrics import directed_hausdorff
-from ..observations import Contact
 from ..sdf import normalise_rows
-from .fields import BelowTangentPlane, ValueOf, free_approach, free_space_points, thin_points
+from .fields import BelowTangentPlane, ValueOf
 from .state import Aim, Check
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
-SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
-CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
+# (extension, the parameter and value that switch it off; None: always on)
+EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
+              ("uncovered target", ("target_uncovered", False)),
+              ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
+              ("decision stop", ("stop_at_decision", False)),
+              ("telling apart", ("decision_targets", False)),
+              ("confirm checks", ("decision_targets", False)))
+
+
+class Coverage(NamedTuple):
+    """How well the contacts cover the estimate (l.8).
+
+    Attributes
+    ----------
+    surface : (n, 3) float
+        The estimate S*: the GPIS zero level set, else the MAP surface (world frame).
+    reachable : (n,) bool
+        Its vertices exploration may still visit (:meth:`Planner._reachable`).
+    dhd : float
+        ``d_H(S*, X_c)`` over those vertices (eq. 35).
+    prior_open : (m,) bool or None
+        With ``cover_prior`` and a reconstruction: the MAP vertices still to visit.
+    prior_dhd : float
+        Their DHD (0 without).
+    """
+
+    surface: np.ndarray
+    reachable: np.ndarray
+    dhd: float
+    prior_open: Any
+    prior_dhd: float
+
+    @property
+    def value(self):
+        """The DHD a snapshot reports and the stop compares with ``eps``."""
+        return max(self.dhd, self.prior_dhd)
+
+
+class Stop(NamedTuple):
+    """The stop test of a step (l.1) with what holds it (beyond the paper)."""
+
+    terminated: bool
+    decided: bool
+    frontier: bool  # a frontier target is queued
+    checking: bool  # a check line is due
+    confirm: bool  # a confirm check of the decision is due
+    rivals: bool  # rival hypotheses are to be told apart
+    decision_checks: int  # confirm checks passed (0: the MAP no longer qualifies)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a step decided: the next target or check and the stop.
+
+    Attributes
+    ----------
+    target : Aim or None
+        Where the next step reaches (None: stopped, or a check).
+    check : Check or None
+        The check the next step sweeps.
+    frontier : bool
+        ``target`` is the head of the frontier queue (taken off it).
+    telling_apart, confirming : bool
+        ``target`` tells rival hypotheses apart; ``check`` confirms a decision.
+    dhd : float
+        ``Coverage.value``.
+    terminated, decided : bool
+    decision_checks : int
+        The confirm checks passed so far (restarted when the MAP no longer qualifies).
+    """
+
+    target: Any
+    check: Any
+    dhd: float
+    terminated: bool
+    decided: bool
+    decision_checks: int
+    frontier: bool = False
+    telling_apart: bool = False
+    confirming: bool = False
+
 
 class Planner:
-    """Targets, checks, frontier and the stop rule of a session (see the module)."""
+    """Targets, checks, frontier and the stop rule of a session (see the module).
+
+    Reads the session's ``filter``, ``state`` (:class:`~.state.ExplorationState`), ``_p``
+    and ``_unit`` (parameters and size unit in scene units), ``_filter_unit``, ``rng``,
+    ``strategy``, ``sensor_noise``, ``step_count`` and ``_prior``
+    (:class:`~.estimate.Estimation`). It writes the exploration state only for the
+    decision, in :meth:`_decide` (the hypotheses carried) and :meth:`_telling_apart` (the
+    telling count and targets); the step adopts the rest from the :class:`Plan`.
+    """
 
     def _decide(self, belief):
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
@@ -51,15 +159,10 @@ class Planner:
         self.state.hypotheses = decision.hypotheses[:1] + decision.rivals
         return decision
 
-    def _stop_and_target(self, state, model, rotation, translation, map_vertices, recon,
-                         contacts, decision=UNDECIDED):
-        """The DHD of the estimate, whether to stop, whether the object is decided, and the
-        next target (kept in ``self.state.target``); returns ``(dhd, terminated, decided)``.
-
-        A decision also needs contacts all around the MAP surface (its DHD within
-        ``decision_cover``) and checks just outside it (:meth:`_decided`): a wrong pose or
-        class can fit contacts on one part within the noise (a novel statue's trident
-        fitted a knife), and nothing else would refute it."""
+    def _coverage(self, recon, map_vertices, contacts):
+        """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
+        surface) by the contacts: l.8, eq. 35, over the vertices still to visit; with
+        ``cover_prior`` a novel object's MAP prior counts too (beyond the paper)."""
         surface = recon.vertices if recon is not None and not recon.empty else map_vertices
         reachable = self._reachable(surface)
         dhd = directed_hausdorff(surface[reachable], contacts)
@@ -69,69 +172,83 @@ class Planner:
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
                                                            self._p.gpis_carve_radius))
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
-        cap = self._p.max_steps_novel if state.novel else self._p.max_steps_known
-        covered = max(dhd, prior_dhd) <= self._p.eps
-        exploring = state.novel and self.strategy != "rrt"
+        return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
+
+    def _stop_test(self, coverage, belief, decision=UNDECIDED):
+        """The :class:`Stop`: l.1, ``d_H(S*, X_c) <= eps``, held by the extensions
+        (frontier, check lines, confirm checks, rivals), or the decision, or the step cap.
+
+        A decision also needs contacts all around the MAP surface (its DHD within
+        ``decision_cover``) and checks just outside it (:meth:`_decided`): a wrong pose or
+        class can fit contacts on one part within the noise (a novel statue's trident
+        fitted a knife), and nothing else would refute it."""
+        p = self._p
+        cap = p.max_steps_novel if belief.novel else p.max_steps_known
+        covered = coverage.value <= p.eps
+        exploring = belief.novel and self.strategy != "rrt"
         frontier = exploring and bool(self.state.frontier)
         checking = (covered and exploring and not frontier
-                    and self.state.checks_passed < self._p.check_lines)
-        decided, confirm = self._decided(decision, dhd)
+                    and self.state.checks_passed < p.check_lines)
+        decided, confirm, decision_checks = self._decided(decision, coverage.dhd)
         # Rivals are aimed at (and the DHD stop waits) only while the MAP fits within the
         # noise (else the object is none of them) and for decision_patience steps at most.
-        rivals = (self._p.decision_targets and not state.novel and not decided
+        rivals = (p.decision_targets and not belief.novel and not decided
                   and not confirm and decision.fits and len(decision.rivals) > 0
-                  and self.state.telling_steps < self._p.decision_patience)
+                  and self.state.telling_steps < p.decision_patience)
         # The DHD stop waits for the decision's checks too: they are a step or two, and a
         # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
         terminated = bool((covered and not checking and not frontier and not rivals
                            and not confirm)
-                          or (self._p.stop_at_decision and decided)
+                          or (p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
-        self.state.check, self.state.frontier_target = None, False
-        self.state.telling_apart = self.state.confirming = False
+        return Stop(terminated, decided, frontier, checking, confirm, rivals, decision_checks)
+
+    def _choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
+                       recon, contacts, decision=UNDECIDED):
+        """The step's :class:`Plan`: the next target (l.4, eq. 32 while novel; l.6, eq. 36
+        while known) or, beyond the paper, the frontier's next target, a check line, a
+        confirm check, a telling-apart target or the uncovered prior's farthest vertex."""
+        keep = dict(dhd=coverage.value, terminated=stop.terminated, decided=stop.decided,
+                    decision_checks=stop.decision_checks)
         if recon is not None and not recon.empty:
             outside = recon.fit.mean_value
         else:
             outside = ValueOf(self._prior(model, rotation, translation))
-        if terminated:
-            self.state.target = None
-        elif frontier:
-            position, normal = self.state.frontier.pop(0)
+        if stop.terminated:
+            return Plan(None, None, **keep)
+        if stop.frontier:
+            position, normal = self.state.frontier[0]
             # Probe the full depth across the tangent plane (the estimate has no surface
             # here), but approach short of what the estimate does predict.
-            self.state.target = Aim(position, normal, BelowTangentPlane(position, normal, outside))
-            self.state.frontier_target = True
-        elif checking:
-            self.state.target = None
-            self.state.check = self._plan_check_line(surface, contacts, outside)
-        elif confirm:
-            self.state.target = None
-            self.state.check = self._plan_check_line(map_vertices, contacts, outside)
-            self.state.confirming = True
-        elif rivals and (aim := self._telling_apart(decision, contacts)) is not None:
-            self.state.target = aim
-        elif dhd <= self._p.eps < prior_dhd:
+            aim = Aim(position, normal, BelowTangentPlane(position, normal, outside))
+            return Plan(aim, None, frontier=True, **keep)
+        if stop.checking:
+            return Plan(None, self._plan_check_line(coverage.surface, contacts, outside), **keep)
+        if stop.confirm:
+            return Plan(None, self._plan_check_line(map_vertices, contacts, outside),
+                        confirming=True, **keep)
+        if stop.rivals and (aim := self._telling_apart(decision, contacts)) is not None:
+            return Plan(aim, None, telling_apart=True, **keep)
+        if coverage.dhd <= self._p.eps < coverage.prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
-            self.state.target = self._next_target(map_vertices, prior_open, None, model,
-                                                  rotation, translation, contacts)
-        else:
-            self.state.target = self._next_target(surface, reachable, recon, model,
-                                                  rotation, translation, contacts)
-        return max(dhd, prior_dhd), terminated, decided
+            return Plan(self._next_target(map_vertices, coverage.prior_open, None, model,
+                                          rotation, translation, contacts), None, **keep)
+        return Plan(self._next_target(coverage.surface, coverage.reachable, recon, model,
+                                      rotation, translation, contacts), None, **keep)
 
     def _decided(self, decision, dhd):
-        """``(decided, confirm)``: the step's decision needs contacts all around the MAP
-        (``decision_cover``) and, exploring with ``decision_targets``, ``decision_checks``
-        sweeps just outside it that touched nothing it does not predict (``confirm``: plan
-        the next); a MAP that no longer qualifies starts the count again."""
+        """``(decided, confirm, decision_checks)``: the step's decision needs contacts all
+        around the MAP (``decision_cover``) and, exploring with ``decision_targets``,
+        ``decision_checks`` sweeps just outside it that touched nothing it does not predict
+        (``confirm``: plan the next); a MAP that no longer qualifies starts the count
+        again (the count returned)."""
         ready = decision.decided and dhd <= self._p.decision_cover
-        if not ready:
-            self.state.decision_checks = 0
+        count = self.state.decision_checks if ready else 0
         if not self._p.decision_targets:
-            return ready, False
-        confirm = ready and self.state.decision_checks < self._p.decision_checks
-        return ready and not confirm, confirm
+            return ready, False, count
+        confirm = ready and count < self._p.decision_checks
+        return ready and not confirm, confirm, count
 
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
@@ -189,7 +306,7 @@ class Planner:
 
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
-        path to sweep.
+        path to sweep (its direction joins ``check_directions`` when the step adopts it).
 
         ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): a
         lattice through the widest unobserved gap, alternately inside the contacts' hull
@@ -225,7 +342,6 @@ class Planner:
                                            reach=SWEEP_RADIUS * unit, unit=unit)
             path = raster_path(through, min(gap, MAX_RASTER_RADIUS * unit), direction,
                                spacing=0.2 * unit, reach=SWEEP_RADIUS * unit)
-        self.state.check_directions.append(direction)
         return Check(estimate, through, direction, path)
 
     def _weakest_support(self, estimate, contacts):
@@ -250,104 +366,6 @@ class Planner:
         kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
         return kinds[index % len(kinds)]
 
-    def _count_check(self, touched):
-        """Count the check as passed unless it touched the object farther than
-        ``contact_spacing`` from the estimate and from every contact (a part nothing
-        predicted: the count restarts and the frontier grows from the touch)."""
-        known = [points for points in (self.state.check.estimate, self.filter.contact_positions)
-                 if len(points)]
-        surprise = isinstance(touched, Contact) and min(
-            cKDTree(points).query(touched.position)[0]
-            for points in known) > self._new_ground()
-        if self.state.confirming:  # a check of a decision: a surprise starts it again
-            self.state.decision_checks = 0 if surprise else self.state.decision_checks + 1
-            return
-        if surprise:
-            self.state.checks_passed = 0
-            self._grow_frontier(touched)
-        elif self._check_kind(len(self.state.check_directions) - 1) != "weakest":
-            # A sweep about the weakest support adds to the gap checks, never replaces one.
-            self.state.checks_passed += 1
-
-    def _approach_start(self):
-        """Where the approach to the current target starts (None without a target, and
-        with RRT)."""
-        if self.state.target is None or self.strategy == "rrt":
-            return None
-        position, normal, estimate = self.state.target
-        return position + free_approach(estimate, position, normal,
-                                        self._p.approach_clearance, self._unit) * normal
-
-    def _record_sweep(self, touched, start=None):
-        """Keep samples of the path the sensor swept up to its first touch: the planned
-        check's path, else the straight approach from ``start`` (None: nothing to keep).
-        Checks need not visit that space again."""
-        if self.state.check is not None:
-            spacing = SWEPT_SPACING * self._unit
-            samples = path_until(self.state.check.path, touched.position, spacing, 0.05 * self._unit)
-            self.state.swept = thin_points(np.vstack([self.state.swept, samples]), spacing)
-        elif start is not None:
-            self.state.swept = free_space_points(self.state.swept, np.stack([start, touched.position]),
-                                            SWEPT_SPACING * self._unit)
-
-    def _follow_frontier(self, touched):
-        """After a frontier target: a contact on new ground grows the frontier from it."""
-        contacts = self.filter.contact_positions
-        if (self.state.frontier_target and isinstance(touched, Contact) and len(contacts)
-                and cKDTree(contacts).query(touched.position)[0] > self._new_ground()):
-            self._grow_frontier(touched)
-
-    def _new_ground(self):
-        """How far from the estimate and every contact a touch is on ground nothing
-        predicted: ``contact_spacing``, at least ``eps / 2`` (equal at the paper's values;
-        with a larger eps the estimate may lie farther off, and a frontier grown eps at a
-        time in four directions would tile the surface ever finer)."""
-        return max(self._p.contact_spacing, self._p.eps / 2)
-
-    def _grow_frontier(self, contact):
-        """Queue targets ``eps`` from a contact on a part that nothing predicted, along
-        four tangent directions: following them maps the part out, as a hand runs along a
-        rail it bumped into (beyond the paper). Places within :meth:`_new_ground` of a
-        contact, a given-up target or a queued target are skipped."""
-        normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
-        helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
-        first = normalise_rows(np.cross(normal, helper)[None])[0]
-        second = np.cross(normal, first)
-        for tangent in (first, -first, second, -second):
-            point = contact.position + self._p.eps * tangent
-            taken = np.vstack([self.filter.contact_positions, contact.position[None],
-                               np.reshape(self.state.given_up, (-1, 3)),
-                               np.reshape([p for p, _ in self.state.frontier], (-1, 3))])
-            if cKDTree(taken).query(point)[0] > self._new_ground():
-                self.state.frontier.append((point, normal))
-
-    def _reached(self, observations, contacts):
-        """Whether touches made for the proposed target reached it (the rule of
-        :func:`~.exploration.enforce_contact`)."""
-        if not contacts or (self._repeats_contact(contacts[-1]) and not self.state.telling_apart):
-            return False
-        if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
-            return True
-        distance = cKDTree(self.filter.contact_positions).query(contacts[-1].position)[0]
-        return bool(distance >= self._p.contact_spacing)
-
-    def _repeats_contact(self, observation):
-        """Whether a contact lands where an earlier one did (within the sensor noise, and at
-        least the simulator's contact precision).
-
-        Such a touch taught nothing: something in front of the target (or a crevice the
-        probe cannot enter) took it, and aiming at the same target again would repeat it.
-        A noiseless sensor does not repeat a touch bit for bit (the approach moves with the
-        estimate), so without the precision floor a blocked target was aimed at until the
-        step cap (the learned home chair, seed 1005: 110 touches of one spot).
-        """
-        contacts = self.filter.contact_positions
-        if not isinstance(observation, Contact) or len(contacts) == 0:
-            return False
-        precision = (self.simulator.tolerance if self.simulator is not None
-                     else CONTACT_PRECISION * self._filter_unit)
-        tolerance = max(4.0 * self.sensor_noise[0], precision)
-        return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
 
 
 @functools.lru_cache(maxsize=8)

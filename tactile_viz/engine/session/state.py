@@ -112,6 +112,18 @@ class ExplorationState:
     held: Any = None
     replayed: int = 0
 
+    def adopt(self, plan):
+        """Take a step's plan (:class:`~.planner.Plan`): the one place the target, the
+        check and their flags enter the state; a frontier target leaves the queue and a
+        check's direction joins ``check_directions``."""
+        self.target, self.check, self.frontier_target = plan.target, plan.check, plan.frontier
+        self.telling_apart, self.confirming = plan.telling_apart, plan.confirming
+        self.decision_checks = plan.decision_checks
+        if plan.frontier:
+            self.frontier.pop(0)
+        if plan.check is not None:
+            self.check_directions.append(plan.check.direction)
+
     def copy(self):
         """A deep copy: changing any list, dict or array of the copy leaves this state as
         it is. The estimates (callables of points, such as ``target.estimate``) are shared:

@@ -1,0 +1,190 @@
+"""What a step's observations leave in the exploration state besides the belief: the
+swept space, the check's count, the given-up target, the frontier, the free space and the
+missed probe. One path, :meth:`Bookkeeping._keep_observations`, for a step taken move by
+move (:meth:`Bookkeeping._after_moves`) and one given whole (:meth:`~.loop.Session.observe`).
+
+A mixin of :class:`~.loop.Session`; the attributes it reads are listed on
+:class:`Bookkeeping`.
+"""
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..exploration import path_until
+from ..observations import Contact
+from ..sdf import normalise_rows
+from .fields import free_approach, free_space_points, thin_points
+
+# Lengths in size units (a sixth of the object's longest side; see ..params):
+SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
+CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
+
+
+class Bookkeeping:
+    """The exploration state's record of observations (see the module).
+
+    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``_filter_unit``,
+    ``strategy``, ``sensor_noise``, ``simulator`` and ``_check_kind``
+    (:class:`~.planner.Planner`); writes ``state``.
+    """
+
+    def _after_moves(self, kind, done):
+        """The paths and observations of a finished procedure, kept
+        (:meth:`_keep_observations`) with the free space of a missed target probe or check
+        and the approach's start."""
+        paths, observations = done[:2]  # a target's procedure adds its own "reached"
+        missed, spacing = not isinstance(observations[0], Contact), self._p.contact_spacing
+        free, start = np.zeros((0, 3)), None
+        if kind == "target":
+            start = paths[0][0]
+            if missed:
+                free = free_space_points(free, paths[0], spacing)
+        elif kind == "check" and missed:
+            free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self._unit)
+        self._keep_observations(observations, free, start, aimed=kind == "target")
+        return paths, observations
+
+    def _keep_observations(self, observations, free_space, start, aimed):
+        """What a step's observations leave besides the belief, the same for a step taken
+        move by move and one given whole: the swept space, the check's count, the given-up
+        target, the frontier, the free space and the missed probe.
+
+        Parameters
+        ----------
+        observations : list of Contact or NonContact
+            The step's, in time order (at least one).
+        free_space : (k, 3) float
+            Points the sensor moved through without touching (world frame).
+        start : (3,) float or None
+            Where the approach to the target began: the way to its first touch is swept
+            (None: nothing to keep; after a check its path is).
+        aimed : bool
+            Whether the step reached for ``state.target`` (not after a check). Move by
+            move only a target's procedure does; a step given whole reached for any
+            target there is (with RRT, too).
+        """
+        state, first = self.state, observations[0]
+        self._record_sweep(first, start)
+        if state.check is not None:
+            self._count_check(first)
+        elif aimed:
+            # A touch beside an earlier one still tells rivals apart (the noise averages).
+            if not self._reached(observations):
+                state.given_up.append(state.target.position)
+            self._follow_frontier(observations[-1])
+        before = len(state.free_space)
+        if len(free_space):
+            state.free_space = thin_points(np.vstack([state.free_space, free_space]),
+                                           self._p.contact_spacing)
+        if aimed and state.check is None and not isinstance(first, Contact):
+            self._record_miss(before)
+
+    def _record_miss(self, before):
+        """Keep a missed target probe's path for the decision: from the first to the last
+        free-space point the step added (what a recording holds, so a replay keeps the
+        same)."""
+        added = self.state.free_space[before:]
+        if len(added) >= 2:
+            self.state.missed = np.vstack([self.state.missed, added[[0, -1]][None]])
+
+    def _count_check(self, touched):
+        """Count the check as passed unless it touched the object farther than
+        ``contact_spacing`` from the estimate and from every contact (a part nothing
+        predicted: the count restarts and the frontier grows from the touch)."""
+        known = [points for points in (self.state.check.estimate, self.filter.contact_positions)
+                 if len(points)]
+        surprise = isinstance(touched, Contact) and min(
+            cKDTree(points).query(touched.position)[0]
+            for points in known) > self._new_ground()
+        if self.state.confirming:  # a check of a decision: a surprise starts it again
+            self.state.decision_checks = 0 if surprise else self.state.decision_checks + 1
+            return
+        if surprise:
+            self.state.checks_passed = 0
+            self._grow_frontier(touched)
+        elif self._check_kind(len(self.state.check_directions) - 1) != "weakest":
+            # A sweep about the weakest support adds to the gap checks, never replaces one.
+            self.state.checks_passed += 1
+
+    def _approach_start(self):
+        """Where the approach to the current target starts (None without a target, and
+        with RRT)."""
+        if self.state.target is None or self.strategy == "rrt":
+            return None
+        position, normal, estimate = self.state.target
+        return position + free_approach(estimate, position, normal,
+                                        self._p.approach_clearance, self._unit) * normal
+
+    def _record_sweep(self, touched, start=None):
+        """Keep samples of the path the sensor swept up to its first touch: the planned
+        check's path, else the straight approach from ``start`` (None: nothing to keep).
+        Checks need not visit that space again."""
+        if self.state.check is not None:
+            spacing = SWEPT_SPACING * self._unit
+            samples = path_until(self.state.check.path, touched.position, spacing, 0.05 * self._unit)
+            self.state.swept = thin_points(np.vstack([self.state.swept, samples]), spacing)
+        elif start is not None:
+            self.state.swept = free_space_points(self.state.swept, np.stack([start, touched.position]),
+                                            SWEPT_SPACING * self._unit)
+
+    def _follow_frontier(self, touched):
+        """After a frontier target: a contact on new ground grows the frontier from it."""
+        contacts = self.filter.contact_positions
+        if (self.state.frontier_target and isinstance(touched, Contact) and len(contacts)
+                and cKDTree(contacts).query(touched.position)[0] > self._new_ground()):
+            self._grow_frontier(touched)
+
+    def _new_ground(self):
+        """How far from the estimate and every contact a touch is on ground nothing
+        predicted: ``contact_spacing``, at least ``eps / 2`` (equal at the paper's values;
+        with a larger eps the estimate may lie farther off, and a frontier grown eps at a
+        time in four directions would tile the surface ever finer)."""
+        return max(self._p.contact_spacing, self._p.eps / 2)
+
+    def _grow_frontier(self, contact):
+        """Queue targets ``eps`` from a contact on a part that nothing predicted, along
+        four tangent directions: following them maps the part out, as a hand runs along a
+        rail it bumped into (beyond the paper). Places within :meth:`_new_ground` of a
+        contact, a given-up target or a queued target are skipped."""
+        normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
+        helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+        first = normalise_rows(np.cross(normal, helper)[None])[0]
+        second = np.cross(normal, first)
+        for tangent in (first, -first, second, -second):
+            point = contact.position + self._p.eps * tangent
+            taken = np.vstack([self.filter.contact_positions, contact.position[None],
+                               np.reshape(self.state.given_up, (-1, 3)),
+                               np.reshape([p for p, _ in self.state.frontier], (-1, 3))])
+            if cKDTree(taken).query(point)[0] > self._new_ground():
+                self.state.frontier.append((point, normal))
+
+    def _reached(self, observations):
+        """Whether the touches of a step that reached for the target reached it: the
+        ``reached`` of :func:`~..exploration.enforce_contact_moves`, and the last contact
+        does not repeat an earlier one (:meth:`_repeats_contact`) unless it tells rivals
+        apart."""
+        contacts = [o for o in observations if isinstance(o, Contact)]
+        if not contacts or (self._repeats_contact(contacts[-1]) and not self.state.telling_apart):
+            return False
+        if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
+            return True
+        distance = cKDTree(self.filter.contact_positions).query(contacts[-1].position)[0]
+        return bool(distance >= self._p.contact_spacing)
+
+    def _repeats_contact(self, observation):
+        """Whether a contact lands where an earlier one did (within the sensor noise, and at
+        least the simulator's contact precision).
+
+        Such a touch taught nothing: something in front of the target (or a crevice the
+        probe cannot enter) took it, and aiming at the same target again would repeat it.
+        A noiseless sensor does not repeat a touch bit for bit (the approach moves with the
+        estimate), so without the precision floor a blocked target was aimed at until the
+        step cap (the learned home chair, seed 1005: 110 touches of one spot).
+        """
+        contacts = self.filter.contact_positions
+        if not isinstance(observation, Contact) or len(contacts) == 0:
+            return False
+        precision = (self.simulator.tolerance if self.simulator is not None
+                     else CONTACT_PRECISION * self._filter_unit)
+        tolerance = max(4.0 * self.sensor_noise[0], precision)
+        return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
