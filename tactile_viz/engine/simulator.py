@@ -14,6 +14,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from .errors import ParameterError
+from .meshes import bare_mesh
 from .observations import Contact, NonContact
 from .sdf import normalise_rows
 from .transforms import inverse_transform_points, transform_points
@@ -61,7 +62,8 @@ class GroundTruth:
 
     def surface_points(self, count, rng=None):
         """Area-uniform points on the surface, world frame: (count, 3)."""
-        points, _ = trimesh.sample.sample_surface(self.model.mesh, count,
+        # A bare copy: the sampling's triangles and areas stay off the library's mesh.
+        points, _ = trimesh.sample.sample_surface(bare_mesh(self.model.mesh), count,
                                                   seed=np.random.default_rng(rng))
         return self.to_world(points)
 
