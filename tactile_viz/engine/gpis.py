@@ -229,6 +229,9 @@ class GPISFit:
     log_marginal_likelihood : float
     prior : callable
         ``prior(points) -> (values, gradients)``.
+    compiled : bool
+        Sum the mean's value correction by a compiled loop (the same sum, rounded
+        differently; :mod:`.gpis_incremental`).
     """
 
     points: np.ndarray
@@ -240,6 +243,7 @@ class GPISFit:
     alpha: np.ndarray
     log_marginal_likelihood: float
     prior: object
+    compiled: bool = False
 
     @property
     def radius(self):
@@ -260,11 +264,17 @@ class GPISFit:
             return values, gradients
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.kernel)
+            values[start:start + _CHUNK] += self.scale * self._correction(part)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
                 part, self.points, self.kernel) @ self.alpha
         return values, gradients
+
+    def _correction(self, query):
+        """``value_rows(query, points) @ alpha``: (k,)."""
+        if self.compiled:
+            from .gpis_incremental import value_correction_compiled
+            return value_correction_compiled(query, self.points, self.alpha, self.kernel)
+        return value_correction(query, self.points, self.alpha, self.kernel)
 
     def mean_value(self, query):
         """Posterior mean value only (cheaper): (k,)."""
@@ -274,8 +284,7 @@ class GPISFit:
             return values
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.kernel)
+            values[start:start + _CHUNK] += self.scale * self._correction(part)
         return values
 
     def variance(self, query):
@@ -340,6 +349,40 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
     return float(np.clip(step, -max_step, max_step)) if np.isfinite(step) else 0.0
 
 
+def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
+                 noise_variance=1e-4):
+    """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
+    that contradict the prior (value ``noncontact_value``), less the prior mean.
+
+    Returns
+    -------
+    everything : (n, 3) float, world frame
+        Contacts, then the non-contacts kept.
+    kept : (m,) int
+        Observed rows of the ``4 n`` [value, gradient] components.
+    residual : (m,) float
+        Observation less prior mean on the kept rows.
+    noise : (m,) float
+        ``noise_variance`` on every kept row.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    outside = (np.zeros((0, 3)) if noncontacts is None
+               else noncontact_observations(prior, noncontacts, noncontact_value))
+    everything = np.vstack([points, outside])
+    if len(everything) == 0:
+        return everything, np.zeros(0, dtype=int), np.zeros(0), np.zeros(0)
+    prior_values, prior_gradients = prior(everything)
+    observed = np.hstack([np.zeros((len(everything), 1)),
+                          np.vstack([normals, np.zeros((len(outside), 3))])])
+    observed[len(points):, 0] = noncontact_value
+    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
+    kept = np.concatenate([np.arange(4 * len(points)), 4 * (len(points) + np.arange(len(outside)))])
+    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
+                            np.full(len(outside), float(noise_variance))])
+    return everything, kept, residual[kept], noise
+
+
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,
              noncontacts=None, noncontact_value=0.1):
     """Fit the GPIS to contacts, taking one Newton step on the kernel scale.
@@ -372,24 +415,12 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     GPISFit
     """
     kernel = as_kernel(kernel)
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
-    outside = (np.zeros((0, 3)) if noncontacts is None
-               else noncontact_observations(prior, noncontacts, noncontact_value))
-    everything = np.vstack([points, outside])
+    everything, kept, residual, noise = observations(points, normals, prior, noncontacts,
+                                                     noncontact_value, noise_variance)
     if len(everything) == 0:
         return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)
-    prior_values, prior_gradients = prior(everything)
-    observed = np.hstack([np.zeros((len(everything), 1)),
-                          np.vstack([normals, np.zeros((len(outside), 3))])])
-    observed[len(points):, 0] = noncontact_value
-    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
-    kept = np.concatenate([np.arange(4 * len(points)), 4 * (len(points) + np.arange(len(outside)))])
-    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
-                            np.full(len(outside), float(noise_variance))])
     gram0 = kernel_blocks(everything, everything, kernel)[np.ix_(kept, kept)]
-    residual = residual[kept]
     try:
         factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise)
     except LinAlgError:  # thin-plate R too small: jitter as a nugget of the kernel
