@@ -1,20 +1,8 @@
 """Parameters of the filter and of a session, each in one dataclass with the paper's values as
 defaults; their declarations (component, unit, doc, range) for the GUI, the command line and
-the benchmarks. Named presets are in :mod:`.presets`.
-
-Lengths
--------
-Every length parameter is given in *size units*: one size unit is a sixth of an object's
-longest side, so the paper's values, written for objects normalised to a longest side of 6,
-keep their proportion to objects of any size in any unit (``eps = 0.6`` is 10% of the
-object's size, in metres for a metric scene). A session turns them into scene units
-(:func:`scaled_lengths`): the filter's (``sigma_d``, ``distance_step``, ``merge_distance``)
-with the library's reference size (the median longest side of its priors), which all
-classes share so that their likelihoods compare; the exploration's and the stop's with the
-MAP object's longest side. ``SessionParams.length_unit`` fixes one size unit for all of
-them instead (1: every length in scene units as written). On the paper's objects a size unit
-is one scene unit, so the paper's configuration is unchanged. Fields that are lengths carry
-``metadata["length"]``, the power of length in their unit.
+the benchmarks. Named presets are in :mod:`.presets`. Lengths are in *size units*, a sixth
+of an object's longest side, turned into scene units by :func:`scaled_lengths` (docs/units.md);
+length fields carry ``metadata["length"]``, the power of length in their unit.
 """
 
 from __future__ import annotations
@@ -298,10 +286,8 @@ class SessionParams:
         Margin of the reconstruction box around the MAP shape and the contacts.
     gpis_kernel : {"thin-plate", "wendland"}
         ``thin-plate``: the paper's kernel, whose correction reaches the whole box (the
-        default: with the carved prior and prior coverage it reconstructed 10 novel trials
-        to a mean TWD of 0.80 against the Wendland kernel's 1.08, in 33 s against 55 s per
-        trial, docs/benchmarks.md); ``wendland``: compactly supported, a contact corrects
-        the prior only within ``gpis_support``.
+        default: 0.80 mean TWD against 1.08 on 10 novel trials, docs/benchmarks.md);
+        ``wendland``: compactly supported, corrects the prior within ``gpis_support``.
     gpis_support : float, size units
         Support radius ``c`` of the Wendland kernel.
     gpis_radius_factor : float
@@ -313,6 +299,15 @@ class SessionParams:
         ``f = gpis_noncontact_value`` (value only), which removes the prior's surface where
         a probe passed through it.
     gpis_noncontact_value : float, size units
+    gpis_incremental : bool
+        Beyond the paper: the GPIS factor is extended by a block per new contact and its
+        mean summed by a compiled loop (docs/gpis.md); False refits in full each step.
+    gpis_refit_every : int
+        With ``gpis_incremental``: the scale's Newton step every this many fits (1: all).
+    gpis_refit_score : float
+        With ``gpis_incremental``: also refit when the likelihood's gradient exceeds this (in sds).
+    gpis_radius_tolerance : float
+        With ``gpis_incremental``: thin-plate ``R`` kept while within this fraction of the box's.
     gpis_carve_radius : float, size units
         Beyond the paper: the GPIS prior mean has a ball of this radius (at most the
         distance to the nearest contact) cut out of the MAP shape around every non-contact
@@ -343,8 +338,8 @@ class SessionParams:
         every two gap checks one more sweeps that lattice about the estimate's vertex
         farthest from every contact (where the object may lie up to ``eps`` off the
         estimate unseen); it does not count toward ``check_lines`` unless it surprises;
-        ``contact``: a straight
-        line through a random contact moved by about ``eps``, from the least used direction.
+        ``contact``: a line through a random contact moved by about ``eps``, from the least
+        used direction.
     variance_points : int
         Surface vertices at which the GPIS variance is evaluated (a random subset).
     final_resolution : int
@@ -396,9 +391,9 @@ class SessionParams:
         position noise) are one hypothesis: symmetries of the shape are not rivals.
     decision_targets : bool
         Beyond the paper: while the object is known but not decided and its MAP fits
-        within the noise, touch where the plausible hypotheses' surfaces disagree most
-        (holding the DHD stop), for ``decision_patience`` steps at most; the MAP pose reported and aimed from is its refined
-        fit. False: the paper's targets, stop and MAP particle.
+        within the noise, touch where the plausible hypotheses' surfaces disagree most (holding
+        the DHD stop), for ``decision_patience`` steps at most; the MAP pose reported and
+        aimed from is its refined fit. False: the paper's targets, stop and MAP particle.
     decision_patience : int
         Steps of a session aimed at rival hypotheses at most (then the paper's targets and
         stop).
@@ -426,6 +421,10 @@ class SessionParams:
     gpis_noncontacts: bool = False
     gpis_noncontact_value: float = _length(0.1)
     gpis_carve_radius: float = _length(0.6)
+    gpis_incremental: bool = True
+    gpis_refit_every: int = _ranged(10, 1, 100)
+    gpis_refit_score: float = _ranged(3.0, 0.5, 100.0)
+    gpis_radius_tolerance: float = _ranged(0.1, 0.0, 1.0)
     cover_prior: bool = True
     target_uncovered: bool = False
     check_lines: int = 24
@@ -466,23 +465,24 @@ class SessionParams:
             raise ParameterError(f"gpis_kernel must be one of {', '.join(GPIS_KERNELS)}, "
                                  f"got {self.gpis_kernel!r}")
         for name in ("gpis_noncontacts", "cover_prior", "target_uncovered", "decision_targets",
-                     "stop_at_decision"):
+                     "stop_at_decision", "gpis_incremental"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} must be True or False, "
                                      f"got {getattr(self, name)!r}")
         for name in ("eps", "gpis_noise", "gpis_scale", "gpis_margin", "gpis_support",
-                     "gpis_radius_factor", "gpis_noncontact_value", "probe_depth",
-                     "approach_clearance",
+                     "gpis_radius_factor", "gpis_noncontact_value", "gpis_refit_score",
+                     "probe_depth", "approach_clearance",
                      "follow_step", "contact_spacing", "max_follow", "rrt_step",
                      "decision_floor", "decision_cover", "decision_same_mode"):
             value = getattr(self, name)
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
-        _check_real("gpis_carve_radius", self.gpis_carve_radius)
-        if not (np.isfinite(self.gpis_carve_radius) and self.gpis_carve_radius >= 0):
-            raise ParameterError("gpis_carve_radius must be a finite number >= 0, "
-                                 f"got {self.gpis_carve_radius!r}")
+        for name in ("gpis_carve_radius", "gpis_radius_tolerance"):
+            _check_real(name, getattr(self, name))
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ParameterError(f"{name} must be a finite number >= 0, "
+                                     f"got {getattr(self, name)!r}")
         _check_real("decision_confidence", self.decision_confidence)
         if not 0.5 <= self.decision_confidence < 1:
             raise ParameterError("decision_confidence must be in [0.5, 1), "
@@ -495,7 +495,8 @@ class SessionParams:
         if self.check_lines < 0:
             raise ParameterError(f"check_lines must be at least 0, got {self.check_lines!r}")
         for name in ("max_steps_known", "max_steps_novel", "variance_points", "metric_samples",
-                     "gpis_resolution", "final_resolution", "learned_resolution"):
+                     "gpis_resolution", "final_resolution", "learned_resolution",
+                     "gpis_refit_every"):
             object.__setattr__(self, name, _check_integer(name, getattr(self, name)))
             if getattr(self, name) < 1:
                 raise ParameterError(f"{name} must be at least 1, got {getattr(self, name)!r}")

@@ -87,10 +87,13 @@ SESSION_PRESETS = {
     # frontier) and the learned prior's pose refined.
     "recommended": SessionParams(),
     # The paper exactly: its GPIS as written (thin-plate kernel with R the largest distance,
-    # contacts only), the stop as soon as the estimate is covered, no pose refinement.
+    # contacts only, refitted in full with a Newton step on its scale every step), the stop
+    # as soon as the estimate is covered, no pose refinement.
     "paper": SessionParams(filter=preset("paper", refine_learned=0),
                            gpis_kernel="thin-plate", gpis_radius_factor=1.0,
                            gpis_noncontacts=False, gpis_carve_radius=0.0,
+                           gpis_incremental=False, gpis_refit_every=1,
+                           gpis_radius_tolerance=0.0,
                            cover_prior=False, check_lines=0, approach_clearance=0.5,
                            decision_targets=False),
     # A robot that only needs to know what and where the object is: the default, stopped

@@ -12,6 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from ..gpis_incremental import fit_gpis_incremental
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
 
@@ -26,8 +27,12 @@ class Estimation:
         clock = time.perf_counter()
         prior = self._gpis_prior(model, rotation, translation, contacts,
                                  self.filter.noncontact_positions, self.state.free_space)
-        fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
-                        self.state.gpis_scale)
+        if p.gpis_incremental:
+            fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
+                                        self._noncontact_points(), prior)
+        else:
+            fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+                            self.state.gpis_scale)
         self.state.gpis_scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
@@ -70,6 +75,32 @@ class Estimation:
                         noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2, newton=newton,
                         noncontacts=noncontacts if p.gpis_noncontacts else None,
                         noncontact_value=p.gpis_noncontact_value)
+
+    def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
+        """:meth:`_fit` extending the last fit's factor (a cache keyed by content, so a
+        rolled-back or restored session stays right), the scale's Newton step taken every
+        ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
+        p, state = self._p, self.state
+        fit, self._gpis_cache, refitted = fit_gpis_incremental(
+            contacts, normals, prior, kernel, getattr(self, "_gpis_cache", None),
+            state.gpis_scale, noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2,
+            refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
+            noncontacts=noncontacts if p.gpis_noncontacts else None,
+            noncontact_value=p.gpis_noncontact_value)
+        state.gpis_fits = 0 if refitted else state.gpis_fits + 1
+        return fit
+
+    def _kept_kernel(self, kernel):
+        """``kernel``, or the thin-plate kernel of the last fits while its ``R`` is within
+        ``gpis_radius_tolerance`` of ``kernel``'s (a changed ``R`` changes every entry of
+        the Gram matrix, which then is refactored in full)."""
+        kept = self.state.gpis_radius
+        if not isinstance(kernel, ThinPlateKernel):
+            return kernel
+        if kept is not None and abs(kernel.radius / kept - 1) <= self._p.gpis_radius_tolerance:
+            return ThinPlateKernel(kept)
+        self.state.gpis_radius = kernel.radius
+        return kernel
 
     def _gpis_box(self, map_vertices, contacts):
         """The reconstruction box (low, high) and the GPIS kernel."""

@@ -150,6 +150,7 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
     def __getstate__(self):
         state = dict(self.__dict__)
         state["_live"] = None  # a running generator does not pickle; it is replayed
+        state.pop("_gpis_cache", None)  # the GPIS factor: rebuilt from content when needed
         return state
 
     @property

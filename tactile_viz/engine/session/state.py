@@ -40,6 +40,10 @@ class ExplorationState:
     ----------
     gpis_scale : float
         The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
+    gpis_radius : float or None
+        The thin-plate ``R`` kept from fit to fit (``gpis_radius_tolerance``).
+    gpis_fits : int
+        Fits since the scale's last Newton step (``gpis_refit_every``).
     target : Aim or None
         Where the next step reaches (None: terminated, a check, or the first touch).
     given_up : list of (3,) float
@@ -82,6 +86,8 @@ class ExplorationState:
     """
 
     gpis_scale: float = 1.0
+    gpis_radius: Any = None
+    gpis_fits: int = 0
     target: Any = None
     given_up: list = field(default_factory=list)
     free_space: np.ndarray = field(default_factory=_points)
