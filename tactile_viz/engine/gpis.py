@@ -445,7 +445,7 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
 
 
-def zero_level_surface(fit, bounds, resolution=32, band=True):
+def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None):
     """Marching cubes on the posterior mean over a box.
 
     Parameters
@@ -460,6 +460,9 @@ def zero_level_surface(fit, bounds, resolution=32, band=True):
         then on the nodes whose interpolated value is within :data:`BAND_CELLS` coarse cell
         diagonals of zero (the mean is about a distance, so farther nodes cannot change
         sign); elsewhere the interpolated value stands. False evaluates every node.
+    spacing : float, optional
+        The grid's cell instead of the longest side over ``resolution`` (nodes at
+        ``bounds[0] + spacing * index``).
 
     Returns
     -------
@@ -468,7 +471,7 @@ def zero_level_surface(fit, bounds, resolution=32, band=True):
         Empty arrays when the mean has no zero crossing in the box.
     """
     low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    spacing = float((high - low).max()) / resolution
+    spacing = float((high - low).max()) / resolution if spacing is None else float(spacing)
     counts = np.maximum(np.ceil((high - low) / spacing).astype(int) + 1, 2)
     if band:
         counts += (counts + 1) % 2  # odd: every second node spans the same box

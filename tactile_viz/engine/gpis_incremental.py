@@ -290,11 +290,10 @@ def fit_gpis_empty(everything, kernel, scale, prior):
 
 
 @njit(cache=True)
-def _correction(x, y, weights, reach, wendland):
-    out = np.empty(len(x))
+def _corrections(x, y, weights, reach, wendland):
+    out = np.zeros((len(x), weights.shape[2]))
     big3 = reach**3
     for i in range(len(x)):
-        total = 0.0
         for j in range(len(y)):
             dx, dy, dz = x[i, 0] - y[j, 0], x[i, 1] - y[j, 1], x[i, 2] - y[j, 2]
             r = np.sqrt(dx * dx + dy * dy + dz * dz)
@@ -306,15 +305,35 @@ def _correction(x, y, weights, reach, wendland):
                 value, g = rest3 * rest * (4.0 / reach * r + 1.0), -20.0 / reach**2 * rest3
             else:
                 value, g = (2.0 * r - 3.0 * reach) * r * r + big3, 6.0 * (r - reach)
-            total += value * weights[j, 0] - g * (dx * weights[j, 1] + dy * weights[j, 2]
-                                                  + dz * weights[j, 3])
-        out[i] = total
+            gx, gy, gz = -g * dx, -g * dy, -g * dz
+            for c in range(weights.shape[2]):
+                out[i, c] += (value * weights[j, 0, c] + gx * weights[j, 1, c]
+                              + gy * weights[j, 2, c] + gz * weights[j, 3, c])
     return out
+
+
+def corrections(x, y, weights, kernel):
+    """``value_rows(x, y, kernel) @ weights`` by a compiled loop, for several weight
+    vectors at once.
+
+    Parameters
+    ----------
+    x : (p, 3) float
+    y : (q, 3) float
+    weights : (4 q,) or (4 q, c) float
+    kernel : ThinPlateKernel or WendlandKernel
+
+    Returns
+    -------
+    (p,) or (p, c) float
+    """
+    weights = np.asarray(weights, dtype=float)
+    stacked = np.ascontiguousarray(weights.reshape(len(y), 4, -1))
+    out = _corrections(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(y, dtype=float),
+                       stacked, float(kernel.radius), isinstance(kernel, WendlandKernel))
+    return out[:, 0] if weights.ndim == 1 else out
 
 
 def value_correction_compiled(x, y, weights, kernel):
     """:func:`~.gpis.value_correction` by a compiled loop (no (p, q) temporaries): (p,)."""
-    return _correction(np.ascontiguousarray(x, dtype=float),
-                       np.ascontiguousarray(y, dtype=float),
-                       np.ascontiguousarray(np.reshape(weights, (-1, 4)), dtype=float),
-                       float(kernel.radius), isinstance(kernel, WendlandKernel))
+    return corrections(x, y, np.ravel(weights), kernel)

@@ -306,8 +306,8 @@ class SessionParams:
         With ``gpis_incremental``: the scale's Newton step every this many fits (1: all).
     gpis_refit_score : float
         With ``gpis_incremental``: also refit when the likelihood's gradient exceeds this (in sds).
-    gpis_radius_tolerance : float
-        With ``gpis_incremental``: thin-plate ``R`` kept while within this fraction of the box's.
+    gpis_box_tolerance : float
+        With ``gpis_incremental``: ``R`` and grid cell kept while within this share of the box's.
     gpis_carve_radius : float, size units
         Beyond the paper: the GPIS prior mean has a ball of this radius (at most the
         distance to the nearest contact) cut out of the MAP shape around every non-contact
@@ -424,7 +424,7 @@ class SessionParams:
     gpis_incremental: bool = True
     gpis_refit_every: int = _ranged(10, 1, 100)
     gpis_refit_score: float = _ranged(3.0, 0.5, 100.0)
-    gpis_radius_tolerance: float = _ranged(0.1, 0.0, 1.0)
+    gpis_box_tolerance: float = _ranged(0.1, 0.0, 1.0)
     cover_prior: bool = True
     target_uncovered: bool = False
     check_lines: int = 24
@@ -478,7 +478,7 @@ class SessionParams:
             _check_real(name, value)
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
-        for name in ("gpis_carve_radius", "gpis_radius_tolerance"):
+        for name in ("gpis_carve_radius", "gpis_box_tolerance"):
             _check_real(name, getattr(self, name))
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ParameterError(f"{name} must be a finite number >= 0, "

@@ -134,7 +134,7 @@ def _novel_session(bundled, preset):
 def test_paper_preset_refits_in_full_every_step(bundled, monkeypatch):
     params = session_preset("paper")
     assert not params.gpis_incremental and params.gpis_refit_every == 1
-    assert params.gpis_radius_tolerance == 0
+    assert params.gpis_box_tolerance == 0
     calls = []
     monkeypatch.setattr(estimate, "fit_gpis_incremental", None)  # must not be called
     monkeypatch.setattr(estimate, "fit_gpis",

@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
 from ..gpis_incremental import fit_gpis_incremental
+from ..gpis_variance import lattice_low, lattice_variance
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
 
@@ -36,7 +37,10 @@ class Estimation:
         self.state.gpis_scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
-        recon = self._surface(fit, (low, high), p.gpis_resolution)
+        spacing = None
+        if p.gpis_incremental:
+            spacing = self._kept_spacing(float((high - low).max()) / p.gpis_resolution)
+        recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
         timings["surface"] = time.perf_counter() - clock
         return recon
 
@@ -52,21 +56,35 @@ class Estimation:
         timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return recon if final.empty else final
 
-    def _surface(self, fit, bounds, resolution):
+    def _surface(self, fit, bounds, resolution, spacing=None):
         """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
         cells of the box ``bounds``, with the variance at up to ``variance_points``
-        vertices."""
-        vertices, faces = zero_level_surface(fit, bounds, resolution)
+        vertices; with a ``spacing``, on the lattice of that cell (the box's low corner
+        moved down onto it) with the variance interpolated from its nodes at every
+        vertex."""
+        low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
+        vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
+                                             spacing=spacing)
         variance, subset = np.zeros(len(vertices)), None
         if len(vertices):
             count = min(self._p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
-            variance[subset] = fit.variance(vertices[subset])
-            if count < len(vertices):
-                # Other vertices show the variance of the nearest evaluated one.
-                nearest = cKDTree(vertices[subset]).query(vertices)[1]
-                variance = variance[subset][nearest]
-        return Reconstruction(vertices, faces, variance, subset, fit, resolution)
+            if spacing is not None:
+                variance, self._variance_cache = lattice_variance(
+                    fit, vertices, low, spacing, getattr(self, "_variance_cache", None))
+            else:
+                variance = self._subset_variance(fit, vertices, subset)
+        return Reconstruction(vertices, faces, variance, subset, fit, resolution, spacing)
+
+    @staticmethod
+    def _subset_variance(fit, vertices, subset):
+        """The variance at ``vertices[subset]``; other vertices show the nearest one's."""
+        variance = np.zeros(len(vertices))
+        variance[subset] = fit.variance(vertices[subset])
+        if len(subset) < len(vertices):
+            nearest = cKDTree(vertices[subset]).query(vertices)[1]
+            variance = variance[subset][nearest]
+        return variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         p = self._p
@@ -90,14 +108,23 @@ class Estimation:
         state.gpis_fits = 0 if refitted else state.gpis_fits + 1
         return fit
 
+    def _kept_spacing(self, spacing):
+        """``spacing``, or the grid cell of the last surfaces while within
+        ``gpis_box_tolerance`` of it (successive grids then share their nodes)."""
+        kept = self.state.gpis_spacing
+        if kept is not None and abs(spacing / kept - 1) <= self._p.gpis_box_tolerance:
+            return kept
+        self.state.gpis_spacing = spacing
+        return spacing
+
     def _kept_kernel(self, kernel):
         """``kernel``, or the thin-plate kernel of the last fits while its ``R`` is within
-        ``gpis_radius_tolerance`` of ``kernel``'s (a changed ``R`` changes every entry of
+        ``gpis_box_tolerance`` of ``kernel``'s (a changed ``R`` changes every entry of
         the Gram matrix, which then is refactored in full)."""
         kept = self.state.gpis_radius
         if not isinstance(kernel, ThinPlateKernel):
             return kernel
-        if kept is not None and abs(kernel.radius / kept - 1) <= self._p.gpis_radius_tolerance:
+        if kept is not None and abs(kernel.radius / kept - 1) <= self._p.gpis_box_tolerance:
             return ThinPlateKernel(kept)
         self.state.gpis_radius = kernel.radius
         return kernel

@@ -150,7 +150,8 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
     def __getstate__(self):
         state = dict(self.__dict__)
         state["_live"] = None  # a running generator does not pickle; it is replayed
-        state.pop("_gpis_cache", None)  # the GPIS factor: rebuilt from content when needed
+        for name in ("_gpis_cache", "_variance_cache"):  # rebuilt from content when needed
+            state.pop(name, None)
         return state
 
     @property
@@ -494,6 +495,8 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
             recon_error=recon_error, terminated=terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
+            gpis_radius=None if recon is None else float(recon.fit.radius),
+            gpis_spacing=None if recon is None else recon.spacing,
             decided=bool(decided), decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)

@@ -41,7 +41,9 @@ class ExplorationState:
     gpis_scale : float
         The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
     gpis_radius : float or None
-        The thin-plate ``R`` kept from fit to fit (``gpis_radius_tolerance``).
+        The thin-plate ``R`` kept from fit to fit (``gpis_box_tolerance``).
+    gpis_spacing : float or None
+        The surface grid's cell kept from step to step (``gpis_box_tolerance``).
     gpis_fits : int
         Fits since the scale's last Newton step (``gpis_refit_every``).
     target : Aim or None
@@ -87,6 +89,7 @@ class ExplorationState:
 
     gpis_scale: float = 1.0
     gpis_radius: Any = None
+    gpis_spacing: Any = None
     gpis_fits: int = 0
     target: Any = None
     given_up: list = field(default_factory=list)
