@@ -289,26 +289,36 @@ def fit_gpis_empty(everything, kernel, scale, prior):
                    np.zeros((0, 0)), np.zeros(0), 0.0, prior, compiled=True)
 
 
-@njit(cache=True)
-def _corrections(x, y, weights, reach, wendland):
-    out = np.zeros((len(x), weights.shape[2]))
+@njit(cache=True, fastmath=True)
+def _profile(x, y, reach, wendland, dx, dy, dz, value, g):
+    """Offsets, ``k(r)`` and ``-g(r)`` of one query against every point (in place)."""
     big3 = reach**3
+    for j in range(y.shape[1]):
+        dx[j], dy[j], dz[j] = x[0] - y[0, j], x[1] - y[1, j], x[2] - y[2, j]
+        r = np.sqrt(dx[j] * dx[j] + dy[j] * dy[j] + dz[j] * dz[j])
+        if wendland:
+            rest = max(1.0 - r / reach, 0.0)
+            rest3 = rest * rest * rest
+            value[j], g[j] = rest3 * rest * (4.0 / reach * r + 1.0), 20.0 / reach**2 * rest3
+        else:
+            value[j], g[j] = (2.0 * r - 3.0 * reach) * r * r + big3, 6.0 * (reach - r)
+
+
+@njit(cache=True, fastmath=True)
+def _corrections(x, y, weights, reach, wendland):
+    count, columns = y.shape[1], weights.shape[0]
+    out = np.empty((len(x), columns))
+    dx, dy, dz = np.empty(count), np.empty(count), np.empty(count)
+    value, g = np.empty(count), np.empty(count)
     for i in range(len(x)):
-        for j in range(len(y)):
-            dx, dy, dz = x[i, 0] - y[j, 0], x[i, 1] - y[j, 1], x[i, 2] - y[j, 2]
-            r = np.sqrt(dx * dx + dy * dy + dz * dz)
-            if wendland:
-                rest = max(1.0 - r / reach, 0.0)
-                if rest == 0.0:
-                    continue
-                rest3 = rest * rest * rest
-                value, g = rest3 * rest * (4.0 / reach * r + 1.0), -20.0 / reach**2 * rest3
-            else:
-                value, g = (2.0 * r - 3.0 * reach) * r * r + big3, 6.0 * (r - reach)
-            gx, gy, gz = -g * dx, -g * dy, -g * dz
-            for c in range(weights.shape[2]):
-                out[i, c] += (value * weights[j, 0, c] + gx * weights[j, 1, c]
-                              + gy * weights[j, 2, c] + gz * weights[j, 3, c])
+        _profile(x[i], y, reach, wendland, dx, dy, dz, value, g)
+        for c in range(columns):
+            total = 0.0
+            for j in range(count):
+                total += value[j] * weights[c, 0, j] + g[j] * (
+                    dx[j] * weights[c, 1, j] + dy[j] * weights[c, 2, j]
+                    + dz[j] * weights[c, 3, j])
+            out[i, c] = total
     return out
 
 
@@ -328,9 +338,10 @@ def corrections(x, y, weights, kernel):
     (p,) or (p, c) float
     """
     weights = np.asarray(weights, dtype=float)
-    stacked = np.ascontiguousarray(weights.reshape(len(y), 4, -1))
-    out = _corrections(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(y, dtype=float),
-                       stacked, float(kernel.radius), isinstance(kernel, WendlandKernel))
+    stacked = np.ascontiguousarray(weights.reshape(len(y), 4, -1).transpose(2, 1, 0))
+    out = _corrections(np.ascontiguousarray(x, dtype=float),
+                       np.ascontiguousarray(np.asarray(y, dtype=float).T), stacked,
+                       float(kernel.radius), isinstance(kernel, WendlandKernel))
     return out[:, 0] if weights.ndim == 1 else out
 
 

@@ -77,12 +77,12 @@ class CarvedPrior:
         candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
         if len(candidates) == 0:
             return values, gradients
-        distance, index = self.tree.query(points[candidates], k=self.neighbours)
-        distance, index = distance.reshape(len(candidates), -1), index.reshape(len(candidates), -1)
-        cut = self.radii[index] - distance
+        distance, index = self._nearest(points[candidates], values[candidates])
+        cut = np.append(self.radii, 0.0)[index] - distance  # -inf where none is near
         best = np.argmax(cut, axis=1)
         rows = np.arange(len(candidates))
-        cut, centre = cut[rows, best], self.free_points[index[rows, best]]
+        cut, centre = cut[rows, best], self.free_points[np.minimum(index[rows, best],
+                                                                 len(self.free_points) - 1)]
         wins = cut > values[candidates]
         changed = candidates[wins]
         offset = points[changed] - centre[wins]
@@ -90,3 +90,20 @@ class CarvedPrior:
         values[changed] = cut[wins]
         gradients[changed] = -offset / np.maximum(length, 1e-12)
         return values, gradients
+
+    def _nearest(self, points, values):
+        """Distances and indices (k, neighbours) of the nearest ball centres that could cut
+        at ``points`` of prior ``values``; ``inf`` and the index ``len(free_points)`` for
+        the rest. A centre farther than ``radius - value`` cannot cut, so the search
+        stops there for points near or outside the surface (the grid's band)."""
+        reach = self.radii.max() - values
+        distance = np.full((len(points), self.neighbours), np.inf)
+        index = np.full((len(points), self.neighbours), len(self.free_points))
+        near = reach <= 2 * self.radii.max()
+        for chosen, bound in ((near, 2 * self.radii.max()), (~near, np.inf)):
+            if chosen.any():
+                found = self.tree.query(points[chosen], k=self.neighbours,
+                                        distance_upper_bound=bound)
+                distance[chosen] = found[0].reshape(chosen.sum(), -1)
+                index[chosen] = found[1].reshape(chosen.sum(), -1)
+        return distance, index

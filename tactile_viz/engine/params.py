@@ -423,7 +423,7 @@ class SessionParams:
     gpis_carve_radius: float = _length(0.6)
     gpis_incremental: bool = True
     gpis_refit_every: int = _ranged(10, 1, 100)
-    gpis_refit_score: float = _ranged(3.0, 0.5, 100.0)
+    gpis_refit_score: float = _ranged(4.0, 0.5, 100.0)
     gpis_box_tolerance: float = _ranged(0.1, 0.0, 1.0)
     cover_prior: bool = True
     target_uncovered: bool = False

@@ -8,8 +8,8 @@ import pytest
 from scipy.linalg import LinAlgError, cholesky
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
-                                     value_correction)
+from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
+                                     kernel_blocks, value_correction)
 from tactile_viz.engine.gpis_incremental import (cached_factor, extend_cholesky,
                                                  fit_gpis_incremental, inverse_row_norms,
                                                  scale_score, value_correction_compiled)
@@ -157,3 +157,24 @@ def test_recommended_session_extends_its_fit_and_pickles_without_it(bundled):
     assert "_gpis_cache" not in vars(restored)
     restored.step()
     assert restored.step_count == session.step_count + 1
+
+
+class _Ball:
+    """The signed distance of a ball of radius 3 about the origin."""
+
+    def __call__(self, points):
+        length = np.linalg.norm(points, axis=1)
+        return length - 3.0, points / np.maximum(length, 1e-12)[:, None]
+
+
+def test_carved_prior_with_a_bounded_search_is_the_csg_difference(rng):
+    free = rng.uniform(-3, 3, size=(30, 3))
+    carved = carved_prior(_Ball(), free, np.zeros((0, 3)), 0.6, neighbours=30)
+    query = np.vstack([rng.uniform(-3.5, 3.5, size=(3000, 3)), free + 0.1])
+    values, gradients = carved(query)
+    base = _Ball()(query)[0]
+    cuts = 0.6 - np.linalg.norm(query[:, None] - free[None], axis=2)
+    np.testing.assert_array_equal(values, np.maximum(base, cuts.max(axis=1)))
+    deep = (cuts.max(axis=1) > base) & (cuts.max(axis=1) < 0)
+    assert deep.sum() > 10  # inside the prior, beyond every ball, yet cut (CSG)
+    np.testing.assert_allclose(np.linalg.norm(gradients, axis=1), 1.0)
