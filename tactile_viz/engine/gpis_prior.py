@@ -95,12 +95,14 @@ class CarvedPrior:
         """Distances and indices (k, neighbours) of the nearest ball centres that could cut
         at ``points`` of prior ``values``; ``inf`` and the index ``len(free_points)`` for
         the rest. A centre farther than ``radius - value`` cannot cut, so the search
-        stops there for points near or outside the surface (the grid's band)."""
+        stops there (in a few steps of bound)."""
         reach = self.radii.max() - values
         distance = np.full((len(points), self.neighbours), np.inf)
         index = np.full((len(points), self.neighbours), len(self.free_points))
-        near = reach <= 2 * self.radii.max()
-        for chosen, bound in ((near, 2 * self.radii.max()), (~near, np.inf)):
+        bounds = self.radii.max() * np.array([1.0, 2.0, 4.0, 8.0, np.inf])
+        step = np.searchsorted(bounds, reach)  # the first bound at or beyond the reach
+        for level, bound in enumerate(bounds):
+            chosen = step == level
             if chosen.any():
                 found = self.tree.query(points[chosen], k=self.neighbours,
                                         distance_upper_bound=bound)
