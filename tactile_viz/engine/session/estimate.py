@@ -70,8 +70,8 @@ class Estimation:
             count = min(self._p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             if spacing is not None:
-                variance, self._variance_cache = lattice_variance(
-                    fit, vertices, low, spacing, getattr(self, "_variance_cache", None))
+                variance, self.state.variance_cache = lattice_variance(
+                    fit, vertices, low, spacing, self.state.variance_cache)
             else:
                 variance = self._subset_variance(fit, vertices, subset)
         return Reconstruction(vertices, faces, variance, subset, fit, resolution, spacing)
@@ -95,13 +95,12 @@ class Estimation:
                         noncontact_value=p.gpis_noncontact_value)
 
     def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
-        """:meth:`_fit` extending the last fit's factor (a cache keyed by content, so a
-        rolled-back or restored session stays right), the scale's Newton step taken every
-        ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
+        """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
+        rolled-back or pickled session goes on identically), the scale's Newton step taken
+        every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
         p, state = self._p, self.state
-        fit, self._gpis_cache, refitted = fit_gpis_incremental(
-            contacts, normals, prior, kernel, getattr(self, "_gpis_cache", None),
-            state.gpis_scale, noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2,
+        fit, state.gpis_cache, refitted = fit_gpis_incremental(
+            contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale, noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2,
             refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
             noncontacts=noncontacts if p.gpis_noncontacts else None,
             noncontact_value=p.gpis_noncontact_value)

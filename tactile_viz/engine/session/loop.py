@@ -150,8 +150,6 @@ class Session(Planner, Estimation, Learning, TruthMetrics):
     def __getstate__(self):
         state = dict(self.__dict__)
         state["_live"] = None  # a running generator does not pickle; it is replayed
-        for name in ("_gpis_cache", "_variance_cache"):  # rebuilt from content when needed
-            state.pop(name, None)
         return state
 
     @property

@@ -46,6 +46,11 @@ class ExplorationState:
         The surface grid's cell kept from step to step (``gpis_box_tolerance``).
     gpis_fits : int
         Fits since the scale's last Newton step (``gpis_refit_every``).
+    gpis_cache : GramCache or None
+        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.gpis_incremental`;
+        immutable, keyed by content: a fit extends it only where the content agrees).
+    variance_cache : NodeVariance or None
+        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.gpis_variance`).
     target : Aim or None
         Where the next step reaches (None: terminated, a check, or the first touch).
     given_up : list of (3,) float
@@ -91,6 +96,8 @@ class ExplorationState:
     gpis_radius: Any = None
     gpis_spacing: Any = None
     gpis_fits: int = 0
+    gpis_cache: Any = None
+    variance_cache: Any = None
     target: Any = None
     given_up: list = field(default_factory=list)
     free_space: np.ndarray = field(default_factory=_points)
