@@ -31,7 +31,8 @@ from scipy.spatial.distance import cdist
 from scipy.ndimage import map_coordinates, maximum_filter, minimum_filter
 from skimage.measure import marching_cubes
 
-from .gpis_prior import CarvedPrior, carved_prior, noncontact_observations  # noqa: F401 (API)
+from .gpis_prior import (CarvedPrior, carved_prior, noncontact_observations,  # noqa: F401
+                         observations)
 
 _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)
@@ -347,40 +348,6 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
     else:
         step = np.sign(gradient) * max_step
     return float(np.clip(step, -max_step, max_step)) if np.isfinite(step) else 0.0
-
-
-def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
-                 noise_variance=1e-4):
-    """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
-    that contradict the prior (value ``noncontact_value``), less the prior mean.
-
-    Returns
-    -------
-    everything : (n, 3) float, world frame
-        Contacts, then the non-contacts kept.
-    kept : (m,) int
-        Observed rows of the ``4 n`` [value, gradient] components.
-    residual : (m,) float
-        Observation less prior mean on the kept rows.
-    noise : (m,) float
-        ``noise_variance`` on every kept row.
-    """
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
-    outside = (np.zeros((0, 3)) if noncontacts is None
-               else noncontact_observations(prior, noncontacts, noncontact_value))
-    everything = np.vstack([points, outside])
-    if len(everything) == 0:
-        return everything, np.zeros(0, dtype=int), np.zeros(0), np.zeros(0)
-    prior_values, prior_gradients = prior(everything)
-    observed = np.hstack([np.zeros((len(everything), 1)),
-                          np.vstack([normals, np.zeros((len(outside), 3))])])
-    observed[len(points):, 0] = noncontact_value
-    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
-    kept = np.concatenate([np.arange(4 * len(points)), 4 * (len(points) + np.arange(len(outside)))])
-    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
-                            np.full(len(outside), float(noise_variance))])
-    return everything, kept, residual[kept], noise
 
 
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,

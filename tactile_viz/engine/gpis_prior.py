@@ -1,5 +1,6 @@
 """The GPIS prior mean beyond the MAP shape itself: the shape carved where probes found free
-space, and the value observations of non-contacts (beyond the paper)."""
+space, and the value observations of non-contacts (beyond the paper); the observations of
+a fit less the prior mean."""
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -17,6 +18,41 @@ def noncontact_observations(prior, noncontacts, value):
     if len(noncontacts) == 0:
         return noncontacts
     return noncontacts[np.asarray(prior(noncontacts)[0]) < value]
+
+
+def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
+                 noise_variance=1e-4):
+    """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
+    that contradict the prior (value ``noncontact_value``), less the prior mean.
+
+    Returns
+    -------
+    everything : (n, 3) float, world frame
+        Contacts, then the non-contacts kept.
+    kept : (m,) int
+        Observed rows of the ``4 n`` [value, gradient] components.
+    residual : (m,) float
+        Observation less prior mean on the kept rows.
+    noise : (m,) float
+        ``noise_variance`` on every kept row.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    outside = (np.zeros((0, 3)) if noncontacts is None
+               else noncontact_observations(prior, noncontacts, noncontact_value))
+    everything = np.vstack([points, outside])
+    if len(everything) == 0:
+        return everything, np.zeros(0, dtype=int), np.zeros(0), np.zeros(0)
+    prior_values, prior_gradients = prior(everything)
+    observed = np.hstack([np.zeros((len(everything), 1)),
+                          np.vstack([normals, np.zeros((len(outside), 3))])])
+    observed[len(points):, 0] = noncontact_value
+    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
+    kept = np.concatenate([np.arange(4 * len(points)),
+                           4 * (len(points) + np.arange(len(outside)))])
+    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
+                            np.full(len(outside), float(noise_variance))])
+    return everything, kept, residual[kept], noise
 
 
 def carved_prior(prior, free_points, contacts, radius, neighbours=8):

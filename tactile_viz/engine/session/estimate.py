@@ -87,12 +87,8 @@ class Estimation:
         return variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
-        p = self._p
-        # The sensor's position noise adds to the GPIS's observation noise (variances).
-        return fit_gpis(contacts, normals, prior, kernel, scale=scale,
-                        noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2, newton=newton,
-                        noncontacts=noncontacts if p.gpis_noncontacts else None,
-                        noncontact_value=p.gpis_noncontact_value)
+        return fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton,
+                        **self._observation_options(noncontacts))
 
     def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
         """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
@@ -100,12 +96,29 @@ class Estimation:
         every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
         p, state = self._p, self.state
         fit, state.gpis_cache, refitted = fit_gpis_incremental(
-            contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale, noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2,
+            contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale,
             refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
-            noncontacts=noncontacts if p.gpis_noncontacts else None,
-            noncontact_value=p.gpis_noncontact_value)
+            **self._observation_options(noncontacts))
         state.gpis_fits = 0 if refitted else state.gpis_fits + 1
         return fit
+
+    def _refit(self, kernel, contacts, normals, noncontacts, prior, scale):
+        """The fit of a past step again, at its ``scale`` (no Newton step): the way the
+        step fitted, from the state's factor where its content agrees (the last fit's is
+        then reproduced exactly); the state is left as it is."""
+        if not self._p.gpis_incremental:
+            return self._fit(kernel, contacts, normals, noncontacts, prior, scale, newton=False)
+        return fit_gpis_incremental(contacts, normals, prior, kernel, self.state.gpis_cache,
+                                    scale, refit=False, refit_score=np.inf,
+                                    **self._observation_options(noncontacts))[0]
+
+    def _observation_options(self, noncontacts):
+        """The fits' noise and non-contact keywords."""
+        p = self._p
+        # The sensor's position noise adds to the GPIS's observation noise (variances).
+        return {"noise_variance": p.gpis_noise + self.sensor_noise[0] ** 2,
+                "noncontacts": noncontacts if p.gpis_noncontacts else None,
+                "noncontact_value": p.gpis_noncontact_value}
 
     def _kept_spacing(self, spacing):
         """``spacing``, or the grid cell of the last surfaces while within

@@ -45,10 +45,9 @@ class Learning:
         spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None
         if spacing is not None:
             low = lattice_low(low, spacing)
-        fit = self._fit(kernel, snapshot.contacts, snapshot.normals,
-                        self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
-                        prior,
-                        snapshot.gpis_scale, newton=False)
+        fit = self._refit(kernel, snapshot.contacts, snapshot.normals,
+                          self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
+                          prior, snapshot.gpis_scale)
         vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing)
         if len(faces) == 0:
             raise SessionError("the reconstruction has no surface at the learned resolution")

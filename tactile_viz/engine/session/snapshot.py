@@ -22,8 +22,9 @@ class Snapshot:
     ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
     stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
-    its grid's cell when kept from step to step (else None). ``decided`` (beyond the paper): the object is judged
-    known and no other class or pose mode fits the contacts comparably
+    its grid's cell when kept from step to step (else None). ``decided`` (beyond the
+    paper): the object is judged known and no other class or pose mode fits the contacts
+    comparably
     (:mod:`~tactile_viz.engine.decision`); ``decision_confidence`` the share the MAP holds.
     """
 
