@@ -76,19 +76,22 @@ def extend_cholesky(factor, cross, corner):
     p, k = cross.shape
     lower = solve_triangular(factor, cross, lower=True, check_finite=False).T
     schur = corner - lower @ lower.T
-    result = np.zeros((p + k, p + k))
+    result = np.zeros((p + k, p + k), order="F")  # LAPACK's order: solves do not copy it
     result[:p, :p] = factor
     result[p:, :p] = lower
     result[p:, p:] = cholesky(schur, lower=True, check_finite=False)
     return result
 
 
-def inverse_row_norms(factor, start=0):
-    """Squared norms of rows ``start:`` of ``factor^-1`` (lower triangular): (m - start,)."""
+def inverse_row_norms(factor, start=0, head=None):
+    """Squared norms of rows ``start:`` of ``factor^-1`` (lower triangular): (m - start,).
+
+    ``head`` is ``factor[:start, :start]`` when the caller holds it as an array of its own
+    (a solve against a slice copies it)."""
     if start == 0:
         inverse = solve_triangular(factor, np.eye(len(factor)), lower=True, check_finite=False)
         return np.sum(inverse**2, axis=1)
-    head = factor[:start, :start]
+    head = factor[:start, :start] if head is None else head
     # Rows of L^-1 past the head: [-L22^-1 L21 L11^-1, L22^-1].
     bridge = solve_triangular(head, factor[start:, :start].T, lower=True, trans="T",
                               check_finite=False)
@@ -183,8 +186,8 @@ def cached_factor(cache, points, kept, kernel, scale, noise):
         except LinAlgError:
             pass  # the Schur complement is not positive definite: refactor in full
         else:
-            norms = np.concatenate([cache.inverse_rows[:shared],
-                                    inverse_row_norms(factor, shared)])
+            norms = np.concatenate([cache.inverse_rows[:shared], inverse_row_norms(
+                factor, shared, cache.factor[:shared, :shared])])
             return GramCache(rows, kernel, nugget, gram0, scale, noise, cache.jitter,
                              factor, norms)
     gram0, nugget, factor, jitter = _full_factor(gram0, nugget, scale, noise)
