@@ -9,10 +9,11 @@ from scipy.linalg import LinAlgError, cholesky
 
 from tactile_viz.engine import PriorLibrary
 from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
-                                     kernel_blocks, value_correction)
+                                     kernel_blocks, value_correction, zero_level_surface)
 from tactile_viz.engine.gpis_incremental import (cached_factor, extend_cholesky,
                                                  fit_gpis_incremental, inverse_row_norms,
                                                  scale_score, value_correction_compiled)
+from tactile_viz.engine.gpis_variance import lattice_low, lattice_variance
 from tactile_viz.engine.metrics import surface_samples
 from tactile_viz.engine.session import Session, make_truth, session_preset
 from tactile_viz.engine.session import estimate
@@ -180,3 +181,36 @@ def test_carved_prior_with_a_bounded_search_is_the_csg_difference(rng):
     deep = (cuts.max(axis=1) > base) & (cuts.max(axis=1) < 0)
     assert deep.sum() > 10  # inside the prior, beyond every ball, yet cut (CSG)
     np.testing.assert_allclose(np.linalg.norm(gradients, axis=1), 1.0)
+
+
+def _fits_and_grid(mug, count):
+    points, normals, prior = mug
+    kernel = ThinPlateKernel(12.0)
+    before, cache, _ = fit_gpis_incremental(points[:count - 1], normals[:count - 1], prior,
+                                            kernel, refit=False, refit_score=np.inf)
+    after = fit_gpis_incremental(points[:count], normals[:count], prior, kernel, cache,
+                                 refit=False, refit_score=np.inf)[0]
+    spacing = 8.0 / 32
+    return before, after, lattice_low(np.full(3, -4.0), spacing), spacing
+
+
+def test_node_variance_extended_by_the_new_rows_equals_a_full_solve(mug):
+    before, after, low, spacing = _fits_and_grid(mug, 40)
+    vertices = zero_level_surface(after, (low, np.full(3, 4.0)), 32, spacing=spacing)[0]
+    _, nodes = lattice_variance(before, vertices, low, spacing)
+    extended, _ = lattice_variance(after, vertices, low, spacing, nodes)
+    full, _ = lattice_variance(after, vertices, low, spacing)
+    np.testing.assert_allclose(extended, full, rtol=1e-7, atol=1e-9 * full.max())
+
+
+def test_lattice_variance_is_near_the_exact_variance(mug):
+    _, fit, low, spacing = _fits_and_grid(mug, 60)
+    vertices = zero_level_surface(fit, (low, np.full(3, 4.0)), 32, spacing=spacing)[0]
+    interpolated, _ = lattice_variance(fit, vertices, low, spacing)
+    exact = fit.variance(vertices)
+    error = np.abs(interpolated - exact)
+    assert np.percentile(error, 99) < 0.05 * exact.max() and error.max() < 0.1 * exact.max()
+    assert exact[np.argmax(interpolated)] > 0.95 * exact.max()
+    nodes = low + spacing * np.array([[3, 5, 7], [10, 2, 31]])  # on nodes: exact
+    np.testing.assert_allclose(lattice_variance(fit, nodes, low, spacing)[0],
+                               fit.variance(nodes), rtol=1e-9)
