@@ -214,3 +214,19 @@ def test_lattice_variance_is_near_the_exact_variance(mug):
     nodes = low + spacing * np.array([[3, 5, 7], [10, 2, 31]])  # on nodes: exact
     np.testing.assert_allclose(lattice_variance(fit, nodes, low, spacing)[0],
                                fit.variance(nodes), rtol=1e-9)
+
+
+def test_noncontact_rows_extend_the_factor_after_the_contacts(mug, rng):
+    points, normals, prior = mug
+    kernel, cache = ThinPlateKernel(12.0), None
+    outside = rng.uniform(-3, 3, size=(40, 3))
+    for count in (10, 11, 13):
+        fit, cache, _ = fit_gpis_incremental(points[:count], normals[:count], prior, kernel,
+                                             cache, refit=False, refit_score=np.inf,
+                                             noncontacts=outside[:3 * count])
+    full = fit_gpis(points[:13], normals[:13], prior, kernel, newton=False,
+                    noncontacts=outside[:39])
+    assert len(fit.kept) > 4 * 13
+    query = points[:13] + 0.2
+    np.testing.assert_allclose(fit.mean_value(query), full.mean_value(query), atol=1e-8)
+    np.testing.assert_allclose(fit.variance(query), full.variance(query), atol=1e-8)

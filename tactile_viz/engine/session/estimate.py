@@ -38,7 +38,9 @@ class Estimation:
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
         spacing = None
-        if p.gpis_incremental:
+        if p.gpis_incremental and not p.gpis_noncontacts:
+            # Non-contact rows follow the contacts' and change every step: the lattice's
+            # reductions could not be extended, so those fits keep the exact variance.
             spacing = self._kept_spacing(float((high - low).max()) / p.gpis_resolution)
         recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
         timings["surface"] = time.perf_counter() - clock
