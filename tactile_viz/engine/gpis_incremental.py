@@ -100,8 +100,8 @@ def inverse_row_norms(factor, start=0, head=None):
     return np.sum((corner_inverse @ bridge.T) ** 2, axis=1) + np.sum(corner_inverse**2, axis=1)
 
 
-def _observed_rows(points, kept):
-    """(m, 4): position and component of each observed row."""
+def observed_rows(points, kept):
+    """Position and component (0 value, 1-3 gradient) of each observed row: (m, 4) float."""
     return np.column_stack([points[kept // 4], kept % 4]).astype(float)
 
 
@@ -129,20 +129,24 @@ def _gram(cache, points, kept, kernel):
     nugget : float
     shared : int
         How many leading rows came from the cache (their factor is reusable).
+    rows : (m, 4) float
+        :func:`observed_rows`.
     """
-    rows = _observed_rows(points, kept)
+    rows = observed_rows(points, kept)
     shared = 0
     if cache is not None and cache.kernel == kernel:
         shared = _common_prefix(cache.rows, rows)
     if shared == 0:
-        return kernel_blocks(points, points, kernel)[np.ix_(kept, kept)], 0.0, 0
+        return kernel_blocks(points, points, kernel)[np.ix_(kept, kept)], 0.0, 0, rows
+    if shared == len(kept):
+        return cache.gram0[:shared, :shared], cache.nugget, shared, rows
     new = _gram_rows(points, kept, shared, kernel)
     gram0 = np.empty((len(kept), len(kept)))
     gram0[:shared, :shared] = cache.gram0[:shared, :shared]
     gram0[shared:] = new
     gram0[:shared, shared:] = new[:, :shared].T
     gram0[shared:, shared:] += cache.nugget * np.eye(len(kept) - shared)
-    return gram0, cache.nugget, shared
+    return gram0, cache.nugget, shared, rows
 
 
 def _full_factor(gram0, nugget, scale, noise):
@@ -175,9 +179,12 @@ def cached_factor(cache, points, kept, kernel, scale, noise):
     -------
     GramCache
     """
-    gram0, nugget, shared = _gram(cache, points, kept, kernel)
-    rows = _observed_rows(points, kept)
-    if shared and cache.scale == scale and cache.noise == noise:
+    gram0, nugget, shared, rows = _gram(cache, points, kept, kernel)
+    same = shared and cache.scale == scale and cache.noise == noise
+    if same and shared == len(kept):  # nothing new (a refit, a rolled-back step)
+        return GramCache(rows, kernel, nugget, gram0, scale, noise, cache.jitter,
+                         cache.factor[:shared, :shared], cache.inverse_rows[:shared])
+    if same:
         diagonal = noise + cache.jitter
         corner = scale * gram0[shared:, shared:] + diagonal * np.eye(len(kept) - shared)
         try:

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from .gpis import value_rows
-from .gpis_incremental import corrections
+from .gpis_incremental import corrections, observed_rows
 
 _SNAP = 1e-4  # lattice coordinates this close to an integer are on the node
 
@@ -97,10 +97,6 @@ def vertex_corners(vertices, low, spacing):
     return keys, weights
 
 
-def _observed_rows(fit):
-    return np.column_stack([fit.points[fit.kept // 4], fit.kept % 4]).astype(float)
-
-
 def _reusable(cache, fit, rows, spacing):
     """How many leading factor rows the cache's reductions are for (0: none usable)."""
     if cache is None or cache.spacing != spacing or cache.kernel != fit.kernel:
@@ -150,7 +146,7 @@ def node_variance(fit, keys, spacing, cache=None):
     cache : NodeVariance
         For these nodes and ``fit``'s factor.
     """
-    rows = _observed_rows(fit)
+    rows = observed_rows(fit.points, fit.kept)
     reduction = np.empty(len(keys))
     start = _reusable(cache, fit, rows, spacing)
     known = np.zeros(len(keys), dtype=bool)
