@@ -31,7 +31,9 @@ from scipy.spatial.distance import cdist
 from scipy.ndimage import map_coordinates, maximum_filter, minimum_filter
 from skimage.measure import marching_cubes
 
-from .gpis_prior import CarvedPrior, carved_prior, noncontact_observations  # noqa: F401 (API)
+from .gpis_compiled import compiled_corrections
+from .gpis_prior import (CarvedPrior, carved_prior, noncontact_observations,  # noqa: F401
+                         observations)
 
 _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)
@@ -229,6 +231,9 @@ class GPISFit:
     log_marginal_likelihood : float
     prior : callable
         ``prior(points) -> (values, gradients)``.
+    compiled : bool
+        Sum the mean's value correction by a compiled loop (the same sum, rounded
+        differently; :mod:`.gpis_incremental`).
     """
 
     points: np.ndarray
@@ -240,6 +245,7 @@ class GPISFit:
     alpha: np.ndarray
     log_marginal_likelihood: float
     prior: object
+    compiled: bool = False
 
     @property
     def radius(self):
@@ -260,11 +266,18 @@ class GPISFit:
             return values, gradients
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.kernel)
+            values[start:start + _CHUNK] += self.scale * self._correction(part)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
                 part, self.points, self.kernel) @ self.alpha
         return values, gradients
+
+    def _correction(self, query):
+        """``value_rows(query, points) @ alpha``: (k,)."""
+        if self.compiled:
+            return compiled_corrections(query, self.points, np.ravel(self.alpha),
+                                        self.kernel.radius,
+                                        isinstance(self.kernel, WendlandKernel))
+        return value_correction(query, self.points, self.alpha, self.kernel)
 
     def mean_value(self, query):
         """Posterior mean value only (cheaper): (k,)."""
@@ -274,8 +287,7 @@ class GPISFit:
             return values
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
-            values[start:start + _CHUNK] += self.scale * value_correction(
-                part, self.points, self.alpha, self.kernel)
+            values[start:start + _CHUNK] += self.scale * self._correction(part)
         return values
 
     def variance(self, query):
@@ -372,24 +384,12 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     GPISFit
     """
     kernel = as_kernel(kernel)
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
-    outside = (np.zeros((0, 3)) if noncontacts is None
-               else noncontact_observations(prior, noncontacts, noncontact_value))
-    everything = np.vstack([points, outside])
+    everything, kept, residual, noise = observations(points, normals, prior, noncontacts,
+                                                     noncontact_value, noise_variance)
     if len(everything) == 0:
         return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)
-    prior_values, prior_gradients = prior(everything)
-    observed = np.hstack([np.zeros((len(everything), 1)),
-                          np.vstack([normals, np.zeros((len(outside), 3))])])
-    observed[len(points):, 0] = noncontact_value
-    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
-    kept = np.concatenate([np.arange(4 * len(points)), 4 * (len(points) + np.arange(len(outside)))])
-    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
-                            np.full(len(outside), float(noise_variance))])
     gram0 = kernel_blocks(everything, everything, kernel)[np.ix_(kept, kept)]
-    residual = residual[kept]
     try:
         factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise)
     except LinAlgError:  # thin-plate R too small: jitter as a nugget of the kernel
@@ -414,7 +414,7 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
 
 
-def zero_level_surface(fit, bounds, resolution=32, band=True):
+def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None):
     """Marching cubes on the posterior mean over a box.
 
     Parameters
@@ -429,6 +429,9 @@ def zero_level_surface(fit, bounds, resolution=32, band=True):
         then on the nodes whose interpolated value is within :data:`BAND_CELLS` coarse cell
         diagonals of zero (the mean is about a distance, so farther nodes cannot change
         sign); elsewhere the interpolated value stands. False evaluates every node.
+    spacing : float, optional
+        The grid's cell instead of the longest side over ``resolution`` (nodes at
+        ``bounds[0] + spacing * index``).
 
     Returns
     -------
@@ -437,7 +440,7 @@ def zero_level_surface(fit, bounds, resolution=32, band=True):
         Empty arrays when the mean has no zero crossing in the box.
     """
     low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    spacing = float((high - low).max()) / resolution
+    spacing = float((high - low).max()) / resolution if spacing is None else float(spacing)
     counts = np.maximum(np.ceil((high - low) / spacing).astype(int) + 1, 2)
     if band:
         counts += (counts + 1) % 2  # odd: every second node spans the same box

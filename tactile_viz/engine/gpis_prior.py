@@ -1,5 +1,6 @@
 """The GPIS prior mean beyond the MAP shape itself: the shape carved where probes found free
-space, and the value observations of non-contacts (beyond the paper)."""
+space, and the value observations of non-contacts (beyond the paper); the observations of
+a fit less the prior mean."""
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -17,6 +18,41 @@ def noncontact_observations(prior, noncontacts, value):
     if len(noncontacts) == 0:
         return noncontacts
     return noncontacts[np.asarray(prior(noncontacts)[0]) < value]
+
+
+def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
+                 noise_variance=1e-4):
+    """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
+    that contradict the prior (value ``noncontact_value``), less the prior mean.
+
+    Returns
+    -------
+    everything : (n, 3) float, world frame
+        Contacts, then the non-contacts kept.
+    kept : (m,) int
+        Observed rows of the ``4 n`` [value, gradient] components.
+    residual : (m,) float
+        Observation less prior mean on the kept rows.
+    noise : (m,) float
+        ``noise_variance`` on every kept row.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    outside = (np.zeros((0, 3)) if noncontacts is None
+               else noncontact_observations(prior, noncontacts, noncontact_value))
+    everything = np.vstack([points, outside])
+    if len(everything) == 0:
+        return everything, np.zeros(0, dtype=int), np.zeros(0), np.zeros(0)
+    prior_values, prior_gradients = prior(everything)
+    observed = np.hstack([np.zeros((len(everything), 1)),
+                          np.vstack([normals, np.zeros((len(outside), 3))])])
+    observed[len(points):, 0] = noncontact_value
+    residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
+    kept = np.concatenate([np.arange(4 * len(points)),
+                           4 * (len(points) + np.arange(len(outside)))])
+    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
+                            np.full(len(outside), float(noise_variance))])
+    return everything, kept, residual[kept], noise
 
 
 def carved_prior(prior, free_points, contacts, radius, neighbours=8):
@@ -77,12 +113,12 @@ class CarvedPrior:
         candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
         if len(candidates) == 0:
             return values, gradients
-        distance, index = self.tree.query(points[candidates], k=self.neighbours)
-        distance, index = distance.reshape(len(candidates), -1), index.reshape(len(candidates), -1)
-        cut = self.radii[index] - distance
+        distance, index = self._nearest(points[candidates], values[candidates])
+        cut = np.append(self.radii, 0.0)[index] - distance  # -inf where none is near
         best = np.argmax(cut, axis=1)
         rows = np.arange(len(candidates))
-        cut, centre = cut[rows, best], self.free_points[index[rows, best]]
+        cut, centre = cut[rows, best], self.free_points[np.minimum(index[rows, best],
+                                                                 len(self.free_points) - 1)]
         wins = cut > values[candidates]
         changed = candidates[wins]
         offset = points[changed] - centre[wins]
@@ -90,3 +126,22 @@ class CarvedPrior:
         values[changed] = cut[wins]
         gradients[changed] = -offset / np.maximum(length, 1e-12)
         return values, gradients
+
+    def _nearest(self, points, values):
+        """Distances and indices (k, neighbours) of the nearest ball centres that could cut
+        at ``points`` of prior ``values``; ``inf`` and the index ``len(free_points)`` for
+        the rest. A centre farther than ``radius - value`` cannot cut, so the search
+        stops there (in a few steps of bound)."""
+        reach = self.radii.max() - values
+        distance = np.full((len(points), self.neighbours), np.inf)
+        index = np.full((len(points), self.neighbours), len(self.free_points))
+        bounds = self.radii.max() * np.array([1.0, 2.0, 4.0, 8.0, np.inf])
+        step = np.searchsorted(bounds, reach)  # the first bound at or beyond the reach
+        for level, bound in enumerate(bounds):
+            chosen = step == level
+            if chosen.any():
+                found = self.tree.query(points[chosen], k=self.neighbours,
+                                        distance_upper_bound=bound)
+                distance[chosen] = found[0].reshape(chosen.sum(), -1)
+                index[chosen] = found[1].reshape(chosen.sum(), -1)
+        return distance, index

@@ -246,6 +246,19 @@ class SessionParams:
         notes="At most the distance to the nearest contact, around every non-contact and "
               "every sample of a missed probe's path, so a probe through a phantom part of a "
               "wrong prior removes it there.")
+    gpis_incremental: bool = _gpis(
+        True, "Extend the GPIS factor by a block per new contact and sum its mean by a "
+        "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
+        notes="docs/gpis.md.")
+    gpis_refit_every: int = _gpis(
+        10, "With gpis_incremental: the scale's Newton step every this many fits (1: all).",
+        kind="int", valid="[1, 100]")
+    gpis_refit_score: float = _gpis(
+        4.0, "With gpis_incremental: also refit when the likelihood's gradient in the log "
+        "scale exceeds this many standard deviations.", valid="[0.5, 100]")
+    gpis_box_tolerance: float = _gpis(
+        0.1, "With gpis_incremental: R and the grid cell are kept while the box stays within "
+        "this share of theirs.", valid="[0, 1]")
     cover_prior: bool = _session(
         True, "A novel object's exploration also has to cover the MAP prior's surface "
         "(beyond the paper).", kind="bool",

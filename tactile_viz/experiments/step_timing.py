@@ -6,10 +6,12 @@ Contacts are sampled on the object at a random pose and fed to the particle filt
 each part of one more step (filter update, GPIS fit, surface extraction with variance,
 target choice, simulator probe) is timed ``--repeats`` times and the median printed. The
 GPIS factorisation is also timed both ways: a full Cholesky of ``a K0 + s I`` against
-appending the new contact's 4 rows to the previous factor (block update, O(n^2)).
+appending the new contact's 4 rows to the previous factor (block update, O(n^2)); and the
+``recommended`` preset's incremental fit and surface (docs/gpis.md) when that contact joins.
 """
 
 import argparse
+import functools
 import time
 
 import numpy as np
@@ -19,6 +21,8 @@ from ..cli import ArgumentParser, ExtendList, bundled_object, count_int, seed_in
 from ..engine.exploration import enforce_contact
 from ..engine.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
                            stable_cholesky, zero_level_surface)
+from ..engine.gpis_incremental import fit_gpis_incremental
+from ..engine.gpis_variance import lattice_low, lattice_variance
 from ..engine.library import PriorLibrary
 from ..engine.objects import load_bundled
 from ..engine.particle_filter import ParticleFilter
@@ -90,8 +94,31 @@ def measure(object_name, sizes, repeats, seed=0):
         timing["cholesky full"] = _median_time(lambda: stable_cholesky(gram), repeats)
         timing["cholesky append"] = _median_time(
             lambda: append_factor(previous, gram[:-4, -4:], gram[-4:, -4:]), repeats)
+        timing.update(_incremental(contacts, normals, prior, radius, fit.scale, (low, high),
+                                   repeats))
         rows.append((size, timing))
     return rows
+
+
+def _incremental(contacts, normals, prior, kernel, scale, box, repeats):
+    """The fit and the surface of the ``recommended`` preset's incremental path when the
+    last contact joins (``gpis_incremental``): the factor and the lattice variances of the
+    others extended, no Newton step."""
+    fast = functools.partial(fit_gpis_incremental, prior=prior, kernel=kernel, scale=scale,
+                             refit=False, refit_score=np.inf)
+    before, cache, _ = fast(contacts[:-1], normals[:-1], cache=None)
+    after = fast(contacts, normals, cache=cache)[0]
+    spacing = float(np.ptp(np.asarray(box), axis=0).max()) / 32
+    low = lattice_low(box[0], spacing)
+
+    def surface(fit, nodes=None):
+        vertices = zero_level_surface(fit, (low, box[1]), 32, spacing=spacing)[0]
+        return lattice_variance(fit, vertices, low, spacing, nodes)[1]
+
+    nodes = surface(before)
+    return {"gpis fit incremental": _median_time(lambda: fast(contacts, normals, cache=cache),
+                                                 repeats),
+            "surface incremental": _median_time(lambda: surface(after, nodes), repeats)}
 
 
 def _paper_kernel(low, high):

@@ -13,6 +13,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from ..gpis_incremental import fit_gpis_incremental
+from ..gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
@@ -47,12 +49,21 @@ class Estimation:
         clock = time.perf_counter()
         prior = self._gpis_prior(model, rotation, translation, contacts,
                                  self.filter.noncontact_positions, self.state.free_space)
-        fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
-                        self.state.gpis_scale)
+        if p.gpis_incremental:
+            fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
+                                        self._noncontact_points(), prior)
+        else:
+            fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+                            self.state.gpis_scale)
         self.state.gpis_scale = fit.scale
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
-        recon = self._surface(fit, (low, high), p.gpis_resolution)
+        spacing = None
+        if p.gpis_incremental and not p.gpis_noncontacts:
+            # Non-contact rows follow the contacts' and change every step: the lattice's
+            # reductions could not be extended, so those fits keep the exact variance.
+            spacing = self._kept_spacing(float((high - low).max()) / p.gpis_resolution)
+        recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
         timings["surface"] = time.perf_counter() - clock
         return recon
 
@@ -68,29 +79,90 @@ class Estimation:
         timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return recon if final.empty else final
 
-    def _surface(self, fit, bounds, resolution):
+    def _surface(self, fit, bounds, resolution, spacing=None):
         """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
         cells of the box ``bounds``, with the variance at up to ``variance_points``
-        vertices."""
-        vertices, faces = zero_level_surface(fit, bounds, resolution)
+        vertices; with a ``spacing``, on the lattice of that cell (the box's low corner
+        moved down onto it) with the variance interpolated from its nodes at every
+        vertex."""
+        low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
+        vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
+                                             spacing=spacing)
         variance, subset = np.zeros(len(vertices)), None
         if len(vertices):
             count = min(self._p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
-            variance[subset] = fit.variance(vertices[subset])
-            if count < len(vertices):
-                # Other vertices show the variance of the nearest evaluated one.
-                nearest = cKDTree(vertices[subset]).query(vertices)[1]
-                variance = variance[subset][nearest]
-        return Reconstruction(vertices, faces, variance, subset, fit, resolution)
+            if spacing is not None:
+                variance, self.state.variance_cache = lattice_variance(
+                    fit, vertices, low, spacing, self.state.variance_cache)
+            else:
+                variance = self._subset_variance(fit, vertices, subset)
+        return Reconstruction(vertices, faces, variance, subset, fit, resolution, spacing)
+
+    @staticmethod
+    def _subset_variance(fit, vertices, subset):
+        """The variance at ``vertices[subset]``; other vertices show the nearest one's."""
+        variance = np.zeros(len(vertices))
+        variance[subset] = fit.variance(vertices[subset])
+        if len(subset) < len(vertices):
+            nearest = cKDTree(vertices[subset]).query(vertices)[1]
+            variance = variance[subset][nearest]
+        return variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
+        return fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton,
+                        **self._observation_options(noncontacts))
+
+    def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
+        """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
+        rolled-back or pickled session goes on identically), the scale's Newton step taken
+        every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
+        p, state = self._p, self.state
+        fit, state.gpis_cache, refitted = fit_gpis_incremental(
+            contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale,
+            refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
+            **self._observation_options(noncontacts))
+        state.gpis_fits = 0 if refitted else state.gpis_fits + 1
+        return fit
+
+    def _refit(self, kernel, contacts, normals, noncontacts, prior, scale):
+        """The fit of a past step again, at its ``scale`` (no Newton step): the way the
+        step fitted, from the state's factor where its content agrees (the last fit's is
+        then reproduced exactly); the state is left as it is."""
+        if not self._p.gpis_incremental:
+            return self._fit(kernel, contacts, normals, noncontacts, prior, scale, newton=False)
+        return fit_gpis_incremental(contacts, normals, prior, kernel, self.state.gpis_cache,
+                                    scale, refit=False, refit_score=np.inf,
+                                    **self._observation_options(noncontacts))[0]
+
+    def _observation_options(self, noncontacts):
+        """The fits' noise and non-contact keywords."""
         p = self._p
         # The sensor's position noise adds to the GPIS's observation noise (variances).
-        return fit_gpis(contacts, normals, prior, kernel, scale=scale,
-                        noise_variance=p.gpis_noise + self.sensor_noise[0] ** 2, newton=newton,
-                        noncontacts=noncontacts if p.gpis_noncontacts else None,
-                        noncontact_value=p.gpis_noncontact_value)
+        return {"noise_variance": p.gpis_noise + self.sensor_noise[0] ** 2,
+                "noncontacts": noncontacts if p.gpis_noncontacts else None,
+                "noncontact_value": p.gpis_noncontact_value}
+
+    def _kept_spacing(self, spacing):
+        """``spacing``, or the grid cell of the last surfaces while within
+        ``gpis_box_tolerance`` of it (successive grids then share their nodes)."""
+        kept = self.state.gpis_spacing
+        if kept is not None and abs(spacing / kept - 1) <= self._p.gpis_box_tolerance:
+            return kept
+        self.state.gpis_spacing = spacing
+        return spacing
+
+    def _kept_kernel(self, kernel):
+        """``kernel``, or the thin-plate kernel of the last fits while its ``R`` is within
+        ``gpis_box_tolerance`` of ``kernel``'s (a changed ``R`` changes every entry of
+        the Gram matrix, which then is refactored in full)."""
+        kept = self.state.gpis_radius
+        if not isinstance(kernel, ThinPlateKernel):
+            return kernel
+        if kept is not None and abs(kernel.radius / kept - 1) <= self._p.gpis_box_tolerance:
+            return ThinPlateKernel(kept)
+        self.state.gpis_radius = kernel.radius
+        return kernel
 
     def _gpis_box(self, map_vertices, contacts):
         """The reconstruction box (low, high) and the GPIS kernel."""

@@ -4,7 +4,8 @@ learning)."""
 import trimesh
 
 from ..errors import SessionError
-from ..gpis import zero_level_surface
+from ..gpis import ThinPlateKernel, zero_level_surface
+from ..gpis_variance import lattice_low
 from ..objects import ObjectModel
 
 
@@ -39,11 +40,15 @@ class Learning:
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
-        fit = self._fit(kernel, snapshot.contacts, snapshot.normals,
-                        self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
-                        prior,
-                        snapshot.gpis_scale, newton=False)
-        vertices, faces = zero_level_surface(fit, (low, high), resolution)
+        if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
+            kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
+        spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None
+        if spacing is not None:
+            low = lattice_low(low, spacing)
+        fit = self._refit(kernel, snapshot.contacts, snapshot.normals,
+                          self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
+                          prior, snapshot.gpis_scale)
+        vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing)
         if len(faces) == 0:
             raise SessionError("the reconstruction has no surface at the learned resolution")
         return vertices, faces

@@ -469,6 +469,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             recon_error=recon_error, terminated=plan.terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
+            gpis_radius=None if recon is None else float(recon.fit.radius),
+            gpis_spacing=None if recon is None else recon.spacing,
             decided=bool(plan.decided), decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)

@@ -21,8 +21,10 @@ class Snapshot:
     Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
     ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
-    stops; None without a surface). ``decided`` (beyond the paper): the object is judged
-    known and no other class or pose mode fits the contacts comparably
+    stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
+    its grid's cell when kept from step to step (else None). ``decided`` (beyond the
+    paper): the object is judged known and no other class or pose mode fits the contacts
+    comparably
     (:mod:`~tactile_viz.engine.decision`); ``decision_confidence`` the share the MAP holds.
     """
 
@@ -56,6 +58,8 @@ class Snapshot:
     timings: dict
     hypotheses: tuple = ()
     gpis_resolution: object = None
+    gpis_radius: object = None
+    gpis_spacing: object = None
     rotation_error_deg: object = None
     translation_error: object = None
     decided: bool = False
@@ -109,12 +113,16 @@ class Reconstruction:
         The zero level set of the posterior mean (marching cubes), world frame.
     faces : (f, 3) int
     variance : (v,) float
-        Posterior variance at the vertices (evaluated at ``subset``, nearest elsewhere).
+        Posterior variance at the vertices (evaluated at ``subset``, nearest elsewhere; or
+        interpolated along the grid's edges everywhere with ``spacing``).
     subset : (k,) int or None
-        The vertices where the variance was evaluated.
+        The vertices where the variance was evaluated (the target's candidates).
     fit : GPISFit
     resolution : int
         Marching-cubes cells along the box's longest side.
+    spacing : float or None
+        The grid's cell when kept from step to step (``gpis_incremental``), on a lattice
+        anchored at the origin; None: the box's longest side over ``resolution``.
     """
 
     vertices: np.ndarray
@@ -123,6 +131,7 @@ class Reconstruction:
     subset: object
     fit: object
     resolution: int
+    spacing: object = None
 
     @property
     def empty(self):

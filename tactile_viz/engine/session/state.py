@@ -43,6 +43,17 @@ class ExplorationState:
     ----------
     gpis_scale : float
         The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
+    gpis_radius : float or None
+        The thin-plate ``R`` kept from fit to fit (``gpis_box_tolerance``).
+    gpis_spacing : float or None
+        The surface grid's cell kept from step to step (``gpis_box_tolerance``).
+    gpis_fits : int
+        Fits since the scale's last Newton step (``gpis_refit_every``).
+    gpis_cache : GramCache or None
+        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.gpis_incremental`;
+        immutable, keyed by content: a fit extends it only where the content agrees).
+    variance_cache : NodeVariance or None
+        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.gpis_variance`).
     target : Aim or None
         Where the next step reaches (None: terminated, a check, or the first touch).
     given_up : list of (3,) float
@@ -91,6 +102,11 @@ class ExplorationState:
     """
 
     gpis_scale: float = 1.0
+    gpis_radius: Any = None
+    gpis_spacing: Any = None
+    gpis_fits: int = 0
+    gpis_cache: Any = None
+    variance_cache: Any = None
     target: Any = None
     given_up: list = field(default_factory=list)
     free_space: np.ndarray = field(default_factory=_points)
@@ -127,9 +143,12 @@ class ExplorationState:
     def copy(self):
         """A deep copy: changing any list, dict or array of the copy leaves this state as
         it is. The estimates (callables of points, such as ``target.estimate``) are shared:
-        they hold priors and GPIS fits, and a step replaces them, never changes them."""
+        they hold priors and GPIS fits, and a step replaces them, never changes them. So are
+        the GPIS caches (frozen, tens of MB: a fit replaces them too)."""
         memo = {}
         _shared_callables([getattr(self, item.name) for item in fields(self)], memo)
+        for shared in (self.gpis_cache, self.variance_cache):
+            memo[id(shared)] = shared
         return copy.deepcopy(self, memo)
 
 
