@@ -228,7 +228,8 @@ def used_pose_parameters(model, scale2):
 def flips(pf, class_index, rotation, translation):
     """The MAP's pose turned half about each principal axis of its shape (through the
     centre of mass), and in steps of ``ROUND_TURN_DEG`` about an axis the shape is nearly
-    round about (its other two moments within ``ROUND_MOMENTS``): the modes a
+    round about (its other two moments within ``ROUND_MOMENTS``; in eighths of a turn
+    about each when there are more than one, a near-sphere): the modes a
     near-symmetric shape is most easily mistaken in (a mug upside down, or its handle
     anywhere round the body while nothing touched it), which the particles may never have
     held. The refinement cannot turn a hypothesis towards an untouched handle, so the
@@ -245,12 +246,15 @@ def flips(pf, class_index, rotation, translation):
         axes = np.asarray(mesh.principal_inertia_vectors)
         moments = np.asarray(mesh.principal_inertia_components, float)
         turns = [Rotation.from_rotvec(np.pi * a).as_matrix() for a in axes]
-        for i, axis in enumerate(axes):
-            others = np.delete(moments, i)
-            if abs(others[0] - others[1]) <= ROUND_MOMENTS * others.max():
-                turns += [Rotation.from_rotvec(angle * axis).as_matrix()
-                          for angle in np.radians(np.arange(ROUND_TURN_DEG, 360, ROUND_TURN_DEG))
-                          if not np.isclose(angle, np.pi)]
+        round_axes = [axis for i, axis in enumerate(axes)
+                      if np.ptp(np.delete(moments, i)) <= ROUND_MOMENTS * np.delete(moments, i).max()]
+        # One round axis (a mug): its modes are one turn, swept finely; a near-sphere's
+        # are not a one-parameter family, and eighths about each axis keep it affordable.
+        step = ROUND_TURN_DEG if len(round_axes) == 1 else 45.0
+        for axis in round_axes:
+            turns += [Rotation.from_rotvec(angle * axis).as_matrix()
+                      for angle in np.radians(np.arange(step, 360, step))
+                      if not np.isclose(angle, np.pi)]
         cache[class_index] = np.stack(turns), np.asarray(mesh.center_mass, float)
     turns, centre = cache[class_index]
     # x -> S (x - c) + c in the object frame, then the pose: R S and t + R (c - S c).
