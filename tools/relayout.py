@@ -231,22 +231,17 @@ DOC_DOTTED = re.compile(r"(?<![\w./])engine\.(\w+)\b")
 DOC_PATH = re.compile(r"(?<![\w.])engine/(\w+)\.py\b")
 
 
-def rewrite_dotted(text, spans=()):
-    """Every ``tactile_viz.engine.X...`` outside ``spans`` renamed."""
-    out, last = [], 0
-    for match in DOTTED.finditer(text):
-        if any(s <= match.start() < e for s, e in spans):
-            continue
-        out += [text[last:match.start()], new_name(match.group(0))]
-        last = match.end()
-    return "".join(out) + text[last:]
+def rewrite_dotted(text):
+    """Every ``tactile_viz.engine.X...`` renamed, and every path ``engine/X.py``."""
+    text = DOTTED.sub(lambda m: new_name(m.group(0)), text)
+    return DOC_PATH.sub(
+        lambda m: f"engine/{MOVES.get(m.group(1), m.group(1)).replace('.', '/')}.py", text)
 
 
 def rewrite_doc(text):
+    """:func:`rewrite_dotted`, and ``engine.X`` (Markdown names the package so)."""
     text = rewrite_dotted(text)
-    text = DOC_DOTTED.sub(lambda m: f"engine.{MOVES.get(m.group(1), m.group(1))}", text)
-    return DOC_PATH.sub(
-        lambda m: f"engine/{MOVES.get(m.group(1), m.group(1)).replace('.', '/')}.py", text)
+    return DOC_DOTTED.sub(lambda m: f"engine.{MOVES.get(m.group(1), m.group(1))}", text)
 
 
 def apply(text, edits):
