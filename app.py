@@ -118,10 +118,10 @@ def argument_problem(args):
         return f"--steps must be 0 or more, not {args.steps}"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
-    from tactile_viz.engine.meshes import split_units
+    from tactile_viz.engine.shape.meshes import split_units
     from tactile_viz.experiments.inputs import mesh_units, options_problem
 
-    from tactile_viz.engine.bags import is_bag
+    from tactile_viz.engine.io.bags import is_bag
 
     if args.observations and not (os.path.isdir(args.observations) and is_bag(
             args.observations)) and (problem := _path_problem("--observations",

@@ -150,7 +150,7 @@ def name_list(choices, what):
 
 
 def _bundled(which):
-    from .engine.objects import bundled_names
+    from .engine.shape.objects import bundled_names
 
     return bundled_names(which)
 

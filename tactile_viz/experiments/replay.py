@@ -1,7 +1,7 @@
 """Recorded touches through the filter and the GPIS: ``python -m tactile_viz replay ...``.
 
 The touches come from an observation file (see
-:mod:`tactile_viz.engine.observation_file`), made by a real sensor, another program or
+:mod:`tactile_viz.engine.io.observation_file`), made by a real sensor, another program or
 ``trial --export``. Every step of the file is replayed, also after the session would have
 stopped; the JSON is the ``trial`` command's, with null truth metrics.
 """
@@ -11,10 +11,10 @@ import sys
 import time
 
 from ..cli import add_preset_argument, add_set_argument, seed_int, with_settings
-from ..engine.exploration import STRATEGIES
-from ..engine.bag_export import export_bag
-from ..engine.bags import read_recording as read_recording_file, recording_file_warning
-from ..engine.export import export_session
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.bag_export import export_bag
+from ..engine.io.bags import read_recording as read_recording_file, recording_file_warning
+from ..engine.io.export import export_session
 from ..engine.session import RecordedSession, session_preset
 from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
                      check_learning, learn, load_priors, recording_file, say, scene_units,

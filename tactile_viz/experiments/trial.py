@@ -21,11 +21,11 @@ from ..cli import (add_preset_argument, add_set_argument, bundled_object, finite
                    output_dir, parameter_value, positive_int, seed_int, with_settings,
                    writable_output)
 from ..engine.errors import ParameterError
-from ..engine.exploration import STRATEGIES
-from ..engine.bag_export import export_bag
-from ..engine.export import export_session
-from ..engine.files import write_atomic
-from ..engine.objects import load_bundled
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.bag_export import export_bag
+from ..engine.io.export import export_session
+from ..engine.io.files import write_atomic
+from ..engine.shape.objects import load_bundled
 from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
 from .inputs import (add_prior_arguments, add_unit_arguments, bag_output, check_learning, learn,
