@@ -15,7 +15,7 @@ import os
 import sys
 
 from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
-                             default_log_file, one_line, setup_logging)
+                             add_sensor_arguments, default_log_file, one_line, setup_logging)
 
 log = logging.getLogger("tactile_viz.app.launcher")
 PROG = "app.py"  # errors are one line, "app.py: error: MESSAGE", as the command line's
@@ -68,7 +68,6 @@ def parse_args(argv=None):
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
     from tactile_viz.experiments.inputs import add_bag_arguments, add_unit_arguments
-    from tactile_viz.experiments.trial import add_sensor_arguments
 
     add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)

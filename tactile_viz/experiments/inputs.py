@@ -13,22 +13,13 @@ import logging
 import sys
 from pathlib import Path
 
-from ..cli import (ExtendList, existing_file, finite_float, one_line, output_dir,
-                   writable_output)
+from ..cli import ExtendList, existing_file, one_line, output_dir, positive_float
 from ..engine.errors import LibraryError, TactileVizError
 from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
 from ..engine.shape.meshes import UNITS, split_units, unit_factor
 from ..engine.shape.objects import ObjectModel, bundled_names
 
 log = logging.getLogger(__name__)
-
-
-def positive_float(text):
-    """An argument type: a positive finite number."""
-    value = finite_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
 
 
 def mesh_units(text):
@@ -68,13 +59,6 @@ def recording_file(text):
     if Path(text).is_dir() and is_bag(text):
         return text
     return existing_file(text)
-
-
-def bag_output(text):
-    """An argument type: an ``.mcap`` file that can be written (returned as given)."""
-    if Path(text).suffix.lower() != ".mcap":
-        raise argparse.ArgumentTypeError(f"the bag must be an .mcap file, got {text!r}")
-    return writable_output(text)
 
 
 BAG_OPTIONS = {"contacts_topic": "contacts", "normals_topic": "normals",
