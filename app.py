@@ -15,7 +15,7 @@ import os
 import sys
 
 from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
-                             default_log_file, one_line, setup_logging)
+                             add_sensor_arguments, default_log_file, one_line, setup_logging)
 
 log = logging.getLogger("tactile_viz.app.launcher")
 PROG = "app.py"  # errors are one line, "app.py: error: MESSAGE", as the command line's
@@ -68,7 +68,6 @@ def parse_args(argv=None):
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
     from tactile_viz.experiments.inputs import add_bag_arguments, add_unit_arguments
-    from tactile_viz.experiments.trial import add_sensor_arguments
 
     add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)
@@ -118,10 +117,10 @@ def argument_problem(args):
         return f"--steps must be 0 or more, not {args.steps}"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
-    from tactile_viz.engine.meshes import split_units
+    from tactile_viz.engine.shape.meshes import split_units
     from tactile_viz.experiments.inputs import mesh_units, options_problem
 
-    from tactile_viz.engine.bags import is_bag
+    from tactile_viz.engine.io.bags import is_bag
 
     if args.observations and not (os.path.isdir(args.observations) and is_bag(
             args.observations)) and (problem := _path_problem("--observations",

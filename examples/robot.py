@@ -18,10 +18,10 @@ import numpy as np
 import trimesh
 
 from tactile_viz.engine import Contact, NonContact, PriorLibrary
-from tactile_viz.engine.metrics import error_threshold, two_way_hausdorff
-from tactile_viz.engine.objects import bundled_names, load_bundled
+from tactile_viz.engine.shape.metrics import error_threshold, two_way_hausdorff
+from tactile_viz.engine.shape.objects import bundled_names, load_bundled
 from tactile_viz.engine.session import Session
-from tactile_viz.engine.simulator import GroundTruth
+from tactile_viz.engine.explore.simulator import GroundTruth
 from tactile_viz.engine.transforms import random_pose
 from tactile_viz.experiments.sizes import SIZES_M  # plausible sizes of the bundled objects
 

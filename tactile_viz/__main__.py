@@ -13,7 +13,7 @@ log = logging.getLogger("tactile_viz.__main__")
 
 
 def _objects(args):
-    from .engine.objects import bundled_manifest
+    from .engine.shape.objects import bundled_manifest
 
     entries = bundled_manifest()
     if args.json:

@@ -68,6 +68,31 @@ def finite_float(text):
     return value
 
 
+def positive_float(text):
+    """An argument type: a positive finite number."""
+    value = finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def nonnegative_float(text):
+    """An argument type: a finite number >= 0."""
+    value = finite_float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be at least 0, got {text!r}")
+    return value
+
+
+def fraction(text):
+    """An argument type: a number in [0, 0.5) (the simulated sensor's share of wrong
+    contacts)."""
+    value = finite_float(text)
+    if not 0 <= value < 0.5:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
+    return value
+
+
 def existing_file(text):
     """An argument type: a readable file (returned as given)."""
     path = Path(text)
@@ -130,6 +155,13 @@ def output_dir(text):
     return text
 
 
+def bag_output(text):
+    """An argument type: an ``.mcap`` file that can be written (returned as given)."""
+    if Path(text).suffix.lower() != ".mcap":
+        raise argparse.ArgumentTypeError(f"the bag must be an .mcap file, got {text!r}")
+    return writable_output(text)
+
+
 def name_list(choices, what):
     """An argument type: one name or a comma list of them, each one of ``choices`` (a list,
     or a function returning it, called on first use); returns the text as given.
@@ -150,7 +182,7 @@ def name_list(choices, what):
 
 
 def _bundled(which):
-    from .engine.objects import bundled_names
+    from .engine.shape.objects import bundled_names
 
     return bundled_names(which)
 
@@ -354,3 +386,34 @@ def setup_logging(verbose=False, log_file=None):
     if log_file and opened is None:
         logger.warning(problem)
     return opened
+
+
+def add_sensor_arguments(parser, simulated=True):
+    """The sensor's noise (``--position-noise``, ``--normal-noise``: the simulator adds it
+    and the model assumes it), the model's outlier probability and, for a simulated
+    sensor, its rate of wrong contacts (``--outliers``)."""
+    parser.add_argument("--position-noise", type=nonnegative_float, default=0.0, metavar="STD",
+                        help="std of the sensor's contact positions, scene units (default 0)")
+    parser.add_argument("--normal-noise", type=nonnegative_float, default=0.0, metavar="DEG",
+                        help="std of the tilt of the sensor's normals, degrees (default 0)")
+    parser.add_argument("--outlier-probability", type=parameter_value("outlier_probability"),
+                        default=None, metavar="P",
+                        help="the model's chance of a wrong contact: a robust likelihood "
+                             "(default the preset's; 0 is the paper's Gaussian)")
+    if simulated:
+        parser.add_argument("--outliers", type=fraction, default=0.0, metavar="FRACTION",
+                            help="the simulated sensor's chance of a wrong contact, a third "
+                                 "of the object's size off (default 0)")
+
+
+def add_output_arguments(parser, export_help):
+    """``--json``, ``--export DIR`` (``export_help`` says what it writes), ``--export-bag``
+    and ``--no-progress`` of the commands that run a session."""
+    parser.add_argument("--json", metavar="OUT", type=writable_output,
+                        help="write the JSON here (default stdout)")
+    parser.add_argument("--export", metavar="DIR", type=output_dir, help=export_help)
+    parser.add_argument("--export-bag", metavar="FILE.mcap", type=bag_output,
+                        help="write every step as a ROS 2 bag (MCAP, metres) for RViz and "
+                             "Foxglove: touches, MAP pose, posterior, MAP shape and GPIS "
+                             "markers (docs/robots.md)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")

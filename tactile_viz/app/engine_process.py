@@ -37,7 +37,7 @@ import traceback
 import weakref
 
 from ..engine.errors import TactileVizError
-from ..engine.objects import ObjectModel
+from ..engine.shape.objects import ObjectModel
 
 log = logging.getLogger(__name__)
 

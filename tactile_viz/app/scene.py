@@ -18,13 +18,13 @@ from pathlib import Path
 from typing import NamedTuple
 
 from ..engine.errors import LibraryError
-from ..engine.exploration import STRATEGIES
-from ..engine.export import export_session
-from ..engine.library import PriorLibrary, size_warning
-from ..engine.meshes import UNITS
-from ..engine.metrics import error_threshold
-from ..engine.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.bags import read_recording, recording_file_warning
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.export import export_session
+from ..engine.shape.library import PriorLibrary, size_warning
+from ..engine.shape.meshes import UNITS
+from ..engine.shape.metrics import error_threshold
+from ..engine.shape.objects import ObjectModel, bundled_names, load_bundled
+from ..engine.io.bags import read_recording, recording_file_warning
 from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
@@ -110,7 +110,7 @@ class Scene:
         The priors (default: the bundled known set).
     units : str, optional
         The name of the scene's length unit where it has one (a key of
-        :data:`tactile_viz.engine.meshes.UNITS`, e.g. ``"m"``), shown on the plots and written
+        :data:`tactile_viz.engine.shape.meshes.UNITS`, e.g. ``"m"``), shown on the plots and written
         to exports, and the unit recordings and saved libraries are converted to; None: the
         library's when all its priors name one, else "scene units".
     sensor_noise : tuple of float
@@ -278,7 +278,7 @@ class Scene:
 
     def _check_size(self, path, model, library):
         """Keep (and log) the warning of a mesh without a unit whose size is far off the
-        priors' (:func:`~tactile_viz.engine.library.size_warning`)."""
+        priors' (:func:`~tactile_viz.engine.shape.library.size_warning`)."""
         others = [m for m in library if m is not model]
         message = others and size_warning(Path(path).name, model.length,
                                           PriorLibrary(others).reference_size, self.units)
@@ -392,7 +392,7 @@ class Scene:
     # ------------------------------------------------------------------ recordings
     def open_observations(self, path, topics=None):
         """Step through recorded touches (an observation file, or a ROS 2 bag read with the
-        :class:`~tactile_viz.engine.bags.BagTopics` ``topics``) instead of the simulator,
+        :class:`~tactile_viz.engine.io.bags.BagTopics` ``topics``) instead of the simulator,
         with the current priors and settings; the truth is hidden (a recording has none).
         Positions are converted to the scene's unit as ``replay`` does (a ``# units:``
         line naming another); :attr:`warnings` says when the file is likely in another unit

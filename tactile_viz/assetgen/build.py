@@ -17,7 +17,7 @@ from skimage.measure import marching_cubes
 
 from tactile_viz.assetgen.catalog import CATALOG, by_name
 from tactile_viz.cli import ArgumentParser, ExtendList, output_dir
-from tactile_viz.engine.files import write_atomic
+from tactile_viz.engine.io.files import write_atomic
 
 LONGEST_SIDE = 6.0
 SPACING = 0.055  # grid spacing in final units

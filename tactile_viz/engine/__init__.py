@@ -9,22 +9,22 @@ Nothing here imports Qt, pyvista or vtk; a test enforces it.
 
 from .errors import (LibraryError, MeshError, MeshWarning, ObservationError, ParameterError,
                      TactileVizError)
-from .exploration import STRATEGIES
-from .library import PriorLibrary
-from .meshes import LONGEST_SIDE, load_mesh, prepare_mesh
-from .objects import ModelParams, ObjectModel, bundled_names, load_bundled
-from .observations import Contact, NonContact
+from .explore.exploration import STRATEGIES
+from .shape.library import PriorLibrary
+from .shape.meshes import LONGEST_SIDE, load_mesh, prepare_mesh
+from .shape.objects import ModelParams, ObjectModel, bundled_names, load_bundled
+from .explore.observations import Contact, NonContact
 from .params import FilterParams
 from .presets import preset
-from .particle_filter import ParticleFilter
-from .sdf import ExactDistance, SDFGrid, build_sdf_grid
-from .export import export_session
-from .observation_file import (ObservationFileError, RecordedStep, read_observations,
+from .belief.particle_filter import ParticleFilter
+from .shape.sdf import ExactDistance, SDFGrid, build_sdf_grid
+from .io.export import export_session
+from .io.observation_file import (ObservationFileError, RecordedStep, read_observations,
                                write_observations)
 from .session import (SESSION_PRESETS, Move, Reconstruction, RecordedSession, Session,
                       SessionError, SessionParams, Snapshot, Target, make_truth, session_preset)
 from .session.loop import Sensor
-from .simulator import ContactSimulator, GroundTruth
+from .explore.simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [

@@ -333,7 +333,7 @@ class SessionParams:
         0.99, "A known object is decided once the MAP class and the MAP hold this share of "
         "their posteriors (beyond the paper).", valid="[0.5, 1)", control=(0.5, 0.999999),
         notes="The MAP class's share of the class posterior and the MAP's of the fit "
-              "posterior of the distinct hypotheses (:mod:`~tactile_viz.engine.decision`).")
+              "posterior of the distinct hypotheses (:mod:`~tactile_viz.engine.belief.decision`).")
     decision_floor: float = _session(
         0.01, "How far a right hypothesis's contacts may lie off its surface besides the "
         "sensor's noise and the grid's own error.", valid=_POSITIVE, length=1,

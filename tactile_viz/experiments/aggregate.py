@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
+from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 
 # The paper's Table "Comparison of shape reconstruction methods": per novel object, mean and
 # std of the TWD to the truth of the PF-MAP shape, the GPIS reconstruction and a Poisson

@@ -27,16 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
-                   output_dir, with_settings, workers_int)
-from ..engine.files import write_atomic
-from ..engine.metrics import error_threshold
-from ..engine.objects import bundled_names
+from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, fraction,
+                   nonnegative_int, output_dir, with_settings, workers_int)
+from ..engine.io.files import write_atomic
+from ..engine.shape.metrics import error_threshold
+from ..engine.shape.objects import bundled_names
 from ..engine.presets import session_preset
 from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from .runner import make_task, run_all
 from .sizes import SIZES_M
-from .trial import fraction
 
 DEFAULT_NOISE = ((0.0, 0.0), (0.001, 1.0), (0.002, 2.0))
 NOVEL = ("neptune", "dragon", "noisy_dino", "mug_2", "home_chair", "sofa_2")

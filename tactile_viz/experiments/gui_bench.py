@@ -37,8 +37,8 @@ import time
 from ..app.engine_process import ENGINES
 from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
                   int_range, seed_int, writable_output)
-from ..engine.exploration import STRATEGIES
-from ..engine.files import write_atomic
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.files import write_atomic
 
 TARGET_OVERHEAD = 0.15
 TARGET_BLOCK = 0.150

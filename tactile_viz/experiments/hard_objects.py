@@ -16,7 +16,7 @@ import numpy as np
 from ..assetgen import sdf as s
 from ..assetgen.build import build_mesh, ply_bytes
 from ..assetgen.catalog import ObjectSpec, by_name
-from ..engine.files import write_atomic
+from ..engine.io.files import write_atomic
 
 HANDLE_TOP = 2.6  # design units (z up, longest side about 6)
 

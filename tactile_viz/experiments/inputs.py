@@ -13,22 +13,13 @@ import logging
 import sys
 from pathlib import Path
 
-from ..cli import (ExtendList, existing_file, finite_float, one_line, output_dir,
-                   writable_output)
+from ..cli import ExtendList, existing_file, one_line, output_dir, positive_float
 from ..engine.errors import LibraryError, TactileVizError
-from ..engine.library import MANIFEST, PriorLibrary, size_warning
-from ..engine.meshes import UNITS, split_units, unit_factor
-from ..engine.objects import ObjectModel, bundled_names
+from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
+from ..engine.shape.meshes import UNITS, split_units, unit_factor
+from ..engine.shape.objects import ObjectModel, bundled_names
 
 log = logging.getLogger(__name__)
-
-
-def positive_float(text):
-    """An argument type: a positive finite number."""
-    value = finite_float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
 
 
 def mesh_units(text):
@@ -63,18 +54,11 @@ def mesh_file(text):
 def recording_file(text):
     """An argument type: a readable recording, a file or a rosbag2 folder (returned as
     given)."""
-    from ..engine.bags import is_bag
+    from ..engine.io.bags import is_bag
 
     if Path(text).is_dir() and is_bag(text):
         return text
     return existing_file(text)
-
-
-def bag_output(text):
-    """An argument type: an ``.mcap`` file that can be written (returned as given)."""
-    if Path(text).suffix.lower() != ".mcap":
-        raise argparse.ArgumentTypeError(f"the bag must be an .mcap file, got {text!r}")
-    return writable_output(text)
 
 
 BAG_OPTIONS = {"contacts_topic": "contacts", "normals_topic": "normals",
@@ -84,7 +68,7 @@ BAG_OPTIONS = {"contacts_topic": "contacts", "normals_topic": "normals",
 
 def add_bag_arguments(parser):
     """The topics, steps and frame of a ``--observations`` bag (docs/robots.md)."""
-    from ..engine.bags import DEFAULT_TOPICS as TOPICS
+    from ..engine.io.bags import DEFAULT_TOPICS as TOPICS
 
     group = parser.add_argument_group("bags (--observations FILE.mcap, FILE.db3 or a bag "
                                       "folder; metres, one frame)")
@@ -111,8 +95,8 @@ def add_bag_arguments(parser):
 
 
 def bag_topics(args):
-    """The :class:`~tactile_viz.engine.bags.BagTopics` of the bag options."""
-    from ..engine.bags import BagTopics
+    """The :class:`~tactile_viz.engine.io.bags.BagTopics` of the bag options."""
+    from ..engine.io.bags import BagTopics
 
     return BagTopics(**{field: getattr(args, option, None)
                         for option, field in BAG_OPTIONS.items()})
@@ -121,7 +105,7 @@ def bag_topics(args):
 def bag_problem(args):
     """Why the bag options do not fit (None if they do): given for a CSV recording, or a
     step topic and a step gap both."""
-    from ..engine.bags import is_bag
+    from ..engine.io.bags import is_bag
 
     given = [option for option in BAG_OPTIONS if getattr(args, option, None) is not None]
     if not given:
@@ -298,7 +282,7 @@ def load_priors(args, units=None):
 
 def size_warnings(args, library, truth=None):
     """Why the meshes of ``args`` are likely not in the library's unit: one line per
-    suspicious file (:func:`tactile_viz.engine.library.size_warning`). A file is checked
+    suspicious file (:func:`tactile_viz.engine.shape.library.size_warning`). A file is checked
     against the other priors unless both have their units."""
     units = scene_units(args, library)
     found = []

@@ -29,12 +29,12 @@ import numpy as np
 
 from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, finite_float,
                    output_dir)
-from ..engine.files import write_atomic
-from ..engine.library import PriorLibrary
-from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
+from ..engine.io.files import write_atomic
+from ..engine.shape.library import PriorLibrary
+from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
 from ..engine.presets import noise_matched, preset
-from ..engine.particle_filter import ParticleFilter
-from ..engine.simulator import ContactSimulator, GroundTruth, random_touch
+from ..engine.belief.particle_filter import ParticleFilter
+from ..engine.explore.simulator import ContactSimulator, GroundTruth, random_touch
 from ..engine.transforms import random_pose
 
 DEFAULT_LEVELS = ((0.0, 0.0), (0.01, 5.0), (0.025, 10.0), (0.05, 15.0))

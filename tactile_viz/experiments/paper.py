@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_objects, count_int,
-                  existing_file, name_list, output_dir, positive_int, seed_int, workers_int)
-from ..engine.files import write_atomic
-from ..engine.exploration import STRATEGIES
-from ..engine.metrics import ERROR_THRESHOLD as THRESHOLD
+from ..cli import (ArgumentParser, ExtendList, add_preset_argument, add_sensor_arguments,
+                  bundled_objects, count_int, existing_file, name_list, output_dir, positive_int,
+                  seed_int, workers_int)
+from ..engine.io.files import write_atomic
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from .runner import make_task, open_pool, run_tasks, task_key
-from .trial import add_sensor_arguments, sensor_settings
+from .trial import sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"
@@ -93,7 +94,7 @@ def build_parser():
 
 def object_sets():
     """``{name: "known" | "novel"}`` of the bundled objects."""
-    from ..engine.objects import bundled_manifest
+    from ..engine.shape.objects import bundled_manifest
 
     return {entry["name"]: entry["set"] for entry in bundled_manifest()}
 

@@ -10,7 +10,7 @@ import numpy as np
 import trimesh
 
 from ..engine.errors import TactileVizError
-from ..engine.metrics import two_way_hausdorff
+from ..engine.shape.metrics import two_way_hausdorff
 
 INSTALL_HINT = ("the Screened Poisson baseline needs pymeshlab: pip install "
                 "'tactile_viz[bench]' (or pip install pymeshlab), or pass --no-poisson")

@@ -26,13 +26,13 @@ VARIANT_STRETCH = (0.75, 4 / 3)  # per-axis stretch factors of the variants
 
 
 def library_of_size(count, seed=0):
-    """A :class:`~tactile_viz.engine.library.PriorLibrary` of ``count`` distinct priors:
+    """A :class:`~tactile_viz.engine.shape.library.PriorLibrary` of ``count`` distinct priors:
     the bundled objects, then variants of them stretched along each axis (real size kept;
     a variant shares its source's faces array)."""
     import trimesh
 
-    from ..engine.library import PriorLibrary
-    from ..engine.objects import ObjectModel
+    from ..engine.shape.library import PriorLibrary
+    from ..engine.shape.objects import ObjectModel
 
     base = list(PriorLibrary.bundled("all"))
     rng = np.random.default_rng(seed)
@@ -80,7 +80,7 @@ def _filter_params(library, preset):
 
 
 def _trial_row(result):
-    from ..engine.metrics import error_threshold
+    from ..engine.shape.metrics import error_threshold
 
     steps = result["steps"]
     last = steps[-1]
@@ -114,10 +114,10 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
         ``resident_megabytes`` (after the trials), ``peak_megabytes``, and ``trials``: one
         row per trial.
     """
-    from ..engine import prior_bank
-    from ..engine.objects import ObjectModel
-    from ..engine.particle_filter import ParticleFilter
-    from ..engine.prior_build import missing
+    from ..engine.belief import prior_bank
+    from ..engine.shape.objects import ObjectModel
+    from ..engine.belief.particle_filter import ParticleFilter
+    from ..engine.belief.prior_build import missing
     from .trial import run_trial
 
     bar = None
@@ -166,7 +166,7 @@ def measure_load(count, seed=0, preset="paper"):
     """The bank of ``count`` priors read from a warm disk cache (in a fresh process, after
     :func:`measure_size` filled it): ``warm_seconds``, ``warm_resident_megabytes`` and
     ``warm_peak_megabytes`` right after it."""
-    from ..engine.particle_filter import ParticleFilter
+    from ..engine.belief.particle_filter import ParticleFilter
 
     library = library_of_size(count, seed)
     start = time.perf_counter()

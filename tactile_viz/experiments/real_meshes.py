@@ -7,7 +7,7 @@ downloaded at run time; without pybullet the command stops with that hint.
 
 :data:`CATALOGUE` names a few object-like meshes of that folder. Each entry lists its files
 in order of preference (the visual mesh before the VHACD collision hulls); the first file
-that :meth:`~tactile_viz.engine.objects.ObjectModel.from_file` loads and that passes
+that :meth:`~tactile_viz.engine.shape.objects.ObjectModel.from_file` loads and that passes
 :func:`check_inner_surface` is used, and an entry none of whose files does is skipped with
 the reasons (printed, and listed in the summary).
 
@@ -38,8 +38,8 @@ import trimesh
 from ..cli import (ArgumentParser, ExtendList, add_preset_argument, count_int, existing_dir,
                   name_list, output_dir, positive_int, seed_int, workers_int)
 from ..engine.errors import MeshError, TactileVizError
-from ..engine.exploration import STRATEGIES
-from ..engine.meshes import LONGEST_SIDE
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.shape.meshes import LONGEST_SIDE
 from .paper import split_names
 from .runner import open_pool, run_tasks
 from .trial_files import read_trial, trial_files, write_trial
@@ -167,7 +167,7 @@ def load_entry(root, entry, rng=0):
         ``name``, ``file`` (relative), ``faces``, ``inner_fraction`` when loaded; else
         ``name`` and ``reason`` (one clause per file tried).
     """
-    from ..engine.objects import ObjectModel
+    from ..engine.shape.objects import ObjectModel
 
     reasons = []
     for relative in entry.files:
@@ -362,7 +362,7 @@ def mesh_lines(meshes):
 
 def report(folder, command=None):
     """Write ``summary.md`` and ``summary.json`` from ``folder/trials``; returns the table."""
-    from ..engine.files import write_atomic
+    from ..engine.io.files import write_atomic
     from .paper import machine_description, write_json
 
     folder = Path(folder)
@@ -464,7 +464,7 @@ def choose_objects(requested, models, skipped):
 
 def check_names(models, bundled):
     """A real mesh may not share its name with a bundled prior."""
-    from ..engine.objects import bundled_names
+    from ..engine.shape.objects import bundled_names
 
     clash = set(models) & set(bundled_names(bundled)) if bundled != "none" else set()
     if clash:

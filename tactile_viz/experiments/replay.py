@@ -1,26 +1,25 @@
 """Recorded touches through the filter and the GPIS: ``python -m tactile_viz replay ...``.
 
 The touches come from an observation file (see
-:mod:`tactile_viz.engine.observation_file`), made by a real sensor, another program or
+:mod:`tactile_viz.engine.io.observation_file`), made by a real sensor, another program or
 ``trial --export``. Every step of the file is replayed, also after the session would have
 stopped; the JSON is the ``trial`` command's, with null truth metrics.
 """
 
 import json
-import sys
 import time
 
-from ..cli import add_preset_argument, add_set_argument, seed_int, with_settings
-from ..engine.exploration import STRATEGIES
-from ..engine.bag_export import export_bag
-from ..engine.bags import read_recording as read_recording_file, recording_file_warning
-from ..engine.export import export_session
+from ..cli import (add_output_arguments, add_preset_argument, add_sensor_arguments,
+                   add_set_argument, seed_int, with_settings)
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.bag_export import export_bag
+from ..engine.io.bags import read_recording as read_recording_file, recording_file_warning
+from ..engine.io.export import export_session
 from ..engine.session import RecordedSession, session_preset
 from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
                      check_learning, learn, load_priors, recording_file, say, scene_units,
                      size_warnings)
-from .trial import (add_output_arguments, add_sensor_arguments, code_version, with_outliers,
-                    write_output)
+from .trial import code_version, run_steps, with_outliers, write_output
 
 
 def add_replay_arguments(parser):
@@ -61,22 +60,7 @@ def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, pr
     """
     session = RecordedSession(steps, library, strategy, params or session_preset(preset), seed,
                               sensor_noise=sensor_noise)
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(steps), desc="replay", unit="step", file=sys.stderr, delay=2.0)
-    records = []
-    while not session.terminated:
-        snapshot = session.step()
-        records.append(snapshot.record())
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(cls=snapshot.map_class, novel=snapshot.novel,
-                            dhd=f"{snapshot.dhd:.2f}")
-    if bar is not None:
-        bar.close()
-    return session, records
+    return session, run_steps(session, progress, len(steps), "replay")
 
 
 def read_recording(args, library):

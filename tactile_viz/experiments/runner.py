@@ -79,8 +79,8 @@ def task_key(task):
 
 @functools.lru_cache(maxsize=8)
 def _bundled_library(which, sizes=()):
-    from ..engine.library import PriorLibrary
-    from ..engine.objects import bundled_names
+    from ..engine.shape.library import PriorLibrary
+    from ..engine.shape.objects import bundled_names
 
     names = [] if which == "none" else bundled_names(which)
     return PriorLibrary(_bundled_model(name, dict(sizes).get(name)) for name in names)
@@ -88,14 +88,14 @@ def _bundled_library(which, sizes=()):
 
 @functools.lru_cache(maxsize=64)
 def _bundled_model(name, size=None):
-    from ..engine.objects import load_bundled
+    from ..engine.shape.objects import load_bundled
 
     return load_bundled(name, size=size)
 
 
 @functools.lru_cache(maxsize=64)
 def _file_model(path, name, longest_side=None):
-    from ..engine.objects import ObjectModel
+    from ..engine.shape.objects import ObjectModel
 
     return ObjectModel.from_file(path, name=name, longest_side=longest_side)
 
@@ -106,7 +106,7 @@ def _sizes(task):
 
 def task_library(task):
     """The :class:`PriorLibrary` of a task: a bundled set plus its extra priors."""
-    from ..engine.library import PriorLibrary
+    from ..engine.shape.library import PriorLibrary
 
     library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
@@ -124,7 +124,7 @@ def _finisher(task):
     """The ``finish`` callback of :func:`run_trial` for a task."""
 
     def finish(session):
-        from ..engine.metrics import surface_samples
+        from ..engine.shape.metrics import surface_samples
         from ..engine.transforms import transform_points
 
         last = session.latest

@@ -86,7 +86,7 @@ def main(argv=None):
     parser.add_argument("--seed", type=seed_int, default=0)
     args = parser.parse_args(argv)
 
-    from ..engine.objects import load_bundled
+    from ..engine.shape.objects import load_bundled
 
     print(f"{args.points} points within 1 size unit of the surface, SDF grid resolution "
           f"{args.resolution}")

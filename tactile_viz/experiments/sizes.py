@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from ..cli import ArgumentParser, count_int, name_list, nonnegative_int, output_dir, workers_int
-from ..engine.files import write_atomic
-from ..engine.metrics import error_threshold
-from ..engine.objects import bundled_manifest, bundled_names
+from ..engine.io.files import write_atomic
+from ..engine.shape.metrics import error_threshold
+from ..engine.shape.objects import bundled_manifest, bundled_names
 from .runner import make_task, run_all
 
 # Longest sides in metres: plausible for the objects, within 5 to 40 cm (a novel object

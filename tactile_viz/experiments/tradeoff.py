@@ -19,7 +19,7 @@ import numpy as np
 
 from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_dir,
                    name_list, output_dir, positive_int, workers_int)
-from ..engine.files import write_atomic
+from ..engine.io.files import write_atomic
 from ..engine.params import with_changes
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
@@ -194,7 +194,7 @@ def reuse_trials(tasks, runs, folder):
     A trial is the same computation whichever benchmark ran it, and its seconds were
     measured the same way (one trial per core). The code version is not matched (an engine
     change need not change a parameter): the report lists the versions of its trials."""
-    from ..engine.library import PriorLibrary
+    from ..engine.shape.library import PriorLibrary
 
     if not runs:
         return tasks

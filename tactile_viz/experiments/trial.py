@@ -7,7 +7,6 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 ``dhd``, ``novel``, ``recon_error``, ...). ``tests/engine/test_session.py`` checks the keys.
 """
 
-import argparse
 import functools
 import json
 import subprocess
@@ -17,58 +16,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (add_preset_argument, add_set_argument, bundled_object, finite_float,
-                   output_dir, parameter_value, positive_int, seed_int, with_settings,
-                   writable_output)
+from ..cli import (add_output_arguments, add_preset_argument, add_sensor_arguments,
+                   add_set_argument, bundled_object, positive_int, seed_int, with_settings)
 from ..engine.errors import ParameterError
-from ..engine.exploration import STRATEGIES
-from ..engine.bag_export import export_bag
-from ..engine.export import export_session
-from ..engine.files import write_atomic
-from ..engine.objects import load_bundled
+from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.bag_export import export_bag
+from ..engine.io.export import export_session
+from ..engine.io.files import write_atomic
+from ..engine.shape.objects import load_bundled
 from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
-from .inputs import (add_prior_arguments, add_unit_arguments, bag_output, check_learning, learn,
-                     load_mesh, load_priors, mesh_file, say, scene_units, size_warnings)
+from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
+                     load_priors, mesh_file, say, scene_units, size_warnings)
 
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
              "outlier_probability": None}
-
-
-def nonnegative_float(text):
-    """An argument type: a finite number >= 0."""
-    value = finite_float(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be at least 0, got {text!r}")
-    return value
-
-
-def fraction(text):
-    """An argument type: a number in [0, 0.5) (the simulated sensor's share of wrong
-    contacts)."""
-    value = finite_float(text)
-    if not 0 <= value < 0.5:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 0.5), got {text!r}")
-    return value
-
-
-def add_sensor_arguments(parser, simulated=True):
-    """The sensor's noise (``--position-noise``, ``--normal-noise``: the simulator adds it
-    and the model assumes it), the model's outlier probability and, for a simulated
-    sensor, its rate of wrong contacts (``--outliers``)."""
-    parser.add_argument("--position-noise", type=nonnegative_float, default=0.0, metavar="STD",
-                        help="std of the sensor's contact positions, scene units (default 0)")
-    parser.add_argument("--normal-noise", type=nonnegative_float, default=0.0, metavar="DEG",
-                        help="std of the tilt of the sensor's normals, degrees (default 0)")
-    parser.add_argument("--outlier-probability", type=parameter_value("outlier_probability"),
-                        default=None, metavar="P",
-                        help="the model's chance of a wrong contact: a robust likelihood "
-                             "(default the preset's; 0 is the paper's Gaussian)")
-    if simulated:
-        parser.add_argument("--outliers", type=fraction, default=0.0, metavar="FRACTION",
-                            help="the simulated sensor's chance of a wrong contact, a third "
-                                 "of the object's size off (default 0)")
 
 
 def sensor_settings(args):
@@ -84,17 +47,6 @@ def with_outliers(params, probability):
     if probability is None:
         return params
     return with_changes(params, outlier_probability=probability)
-
-
-def add_output_arguments(parser, export_help):
-    parser.add_argument("--json", metavar="OUT", type=writable_output,
-                        help="write the JSON here (default stdout)")
-    parser.add_argument("--export", metavar="DIR", type=output_dir, help=export_help)
-    parser.add_argument("--export-bag", metavar="FILE.mcap", type=bag_output,
-                        help="write every step as a ROS 2 bag (MCAP, metres) for RViz and "
-                             "Foxglove: touches, MAP pose, posterior, MAP shape and GPIS "
-                             "markers (docs/robots.md)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
 def add_trial_arguments(parser):
@@ -116,6 +68,31 @@ def add_trial_arguments(parser):
     add_sensor_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json of the last step to DIR")
+
+
+def run_steps(session, progress=False, total=None, label="steps", max_steps=None):
+    """Step ``session`` until it terminates or has taken ``max_steps`` steps (None: no
+    cap), with a progress bar on stderr when ``progress`` (``total`` steps expected, the
+    bar named ``label``); the list of :meth:`~tactile_viz.engine.Snapshot.record` dicts,
+    one per step. The one run loop of the ``trial`` and ``replay`` commands."""
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc=label, unit="step", file=sys.stderr, delay=2.0)
+    records = []
+    try:
+        while not session.terminated and (max_steps is None or len(records) < max_steps):
+            snapshot = session.step()
+            records.append(snapshot.record())
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(cls=snapshot.map_class, novel=snapshot.novel,
+                                dhd=f"{snapshot.dhd:.2f}")
+    finally:
+        if bar is not None:
+            bar.close()
+    return records
 
 
 def write_output(text, path):
@@ -168,23 +145,9 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
     session = Session(truth, library, strategy, params, seed=seed,
                       sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
                       sensor_outliers=sensor["outliers"])
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=max_steps or params.max_steps_novel, desc=truth_model.name,
-                   unit="step", file=sys.stderr, delay=2.0)
     start = time.perf_counter()
-    steps = []
-    while not session.terminated and (max_steps is None or len(steps) < max_steps):
-        snapshot = session.step()
-        steps.append(snapshot.record())
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(cls=snapshot.map_class, novel=snapshot.novel,
-                            dhd=f"{snapshot.dhd:.2f}")
-    if bar is not None:
-        bar.close()
+    steps = run_steps(session, progress, max_steps or params.max_steps_novel, truth_model.name,
+                      max_steps)
     last = session.latest
     truth_pose = np.eye(4)
     truth_pose[:3, :3], truth_pose[:3, 3] = truth.rotation, truth.translation

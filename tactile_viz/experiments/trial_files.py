@@ -10,7 +10,7 @@ import gzip
 import json
 from pathlib import Path
 
-from ..engine.files import write_atomic
+from ..engine.io.files import write_atomic
 
 SUFFIX = ".json.gz"
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pyvista as pv
 
-from ..engine.objects import bundled_manifest, load_bundled
+from ..engine.shape.objects import bundled_manifest, load_bundled
 from .layers import faces_to_polydata
 
 COLUMNS = 5

@@ -6,7 +6,7 @@ import pytest
 
 from tactile_viz.app.engine_process import EngineProcess, EngineProcessError
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.observation_file import RecordedStep
+from tactile_viz.engine.io.observation_file import RecordedStep
 from tactile_viz.engine.session import RecordedSession, Session, SessionError, make_truth
 
 

@@ -8,7 +8,7 @@ from tactile_viz.engine import ObjectModel, PriorLibrary
 @pytest.fixture
 def sphere_model(tmp_path):
     """A sphere of radius 3 (longest side 6) with a private cache."""
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=3.0)
     return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "sphere", cache=ArrayCache(tmp_path),

@@ -1,4 +1,4 @@
-"""ROS 2 bags as recordings and as exports (engine/bags.py, engine/bag_export.py).
+"""ROS 2 bags as recordings and as exports (engine/io/bags.py, engine/io/bag_export.py).
 
 The recordings are written here with rosbags' own writer, as a robot's software would:
 Gazebo-style ContactsState messages, and point and normal topics. Each replays to the
@@ -17,10 +17,10 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
 from tactile_viz.engine import Contact, ObjectModel, PriorLibrary  # noqa: E402
-from tactile_viz.engine.bag_export import MAP_FRAME, TOPICS, export_bag  # noqa: E402
-from tactile_viz.engine.bags import (BagError, BagTopics, is_bag, read_bag,  # noqa: E402
+from tactile_viz.engine.io.bag_export import MAP_FRAME, TOPICS, export_bag  # noqa: E402
+from tactile_viz.engine.io.bags import (BagError, BagTopics, is_bag, read_bag,  # noqa: E402
                                      read_recording, typestore)
-from tactile_viz.engine.observation_file import (read_observations,  # noqa: E402
+from tactile_viz.engine.io.observation_file import (read_observations,  # noqa: E402
                                                  write_observations)
 from tactile_viz.engine.session import Session, make_truth  # noqa: E402
 from tactile_viz.experiments.replay import replay  # noqa: E402
@@ -310,7 +310,7 @@ def test_the_frame_and_named_topics_are_checked(tmp_path):
 
 
 def test_a_failed_export_leaves_the_old_bag_and_no_temporary(trial, tmp_path, monkeypatch):
-    import tactile_viz.engine.bag_export as bag_export
+    import tactile_viz.engine.io.bag_export as bag_export
 
     path = tmp_path / "run.mcap"
     path.write_bytes(b"old")
@@ -327,7 +327,7 @@ def test_a_failed_export_leaves_the_old_bag_and_no_temporary(trial, tmp_path, mo
 
 
 def test_export_session_writes_the_bag_beside_the_files(trial, tmp_path):
-    from tactile_viz.engine.export import export_session
+    from tactile_viz.engine.io.export import export_session
 
     written = export_session(trial[1], tmp_path, bag=True)
     assert tmp_path / "session.mcap" in written

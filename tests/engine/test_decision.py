@@ -7,13 +7,13 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
-from tactile_viz.engine.belief import Particles
-from tactile_viz.engine.decision import (Decision, Hypothesis, decide, disagreement_target,
+from tactile_viz.engine.belief.particles import Particles
+from tactile_viz.engine.belief.decision import (Decision, Hypothesis, decide, disagreement_target,
                                          surface_disagreement)
 from tactile_viz.engine.errors import ParameterError
-from tactile_viz.engine.observations import Contact
+from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
-from tactile_viz.engine.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.session import Session, make_truth, session_preset
 
 
@@ -23,7 +23,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
 @pytest.fixture(scope="module")
 def shapes(tmp_path_factory):
     """A box 6 x 3 x 2, the same box with a knob on one end, and a cylinder."""
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     cache = ArrayCache(tmp_path_factory.mktemp("cache"))
     box = trimesh.creation.box(extents=(6, 3, 2))
@@ -104,7 +104,7 @@ def test_a_symmetry_of_the_shape_is_one_mode(shapes):
 
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_decision_holds_at_any_size(tmp_path, scale):
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     cache = ArrayCache(tmp_path)
     box = trimesh.creation.box(extents=(6, 3, 2))
@@ -239,8 +239,8 @@ def test_a_fit_is_charged_for_the_pose_parameters_it_uses(tmp_path):
     """A smooth ball's turns move nothing (three parameters used), a cylinder's about its
     axis neither (five); bumps count fully under small noise and not at all under noise
     far above them."""
-    from tactile_viz.engine.cache import ArrayCache
-    from tactile_viz.engine.decision import used_pose_parameters
+    from tactile_viz.engine.io.cache import ArrayCache
+    from tactile_viz.engine.belief.decision import used_pose_parameters
 
     cache = ArrayCache(tmp_path)
     sphere = trimesh.creation.icosphere(subdivisions=4)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
-from tactile_viz.engine.exploration import (clearest_direction, enforce_contact,
+from tactile_viz.engine.explore.exploration import (clearest_direction, enforce_contact,
                                             farthest_vertex, first_contact, follow_surface,
                                             next_sweep_direction, path_until, raster_path,
                                             rrt_step, sweep_directions, sweep_line,

@@ -15,14 +15,14 @@ from scipy.special import logsumexp
 from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
                                 ObjectModel, ObservationError, ParameterError, PriorLibrary,
                                 TactileVizError, random_pose)
-from tactile_viz.engine.likelihood import (log_contact_likelihood, log_noncontact_likelihood,
+from tactile_viz.engine.belief.likelihood import (log_contact_likelihood, log_noncontact_likelihood,
                                            log_normaliser, normalise_log_weights)
-from tactile_viz.engine.metrics import pose_error
+from tactile_viz.engine.shape.metrics import pose_error
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.presets import noise_matched, preset
-from tactile_viz.engine.particle_filter import ParticleFilter, Particles
-from tactile_viz.engine.ppf import align_pairs, is_degenerate, local_frames, pair_features
-from tactile_viz.engine.simulator import random_touch
+from tactile_viz.engine.belief.particle_filter import ParticleFilter, Particles
+from tactile_viz.engine.belief.ppf import align_pairs, is_degenerate, local_frames, pair_features
+from tactile_viz.engine.explore.simulator import random_touch
 
 WIDTHS = [1e-6, 1e-3, 1.0, 1e3, 1e6]
 
@@ -161,7 +161,7 @@ def test_near_duplicate_contacts(library, mug_touches, offset):
 # ----------------------------------------------------------------- degenerate layouts
 @pytest.fixture(scope="module")
 def box_library(tmp_path_factory):
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     cache = ArrayCache(tmp_path_factory.mktemp("cache"))
     box = trimesh.creation.box(extents=(6, 3, 2))

@@ -1,7 +1,7 @@
 import numpy as np
 from scipy.spatial import cKDTree
 
-from tactile_viz.engine.features import farthest_point_order
+from tactile_viz.engine.belief.features import farthest_point_order
 
 
 def test_feature_points_lie_on_surface_with_outward_normals(sphere_model):

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.files import current_umask, write_atomic
+from tactile_viz.engine.io.files import current_umask, write_atomic
 
 
 @pytest.fixture

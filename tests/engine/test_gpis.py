@@ -4,11 +4,11 @@ import pytest
 from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
-from tactile_viz.engine.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
+from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
                                      carved_prior, fit_gpis, gradient_rows, kernel_blocks,
                                      indefinite_nugget, stable_cholesky,
                                      value_correction, value_rows, zero_level_surface)
-from tactile_viz.engine.metrics import directed_hausdorff, surface_samples
+from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 
 def _kernel(x, y, radius):

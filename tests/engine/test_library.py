@@ -95,7 +95,7 @@ def test_interrupted_save_keeps_last_good_library(small_library, monkeypatch):
     def fail(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr("tactile_viz.engine.library.write_atomic", fail)
+    monkeypatch.setattr("tactile_viz.engine.shape.library.write_atomic", fail)
     with pytest.raises(LibraryError, match="disk full"):
         library.save(folder)
     assert snapshot(folder) == before

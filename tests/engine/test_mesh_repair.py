@@ -25,8 +25,8 @@ import trimesh
 from tactile_viz.engine import (ContactSimulator, GroundTruth, MeshError, MeshWarning,
                                 ModelParams, ObjectModel, ParticleFilter, PriorLibrary,
                                 load_bundled, load_mesh)
-from tactile_viz.engine.cache import ArrayCache
-from tactile_viz.engine.sdf import ExactDistance
+from tactile_viz.engine.io.cache import ArrayCache
+from tactile_viz.engine.shape.sdf import ExactDistance
 
 PARAMS = ModelParams(sdf_resolution=32, n_features=200)
 
@@ -283,7 +283,7 @@ def test_a_surface_meshlab_refuses_is_one_mesh_error(monkeypatch):
     closing failed on a non-manifold edge) gives one MeshError naming its reason."""
     import pymeshlab
 
-    from tactile_viz.engine import mesh_repair
+    from tactile_viz.engine.shape import mesh_repair
 
     def refuse(mesh, source):
         raise pymeshlab.PyMeshLabException(

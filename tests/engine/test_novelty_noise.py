@@ -5,12 +5,12 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, ObjectModel, PriorLibrary
-from tactile_viz.engine import particle_filter as particle_filter_module
-from tactile_viz.engine.belief import Particles
+from tactile_viz.engine.belief import particle_filter as particle_filter_module
+from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.presets import noise_matched
-from tactile_viz.engine.simulator import random_touch
+from tactile_viz.engine.explore.simulator import random_touch
 
 NOISE = (0.06, 2.0)  # 1 mm / 2 degrees on the 6-unit objects
 
@@ -43,7 +43,7 @@ def test_a_thin_plate_stays_known_under_noise_only_with_its_fold(tmp_path, monke
     """A plate 0.1 units thick touched with 0.06 noise: readings land past its middle,
     where the grid's normal points the other way; the offsets across that fold keep it
     known, and without any offset it would be judged novel."""
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     box = trimesh.creation.box(extents=(6.0, 3.0, 0.1))
     plate = ObjectModel.from_arrays(box.vertices, box.faces, "plate", cache=ArrayCache(tmp_path))

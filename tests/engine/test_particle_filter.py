@@ -6,12 +6,12 @@ from scipy.special import logsumexp
 
 from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
                                 ObservationError, PriorLibrary, random_pose)
-from tactile_viz.engine.metrics import pose_error
+from tactile_viz.engine.shape.metrics import pose_error
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.presets import PRESETS, preset
-from tactile_viz.engine.particle_filter import (ParticleFilter,
+from tactile_viz.engine.belief.particle_filter import (ParticleFilter,
                                                 stochastic_universal_resampling)
-from tactile_viz.engine.simulator import random_touch
+from tactile_viz.engine.explore.simulator import random_touch
 
 HOUSEHOLD = ["bottle_1", "mug_1", "ice_cream_1", "guitar_1", "vase_1", "office_chair", "sofa_1"]
 
@@ -176,7 +176,7 @@ def test_particle_budget_keeps_the_heaviest_new_particles(small_library):
     from tactile_viz.engine import ContactSimulator, GroundTruth, ParticleFilter
     from tactile_viz.engine.errors import ParameterError
     from tactile_viz.engine.params import FilterParams
-    from tactile_viz.engine.simulator import random_touch
+    from tactile_viz.engine.explore.simulator import random_touch
 
     library, _ = small_library
     truth = GroundTruth(library["box"], np.eye(3), np.zeros(3))
@@ -197,7 +197,7 @@ def test_particle_budget_keeps_the_heaviest_new_particles(small_library):
 
 
 def _learned(model, name):
-    from tactile_viz.engine.objects import ObjectModel
+    from tactile_viz.engine.shape.objects import ObjectModel
 
     return ObjectModel(name, model.mesh, model.params, model.cache, learned=True)
 
@@ -226,7 +226,7 @@ def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
         after = particle_filter.log_evidence_of(particle_filter.particles.take([index]))[0]
         assert after >= before
     # The refinement does move a pose: knocked 0.2 units off, the heaviest comes back.
-    from tactile_viz.engine.particle_filter import Particles
+    from tactile_viz.engine.belief.particle_filter import Particles
 
     index, particles = chosen[0], particle_filter.particles
     translations = particles.translations.copy()
@@ -239,7 +239,7 @@ def test_a_learned_prior_has_its_pose_refined_and_a_given_mesh_not(bundled):
 
 
 def test_merging_sums_the_weights_of_one_pose_and_keeps_classes_apart():
-    from tactile_viz.engine.particle_filter import Particles, merge_close_poses
+    from tactile_viz.engine.belief.particle_filter import Particles, merge_close_poses
 
     rotations = np.repeat(np.eye(3)[None], 4, axis=0)
     translations = np.array([[0.0, 0, 0], [0.01, 0, 0], [0.01, 0, 0], [2.0, 0, 0]])
@@ -253,7 +253,7 @@ def test_merging_sums_the_weights_of_one_pose_and_keeps_classes_apart():
 
 
 def test_merging_stays_finite_with_negligible_weights():
-    from tactile_viz.engine.particle_filter import Particles, merge_close_poses
+    from tactile_viz.engine.belief.particle_filter import Particles, merge_close_poses
 
     count = 50
     rotations = np.repeat(np.eye(3)[None], count, axis=0)

@@ -4,7 +4,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from tactile_viz.engine.ppf import (PairTable, align_pairs, is_degenerate, pair_features,
+from tactile_viz.engine.belief.ppf import (PairTable, align_pairs, is_degenerate, pair_features,
                                     rotation_to_x)
 from tactile_viz.engine.transforms import transform_points
 

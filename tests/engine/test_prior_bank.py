@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.observations import Contact
+from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.particle_filter import ParticleFilter
-from tactile_viz.engine.prior_bank import PriorBank, bank_for
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.prior_bank import PriorBank, bank_for
 
 NAMES = ("mug_1", "bottle_1", "guitar_1")
 
@@ -35,7 +35,7 @@ def test_bank_pairs_are_each_models_table(models):
     bank = PriorBank(models, 0.1, 12.0)
     assert len(bank.pairs) == sum(len(model.pair_table()) for model in models)
     points, normals = models[1].features
-    from tactile_viz.engine.ppf import pair_features
+    from tactile_viz.engine.belief.ppf import pair_features
 
     features = pair_features(points[:5], normals[:5], points[5:10], normals[5:10])
     query, classes, first, second = bank.lookup(features)
@@ -85,9 +85,9 @@ def test_compiled_likelihood_is_the_numpy_one(models, rng, outliers):
     beyond the grids."""
     from scipy.spatial.transform import Rotation
 
-    from tactile_viz.engine.likelihood import (log_contact_likelihood,
+    from tactile_viz.engine.belief.likelihood import (log_contact_likelihood,
                                                log_noncontact_likelihood)
-    from tactile_viz.engine.particle_filter import Particles
+    from tactile_viz.engine.belief.particle_filter import Particles
 
     params = FilterParams(outlier_probability=outliers)
     particle_filter = ParticleFilter(PriorLibrary(models), params, rng=0)
@@ -111,8 +111,8 @@ def test_compiled_likelihood_is_the_numpy_one(models, rng, outliers):
 
 
 def test_compiled_alignment_is_align_pairs(models, rng):
-    from tactile_viz.engine import kernels
-    from tactile_viz.engine.ppf import align_pairs, local_frames
+    from tactile_viz.engine.belief import kernels
+    from tactile_viz.engine.belief.ppf import align_pairs, local_frames
 
     bank = PriorBank(models, 0.1, 12.0)
     classes = rng.integers(0, 3, 30)
@@ -137,7 +137,7 @@ def test_building_a_bank_does_not_keep_the_exact_distances(tmp_path):
     import trimesh
 
     from tactile_viz.engine import ObjectModel
-    from tactile_viz.engine.cache import ArrayCache
+    from tactile_viz.engine.io.cache import ArrayCache
 
     box = trimesh.creation.box(extents=(6, 3, 2))
     model = ObjectModel.from_arrays(box.vertices, box.faces, "box", cache=ArrayCache(tmp_path))

@@ -5,9 +5,9 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import LibraryError, ModelParams, ObjectModel
-from tactile_viz.engine.cache import ArrayCache
-from tactile_viz.engine.prior_bank import PriorBank
-from tactile_viz.engine.prior_build import build_in_child, missing
+from tactile_viz.engine.io.cache import ArrayCache
+from tactile_viz.engine.belief.prior_bank import PriorBank
+from tactile_viz.engine.belief.prior_build import build_in_child, missing
 
 PARAMS = ModelParams(sdf_resolution=24)
 BANK_ARRAYS = ("codes", "gradient_codes", "offsets", "shapes", "origins", "spacings",

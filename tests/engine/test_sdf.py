@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from tactile_viz.engine.sdf import normalise_rows
+from tactile_viz.engine.shape.sdf import normalise_rows
 from tactile_viz.experiments.sdf_speed import near_surface_points
 
 

@@ -7,9 +7,9 @@ import trimesh
 
 from tactile_viz.__main__ import main
 from tactile_viz.engine import ContactSimulator, PriorLibrary
-from tactile_viz.engine.observations import Contact, NonContact
+from tactile_viz.engine.explore.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
-from tactile_viz.engine.objects import ObjectModel
+from tactile_viz.engine.shape.objects import ObjectModel
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.session import (Session, SessionError, SessionParams,
                                         free_space_points, learned_model_from_surface,
@@ -398,7 +398,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     # It comes on top of the gap checks: passing it does not count toward check_lines.
     session._count_check(NonContact(path[-1]))
     assert session.state.checks_passed == 0
-    from tactile_viz.engine.simulator import sample_path
+    from tactile_viz.engine.explore.simulator import sample_path
 
     near = sample_path(path, 0.02)
     near = near[np.linalg.norm(near - through, axis=1) < 1.0]
@@ -457,8 +457,8 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
 # ------------------------------------------------------------- recorded touches (issue 16)
 @pytest.mark.slow
 def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
-    from tactile_viz.engine.export import export_session
-    from tactile_viz.engine.observation_file import read_observations
+    from tactile_viz.engine.io.export import export_session
+    from tactile_viz.engine.io.observation_file import read_observations
     from tactile_viz.experiments.replay import replay
 
     # dragon is judged novel from step 5 on at this seed (missed probes give free rows).
@@ -568,7 +568,7 @@ def test_ask_tell_and_callback_give_the_same_trajectory(bundled, known):
 
 
 def test_a_first_miss_is_held_until_the_first_contact(bundled, known, tmp_path):
-    from tactile_viz.engine.observation_file import read_observations, write_observations
+    from tactile_viz.engine.io.observation_file import read_observations, write_observations
     from tactile_viz.experiments.replay import replay
 
     session = Session(None, known, seed=1)
@@ -615,8 +615,8 @@ def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model
 
 @pytest.mark.slow
 def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path):
-    from tactile_viz.engine.export import export_session
-    from tactile_viz.engine.observation_file import read_observations
+    from tactile_viz.engine.io.export import export_session
+    from tactile_viz.engine.io.observation_file import read_observations
     from tactile_viz.experiments.replay import replay
 
     simulated, library = _sphere_against_a_box(sphere_model, 4)

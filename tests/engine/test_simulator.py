@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact, random_pose
-from tactile_viz.engine.simulator import sample_path
+from tactile_viz.engine.explore.simulator import sample_path
 
 
 @pytest.fixture(params=["mug_1", "armadillo", "office_chair"])

@@ -8,10 +8,10 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, load_bundled
-from tactile_viz.engine.cache import ArrayCache
-from tactile_viz.engine.metrics import (rotation_error_deg, same_pose_mode,
+from tactile_viz.engine.io.cache import ArrayCache
+from tactile_viz.engine.shape.metrics import (rotation_error_deg, same_pose_mode,
                                         symmetric_pose_difference, symmetry_group)
-from tactile_viz.engine.symmetry import find_symmetry_group, rotation
+from tactile_viz.engine.shape.symmetry import find_symmetry_group, rotation
 
 TURN = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()  # turns the meshes off the axes
 GENERIC = np.array([0.48, -0.6, 0.64])  # unit; no symmetry axis of any shape here
@@ -198,7 +198,7 @@ def test_roughness_is_the_detail_that_poses_a_round_shape():
 
 
 def test_a_group_is_found_once_per_shape(tmp_path, monkeypatch):
-    import tactile_viz.engine.symmetry as symmetry
+    import tactile_viz.engine.shape.symmetry as symmetry
 
     mesh = trimesh.creation.cylinder(radius=1, height=4, sections=64)
     first = symmetry_group(model_of(mesh, tmp_path))

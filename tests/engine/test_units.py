@@ -9,15 +9,15 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
-from tactile_viz.engine.cache import ArrayCache
-from tactile_viz.engine.export import estimate_record, export_session
-from tactile_viz.engine.metrics import error_threshold
-from tactile_viz.engine.objects import is_learned_file, load_bundled
-from tactile_viz.engine.observation_file import format_observations, read_observations
+from tactile_viz.engine.io.cache import ArrayCache
+from tactile_viz.engine.io.export import estimate_record, export_session
+from tactile_viz.engine.shape.metrics import error_threshold
+from tactile_viz.engine.shape.objects import is_learned_file, load_bundled
+from tactile_viz.engine.io.observation_file import format_observations, read_observations
 from tactile_viz.engine.params import (FilterParams, SessionParams, length_fields,
                                        scaled_lengths)
 from tactile_viz.engine.session import RecordedSession, Session, make_truth
-from tactile_viz.engine.simulator import ContactSimulator, random_touch
+from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
 
 
 @pytest.fixture(scope="module")
@@ -148,7 +148,7 @@ def test_an_object_of_another_size_is_novel_and_reconstructed_at_its_size(metric
 
 
 def test_rotation_errors_are_taken_up_to_the_shapes_symmetries(tmp_path):
-    from tactile_viz.engine.metrics import _rotation, rotation_error_deg, symmetries
+    from tactile_viz.engine.shape.metrics import _rotation, rotation_error_deg, symmetries
 
     cache = ArrayCache(tmp_path)
     box = trimesh.creation.box(extents=(6.0, 3.0, 2.0))
@@ -178,7 +178,7 @@ def test_rotation_errors_are_taken_up_to_the_shapes_symmetries(tmp_path):
     ("a:b/cup.stl", ("a:b/cup.stl", None)), ("cup.stl:furlong", ("cup.stl:furlong", None)),
     (":mm", (":mm", None))])
 def test_a_files_unit_is_a_known_name_or_a_number_after_the_last_colon(text, expected):
-    from tactile_viz.engine.meshes import split_units
+    from tactile_viz.engine.shape.meshes import split_units
 
     assert split_units(text) == expected
 
@@ -225,7 +225,7 @@ def test_a_library_shares_a_unit_only_when_every_prior_names_it():
 ])
 def test_a_size_far_from_the_librarys_names_both_sizes_and_the_likely_unit(
         size, reference, units, expected):
-    from tactile_viz.engine.library import size_warning
+    from tactile_viz.engine.shape.library import size_warning
 
     message = size_warning("touches.csv", size, reference, units, remedy="use {unit}")
     assert expected in message and f"{size:.3g}" in message and f"{reference:.3g}" in message
@@ -235,7 +235,7 @@ def test_a_size_far_from_the_librarys_names_both_sizes_and_the_likely_unit(
 
 
 def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, tmp_path):
-    from tactile_viz.engine.observation_file import recording_warning
+    from tactile_viz.engine.io.observation_file import recording_warning
 
     library = PriorLibrary()
     for model in metric_mugs:

@@ -142,7 +142,7 @@ def test_unknown_command_is_one_line(capsys):
 
 def test_unexpected_error_is_one_line_and_its_traceback_is_logged(tmp_path, capsys,
                                                                   monkeypatch):
-    from tactile_viz.engine import objects
+    from tactile_viz.engine.shape import objects
 
     def broken():
         raise ZeroDivisionError("a bug")
@@ -248,7 +248,7 @@ def _priors(**given):
 
 
 def test_prior_files_add_to_the_bundled_set(tmp_path):
-    from tactile_viz.engine.objects import bundled_names
+    from tactile_viz.engine.shape.objects import bundled_names
 
     extra = _box_file(tmp_path, "brick")
     assert _priors(library="novel", prior_file=[extra]).names == [*bundled_names("novel"),
@@ -257,7 +257,7 @@ def test_prior_files_add_to_the_bundled_set(tmp_path):
 
 
 def test_prior_files_add_to_a_saved_library(tmp_path):
-    from tactile_viz.engine.library import PriorLibrary
+    from tactile_viz.engine.shape.library import PriorLibrary
 
     saved = PriorLibrary()
     saved.add_file(_box_file(tmp_path, "slab", (6, 6, 1)))

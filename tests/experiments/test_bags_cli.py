@@ -13,7 +13,7 @@ pytest.importorskip("rosbags")
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
 from tactile_viz.__main__ import main  # noqa: E402
-from tactile_viz.engine.bags import typestore  # noqa: E402
+from tactile_viz.engine.io.bags import typestore  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -139,7 +139,7 @@ def test_the_app_steps_through_a_bag_as_replay_does(bags, priors, tmp_path, caps
 
     from tactile_viz.app.scene import Scene
     from tactile_viz.engine import PriorLibrary
-    from tactile_viz.engine.objects import ObjectModel
+    from tactile_viz.engine.shape.objects import ObjectModel
     from tactile_viz.experiments.inputs import bag_topics
 
     spec = importlib.util.spec_from_file_location(

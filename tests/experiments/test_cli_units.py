@@ -9,7 +9,7 @@ import trimesh
 
 from tactile_viz.__main__ import main
 from tactile_viz.cli import stop_logging
-from tactile_viz.engine.library import PriorLibrary
+from tactile_viz.engine.shape.library import PriorLibrary
 
 
 @pytest.fixture

@@ -93,7 +93,7 @@ def test_unusable_entries_are_skipped_with_every_reason(loaded):
 
 
 def test_overlapping_parts_are_measured(mesh_dir):
-    from tactile_viz.engine.objects import ObjectModel
+    from tactile_viz.engine.shape.objects import ObjectModel
 
     raw = trimesh.load(mesh_dir / "box_vhacd.obj", force="mesh", process=False)
     hulls = ObjectModel("hulls", raw)  # the parts as they are, inner walls and all

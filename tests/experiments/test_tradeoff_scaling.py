@@ -85,7 +85,7 @@ def test_small_values_keep_their_digits():
 
 
 def test_matching_trials_of_another_run_are_reused(tmp_path):
-    from tactile_viz.engine.library import PriorLibrary
+    from tactile_viz.engine.shape.library import PriorLibrary
     from tactile_viz.experiments.runner import task_key
     from tactile_viz.experiments.trial_files import read_trials, write_trial
 

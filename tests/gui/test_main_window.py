@@ -823,7 +823,7 @@ def test_steps_run_in_the_engine_process_and_come_back(qtbot, window, known_libr
 
 def test_a_step_failing_in_the_engine_process_is_shown_and_loses_nothing(
         qtbot, window, errors, known_library):
-    from tactile_viz.engine.observation_file import RecordedStep
+    from tactile_viz.engine.io.observation_file import RecordedStep
     from tactile_viz.engine.session import Session, make_truth
 
     source = Session(make_truth(load_bundled("mug_1"), rng=0), known_library, seed=0)

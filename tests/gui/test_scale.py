@@ -7,7 +7,7 @@ from PySide6.QtTest import QTest
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine import PriorLibrary, load_bundled
-from tactile_viz.engine.objects import ObjectModel
+from tactile_viz.engine.shape.objects import ObjectModel
 from tactile_viz.gui.main_window import MainWindow
 
 pytestmark = pytest.mark.gui

@@ -10,9 +10,9 @@ A mixin of :class:`~.loop.Session`; the attributes it reads are listed on
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..exploration import path_until
-from ..observations import Contact
-from ..sdf import normalise_rows
+from ..explore.exploration import path_until
+from ..explore.observations import Contact
+from ..shape.sdf import normalise_rows
 from .fields import free_approach, free_space_points, thin_points
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):

@@ -12,9 +12,9 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
-from ..gpis_incremental import fit_gpis_incremental
-from ..gpis_variance import lattice_low, lattice_variance
+from ..shape.gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from ..shape.gpis_incremental import fit_gpis_incremental
+from ..shape.gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction

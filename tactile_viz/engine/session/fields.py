@@ -5,7 +5,7 @@ how far a probe goes. The callables are classes, not closures, so that a session
 
 import numpy as np
 
-from ..prior_bank import grid_of
+from ..belief.prior_bank import grid_of
 
 
 class PosedSDF:

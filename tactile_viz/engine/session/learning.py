@@ -4,9 +4,9 @@ learning)."""
 import trimesh
 
 from ..errors import SessionError
-from ..gpis import ThinPlateKernel, zero_level_surface
-from ..gpis_variance import lattice_low
-from ..objects import ObjectModel
+from ..shape.gpis import ThinPlateKernel, zero_level_surface
+from ..shape.gpis_variance import lattice_low
+from ..shape.objects import ObjectModel
 
 
 class Learning:

@@ -29,16 +29,16 @@ from typing import Protocol, Union
 import numpy as np
 
 from ..errors import SessionError
-from ..exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
-from ..library import PriorLibrary
-from ..metrics import surface_samples
-from ..observation_file import RecordedStep
-from ..observations import Contact, NonContact
+from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
+from ..shape.library import PriorLibrary
+from ..shape.metrics import surface_samples
+from ..io.observation_file import RecordedStep
+from ..explore.observations import Contact, NonContact
 from ..params import PAPER_SIZE, SessionParams, scaled_lengths
 from ..presets import noise_matched
-from ..particle_filter import ParticleFilter
-from ..persistence import load_session, save_session
-from ..simulator import ContactSimulator, GroundTruth
+from ..belief.particle_filter import ParticleFilter
+from ..io.persistence import load_session, save_session
+from ..explore.simulator import ContactSimulator, GroundTruth
 from ..transforms import transform_points
 from .estimate import Estimation
 from .bookkeeping import Bookkeeping
@@ -478,12 +478,12 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
 
     def save(self, path: str | os.PathLike) -> str | os.PathLike:
         """Save the session (its set-up and its observation history) to an ``.npz`` file;
-        see :func:`tactile_viz.engine.persistence.save_session`."""
+        see :func:`tactile_viz.engine.io.persistence.save_session`."""
         return save_session(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike,
              callback: Callable[[Snapshot], object] | None = None) -> Session:
         """Rebuild a saved session by replaying its steps; see
-        :func:`tactile_viz.engine.persistence.load_session`."""
+        :func:`tactile_viz.engine.io.persistence.load_session`."""
         return load_session(path, cls, callback)

@@ -36,12 +36,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..decision import UNDECIDED, decide, disagreement_target
-from ..exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
+from ..belief.decision import UNDECIDED, decide, disagreement_target
+from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                            raster_path, variance_target, widest_gap)
-from ..meshes import bare_mesh
-from ..metrics import directed_hausdorff
-from ..sdf import normalise_rows
+from ..shape.meshes import bare_mesh
+from ..shape.metrics import directed_hausdorff
+from ..shape.sdf import normalise_rows
 from .fields import BelowTangentPlane, ValueOf
 from .state import Aim, Check
 
@@ -371,7 +371,7 @@ class Planner:
 @functools.lru_cache(maxsize=8)
 def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
-    :func:`~tactile_viz.engine.meshes.bare_mesh`): a long run meets many MAP classes."""
+    :func:`~tactile_viz.engine.shape.meshes.bare_mesh`): a long run meets many MAP classes."""
     return bare_mesh(model.mesh).vertex_normals
 
 

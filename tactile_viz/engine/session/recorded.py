@@ -12,7 +12,7 @@ class RecordedSession(Session):
     Parameters
     ----------
     steps : list of RecordedStep
-        From :func:`~tactile_viz.engine.observation_file.read_observations`.
+        From :func:`~tactile_viz.engine.io.observation_file.read_observations`.
     library, strategy, params, seed
         As for :class:`Session` (the recording's seed reproduces its estimates exactly).
     source : str, optional

@@ -25,7 +25,7 @@ class Snapshot:
     its grid's cell when kept from step to step (else None). ``decided`` (beyond the
     paper): the object is judged known and no other class or pose mode fits the contacts
     comparably
-    (:mod:`~tactile_viz.engine.decision`); ``decision_confidence`` the share the MAP holds.
+    (:mod:`~tactile_viz.engine.belief.decision`); ``decision_confidence`` the share the MAP holds.
     """
 
     step: int

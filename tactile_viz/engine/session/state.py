@@ -50,10 +50,10 @@ class ExplorationState:
     gpis_fits : int
         Fits since the scale's last Newton step (``gpis_refit_every``).
     gpis_cache : GramCache or None
-        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.gpis_incremental`;
+        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.shape.gpis_incremental`;
         immutable, keyed by content: a fit extends it only where the content agrees).
     variance_cache : NodeVariance or None
-        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.gpis_variance`).
+        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.shape.gpis_variance`).
     target : Aim or None
         Where the next step reaches (None: terminated, a check, or the first touch).
     given_up : list of (3,) float
@@ -79,7 +79,7 @@ class ExplorationState:
         Checks in a row that touched nothing unpredicted.
     hypotheses : tuple of Hypothesis
         The plausible hypotheses of the last decision, weighed again at the next
-        (:func:`~tactile_viz.engine.decision.decide`).
+        (:func:`~tactile_viz.engine.belief.decision.decide`).
     decision_checks : int
         Checks in a row around a MAP ready to be decided that touched nothing it does not
         predict.
@@ -172,7 +172,7 @@ class Checkpoint:
     Attributes
     ----------
     filter : object
-        :meth:`~tactile_viz.engine.particle_filter.ParticleFilter.checkpoint` (its arrays
+        :meth:`~tactile_viz.engine.belief.particle_filter.ParticleFilter.checkpoint` (its arrays
         are replaced by an update, never changed, so references suffice).
     generators : tuple of dict
         The bit-generator states of the session's generators (the session's, then the

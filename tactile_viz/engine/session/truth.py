@@ -3,10 +3,10 @@
 
 import trimesh
 
-from ..metrics import directed_hausdorff, pose_difference, two_way_hausdorff
-from ..metrics import pose_error as metric_pose_error
-from ..objects import ObjectModel
-from ..simulator import GroundTruth
+from ..shape.metrics import directed_hausdorff, pose_difference, two_way_hausdorff
+from ..shape.metrics import pose_error as metric_pose_error
+from ..shape.objects import ObjectModel
+from ..explore.simulator import GroundTruth
 from ..transforms import random_pose
 
 

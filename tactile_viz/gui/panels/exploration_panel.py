@@ -10,7 +10,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox
                                QSpinBox)
 
 from ...app.scene import KNOBS, LOADED_PRESET, knob_length_power, knob_size_reference
-from ...engine.exploration import STRATEGIES
+from ...engine.explore.exploration import STRATEGIES
 from ...engine.params import declaration
 from ...engine.presets import SESSION_PRESETS
 from .base import MARGINS, blocked

@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .cache import ArrayCache
-from .errors import MeshError
-from .features import poisson_disk_points
+from ..io.cache import ArrayCache
+from ..errors import MeshError
+from ..belief.features import poisson_disk_points
 from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
-from .params import PAPER_SIZE
-from .ppf import PairTable
+from ..params import PAPER_SIZE
+from ..belief.ppf import PairTable
 from .sdf import ExactDistance, SDFGrid, build_sdf_grid
 
 ASSETS_ENV_VAR = "TACTILE_VIZ_ASSETS"
@@ -59,7 +59,7 @@ class ObjectModel:
     ----------
     name : str
     mesh : trimesh.Trimesh
-        Already checked and normalised (see :func:`~tactile_viz.engine.meshes.prepare_mesh`).
+        Already checked and normalised (see :func:`~tactile_viz.engine.shape.meshes.prepare_mesh`).
     params : ModelParams, optional
     cache : ArrayCache, optional
         Where derived arrays are stored; the default is the user cache folder.
@@ -102,9 +102,9 @@ class ObjectModel:
         longest_side : float or None
             Normalise to this longest side (the paper's convention is 6); None keeps the
             file's size times ``scale`` (scene units per file unit, see
-            :func:`~tactile_viz.engine.meshes.unit_factor`).
+            :func:`~tactile_viz.engine.shape.meshes.unit_factor`).
         learned : bool or None
-            None: a file that :func:`~tactile_viz.engine.export.export_session` wrote as a
+            None: a file that :func:`~tactile_viz.engine.io.export.export_session` wrote as a
             reconstruction is a learned shape (and is never normalised), others are not.
         """
         if learned is None:
@@ -174,7 +174,7 @@ class ObjectModel:
 
     @cached_property
     def exact(self):
-        """:class:`~tactile_viz.engine.sdf.ExactDistance` of the mesh."""
+        """:class:`~tactile_viz.engine.shape.sdf.ExactDistance` of the mesh."""
         return ExactDistance(self.mesh.vertices, self.mesh.faces)
 
     @contextmanager
@@ -191,7 +191,7 @@ class ObjectModel:
 
     @cached_property
     def sdf(self):
-        """:class:`~tactile_viz.engine.sdf.SDFGrid`, built on first use and cached on disk."""
+        """:class:`~tactile_viz.engine.shape.sdf.SDFGrid`, built on first use and cached on disk."""
         return self.load_sdf()
 
     def load_sdf(self):
@@ -222,7 +222,7 @@ class ObjectModel:
         return {"points": closest, "normals": self.exact.surface_normal(closest, face)}
 
     def pair_table(self, distance_step=0.1, angle_step_deg=12.0, keep=True):
-        """The :class:`~tactile_viz.engine.ppf.PairTable` of the feature points (cached on
+        """The :class:`~tactile_viz.engine.belief.ppf.PairTable` of the feature points (cached on
         disk, and here unless ``keep`` is False)."""
         key = (float(distance_step), float(angle_step_deg))
         tables = self.__dict__.setdefault("_pair_tables", {})
@@ -294,7 +294,7 @@ def assets_dir():
     """The folder of the bundled object set (``$TACTILE_VIZ_ASSETS`` overrides it)."""
     if os.environ.get(ASSETS_ENV_VAR):
         return Path(os.environ[ASSETS_ENV_VAR])
-    return Path(__file__).resolve().parents[2] / "assets"
+    return Path(__file__).resolve().parents[3] / "assets"
 
 
 def bundled_manifest():

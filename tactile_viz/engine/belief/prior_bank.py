@@ -7,7 +7,7 @@ gradients) one after another, interpolated for any mix of priors in one call; th
 points stacked; and one point-pair table over all priors. It is built once from the models' disk
 cache, so a library of a thousand priors loads in seconds and holds some 0.8 MB a prior.
 Priors the cache lacks are built first, in a child process when there are many
-(:mod:`~tactile_viz.engine.prior_build`): a library built from meshes ends as small as one
+(:mod:`~tactile_viz.engine.belief.prior_build`): a library built from meshes ends as small as one
 read from the cache.
 """
 
@@ -19,7 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from .ppf import PairTable, rotation_to_x
-from .sdf import SDFGrid, grid_layout, interpolate
+from ..shape.sdf import SDFGrid, grid_layout, interpolate
 
 
 class PriorBank:
@@ -108,7 +108,7 @@ class PriorBank:
 
     @property
     def grids(self):
-        """The grid arrays in the order :mod:`~tactile_viz.engine.kernels` takes them."""
+        """The grid arrays in the order :mod:`~tactile_viz.engine.belief.kernels` takes them."""
         return (self.codes, self.gradient_codes, self.offsets, self.shapes, self.origins,
                 self.spacings, self.value_steps)
 
@@ -120,7 +120,7 @@ class PriorBank:
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
 
     def grid(self, c):
-        """Class ``c``'s :class:`~tactile_viz.engine.sdf.SDFGrid` as views into the bank's
+        """Class ``c``'s :class:`~tactile_viz.engine.shape.sdf.SDFGrid` as views into the bank's
         arrays (no copy)."""
         nodes = slice(self.offsets[c], self.offsets[c] + self.shapes[c].prod())
         shape = tuple(int(n) for n in self.shapes[c])
@@ -148,7 +148,7 @@ class PriorBank:
 
     def lookup(self, features, neighbours=0):
         """Point pairs of every class that match observed features (see
-        :meth:`~tactile_viz.engine.ppf.PairTable.lookup`): query, classes, first, second."""
+        :meth:`~tactile_viz.engine.belief.ppf.PairTable.lookup`): query, classes, first, second."""
         return self.pairs.lookup(features, neighbours)
 
 

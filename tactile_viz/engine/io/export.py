@@ -3,7 +3,7 @@
 :func:`export_session` writes a folder with
 
 - ``observations.csv``: every touch in the recording format of
-  :mod:`~tactile_viz.engine.observation_file` (replaying it reproduces the estimate);
+  :mod:`~tactile_viz.engine.io.observation_file` (replaying it reproduces the estimate);
 - ``map_shape.ply``: the MAP prior at its estimated pose, world frame;
 - ``reconstruction.ply``: the GPIS surface, when the object is judged novel, world frame,
   marked as a learned shape (``--prior-file`` loads it as the learned prior it is);
@@ -14,7 +14,7 @@
   ``class_posterior``, ``novel``, ``log_evidence``, ``log_threshold``, and the step, seed,
   strategy, library and parameters it came from;
 - ``session.mcap`` with ``bag=True``: every step as a ROS 2 bag for RViz and Foxglove
-  (:func:`~tactile_viz.engine.bag_export.export_bag`, lengths in metres).
+  (:func:`~tactile_viz.engine.io.bag_export.export_bag`, lengths in metres).
 
 Every length is in the scene's units (those of the contacts).
 
@@ -33,7 +33,7 @@ import trimesh
 import numpy as np
 
 from .files import write_atomic
-from .objects import mark_learned
+from ..shape.objects import mark_learned
 from .observation_file import format_observations
 
 FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json",
@@ -83,7 +83,7 @@ def export_session(session, folder, units: str | None = None, bag: bool = False)
     list of Path
         The files written.
     """
-    from .session import SessionError
+    from ..session import SessionError
 
     snapshot = session.latest
     if snapshot is None:

@@ -3,7 +3,7 @@
 A session file holds the set-up (strategy, seed, parameters, sensor noise, the prior
 meshes, the simulated object and its pose when there is one) and the history: the number
 of steps, the contacts, and for a session fed by its caller the recorded observations
-(:mod:`~tactile_viz.engine.observation_file` text). Loading replays the steps, which are
+(:mod:`~tactile_viz.engine.io.observation_file` text). Loading replays the steps, which are
 deterministic from the seed, and checks that the contacts come out the same.
 
 The session's set-up is what :meth:`Session.setup <tactile_viz.engine.session.Session.setup>`
@@ -17,15 +17,15 @@ import json
 import numpy as np
 import trimesh
 
-from .errors import SessionError, TactileVizError
+from ..errors import SessionError, TactileVizError
 from .files import write_atomic
-from .library import PriorLibrary
-from .meshes import check_arrays
-from .objects import ObjectModel
+from ..shape.library import PriorLibrary
+from ..shape.meshes import check_arrays
+from ..shape.objects import ObjectModel
 from .observation_file import ObservationFileError, format_observations, parse_observations
-from .param_schema import check_integer
-from .params import SessionParams
-from .simulator import GroundTruth
+from ..param_schema import check_integer
+from ..params import SessionParams
+from ..explore.simulator import GroundTruth
 
 FORMAT = "tactile_viz-session"
 

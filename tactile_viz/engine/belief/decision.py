@@ -45,8 +45,8 @@ from scipy.stats import chi2
 
 from .discrimination import contenders, lookalikes
 from .pose_refinement import refine_poses
-from .symmetry import symmetry_group
-from .transforms import transform_points
+from ..shape.symmetry import symmetry_group
+from ..transforms import transform_points
 
 POSE_PARAMETERS = 6
 TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes

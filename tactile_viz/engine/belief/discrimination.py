@@ -31,7 +31,7 @@ other modes, a mug's handle on the wrong side among them. With one class holding
 import numpy as np
 
 from . import kernels
-from .belief import Particles
+from .particles import Particles
 from .likelihood import normalise_log_weights
 from .pose_refinement import refine_poses
 

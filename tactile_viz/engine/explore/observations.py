@@ -4,7 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ObservationError
+from ..errors import ObservationError
 
 # Observations beyond this distance from the origin (object units; objects are 6 long) are
 # refused: squaring their distances in the likelihood would overflow to infinity.

@@ -18,9 +18,9 @@ objects).
 import numpy as np
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
-from .errors import TactileVizError
+from ..errors import TactileVizError
 from .observations import Contact
-from .sdf import normalise_rows
+from ..shape.sdf import normalise_rows
 from .simulator import sample_path
 
 STRATEGIES = ("gpis-dhd", "rrt")

@@ -22,12 +22,12 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from . import kernels
-from .belief import FilterState, Particles
-from .errors import ObservationError, ParameterError
+from .particles import FilterState, Particles
+from ..errors import ObservationError, ParameterError
 from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_likelihood,
                          log_normaliser, normalise_log_weights)
-from .observations import Contact, NonContact
-from .params import FilterParams
+from ..explore.observations import Contact, NonContact
+from ..params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 from .discrimination import discriminate
 from .pose_refinement import refine_poses

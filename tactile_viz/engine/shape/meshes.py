@@ -9,7 +9,7 @@ the object frame is kept in ``mesh.metadata["file_to_object"]`` (4x4), so that p
 onto the user's file.
 Faults that can be repaired are repaired (duplicate vertices, degenerate or duplicate
 faces, inconsistent winding, inverted orientation; non-manifold edges, small holes, stray
-open pieces and overlapping parts in :mod:`~tactile_viz.engine.mesh_repair`), with one
+open pieces and overlapping parts in :mod:`~tactile_viz.engine.shape.mesh_repair`), with one
 :class:`~tactile_viz.engine.errors.MeshWarning` saying what was done; a mesh with no inside
 (an open sheet) or a file that cannot be parsed raises
 :class:`~tactile_viz.engine.errors.MeshError` naming the source and the reason.
@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 import trimesh
 
-from .errors import MeshError, MeshWarning
+from ..errors import MeshError, MeshWarning
 from .mesh_repair import needs_repair, repair_surface
 
 LONGEST_SIDE = 6.0  # the paper's normalisation (an explicit choice: meshes keep their size)

@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ObservationError
-from .meshes import UNITS
+from ..errors import ObservationError
+from ..shape.meshes import UNITS
 from .files import write_atomic
-from .observations import Contact, NonContact
+from ..explore.observations import Contact, NonContact
 
 HEADER = ("kind", "x", "y", "z", "nx", "ny", "nz")
 KINDS = ("contact", "noncontact", "free")
@@ -250,10 +250,10 @@ def recording_span(steps):
 def recording_warning(path, steps, library, units=None):
     """Why the recording ``path`` (read into ``steps``, scene units) is likely not in the
     unit of ``library``, or None: checked unless both the file and the library name their
-    unit (see :func:`tactile_viz.engine.library.size_warning`). A recording that spans more
+    unit (see :func:`tactile_viz.engine.shape.library.size_warning`). A recording that spans more
     than ten times the priors' size is suspicious, and so is one of at least
     :data:`SPAN_CONTACTS` contacts that spans less than a tenth of it."""
-    from .library import size_warning
+    from ..shape.library import size_warning
 
     if len(library) == 0 or (recorded_units(path) is not None and library.units is not None):
         return None

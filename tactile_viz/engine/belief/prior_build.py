@@ -8,7 +8,7 @@ a prior, which ``malloc_trim`` does not return). When many priors lack their cac
 entries, a child interpreter builds them into the disk cache and exits; the bank then reads
 every prior from the cache, exactly as a warm load does.
 
-The child is a plain ``python -m tactile_viz.engine.prior_build FILE``, not
+The child is a plain ``python -m tactile_viz.engine.belief.prior_build FILE``, not
 multiprocessing: it never re-imports the caller's main script, and a daemonic process may
 start it. The priors go to it through a temporary pickle file (name, vertices, faces,
 parameters and cache folder, one after another); it answers one line on stdout per prior
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .cache import ArrayCache
-from .errors import LibraryError
+from ..io.cache import ArrayCache
+from ..errors import LibraryError
 
 CHILD_MIN = 20  # priors to build below which the build stays in this process
 
@@ -88,7 +88,7 @@ def build_in_child(models, distance_step, angle_step_deg, progress=None, minimum
 
 
 def _run(priors, errors, count, progress):
-    package_root = str(Path(__file__).resolve().parents[2])
+    package_root = str(Path(__file__).resolve().parents[3])
     path = os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))
     with open(errors, "w") as stderr:
         child = subprocess.Popen([sys.executable, "-m", __name__, str(priors)],
@@ -112,7 +112,7 @@ def _run(priors, errors, count, progress):
 
 def main(argv=None):
     """The child: build every prior of the pickle file named by the one argument."""
-    from .objects import ObjectModel
+    from ..shape.objects import ObjectModel
 
     (path,) = sys.argv[1:] if argv is None else argv
     with open(path, "rb") as stream:

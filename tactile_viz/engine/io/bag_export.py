@@ -8,7 +8,7 @@ is). Topics:
   in their order, ``k`` s plus one microsecond each: ``/contacts``
   (``geometry_msgs/msg/PointStamped``) with ``/contact_normals``
   (``geometry_msgs/msg/Vector3Stamped``, the same stamp), ``/misses`` and ``/free_space``
-  (``PointStamped``): what :func:`~tactile_viz.engine.bags.read_bag` reads with its default
+  (``PointStamped``): what :func:`~tactile_viz.engine.io.bags.read_bag` reads with its default
   topics, so the bag replays to the same estimate;
 - at ``k + 0.5`` s, for the viewers: ``/tactile/contact_cloud`` and ``/tactile/miss_cloud``
   (``sensor_msgs/msg/PointCloud2``, every contact, with its normal, and every miss so far),
@@ -34,8 +34,8 @@ from scipy.spatial.transform import Rotation
 
 from .bags import POINT, VECTOR, BagError, _rosbags, typestore
 from .files import write_atomic
-from .meshes import UNITS
-from .observations import Contact
+from ..shape.meshes import UNITS
+from ..explore.observations import Contact
 
 WORLD, MAP_FRAME = "world", "tactile_map"
 SECOND, OUTPUTS = 10**9, 5 * 10**8  # a step's span; its outputs' offset, ns
@@ -204,7 +204,7 @@ def export_bag(session, path, units: str | None = None) -> Path:
     -------
     Path
     """
-    from .session import SessionError
+    from ..session import SessionError
 
     if session.latest is None:
         raise SessionError("nothing to export: the session has no step yet")

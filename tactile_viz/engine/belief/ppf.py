@@ -13,7 +13,7 @@ from itertools import product
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .sdf import normalise_rows
+from ..shape.sdf import normalise_rows
 
 # A pair whose difference vector is within this angle of either normal fixes no rotation
 # about that normal, so its alignment is undefined.

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from .errors import MeshError
+from ..errors import MeshError
 
 # A hole is closed only when the patch is a small part of its piece's surface; a larger
 # opening means an open scan or sheet whose inside is a guess.

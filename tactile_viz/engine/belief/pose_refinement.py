@@ -28,7 +28,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     evaluate : callable
         ``evaluate(classes (k,), points (k, m, 3))`` -> ``values (k, m), gradients
         (k, m, 3)``, signed distance and outward gradient in each class's object frame
-        (:meth:`~tactile_viz.engine.prior_bank.PriorBank.evaluate`).
+        (:meth:`~tactile_viz.engine.belief.prior_bank.PriorBank.evaluate`).
     classes : (k,) int
     rotations : (k, 3, 3) float
         Object-to-world rotations.

@@ -1,6 +1,6 @@
 """Recorded touches from a ROS 2 bag (MCAP or sqlite3), read with ``rosbags`` (pure Python).
 
-A bag gives the same :class:`~tactile_viz.engine.observation_file.RecordedStep` list as the
+A bag gives the same :class:`~tactile_viz.engine.io.observation_file.RecordedStep` list as the
 CSV recording, so that everything after reading is one code path. The topics (each
 optional one used only when present, unless named):
 
@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ObservationError
-from .meshes import UNITS
+from ..errors import ObservationError
+from ..shape.meshes import UNITS
 from .observation_file import (SPAN_CONTACTS, ObservationFileError, RecordedStep,
                                read_observations, recording_span, recording_warning)
-from .observations import Contact, NonContact
+from ..explore.observations import Contact, NonContact
 
 BAG_UNITS = "m"  # REP 103
 BAG_SUFFIXES = (".mcap", ".db3")
@@ -333,7 +333,7 @@ def read_bag(path, units: str | None = None, topics: BagTopics | None = None):
 
 def read_recording(path, units: str | None = None, topics: BagTopics | None = None):
     """The steps of a recording, a bag (:func:`is_bag`) or a CSV file
-    (:func:`~tactile_viz.engine.observation_file.read_observations`)."""
+    (:func:`~tactile_viz.engine.io.observation_file.read_observations`)."""
     if is_bag(path):
         return read_bag(path, units, topics)
     return read_observations(path, units)
@@ -341,9 +341,9 @@ def read_recording(path, units: str | None = None, topics: BagTopics | None = No
 
 def recording_file_warning(path, steps, library, units=None):
     """Why the recording ``path`` is likely not in the library's unit, or None: a CSV as
-    :func:`~tactile_viz.engine.observation_file.recording_warning`; a bag is in metres, so
+    :func:`~tactile_viz.engine.io.observation_file.recording_warning`; a bag is in metres, so
     it is checked only against a library without a unit."""
-    from .library import size_warning
+    from ..shape.library import size_warning
 
     if not is_bag(path):
         return recording_warning(path, steps, library, units)

@@ -5,7 +5,7 @@ content hash in their name and are written before the manifest, which is replace
 atomically last: a failed or interrupted save leaves the previous library readable.
 
 Each prior may name the length unit of its mesh (``units``: a name of
-:data:`~tactile_viz.engine.meshes.UNITS`, or None when unknown, as for the bundled objects at
+:data:`~tactile_viz.engine.shape.meshes.UNITS`, or None when unknown, as for the bundled objects at
 the paper's scale). The manifest keeps it, so that a library saved in metres loads into a
 millimetre scene converted; manifests written before it was kept load with unknown units.
 :func:`size_warning` is the one check that a file without a unit is in the library's.
@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .errors import LibraryError, MeshError
-from .files import write_atomic
+from ..errors import LibraryError, MeshError
+from ..io.files import write_atomic
 from .meshes import UNITS, check_arrays
 from .objects import ObjectModel, bundled_names, load_bundled
 
@@ -38,7 +38,7 @@ MISMATCH = 10.0
 
 
 class PriorLibrary:
-    """An ordered, named collection of :class:`~tactile_viz.engine.objects.ObjectModel`.
+    """An ordered, named collection of :class:`~tactile_viz.engine.shape.objects.ObjectModel`.
 
     Parameters
     ----------

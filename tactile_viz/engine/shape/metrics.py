@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from .meshes import bare_mesh
 from .symmetry import (SYMMETRY_TOLERANCE, SymmetryGroup, closure as _closure,  # noqa: F401
                        rotation as _rotation, rotation_angles, symmetry_group)
-from .transforms import transform_points
+from ..transforms import transform_points
 
 # The paper's success threshold for the pose and reconstruction errors (TWD, for objects
 # whose longest side is 6): an estimate within 0.6, 10% of the object's size, counts as right.
@@ -66,7 +66,7 @@ def symmetries(model):
         The discrete group (the identity first); with a continuous axis its discrete part.
     axis : (3,) float or None
         The continuous symmetry axis, if any (a sphere has none here: see
-        :func:`~tactile_viz.engine.symmetry.symmetry_group`).
+        :func:`~tactile_viz.engine.shape.symmetry.symmetry_group`).
     """
     group = symmetry_group(model)
     return group.rotations, group.axis

@@ -13,11 +13,11 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from .errors import ParameterError
-from .meshes import bare_mesh
+from ..errors import ParameterError
+from ..shape.meshes import bare_mesh
 from .observations import Contact, NonContact
-from .sdf import normalise_rows
-from .transforms import inverse_transform_points, transform_points
+from ..shape.sdf import normalise_rows
+from ..transforms import inverse_transform_points, transform_points
 
 
 @dataclass(frozen=True, eq=False)
