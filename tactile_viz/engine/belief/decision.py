@@ -111,6 +111,11 @@ class Decision:
         """The hypotheses besides the MAP that are still plausible."""
         return tuple(h for h in self.hypotheses[1:] if h.probability >= PLAUSIBLE)
 
+    @property
+    def carried(self):
+        """The MAP and its rivals: weighed again at the next step (``carried``)."""
+        return self.hypotheses[:1] + self.rivals
+
 
 UNDECIDED = Decision(False, 0.0)
 

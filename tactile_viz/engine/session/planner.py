@@ -38,7 +38,7 @@ from scipy.spatial import cKDTree
 
 from ..belief.decision import UNDECIDED, decide, disagreement_target
 from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
-                           raster_path, variance_target, widest_gap)
+                                   raster_path, variance_target, widest_gap)
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff
 from ..shape.sdf import normalise_rows
@@ -139,25 +139,21 @@ class Planner:
     Reads the session's ``filter``, ``state`` (:class:`~.state.ExplorationState`), ``_p``
     and ``_unit`` (parameters and size unit in scene units), ``_filter_unit``, ``rng``,
     ``strategy``, ``sensor_noise``, ``step_count`` and ``_prior``
-    (:class:`~.estimate.Estimation`). It writes the exploration state only for the
-    decision, in :meth:`_decide` (the hypotheses carried) and :meth:`_telling_apart` (the
-    telling count and targets); the step adopts the rest from the :class:`Plan`.
+    (:class:`~.estimate.Estimation`). It writes nothing: the step adopts the
+    :class:`~..belief.decision.Decision` and the :class:`Plan` into the exploration state.
     """
 
     def _decide(self, belief):
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
         the object is judged novel)."""
         if belief.novel:
-            self.state.hypotheses = ()
             return UNDECIDED
         p, noise = self._p, self.sensor_noise[0]
-        decision = decide(self.filter, belief, p.decision_confidence,
-                          floor=float(np.hypot(p.decision_floor, noise)),
-                          same_mode=max(p.decision_same_mode, 2 * noise),
-                          carried=self.state.hypotheses,
-                          free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit))
-        self.state.hypotheses = decision.hypotheses[:1] + decision.rivals
-        return decision
+        return decide(self.filter, belief, p.decision_confidence,
+                      floor=float(np.hypot(p.decision_floor, noise)),
+                      same_mode=max(p.decision_same_mode, 2 * noise),
+                      carried=self.state.hypotheses,
+                      free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit))
 
     def _coverage(self, recon, map_vertices, contacts):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
@@ -268,9 +264,6 @@ class Planner:
         hypothesis = hypotheses[owner]
         prior = self.filter.models[hypothesis.class_index]
         estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
-        self.state.telling_apart = True
-        self.state.telling_steps += 1
-        self.state.told.append(position)
         return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):

@@ -130,11 +130,14 @@ class ExplorationState:
 
     def adopt(self, plan):
         """Take a step's plan (:class:`~.planner.Plan`): the one place the target, the
-        check and their flags enter the state; a frontier target leaves the queue and a
-        check's direction joins ``check_directions``."""
+        check and their flags enter the state; a frontier target leaves the queue, a
+        check's direction joins ``check_directions`` and a telling target ``told``."""
         self.target, self.check, self.frontier_target = plan.target, plan.check, plan.frontier
         self.telling_apart, self.confirming = plan.telling_apart, plan.confirming
         self.decision_checks = plan.decision_checks
+        if plan.telling_apart:
+            self.telling_steps += 1
+            self.told.append(plan.target.position)
         if plan.frontier:
             self.frontier.pop(0)
         if plan.check is not None:
