@@ -22,7 +22,7 @@ from .io.export import export_session
 from .io.observation_file import (ObservationFileError, RecordedStep, read_observations,
                                write_observations)
 from .session import (SESSION_PRESETS, Move, Reconstruction, RecordedSession, Session,
-                      SessionError, SessionParams, Snapshot, Target, make_truth, session_preset)
+                      SessionError, SessionParams, Snapshot, make_truth, session_preset)
 from .session.loop import Sensor
 from .explore.simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
@@ -34,7 +34,7 @@ __all__ = [
     "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep", "SDFGrid",
     "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError", "SessionParams",
     "Snapshot",
-    "Target", "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
+    "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
     "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",
     "read_observations", "session_preset", "write_observations",
 ]

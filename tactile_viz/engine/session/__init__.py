@@ -9,11 +9,11 @@ from .fields import (BelowTangentPlane, PosedSDF, ValueOf, deepest_inside, free_
 from .learning import learned_model_from_surface
 from .loop import Session, make_truth
 from .recorded import RecordedSession
-from .snapshot import Move, Reconstruction, Snapshot, Target
+from .snapshot import Move, Reconstruction, Snapshot
 from .state import Aim, Check, ExplorationState
 
 __all__ = ["Aim", "BelowTangentPlane", "Check", "ExplorationState", "Move", "PosedSDF",
            "Reconstruction", "RecordedSession", "SESSION_PRESETS", "Session", "SessionError",
-           "SessionParams", "Snapshot", "Target", "ValueOf", "deepest_inside", "free_approach",
+           "SessionParams", "Snapshot", "ValueOf", "deepest_inside", "free_approach",
            "free_space_points", "learned_model_from_surface", "make_truth", "session_preset",
            "thin_points"]

@@ -139,34 +139,6 @@ class Reconstruction:
 
 
 @dataclass(frozen=True)
-class Target:
-    """Where the session wants the next touch.
-
-    Attributes
-    ----------
-    position : (3,) float
-        The point to touch, world frame.
-    normal : (3,) float
-        The estimated outward normal there: approach along ``-normal``.
-    depth : float
-        How far beyond ``position`` to probe (the estimate's deepest point within the
-        probe depth).
-    clearance : float
-        How far outside ``position`` the approach starts (short of any part the estimate
-        predicts on the way).
-    path : (k, 3) float or None
-        A check (``check_lines``): the polyline to sweep instead of an approach; the first
-        touch along it is the step's first observation.
-    """
-
-    position: np.ndarray
-    normal: np.ndarray
-    depth: float
-    clearance: float = 0.5
-    path: object = None
-
-
-@dataclass(frozen=True)
 class Move:
     """A guarded move the session asks of the sensor: move along ``path`` and stop at the
     first contact.
