@@ -132,8 +132,7 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ building
     def _build_panel(self):
-        tips = {name: self.actions[name].toolTip() for name in ("step", "run", "finish", "reset")}
-        self.loop_panel = LoopPanel(tips)
+        self.loop_panel = LoopPanel(self.actions)
         self.scene_panel = ScenePanel(self.scene.bundled_objects())
         self.priors_panel = PriorsPanel()
         self.exploration_panel = ExplorationPanel()
@@ -162,12 +161,7 @@ class MainWindow(QMainWindow):
         return dock
 
     def _connect_panels(self):
-        loop = self.loop_panel
-        loop.step_requested.connect(lambda: self.start(1))
-        loop.run_toggled.connect(self.run_toggled)
-        loop.finish_requested.connect(lambda: self.start(None))
-        loop.reset_requested.connect(self.reset_session)
-        loop.scrubbed.connect(self._on_scrub)
+        self.loop_panel.scrubbed.connect(self._on_scrub)  # its buttons are the actions'
         truth = self.scene_panel
         truth.object_chosen.connect(self._on_object_chosen)
         truth.open_file_requested.connect(lambda: commands.open_truth_file(self))

@@ -3,13 +3,17 @@ and the dock keeps the loop in view at 1280x720."""
 
 import pytest
 from PySide6.QtCore import QPoint, QSettings, Qt, Signal
+from PySide6.QtGui import QAction
+from PySide6.QtWidgets import QAbstractButton, QWidget
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine import PriorLibrary
+from tactile_viz.gui.actions import ACTIONS
 from tactile_viz.gui.layers import LAYERS
 from tactile_viz.gui.main_window import MainWindow
 from tactile_viz.gui.panels import (ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel,
                                     ScenePanel)
+from tactile_viz.gui.panels.loop_panel import LOOP_ACTIONS
 
 pytestmark = pytest.mark.gui
 
@@ -152,8 +156,18 @@ def test_layers_panel_syncs_silently(qtbot):
     assert emitted == [("layer_toggled", ("contacts", True))]
 
 
+def _loop_actions(parent):
+    """Stand-ins for the window's actions of the loop panel (Run checkable, as declared)."""
+    actions = {name: QAction(name.title(), parent) for name in LOOP_ACTIONS}
+    actions["run"].setCheckable(True)
+    return actions
+
+
 def test_loop_panel_syncs_silently(qtbot, scene):
-    panel = _panel(qtbot, LoopPanel())
+    owner = QWidget()
+    qtbot.addWidget(owner)
+    actions = _loop_actions(owner)
+    panel = _panel(qtbot, LoopPanel(actions))
     emitted = _record(panel)
     scene.step()
     scene.step()
@@ -163,15 +177,34 @@ def test_loop_panel_syncs_silently(qtbot, scene):
     assert (slider.minimum(), slider.maximum(), slider.value()) == (1, 2, 2)
     assert "MAP" in panel.status_label.text()
     panel.set_running(True)
-    assert panel.run_button.isChecked() and panel.run_button.text() == "Pause"
     assert not slider.isEnabled()
     panel.set_running(False)
     scene.reset()
     panel.sync(scene)
     assert panel.step_label.text() == "step 0" and (slider.minimum(), slider.maximum()) == (0, 0)
     assert emitted == []
+
+
+def test_loop_buttons_are_views_of_their_actions(qtbot):
+    owner = QWidget()
+    qtbot.addWidget(owner)
+    actions = _loop_actions(owner)
+    panel = _panel(qtbot, LoopPanel(actions))
+    triggered = []
+    for name, action in actions.items():
+        action.triggered.connect(lambda checked=False, n=name: triggered.append(n))
     panel.step_button.click()
-    assert emitted == [("step_requested", ())]
+    panel.reset_button.click()
+    assert triggered == ["step", "reset"]
+    panel.run_button.setChecked(True)  # as on a QPushButton: the action follows
+    assert actions["run"].isChecked()
+    actions["run"].setChecked(False)
+    actions["run"].setText("Pause")
+    actions["finish"].setEnabled(False)
+    actions["finish"].setToolTip("until the end")
+    assert not panel.run_button.isChecked() and panel.run_button.text() == "Pause"
+    assert not panel.finish_button.isEnabled()
+    assert panel.finish_button.toolTip() == "until the end"
 
 
 @pytest.fixture
@@ -200,6 +233,20 @@ def test_window_panels_follow_the_scene_without_echoing(window):
     assert window.exploration_panel.parameter_boxes["eps"].value() == pytest.approx(0.8)
     assert window.scene_panel.seed_box.value() == 5
     assert all(emitted == [] for emitted in recorded) and changes == ["settings"]
+
+
+def test_every_loop_button_is_a_declared_action(window):
+    """Each button of the Loop panel is a view of the window's action of its name (one
+    declaration in ACTIONS gives its text, tooltip, shortcut and states); none is wired by
+    hand."""
+    declared = {entry.id: entry for entry in ACTIONS}
+    buttons = window.loop_panel.findChildren(QAbstractButton)
+    assert len(buttons) == len(LOOP_ACTIONS)
+    for name, button in window.loop_panel.buttons().items():
+        action = window.actions[name]
+        assert name in declared and button.defaultAction() is action
+        assert button.text() == declared[name].title and button.toolTip() == action.toolTip()
+    assert all(button.defaultAction() in window.actions.values() for button in buttons)
 
 
 def _at_1280_by_720(qtbot, window):

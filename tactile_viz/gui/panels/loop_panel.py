@@ -3,8 +3,8 @@
 import math
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QPushButton, QSizePolicy,
-                               QSlider, QVBoxLayout)
+from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QSizePolicy, QSlider,
+                               QToolButton, QVBoxLayout)
 
 from ...engine.params import PAPER_SIZE
 from .base import MARGINS, blocked
@@ -65,48 +65,50 @@ def _judgement(snapshot):
     return f"known, deciding ({100 * confidence:.0f}%)"
 
 
+LOOP_ACTIONS = ("step", "run", "finish", "reset")  # the ids of the panel's buttons' actions
+
+
+def action_button(action):
+    """A button that is a view of ``action`` (napari's style): its text, tooltip, enabled
+    and checked state are the action's, and a click triggers the action."""
+    button = QToolButton()
+    button.setDefaultAction(action)
+    button.setToolButtonStyle(Qt.ToolButtonTextOnly)
+    button.setSizePolicy(QSizePolicy.Preferred, QSizePolicy.Fixed)
+    if action.isCheckable():
+        # The button follows the action; this makes setChecked on the button (as on a
+        # QPushButton) reach the action too. No echo: setChecked to the same state is silent.
+        button.toggled.connect(action.setChecked)
+    return button
+
+
 class LoopPanel(QGroupBox):
     """The buttons that step the session, the step shown and a slider over the steps taken.
 
     Parameters
     ----------
-    tips : dict of str to str, optional
-        Tooltips of the buttons ``step``, ``run``, ``finish`` and ``reset``.
+    actions : dict of str to QAction
+        The window's actions ``step``, ``run``, ``finish`` and ``reset``
+        (:data:`tactile_viz.gui.actions.ACTIONS`): the buttons ``step_button``,
+        ``run_button``, ``finish_button`` and ``reset_button`` are views of them, so their
+        text, tooltip, enabled and checked state are the actions' and a click triggers one.
 
     Signals
     -------
-    step_requested(), finish_requested(), reset_requested()
-        Step, Run to termination, Reset.
-    run_toggled(bool)
-        Run pressed (True) or Pause pressed (False).
     scrubbed(int)
         The slider asks for step ``n`` of the session (1 is the first).
     """
 
-    step_requested = Signal()
-    run_toggled = Signal(bool)
-    finish_requested = Signal()
-    reset_requested = Signal()
     scrubbed = Signal(int)
 
-    def __init__(self, tips=None, parent=None):
+    def __init__(self, actions, parent=None):
         super().__init__("Loop", parent)
-        tips = tips or {}
         layout = QVBoxLayout(self)
         layout.setContentsMargins(*MARGINS)
-        self.step_button = QPushButton("Step")
-        self.step_button.clicked.connect(self.step_requested)
-        self.run_button = QPushButton("Run")
-        self.run_button.setCheckable(True)
-        self.run_button.toggled.connect(self.run_toggled)
-        self.finish_button = QPushButton("Run to termination")
-        self.finish_button.clicked.connect(self.finish_requested)
-        self.reset_button = QPushButton("Reset")
-        self.reset_button.clicked.connect(self.reset_requested)
         row = QHBoxLayout()
-        for name, button in (("step", self.step_button), ("run", self.run_button),
-                             ("finish", self.finish_button), ("reset", self.reset_button)):
-            button.setToolTip(tips.get(name, ""))
+        for name in LOOP_ACTIONS:
+            button = action_button(actions[name])
+            setattr(self, f"{name}_button", button)
             row.addWidget(button)
         layout.addLayout(row)
         self.step_label = QLabel("step 0")
@@ -124,9 +126,14 @@ class LoopPanel(QGroupBox):
         layout.addLayout(history)
         layout.addWidget(self.status_label)
 
+    def buttons(self):
+        """``{action id: button}`` of the panel's buttons."""
+        return {name: getattr(self, f"{name}_button") for name in LOOP_ACTIONS}
+
     def controls(self):
-        """The widgets that change the scene (Run is not one: it also pauses)."""
-        return [self.step_button, self.finish_button, self.reset_button]
+        """None: the buttons are enabled as their actions are (which the window manages with
+        its scene-changing actions), and the slider by :meth:`set_running`."""
+        return []
 
     def sync(self, scene):
         """Show the scene's latest step and its history, without emitting."""
@@ -154,9 +161,6 @@ class LoopPanel(QGroupBox):
                 self.history_slider.setRange(0, 0)
 
     def set_running(self, running, loading=False):
-        """Run becomes Pause while steps run; Run and the slider are off while a session loads."""
-        with blocked(self.run_button):
-            self.run_button.setChecked(running)
-            self.run_button.setText("Pause" if running else "Run")
+        """The slider is off while steps run or a session loads (the buttons follow their
+        actions: the window's Run reads Pause while steps run)."""
         self.history_slider.setEnabled(not running and not loading)
-        self.run_button.setEnabled(not loading)
