@@ -311,9 +311,10 @@ def _distinct(bank, classes, rotations, translations, misfit, tolerance):
     for index in np.argsort(misfit, kind="stable"):
         if index == 0 or not np.isfinite(misfit[index]):
             continue
-        if all(classes[index] != classes[k] or surface_disagreement(
-                bank, classes[index], rotations[[index, k]], translations[[index, k]]) > tolerance
-               for k in kept):
+        same = [k for k in kept if classes[k] == classes[index]]
+        if not same or np.all(pose_disagreements(
+                bank, classes[index], rotations[index], translations[index],
+                rotations[same], translations[same]) > tolerance):
             kept.append(int(index))
     return np.array(kept, dtype=np.int64)
 
@@ -341,14 +342,24 @@ def surface_disagreement(bank, class_index, rotations, translations):
     Nearly the largest, not the RMS: a mug's handle is a small part of its surface, and
     two poses that put it 2 cm apart agree in RMS within the noise, yet only one is the
     object. The top percent is left out as the grid's own error at thin edges."""
+    return float(pose_disagreements(bank, class_index, rotations[0], translations[0],
+                                    rotations[1:2], translations[1:2])[0])
+
+
+def pose_disagreements(bank, class_index, rotation, translation, rotations, translations):
+    """:func:`surface_disagreement` of one pose against each of ``k`` others of the same
+    class, in two batched look-ups: (k,) float, scene units."""
     points = bank.points[class_index][::SURFACE_STRIDE]
-    largest = 0.0
-    for i, j in ((0, 1), (1, 0)):
-        world = transform_points(points, rotations[i], translations[i])
-        local = (world - translations[j]) @ rotations[j]
-        values, _ = bank.evaluate(np.array([class_index]), local[None])
-        largest = max(largest, float(np.percentile(np.abs(values), AGREE_PERCENTILE)))
-    return largest
+    mine = transform_points(points, rotation, translation)  # (m, 3), world
+    theirs = np.einsum("kij,mj->kmi", rotations, points) + translations[:, None]  # (k, m, 3)
+    # Mine in each of their frames, and theirs in mine: x = R^T (p - t).
+    in_theirs = np.einsum("kmi,kij->kmj", mine[None] - translations[:, None], rotations)
+    in_mine = (theirs - translation) @ rotation
+    count = len(rotations)
+    values, _ = bank.evaluate(np.full(2 * count, class_index),
+                              np.concatenate([in_theirs, in_mine]))
+    spread = np.percentile(np.abs(values), AGREE_PERCENTILE, axis=1)
+    return np.maximum(spread[:count], spread[count:])
 
 
 def disagreement_target(bank, hypotheses, reach, avoid=()):
@@ -389,15 +400,16 @@ def disagreement_target(bank, hypotheses, reach, avoid=()):
     for j, h in enumerate(hypotheses):
         distance = np.abs(_posed_distance(bank, h.class_index, h.rotation, h.translation,
                                           points))
-        for k, other in enumerate(hypotheses):
-            if other.class_index != h.class_index:
-                # Twins in a shared frame differ in shape, not in where each fits best:
-                # a rival tilted to absorb the contacts disagrees far along a shared
-                # handle, but a touch there is absorbed again by the next fit.
-                mine = owner == k
-                at_theirs = _posed_distance(bank, h.class_index, other.rotation,
-                                            other.translation, points[mine])
-                distance[mine] = np.minimum(distance[mine], np.abs(at_theirs))
+        # Twins in a shared frame differ in shape, not in where each fits best: a rival
+        # tilted to absorb the contacts disagrees far along a shared handle, but a touch
+        # there is absorbed again by the next fit.
+        others = np.flatnonzero([o.class_index != h.class_index for o in hypotheses])
+        if len(others):
+            mine = np.isin(owner, others)
+            local = np.vstack([(points[owner == k] - hypotheses[k].translation)
+                               @ hypotheses[k].rotation for k in others])
+            at_theirs, _ = bank.evaluate(np.array([h.class_index]), local[None])
+            distance[mine] = np.minimum(distance[mine], np.abs(at_theirs[0]))
         spread += weights[j] * np.minimum(np.square(distance), reach**2) * (owner != j)
     score = weights[owner] * spread
     for places, radius in avoid:
