@@ -78,25 +78,27 @@ def neighbour_bins(features, distance_step=0.1, angle_step=np.radians(12.0), nei
     distance_step, angle_step : float
         The key steps (scene units, radians).
     neighbours : int
-        0: the own bin only; 1: per component also the neighbouring bin on the side the
-        feature lies closest to: the 2^4 = 16 bins that hold every model pair whose feature
-        lies within half a step of the observed one in each component (noise tolerance at
-        16 times the look-ups);
-        2: every bin within one step, 3^4 = 81.
+        0: the own bin only; 1: both neighbouring bins of the distance and, per angle,
+        the neighbouring bin on the side the feature lies closest to: the 3 x 2^3 = 24
+        bins that hold every model pair whose feature lies within one step of the observed
+        one in distance and half a step in each angle (noise tolerance at 24 times the
+        look-ups); 2: every bin within one step, 3^4 = 81.
 
     Returns
     -------
     (q, b, 4) int64
-        ``b`` = 1, 16 or 81 bins per feature (some may be negative, i.e. hold no key); with
-        16 the own bin is the first.
+        ``b`` = 1, 24 or 81 bins per feature (some may be negative, i.e. hold no key); with
+        24 the own bin is the first.
     """
     scaled = _scaled(features, distance_step, angle_step).reshape(-1, 4)
     bins = np.rint(scaled).astype(np.int64)
     if neighbours == 1:
-        # The side of the bin's centre the feature lies on (rint rounds halves to even, so
-        # a feature at a centre looks to the upper side).
+        # Each angle's neighbour on the side of its bin's centre the feature lies on (rint
+        # rounds halves to even: a feature at a centre looks to the upper side); the
+        # distance, which carries two positions' noise, both neighbours.
         side = np.where(scaled >= bins, 1, -1)
-        offsets = np.array(list(product((0, 1), repeat=4)))
+        side[:, 0] = 1
+        offsets = np.array(list(product((0, 1, -1), (0, 1), (0, 1), (0, 1))))
         return bins[:, None, :] + offsets[None] * side[:, None, :]
     reach = 1 if neighbours else 0
     offsets = np.array(list(product(range(-reach, reach + 1), repeat=4)))
@@ -278,9 +280,10 @@ class PairTable:
         features : (q, 4) float
             Observed pair features.
         neighbours : int
-            0 looks up the bin itself; 1 also, per component, the neighbouring bin on the
-            side the feature lies closest to (16 bins: every pair within half a step of the
-            feature); 2 every bin within one step (81 bins). See :func:`neighbour_bins`.
+            0 looks up the bin itself; 1 also the distance's two neighbouring bins and
+            each angle's on the side the feature lies closest to (24 bins: every pair
+            within one step in distance and half a step in the angles); 2 every bin within
+            one step (81 bins). See :func:`neighbour_bins`.
 
         Returns
         -------

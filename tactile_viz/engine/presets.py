@@ -80,8 +80,8 @@ def noise_matched(params, position_noise, normal_noise_deg):
     for the position noise (``position_noise``). Once the noise reaches a
     quarter of a point-pair key bin (distance ``distance_step``, angles ``angle_step_deg``)
     observed pairs often fall into a neighbouring bin, so the neighbour-bin look-up is
-    turned on: the nearest neighbouring bin per component (``neighbour_bins=1``, 16 bins
-    rather than all 81 of ``2``), so that noise does not multiply the candidates.
+    turned on: the nearest neighbouring bins (``neighbour_bins=1``, 24 bins rather than
+    all 81 of ``2``), so that noise multiplies the candidates less.
 
     Parameters
     ----------

@@ -278,7 +278,7 @@ def test_under_noise_the_particles_stay_within_max_particles(bundled):
     library = PriorLibrary(bundled[name] for name in ["mug_1", "sofa_1", "vase_1"])
     truth = GroundTruth(bundled["mug_1"], *random_pose(rng=5, max_translation=1.0))
     params = noise_matched(FilterParams(max_particles=300), 0.06, 2.0)
-    assert params.neighbour_bins == 1  # the 16 nearest bins, not all 81
+    assert params.neighbour_bins == 1  # the 24 nearest bins, not all 81
     simulator = ContactSimulator(truth, position_noise=0.06, normal_noise_deg=2.0, rng=6)
     particle_filter = ParticleFilter(library, params, rng=6)
     touches, sampled = np.random.default_rng(6), 0

@@ -90,23 +90,26 @@ def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
     assert len(table.lookup(features, neighbours=1)[0]) > len(query)
 
 
-def test_nearest_bins_are_the_own_bin_and_the_closer_neighbour_per_component():
-    features = np.array([[0.34, 0.5, 1.0, 2.9], [0.26, 0.0, 3.1, 0.1]])
-    bins = neighbour_bins(features, 0.1, np.radians(12.0), neighbours=1)
-    assert bins.shape == (2, 16, 4)
-    own = quantise(features, 0.1, np.radians(12.0))
+def test_nearest_bins_are_the_distance_neighbours_and_the_closer_angle_neighbours():
+    step = np.radians(12.0)
+    features = np.array([[0.34, 0.4 * step, 1.0, 2.9], [0.26, 2.6 * step, 3.1, 0.1]])
+    bins = neighbour_bins(features, 0.1, step, neighbours=1)
+    assert bins.shape == (2, 24, 4)
+    own = quantise(features, 0.1, step)
     np.testing.assert_array_equal(bins[:, 0], own)
-    # 0.34 lies above the centre of bin 3 (0.3), so its neighbour is bin 4; 0.26 below it.
-    np.testing.assert_array_equal(np.unique(bins[0, :, 0]), [3, 4])
-    np.testing.assert_array_equal(np.unique(bins[1, :, 0]), [2, 3])
+    np.testing.assert_array_equal(np.unique(bins[0, :, 0]), [2, 3, 4])  # the distance: both
+    # An angle 0.4 steps lies above the centre of bin 0, so its neighbour is bin 1; one at
+    # 2.6 steps below that of bin 3, so its neighbour is bin 2.
+    np.testing.assert_array_equal(np.unique(bins[0, :, 1]), [0, 1])
+    np.testing.assert_array_equal(np.unique(bins[1, :, 1]), [2, 3])
     assert np.all(np.abs(bins - own[:, None]) <= 1)
-    assert len({tuple(b) for b in bins[0]}) == 16
+    assert len({tuple(b) for b in bins[0]}) == 24
     assert neighbour_bins(features, neighbours=2).shape == (2, 81, 4)
 
 
 def test_nearest_bins_find_a_pair_whose_feature_crossed_a_bin_edge(mug_features):
     """Noise that moves an observed feature less than half a step, across the bin edge in
-    every component: the own bin misses the true pair, the 16 nearest bins find it."""
+    every component: the own bin misses the true pair, the 24 nearest bins find it."""
     points, normals = mug_features
     table = PairTable.build(points, normals)
     steps = np.array([table.distance_step] + [table.angle_step] * 3)
