@@ -96,8 +96,12 @@ class FilterParams:
         12.0, "Point-pair key resolution of the angles (paper 12).", valid=_POSITIVE,
         unit="degrees")
     neighbour_bins: int = _filter(
-        0, "0 looks up a pair's own key bin; 1 also all neighbouring bins (noise tolerance).",
-        kind="int", valid="[0, 1]")
+        0, "0 looks up a pair's own key bin; 1 also the nearest neighbouring bins (24 bins, "
+        "noise tolerance); 2 all neighbouring bins (81).",
+        kind="int", valid="[0, 2]",
+        notes="1 finds every model pair within one key step of the observed one in distance "
+              "(which carries two positions' noise) and half a step in each angle; 2 within "
+              "one step in every component, at over three times the look-ups.")
     init_rotations: int = _filter(
         1, "Rotations about the contact normal per feature point when initialising.",
         kind="int", valid=_AT_LEAST_1)

@@ -8,7 +8,7 @@ from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonConta
                                 ObservationError, PriorLibrary, random_pose)
 from tactile_viz.engine.shape.metrics import pose_error
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.presets import PRESETS, preset
+from tactile_viz.engine.presets import PRESETS, noise_matched, preset
 from tactile_viz.engine.belief.particle_filter import (ParticleFilter,
                                                 stochastic_universal_resampling)
 from tactile_viz.engine.explore.simulator import random_touch
@@ -129,7 +129,7 @@ def test_presets_and_parameter_validation():
     with pytest.raises(ValueError, match="unknown preset"):
         preset("fastest")
     for bad in [dict(sigma_d=-1.0), dict(sigma_n=0.0), dict(n_s=0), dict(lam=1.5),
-                dict(sigma_d=float("nan")), dict(neighbour_bins=2), dict(contenders=-1),
+                dict(sigma_d=float("nan")), dict(neighbour_bins=3), dict(contenders=-1),
                 dict(contender_mass=1.5)]:
         with pytest.raises(ValueError):
             FilterParams(**bad)
@@ -269,3 +269,22 @@ def test_the_particle_caps_bound_the_count(bundled):
     params = FilterParams(max_particles=300, max_new_particles=150, merge_distance=0.05)
     particle_filter, state = _run(library, truth, 15, seed=4, params=params)
     assert len(state.particles) <= max(300 + 150, 3 * 200)
+
+
+def test_under_noise_the_particles_stay_within_max_particles(bundled):
+    """The noise-matched filter samples at nearly every step (noisy contacts never fit as
+    well as the gate asks) from the nearest-bin look-up; new particles must not carry the
+    count past ``max_particles``."""
+    library = PriorLibrary(bundled[name] for name in ["mug_1", "sofa_1", "vase_1"])
+    truth = GroundTruth(bundled["mug_1"], *random_pose(rng=5, max_translation=1.0))
+    params = noise_matched(FilterParams(max_particles=300), 0.06, 2.0)
+    assert params.neighbour_bins == 1  # the 24 nearest bins, not all 81
+    simulator = ContactSimulator(truth, position_noise=0.06, normal_noise_deg=2.0, rng=6)
+    particle_filter = ParticleFilter(library, params, rng=6)
+    touches, sampled = np.random.default_rng(6), 0
+    for _ in range(12):
+        state = particle_filter.update(simulator.probe(random_touch(truth, touches)))
+        sampled += state.sampled
+        assert len(state.particles) <= 300
+        assert abs(logsumexp(state.particles.log_weights)) < 1e-9
+    assert sampled > 300  # the new particles alone would have passed the cap

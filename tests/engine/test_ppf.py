@@ -4,8 +4,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from tactile_viz.engine.belief.ppf import (PairTable, align_pairs, is_degenerate, pair_features,
-                                    rotation_to_x)
+from tactile_viz.engine.belief.ppf import (PairTable, align_pairs, is_degenerate, neighbour_bins,
+                                           pair_features, quantise, rotation_to_x)
 from tactile_viz.engine.transforms import transform_points
 
 SETTINGS = settings(max_examples=60, deadline=None,
@@ -88,6 +88,55 @@ def test_lookup_finds_the_pair_itself_and_neighbours_find_more(mug_features):
     for q, (i, j) in enumerate([(3, 50), (10, 120)]):
         assert np.any((query == q) & (first == i) & (second == j))
     assert len(table.lookup(features, neighbours=1)[0]) > len(query)
+
+
+def test_nearest_bins_are_the_distance_neighbours_and_the_closer_angle_neighbours():
+    step = np.radians(12.0)
+    features = np.array([[0.34, 0.4 * step, 1.0, 2.9], [0.26, 2.6 * step, 3.1, 0.1]])
+    bins = neighbour_bins(features, 0.1, step, neighbours=1)
+    assert bins.shape == (2, 24, 4)
+    own = quantise(features, 0.1, step)
+    np.testing.assert_array_equal(bins[:, 0], own)
+    np.testing.assert_array_equal(np.unique(bins[0, :, 0]), [2, 3, 4])  # the distance: both
+    # An angle 0.4 steps lies above the centre of bin 0, so its neighbour is bin 1; one at
+    # 2.6 steps below that of bin 3, so its neighbour is bin 2.
+    np.testing.assert_array_equal(np.unique(bins[0, :, 1]), [0, 1])
+    np.testing.assert_array_equal(np.unique(bins[1, :, 1]), [2, 3])
+    assert np.all(np.abs(bins - own[:, None]) <= 1)
+    assert len({tuple(b) for b in bins[0]}) == 24
+    assert neighbour_bins(features, neighbours=2).shape == (2, 81, 4)
+
+
+def test_nearest_bins_find_a_pair_whose_feature_crossed_a_bin_edge(mug_features):
+    """Noise that moves an observed feature less than half a step, across the bin edge in
+    every component: the own bin misses the true pair, the 24 nearest bins find it."""
+    points, normals = mug_features
+    table = PairTable.build(points, normals)
+    steps = np.array([table.distance_step] + [table.angle_step] * 3)
+    first, second = np.nonzero(~np.eye(len(points), dtype=bool))
+    features = pair_features(points[first], normals[first], points[second], normals[second])
+    scaled = features / steps
+    offset = scaled - np.rint(scaled)
+    # A usable pair whose feature lies off the middle of its bin in every component.
+    pick = np.flatnonzero(np.all(np.abs(offset) > 0.15, axis=1)
+                          & ~is_degenerate(points[first], normals[first], points[second],
+                                           normals[second]))[0]
+    i, j = first[pick], second[pick]
+    # Just across the nearer edge: less than half a step away, in the next bin.
+    edge = np.rint(scaled[pick]) + 0.5 * np.sign(offset[pick])
+    noisy = ((edge + 0.02 * np.sign(offset[pick])) * steps)[None]
+    assert np.all(np.abs(noisy[0] - features[pick]) < 0.5 * steps)
+    assert np.all(quantise(noisy, table.distance_step, table.angle_step)
+                  != quantise(features[pick], table.distance_step, table.angle_step))
+
+    def found(neighbours):
+        _, _, f, s = table.lookup(noisy, neighbours)
+        return bool(np.any((f == i) & (s == j))), len(f)
+
+    assert not found(0)[0]
+    (near, n_near), (every, n_every) = found(1), found(2)
+    assert near and every
+    assert n_near < n_every
 
 
 def test_lookup_of_an_unseen_feature_is_empty(mug_features):

@@ -188,6 +188,7 @@ class ParticleFilter:
                     sampled += len(new)
                     self.particles = self._merged(new)
                     map_index, map_evidence = self._map()
+            map_index = self._bounded(map_index)
         if len(self.contact_positions) >= 3:
             for index in self._to_refine(map_index):
                 self._refine(index)
@@ -322,6 +323,18 @@ class ParticleFilter:
                                    np.ascontiguousarray(positions[screen]))
         score = -np.square(values).sum(axis=1)
         return candidates.take(np.sort(np.argpartition(-score, budget - 1)[:budget]))
+
+    def _bounded(self, map_index):
+        """At most ``max_particles`` particles after sampling, the heaviest (those
+        resampling would keep anyway; the MAP is the heaviest): a step's new particles
+        cannot carry the belief past the cap. Returns the MAP's index in the kept set."""
+        cap = self.params.max_particles
+        if len(self.particles) <= cap:
+            return map_index
+        keep = np.sort(np.argpartition(-self.particles.log_weights, cap - 1)[:cap])
+        self.particles = _with_log_weights(self.particles.take(keep),
+                                           self.particles.log_weights[keep])
+        return int(np.argmax(self.particles.log_weights))
 
     def _merged(self, new):
         combined = Particles.concatenate([self.particles, new])

@@ -60,8 +60,49 @@ def quantise(features, distance_step=0.1, angle_step=np.radians(12.0)):
     -------
     (..., 4) int64
     """
+    return np.rint(_scaled(features, distance_step, angle_step)).astype(np.int64)
+
+
+def _scaled(features, distance_step, angle_step):
+    """Features in units of their key steps: (..., 4) float."""
     steps = np.array([distance_step, angle_step, angle_step, angle_step])
-    return np.rint(np.asarray(features) / steps).astype(np.int64)
+    return np.asarray(features) / steps
+
+
+def neighbour_bins(features, distance_step=0.1, angle_step=np.radians(12.0), neighbours=0):
+    """The key bins each observed feature looks up.
+
+    Parameters
+    ----------
+    features : (q, 4) float
+    distance_step, angle_step : float
+        The key steps (scene units, radians).
+    neighbours : int
+        0: the own bin only; 1: both neighbouring bins of the distance and, per angle,
+        the neighbouring bin on the side the feature lies closest to: the 3 x 2^3 = 24
+        bins that hold every model pair whose feature lies within one step of the observed
+        one in distance and half a step in each angle (noise tolerance at 24 times the
+        look-ups); 2: every bin within one step, 3^4 = 81.
+
+    Returns
+    -------
+    (q, b, 4) int64
+        ``b`` = 1, 24 or 81 bins per feature (some may be negative, i.e. hold no key); with
+        24 the own bin is the first.
+    """
+    scaled = _scaled(features, distance_step, angle_step).reshape(-1, 4)
+    bins = np.rint(scaled).astype(np.int64)
+    if neighbours == 1:
+        # Each angle's neighbour on the side of its bin's centre the feature lies on (rint
+        # rounds halves to even: a feature at a centre looks to the upper side); the
+        # distance, which carries two positions' noise, both neighbours.
+        side = np.where(scaled >= bins, 1, -1)
+        side[:, 0] = 1
+        offsets = np.array(list(product((0, 1, -1), (0, 1), (0, 1), (0, 1))))
+        return bins[:, None, :] + offsets[None] * side[:, None, :]
+    reach = 1 if neighbours else 0
+    offsets = np.array(list(product(range(-reach, reach + 1), repeat=4)))
+    return bins[:, None, :] + offsets[None]
 
 
 def pack_keys(bins):
@@ -239,8 +280,10 @@ class PairTable:
         features : (q, 4) float
             Observed pair features.
         neighbours : int
-            0 looks up the bin itself; 1 also the 80 bins that differ by one step in any
-            component (tolerates noise at 81 times the look-ups).
+            0 looks up the bin itself; 1 also the distance's two neighbouring bins and
+            each angle's on the side the feature lies closest to (24 bins: every pair
+            within one step in distance and half a step in the angles); 2 every bin within
+            one step (81 bins). See :func:`neighbour_bins`.
 
         Returns
         -------
@@ -251,11 +294,10 @@ class PairTable:
         first, second : (r,) int
             Feature-point indices of the matching pair.
         """
-        bins = quantise(features, self.distance_step, self.angle_step)
-        offsets = np.array(list(product(range(-neighbours, neighbours + 1), repeat=4)))
-        shifted = (bins[:, None, :] + offsets[None]).reshape(-1, 4)
+        bins = neighbour_bins(features, self.distance_step, self.angle_step, neighbours)
+        shifted = bins.reshape(-1, 4)
         valid = (shifted >= 0).all(axis=1)
-        query = np.repeat(np.arange(len(bins)), len(offsets))[valid]
+        query = np.repeat(np.arange(len(bins)), bins.shape[1])[valid]
         keys = pack_keys(shifted[valid])
         slot = np.minimum(np.searchsorted(self.keys, keys), max(len(self.keys) - 1, 0))
         found = self.keys[slot] == keys if len(self.keys) else np.zeros(len(keys), bool)
