@@ -100,7 +100,8 @@ def ask_tell_style(library, robot, seed, steps):
 
 
 def report(session, mesh):
-    """Class, novelty, and the estimate's distance to the object (metres and % of size)."""
+    """Class, novelty, whether it is decided, and the estimate's distance to the object
+    (metres and % of size)."""
     last = session.latest
     size = float(mesh.extents.max())
     truth = mesh.sample(3000, seed=0) if hasattr(mesh, "sample") else mesh.vertices
@@ -108,7 +109,7 @@ def report(session, mesh):
              else last.map_vertices)
     error = two_way_hausdorff(shape, truth)
     return {"steps": last.step, "map_class": last.map_class, "novel": last.novel,
-            "error_m": error, "error_percent": 100 * error / size,
+            "decided": last.decided, "error_m": error, "error_percent": 100 * error / size,
             "success": error < error_threshold(size)}
 
 
