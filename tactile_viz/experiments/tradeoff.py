@@ -73,11 +73,12 @@ CONFIGS = {
     "approach1": ("recommended", {"approach_clearance": 1.0}),
     "approach4": ("recommended", {"approach_clearance": 4.0}),
     "lines-at-contacts": ("recommended", {"check_line_aim": "contact"}),
-    # The GPIS kept from step to step (issue 39, docs/gpis.md): off (a full refit and exact
-    # variance every step), the scale refitted every fit, or only every 30 fits.
-    "gpis-full": ("recommended", {"gpis_incremental": False}),
-    "gpis-refit1": ("recommended", {"gpis_refit_every": 1}),
-    "gpis-refit30": ("recommended", {"gpis_refit_every": 30, "gpis_refit_score": 100.0}),
+    # The GPIS kept from step to step (issue 39, docs/gpis.md; off in the default): on, with
+    # the scale refitted every 10 fits, every fit, or only every 30 fits.
+    "gpis-incremental": ("recommended", {"gpis_incremental": True}),
+    "gpis-refit1": ("recommended", {"gpis_incremental": True, "gpis_refit_every": 1}),
+    "gpis-refit30": ("recommended", {"gpis_incremental": True, "gpis_refit_every": 30,
+                                     "gpis_refit_score": 100.0}),
 }
 
 

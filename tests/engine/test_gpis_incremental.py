@@ -147,8 +147,8 @@ def test_paper_preset_refits_in_full_every_step(bundled, monkeypatch):
     assert all(call["newton"] for call in calls)
 
 
-def test_recommended_session_extends_its_fit_and_goes_on_identically(bundled):
-    session = _novel_session(bundled, "recommended")
+def test_fast_session_extends_its_fit_and_goes_on_identically(bundled):
+    session = _novel_session(bundled, "fast")
     session.run(max_steps=14)
     assert sum(s.gpis_faces is not None for s in session.snapshots) > 3
     contacts = session.filter.contact_positions
