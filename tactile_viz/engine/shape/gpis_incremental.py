@@ -300,19 +300,7 @@ def fit_gpis_empty(everything, kernel, scale, prior):
 
 
 def corrections(x, y, weights, kernel):
-    """``value_rows(x, y, kernel) @ weights`` by a compiled loop, for several weight
-    vectors at once.
-
-    Parameters
-    ----------
-    x : (p, 3) float
-    y : (q, 3) float
-    weights : (4 q,) or (4 q, c) float
-    kernel : ThinPlateKernel or WendlandKernel
-
-    Returns
-    -------
-    (p,) or (p, c) float
-    """
+    """:func:`~.gpis_compiled.compiled_corrections` for a kernel object
+    (:class:`~.gpis.ThinPlateKernel` or :class:`~.gpis.WendlandKernel`)."""
     return compiled_corrections(x, y, weights, kernel.radius,
                                 isinstance(kernel, WendlandKernel))
