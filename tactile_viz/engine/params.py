@@ -339,6 +339,12 @@ class SessionParams:
         "their posteriors (beyond the paper).", valid="[0.5, 1)", control=(0.5, 0.999999),
         notes="The MAP class's share of the class posterior and the MAP's of the fit "
               "posterior of the distinct hypotheses (:mod:`~tactile_viz.engine.belief.decision`).")
+    decision_pose_error: float = _session(
+        0.05, "A decision also needs the MAP's pose known within this share of its longest "
+        "side (at decision_confidence).", valid=_POSITIVE, control=(1e-3, 1.0),
+        notes="The fit's Gauss-Newton covariance, as the displacement of the MAP surface "
+              "along its normals; the success threshold is 10% (TWD). A 2 cm block under 2 "
+              "mm noise is known long before it is posed within 10% of its size.")
     decision_floor: float = _session(
         0.01, "How far a right hypothesis's contacts may lie off its surface besides the "
         "sensor's noise and the grid's own error.", valid=_POSITIVE, length=1,
@@ -367,6 +373,13 @@ class SessionParams:
     decision_patience: int = _session(
         30, "Steps of a session aimed at rival hypotheses at most (then the paper's targets "
         "and stop).", kind="int", valid=_AT_LEAST_0, control=(0, 300))
+    decision_candidates: int = _session(
+        2000, "Surface points of each hypothesis a telling target is chosen from (0: its "
+        "feature points).", kind="int", valid=_AT_LEAST_0, control=(0, 20000),
+        notes="The part that tells two shapes apart can be small (a screwdriver's tip): "
+              "few of the feature points lie on it, and the touches' spacing soon uses "
+              "them up. Cost: the hypotheses' distances at every candidate, each step a "
+              "rival is aimed at.")
     stop_at_decision: bool = _session(
         False, "Stop as soon as the object is decided (a robot that only needs to "
         "recognise).", kind="bool", notes="False: go on to the DHD stop for shape.")

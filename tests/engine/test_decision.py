@@ -258,3 +258,28 @@ def test_a_fit_is_charged_for_the_pose_parameters_it_uses(tmp_path):
     assert used_pose_parameters(boxed, 1e-4) == 6.0
     assert used_pose_parameters(bumpy, 1e-8) == pytest.approx(6.0, abs=0.05)
     assert used_pose_parameters(bumpy, 1.0) == pytest.approx(3.0, abs=0.05)
+
+
+def test_dense_candidates_reach_a_small_part_the_feature_points_used_up(shapes):
+    """Once touches sit on the knob's feature points, feature-point candidates leave it;
+    the dense surface samples still offer places on it between those touches."""
+    from tactile_viz.engine.shape.metrics import oriented_samples
+
+    pf = _box_or_knobbed(shapes)
+    state = pf._record(0)
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    rivals = (decision.hypotheses[0],) + decision.rivals
+    on_knob = lambda p: (p[..., 0] > 1.4) & (p[..., 2] > 0.9)  # noqa: E731
+    used = np.vstack([transform(pf.bank.points[h.class_index][on_knob(
+        pf.bank.points[h.class_index])], h) for h in rivals])
+    avoid = [(pf.contact_positions, 0.3), (used, 0.12)]
+    sparse = disagreement_target(pf.bank, rivals, reach=1.0, avoid=avoid)
+    assert sparse is None or not on_knob(sparse[0])
+    dense = disagreement_target(pf.bank, rivals, reach=1.0, avoid=avoid,
+                                candidates=lambda c: oriented_samples(pf.models[c], 4000))
+    assert dense is not None and on_knob(dense[0])
+    np.testing.assert_allclose(np.linalg.norm(dense[1]), 1.0, atol=1e-6)
+
+
+def transform(points, hypothesis):
+    return points @ hypothesis.rotation.T + hypothesis.translation

@@ -25,8 +25,12 @@ def known(bundled):
 
 @pytest.fixture(scope="module")
 def novel_session(bundled, known):
-    """vase_2 explored to termination against the known set (about 10 s)."""
-    session = Session(make_truth(bundled["vase_2"], rng=0), known, "gpis-dhd", seed=0)
+    """vase_2 explored to termination against the known set without its relatives vase_1
+    and bottle_1 (about 20 s): novel for certain, where against the whole set it is judged
+    known in most trials (as in the paper) and its last reconstruction may come from its
+    first steps."""
+    library = PriorLibrary([model for model in known if model.name not in ("vase_1", "bottle_1")])
+    session = Session(make_truth(bundled["vase_2"], rng=0), library, "gpis-dhd", seed=0)
     session.run()
     return session
 
@@ -158,7 +162,7 @@ def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tm
     source = _last_reconstruction(novel_session)
     learned = novel_session.learned_model("vase_2_learned", source)
     assert learned.mesh.is_watertight
-    library = PriorLibrary(list(known) + [learned])
+    library = PriorLibrary(list(novel_session.library) + [learned])
     library.save(tmp_path / "priors")
     library = PriorLibrary.load(tmp_path / "priors")
     again = Session(make_truth(bundled["vase_2"], rng=1), library, "gpis-dhd", seed=1)

@@ -41,10 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
-from scipy.stats import chi2
+from scipy.stats import chi2, norm
 
 from .discrimination import contenders, lookalikes
-from .pose_refinement import refine_poses
+from .pose_refinement import refine_poses, surface_uncertainty
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 
@@ -120,7 +120,8 @@ class Decision:
 UNDECIDED = Decision(False, 0.0)
 
 
-def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None):
+def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
+           pose_tolerance=np.inf):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -143,6 +144,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         Points of the paths missed probes passed through: like a non-contact, each costs
         a hypothesis its depth inside (a probe's end can lie beyond a thin blade or a
         handle it passed through, and a pose turned a little avoids one point).
+    pose_tolerance : float
+        How far the MAP's surface may be off, as a share of its longest side: decided only
+        once its surface's uncertainty along the normals
+        (:func:`~.pose_refinement.surface_uncertainty`), times the two-sided normal
+        quantile of ``confidence``, is within it (a 2 cm block under 2 mm noise is known
+        long before it is posed within 10% of its size).
 
     Returns
     -------
@@ -209,8 +216,21 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     dof = len(contacts) - POSE_PARAMETERS
     fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2 + roughness**2,
                                                                      1e-300)
-    return Decision(bool(not belief.novel and fits and level >= confidence), float(level),
-                    hypotheses, bool(fits))
+    posed = fits and level >= confidence and _posed_within(
+        pf, hypotheses[0], scale2, confidence, pose_tolerance)
+    return Decision(bool(not belief.novel and posed), float(level), hypotheses, bool(fits))
+
+
+def _posed_within(pf, hypothesis, scale2, confidence, tolerance):
+    """Whether the MAP's pose is known within ``tolerance`` of its longest side at
+    ``confidence`` (see :func:`decide`)."""
+    if not np.isfinite(tolerance):
+        return True
+    c = hypothesis.class_index
+    spread = surface_uncertainty(pf.bank.evaluate, c, hypothesis.rotation,
+                                 hypothesis.translation, pf.contact_positions,
+                                 pf.bank.points[c], pf.bank.normals[c], scale2)
+    return bool(norm.ppf(0.5 + confidence / 2) * spread <= tolerance * pf.models[c].length)
 
 
 def used_pose_parameters(model, scale2):
@@ -362,10 +382,10 @@ def pose_disagreements(bank, class_index, rotation, translation, rotations, tran
     return np.maximum(spread[:count], spread[count:])
 
 
-def disagreement_target(bank, hypotheses, reach, avoid=()):
+def disagreement_target(bank, hypotheses, reach, avoid=(), candidates=None):
     """Where a touch tells the hypotheses apart best.
 
-    Every feature point ``x`` of every hypothesis (posed) is a candidate unless a point to
+    Every candidate point ``x`` of every hypothesis (posed) is one unless a point to
     avoid (a contact, a target the sensor could not reach, the path of a missed probe) lies
     within its radius; its score is ``p_k sum_j p_j min(f_j(x)^2, reach^2)``, with
     ``f_j`` the signed distance of hypothesis ``j`` (a touch at ``x`` refutes ``j`` by
@@ -383,6 +403,11 @@ def disagreement_target(bank, hypotheses, reach, avoid=()):
     avoid : sequence of ((m, 3) float, float)
         Points (world frame) where touching again would teach nothing, each set with its
         radius (scene units).
+    candidates : callable, optional
+        ``candidates(class_index) -> (points (m, 3), normals (m, 3))``, object frame: the
+        surface points a class offers as targets (default its feature points). The part
+        that tells two shapes apart can be small (a screwdriver's tip): a few of 200
+        feature points lie on it, and the spacing of the touches soon uses them up.
 
     Returns
     -------
@@ -390,9 +415,12 @@ def disagreement_target(bank, hypotheses, reach, avoid=()):
         None when no candidate would separate them.
     """
     points, normals, owner = [], [], []
+    if candidates is None:
+        candidates = lambda c: (bank.points[c], bank.normals[c])  # noqa: E731
     for k, h in enumerate(hypotheses):
-        points.append(transform_points(bank.points[h.class_index], h.rotation, h.translation))
-        normals.append(bank.normals[h.class_index] @ h.rotation.T)
+        own_points, own_normals = candidates(h.class_index)
+        points.append(transform_points(own_points, h.rotation, h.translation))
+        normals.append(own_normals @ h.rotation.T)
         owner.append(np.full(len(points[-1]), k))
     points, normals, owner = np.vstack(points), np.vstack(normals), np.concatenate(owner)
     weights = np.array([h.probability for h in hypotheses])

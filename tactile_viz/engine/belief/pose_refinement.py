@@ -93,3 +93,45 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
                                                           new_jacobian[better], new_cost[better])
         damping = np.where(better, damping / 3, damping * 10)
     return rotations, translations, cost
+
+
+def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,
+                        normals, scale2):
+    """How far a refined pose may still be off, as the largest standard deviation of the
+    posed surface's displacement along its normals (scene units).
+
+    The pose's covariance is the Gauss-Newton one of :func:`refine_poses` on the contacts,
+    ``C = s^2 (J^T J)^+`` (a direction nothing constrains, a turn about a round axis, moves
+    no surface); a surface point ``x`` with normal ``n`` moves along ``n`` by
+    ``g . (w, d)`` with ``g = ((x - c) x n, n)``, of variance ``g C g^T``.
+
+    Parameters
+    ----------
+    evaluate : callable
+        As for :func:`refine_poses`.
+    class_index : int
+    rotation : (3, 3) float
+    translation : (3,) float
+    contacts : (m, 3) float, world frame
+    points, normals : (q, 3) float, object frame
+        Surface points of the class and their outward unit normals.
+    scale2 : float, squared scene units
+        The residuals' variance ``s^2``.
+
+    Returns
+    -------
+    float
+    """
+    contacts = np.asarray(contacts, dtype=float)
+    centre = contacts.mean(axis=0)
+    local = ((contacts - translation) @ rotation)[None]
+    _, gradients = evaluate(np.array([class_index]), local)
+    contact_normals = gradients[0] @ rotation.T
+    jacobian = np.concatenate([np.cross(contacts - centre, contact_normals), contact_normals],
+                              axis=1)
+    covariance = scale2 * np.linalg.pinv(jacobian.T @ jacobian, rcond=1e-9, hermitian=True)
+    world = points @ rotation.T + translation
+    world_normals = normals @ rotation.T
+    rows = np.concatenate([np.cross(world - centre, world_normals), world_normals], axis=1)
+    variance = np.einsum("qi,ij,qj->q", rows, covariance, rows)
+    return float(np.sqrt(max(variance.max(), 0.0)))

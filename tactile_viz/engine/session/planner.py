@@ -40,7 +40,7 @@ from ..belief.decision import UNDECIDED, decide, disagreement_target
 from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                                    raster_path, variance_target, widest_gap)
 from ..shape.meshes import bare_mesh
-from ..shape.metrics import directed_hausdorff
+from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
 from .fields import BelowTangentPlane, ValueOf
 from .state import Aim, Check
@@ -153,7 +153,8 @@ class Planner:
                       floor=float(np.hypot(p.decision_floor, noise)),
                       same_mode=max(p.decision_same_mode, 2 * noise),
                       carried=self.state.hypotheses,
-                      free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit))
+                      free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit),
+                      pose_tolerance=p.decision_pose_error)
 
     def _coverage(self, recon, map_vertices, contacts):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
@@ -257,7 +258,8 @@ class Planner:
         found = disagreement_target(
             self.filter.bank, hypotheses, self._p.probe_depth,
             avoid=((contacts, spread), (np.reshape(self.state.told, (-1, 3)), spread),
-                   (refuted, self._p.contact_spacing)))
+                   (refuted, self._p.contact_spacing)),
+            candidates=self._telling_candidates)
         if found is None:
             return None
         position, normal, owner = found
@@ -265,6 +267,14 @@ class Planner:
         prior = self.filter.models[hypothesis.class_index]
         estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
         return Aim(position, normalise_rows(normal[None])[0], estimate)
+
+    def _telling_candidates(self, class_index):
+        """The surface points a class offers as telling targets (``decision_candidates``;
+        0: its feature points), object frame."""
+        count = self._p.decision_candidates
+        if count == 0:
+            return self.filter.bank.points[class_index], self.filter.bank.normals[class_index]
+        return oriented_samples(self.filter.models[class_index], count)
 
     def _next_target(self, surface, reachable, recon, model, rotation, translation, contacts):
         """The :class:`Aim` of the next step: the novel or the known rule of

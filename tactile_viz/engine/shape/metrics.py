@@ -49,6 +49,18 @@ def surface_samples(model, count=4000, seed=0):
     return cache[(count, seed)]
 
 
+def oriented_samples(model, count=2000, seed=0):
+    """Area-uniform surface points of a model and their outward unit normals (the faces'),
+    object frame: ``(points (count, 3), normals (count, 3))``, cached per model and count."""
+    cache = model.__dict__.setdefault("_oriented_samples", {})
+    if (count, seed) not in cache:
+        mesh = bare_mesh(model.mesh)
+        points, faces = trimesh.sample.sample_surface(mesh, count,
+                                                      seed=np.random.default_rng(seed))
+        cache[(count, seed)] = points, np.asarray(mesh.face_normals)[faces]
+    return cache[(count, seed)]
+
+
 def pose_error(model, rotation, translation, truth, count=4000):
     """TWD between ``model`` placed at ``(rotation, translation)`` and the ground truth."""
     estimate = transform_points(surface_samples(model, count), rotation, translation)
