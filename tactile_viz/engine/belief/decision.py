@@ -99,12 +99,17 @@ class Decision:
     fits : bool
         Whether the MAP's residuals pass the chi-squared test (rivals are worth telling
         apart only then: otherwise the object is none of them).
+    loosest : ((3,) float, (3,) float) or None
+        While the MAP is the one hypothesis but its pose is not yet known well enough: the
+        point of its surface (world frame) whose place is least certain, and its outward
+        normal; a touch there pins the pose most.
     """
 
     decided: bool
     confidence: float
     hypotheses: tuple = ()
     fits: bool = False
+    loosest: object = None
 
     @property
     def rivals(self):
@@ -216,21 +221,29 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     dof = len(contacts) - POSE_PARAMETERS
     fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2 + roughness**2,
                                                                      1e-300)
-    posed = fits and level >= confidence and _posed_within(
-        pf, hypotheses[0], scale2, confidence, pose_tolerance)
-    return Decision(bool(not belief.novel and posed), float(level), hypotheses, bool(fits))
+    loosest = None
+    if fits and level >= confidence:
+        loosest = _loosest(pf, hypotheses[0], scale2, confidence, pose_tolerance)
+    decided = not belief.novel and fits and level >= confidence and loosest is None
+    return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest)
 
 
-def _posed_within(pf, hypothesis, scale2, confidence, tolerance):
-    """Whether the MAP's pose is known within ``tolerance`` of its longest side at
-    ``confidence`` (see :func:`decide`)."""
+def _loosest(pf, hypothesis, scale2, confidence, tolerance):
+    """None when the MAP's pose is known within ``tolerance`` of its longest side at
+    ``confidence`` (see :func:`decide`), else its surface point whose place is least
+    certain and its normal, world frame."""
     if not np.isfinite(tolerance):
-        return True
+        return None
     c = hypothesis.class_index
     spread = surface_uncertainty(pf.bank.evaluate, c, hypothesis.rotation,
                                  hypothesis.translation, pf.contact_positions,
                                  pf.bank.points[c], pf.bank.normals[c], scale2)
-    return bool(norm.ppf(0.5 + confidence / 2) * spread <= tolerance * pf.models[c].length)
+    worst = int(np.argmax(spread))
+    if norm.ppf(0.5 + confidence / 2) * spread[worst] <= tolerance * pf.models[c].length:
+        return None
+    return (transform_points(pf.bank.points[c][worst:worst + 1], hypothesis.rotation,
+                             hypothesis.translation)[0],
+            pf.bank.normals[c][worst] @ hypothesis.rotation.T)
 
 
 def used_pose_parameters(model, scale2):

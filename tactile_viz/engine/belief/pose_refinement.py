@@ -97,8 +97,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
 
 def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,
                         normals, scale2):
-    """How far a refined pose may still be off, as the largest standard deviation of the
-    posed surface's displacement along its normals (scene units).
+    """How far a refined pose may still be off: the standard deviation of each surface
+    point's displacement along its normal (scene units).
 
     The pose's covariance is the Gauss-Newton one of :func:`refine_poses` on the contacts,
     ``C = s^2 (J^T J)^+`` (a direction nothing constrains, a turn about a round axis, moves
@@ -120,7 +120,7 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
 
     Returns
     -------
-    float
+    (q,) float
     """
     contacts = np.asarray(contacts, dtype=float)
     centre = contacts.mean(axis=0)
@@ -134,4 +134,4 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
     world_normals = normals @ rotation.T
     rows = np.concatenate([np.cross(world - centre, world_normals), world_normals], axis=1)
     variance = np.einsum("qi,ij,qj->q", rows, covariance, rows)
-    return float(np.sqrt(max(variance.max(), 0.0)))
+    return np.sqrt(np.maximum(variance, 0.0))

@@ -98,6 +98,7 @@ class Stop(NamedTuple):
     checking: bool  # a check line is due
     confirm: bool  # a confirm check of the decision is due
     rivals: bool  # rival hypotheses are to be told apart
+    posing: bool  # the one hypothesis left is to be posed better
     decision_checks: int  # confirm checks passed (0: the MAP no longer qualifies)
 
 
@@ -192,13 +193,19 @@ class Planner:
         rivals = (p.decision_targets and not belief.novel and not decided
                   and not confirm and decision.fits and len(decision.rivals) > 0
                   and self.state.telling_steps < p.decision_patience)
+        # So is the MAP's pose, once it is the one hypothesis left but not yet known well
+        # enough (a 2 cm block under 2 mm noise), within the same patience.
+        posing = (p.decision_targets and not belief.novel and not rivals
+                  and decision.loosest is not None
+                  and self.state.telling_steps < p.decision_patience)
         # The DHD stop waits for the decision's checks too: they are a step or two, and a
         # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
         terminated = bool((covered and not checking and not frontier and not rivals
-                           and not confirm)
+                           and not posing and not confirm)
                           or (p.stop_at_decision and decided)
                           or self.step_count + 1 >= cap)
-        return Stop(terminated, decided, frontier, checking, confirm, rivals, decision_checks)
+        return Stop(terminated, decided, frontier, checking, confirm, rivals, posing,
+                    decision_checks)
 
     def _choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
                        recon, contacts, decision=UNDECIDED):
@@ -225,6 +232,12 @@ class Planner:
             return Plan(None, self._plan_check_line(map_vertices, contacts, outside),
                         confirming=True, **keep)
         if stop.rivals and (aim := self._telling_apart(decision, contacts)) is not None:
+            return Plan(aim, None, telling_apart=True, **keep)
+        if stop.posing:
+            # Where the pose is least certain (the fit's covariance), on the MAP surface.
+            position, normal = decision.loosest
+            aim = Aim(position, normalise_rows(normal[None])[0],
+                      ValueOf(self._prior(model, rotation, translation)))
             return Plan(aim, None, telling_apart=True, **keep)
         if coverage.dhd <= self._p.eps < coverage.prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
