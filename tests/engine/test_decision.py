@@ -15,6 +15,7 @@ from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.session import Session, make_truth, session_preset
+from tactile_viz.engine.transforms import transform_points
 
 
 pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
@@ -270,8 +271,8 @@ def test_dense_candidates_reach_a_small_part_the_feature_points_used_up(shapes):
     decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
     rivals = (decision.hypotheses[0],) + decision.rivals
     on_knob = lambda p: (p[..., 0] > 1.4) & (p[..., 2] > 0.9)  # noqa: E731
-    used = np.vstack([transform(pf.bank.points[h.class_index][on_knob(
-        pf.bank.points[h.class_index])], h) for h in rivals])
+    used = np.vstack([transform_points(pf.bank.points[h.class_index][on_knob(
+        pf.bank.points[h.class_index])], h.rotation, h.translation) for h in rivals])
     avoid = [(pf.contact_positions, 0.3), (used, 0.12)]
     sparse = disagreement_target(pf.bank, rivals, reach=1.0, avoid=avoid)
     assert sparse is None or not on_knob(sparse[0])
@@ -281,5 +282,25 @@ def test_dense_candidates_reach_a_small_part_the_feature_points_used_up(shapes):
     np.testing.assert_allclose(np.linalg.norm(dense[1]), 1.0, atol=1e-6)
 
 
-def transform(points, hypothesis):
-    return points @ hypothesis.rotation.T + hypothesis.translation
+def test_a_pose_not_yet_known_well_enough_is_not_decided(shapes):
+    """The same touches of a cylinder: decided with the pose tolerance of a few percent,
+    not with one far below what 40 touches can pin; then the loosest point lies on the
+    posed cylinder's surface, where a touch pins the pose most."""
+    from tactile_viz.engine.belief.pose_refinement import surface_uncertainty
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    loose = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, pose_tolerance=1e-6)
+    assert decide(pf, state, 0.99, floor=0.02, same_mode=0.1, pose_tolerance=0.05).decided
+    assert not loose.decided and loose.fits and loose.loosest is not None
+    best = loose.hypotheses[0]
+    position, normal = loose.loosest
+    local = (position - best.translation) @ best.rotation
+    distance, _ = pf.bank.evaluate(np.array([best.class_index]), local[None, None])
+    assert abs(distance[0, 0]) < 0.05
+    np.testing.assert_allclose(np.linalg.norm(normal), 1.0, atol=1e-6)
+    # More touches pin the pose better.
+    c = best.class_index
+    spreads = [surface_uncertainty(pf.bank.evaluate, c, best.rotation, best.translation,
+                                   pf.contact_positions[:n], pf.bank.points[c],
+                                   pf.bank.normals[c], 1e-4).max() for n in (10, 40)]
+    assert spreads[1] < spreads[0]

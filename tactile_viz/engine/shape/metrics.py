@@ -41,12 +41,7 @@ def two_way_hausdorff(a, b):
 
 def surface_samples(model, count=4000, seed=0):
     """Area-uniform surface points of a model, object frame, cached per model and count."""
-    cache = model.__dict__.setdefault("_surface_samples", {})
-    if (count, seed) not in cache:
-        points, _ = trimesh.sample.sample_surface(bare_mesh(model.mesh), count,
-                                                  seed=np.random.default_rng(seed))
-        cache[(count, seed)] = points
-    return cache[(count, seed)]
+    return oriented_samples(model, count, seed)[0]
 
 
 def oriented_samples(model, count=2000, seed=0):
