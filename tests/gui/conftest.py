@@ -13,6 +13,7 @@ import os
 import threading
 import time
 
+import numpy as np
 import pytest
 
 os.environ["QT_QPA_PLATFORM"] = "xcb"
@@ -43,6 +44,28 @@ def _flush_events(app: QCoreApplication) -> None:
         QCoreApplication.sendPostedEvents(None, QEvent.Type.DeferredDelete)
 
 
+def _settled_screenshot(plotter, app, timeout=10.0):
+    """``plotter``'s image once two renders in a row give the same pixels (RGB, uint8).
+
+    A read right after a resize or a data change can return a frame the X server has not
+    finished (CI once read black and green where an opaque white legend stood); the
+    pixels asserted on are the ones the window settles on.
+    """
+    deadline = time.monotonic() + timeout
+    previous = None
+    while True:
+        app.processEvents()
+        plotter.render()
+        image = plotter.screenshot(return_img=True)[..., :3]
+        if previous is not None and previous.shape == image.shape and np.array_equal(
+                previous, image):
+            return image
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the viewport did not settle within {timeout} s")
+        previous = image
+        time.sleep(0.05)
+
+
 def _open_windows() -> list[str]:
     widgets = [w for w in QApplication.topLevelWidgets() if w.isVisible()]
     windows = [w for w in QGuiApplication.topLevelWindows() if w.isVisible()]
@@ -62,6 +85,12 @@ def _running_qthreads(app: QCoreApplication) -> list[QThread]:
         except RuntimeError:  # wrapper whose C++ object is already deleted
             continue
     return found
+
+
+@pytest.fixture(scope="session")
+def settled_screenshot(qapp):
+    """``settled_screenshot(plotter)``: the plotter's pixels once they stop changing."""
+    return lambda plotter: _settled_screenshot(plotter, qapp)
 
 
 @pytest.fixture(autouse=True)

@@ -252,7 +252,7 @@ def _with_every_layer(snapshot):
                    noncontacts=(contact + 2.0)[None], paths=[np.stack([contact + 3.0, contact])])
 
 
-def test_legend_is_readable_at_1280_by_720(qtbot, window):
+def test_legend_is_readable_at_1280_by_720(qtbot, window, settled_screenshot):
     from matplotlib import colormaps
 
     from tactile_viz.gui import layers as layers_module
@@ -279,7 +279,7 @@ def test_legend_is_readable_at_1280_by_720(qtbot, window):
     assert contrast_ratio(outline, LEGEND_BACKGROUND) >= 3  # light markers stay visible
 
     # As drawn: every row of the box has dark text on the light box, and is tall enough.
-    image = window.plotter.screenshot(return_img=True)[..., :3].astype(float) / 255
+    image = settled_screenshot(window.plotter).astype(float) / 255
     height, width = image.shape[:2]
     legend = window.layers.legend
     left, bottom = legend.GetPosition()

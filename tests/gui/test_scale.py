@@ -36,7 +36,7 @@ def _coloured(image):
 
 
 @pytest.fixture(scope="module")
-def pictures(qapp, tmp_path_factory):
+def pictures(qapp, tmp_path_factory, settled_screenshot):
     """Per scale: the viewport after a few steps (legend hidden: its gold marker is not the
     target), the scene's length scale and the truth's longest side."""
     import pyvista as pv
@@ -45,13 +45,13 @@ def pictures(qapp, tmp_path_factory):
     pv.OFF_SCREEN = False  # an on-screen view, as the app's (test_render sets it for all)
     try:
         for key, scale in SCALES.items():
-            out[key] = _picture(qapp, tmp_path_factory.mktemp(key), *scale)
+            out[key] = _picture(qapp, settled_screenshot, tmp_path_factory.mktemp(key), *scale)
     finally:
         pv.OFF_SCREEN = off_screen
     return out
 
 
-def _picture(qapp, folder, factor, units):
+def _picture(qapp, screenshot, folder, factor, units):
     library = PriorLibrary(_model(name, factor) for name in PRIORS)
     scene = Scene(truth_model=_model("mug_1", factor), seed=0, library=library, units=units)
     settings = QSettings(str(folder / "settings.ini"), QSettings.IniFormat)
@@ -64,7 +64,7 @@ def _picture(qapp, folder, factor, units):
     qapp.processEvents()
     window.frame_truth()
     window.layers.legend.SetVisibility(False)
-    image = window.plotter.screenshot(return_img=True)[..., :3]
+    image = screenshot(window.plotter)
     picture = (image, window.layers.scene_length, scene.truth.model.length,
                window.plotter.camera.clipping_range, window.layers.bounds())
     window.close()
