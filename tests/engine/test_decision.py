@@ -87,8 +87,8 @@ def test_a_rival_that_fits_as_well_blocks_the_decision(shapes):
     names = {shapes.names[h.class_index] for h in decision.hypotheses}
     assert {"box", "knobbed"} <= names
     rivals = (decision.hypotheses[0],) + decision.rivals
-    position, normal, _ = disagreement_target(pf.bank, rivals, reach=1.0,
-                                              avoid=[(pf.contact_positions, 0.3)])
+    position, normal, _ = disagreement_target(pf.bank, rivals, decision.scale,
+                                              crowd=[(pf.contact_positions, 0.3)])
     assert position[0] > 1.4 and position[2] > 0.9  # on the knob
     np.testing.assert_allclose(np.linalg.norm(normal), 1.0, atol=1e-6)
 
@@ -196,13 +196,38 @@ def test_telling_touches_are_spread_over_the_parts_that_differ(shapes):
     last = session.latest
     hypotheses = tuple(Hypothesis(shapes.names.index(name), last.map_rotation,
                                   last.map_translation, 0.0, 0.5) for name in ("knobbed", "box"))
-    decision = Decision(False, 0.5, hypotheses, True)
+    decision = Decision(False, 0.5, hypotheses, True, scale=0.01)  # noiseless
     first = session._telling_apart(decision, last.contacts)
     touched = np.vstack([last.contacts, first.position])  # the best spot, touched
     second = session._telling_apart(decision, touched)
     assert second is not None
     nearest = np.linalg.norm(touched - second.position, axis=1).min()
     assert nearest >= TELL_SPACING * session._p.contact_spacing
+
+
+def test_under_noise_the_one_telling_part_is_touched_again(shapes):
+    """Each earlier touch near a place halves its worth: two places that refute the box
+    alike (small noise) take turns, but the knob's top, far better than its foot under
+    large noise, is touched again."""
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    knobbed, box = shapes.names.index("knobbed"), shapes.names.index("box")
+    hypotheses = tuple(Hypothesis(c, np.eye(3), np.zeros(3), 0.0, 0.5) for c in (knobbed, box))
+    points, normals = pf.bank.points[knobbed], pf.bank.normals[knobbed]
+    off_box = np.abs(pf.bank.evaluate(np.array([box]), points[None])[0][0])
+    top, foot = int(np.argmax(off_box)), int(np.argmin(np.abs(off_box - 0.1)))
+    assert off_box[top] > 0.3 and 0.05 < off_box[foot] < 0.15
+    two = lambda c: (points[[top, foot]], normals[[top, foot]])  # noqa: E731
+    crowd = [(points[top][None], 0.01)]  # the top touched once
+
+    def chosen(scale):
+        position, _, owner = disagreement_target(pf.bank, hypotheses, scale, crowd=crowd,
+                                                 candidates=two)
+        return owner, position
+
+    owner, position = chosen(0.02)
+    assert owner == 0 and np.allclose(position, points[foot])
+    owner, position = chosen(0.5)
+    assert owner == 0 and np.allclose(position, points[top])
 
 
 def test_a_miss_through_a_rivals_part_refutes_it(shapes):
@@ -262,21 +287,22 @@ def test_a_fit_is_charged_for_the_pose_parameters_it_uses(tmp_path):
 
 
 def test_dense_candidates_reach_a_small_part_the_feature_points_used_up(shapes):
-    """Once touches sit on the knob's feature points, feature-point candidates leave it;
-    the dense surface samples still offer places on it between those touches."""
+    """Once touches sit on the feature points of the knob (and of the box's top under it),
+    feature-point candidates leave it; the dense surface samples still offer places there
+    between those touches."""
     from tactile_viz.engine.shape.metrics import oriented_samples
 
     pf = _box_or_knobbed(shapes)
     state = pf._record(0)
     decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
     rivals = (decision.hypotheses[0],) + decision.rivals
-    on_knob = lambda p: (p[..., 0] > 1.4) & (p[..., 2] > 0.9)  # noqa: E731
+    on_knob = lambda p: (p[..., 0] > 1.4) & (np.abs(p[..., 1]) < 0.6) & (p[..., 2] > 0.5)  # noqa: E731
     used = np.vstack([transform_points(pf.bank.points[h.class_index][on_knob(
         pf.bank.points[h.class_index])], h.rotation, h.translation) for h in rivals])
     avoid = [(pf.contact_positions, 0.3), (used, 0.12)]
-    sparse = disagreement_target(pf.bank, rivals, reach=1.0, avoid=avoid)
+    sparse = disagreement_target(pf.bank, rivals, decision.scale, avoid=avoid)
     assert sparse is None or not on_knob(sparse[0])
-    dense = disagreement_target(pf.bank, rivals, reach=1.0, avoid=avoid,
+    dense = disagreement_target(pf.bank, rivals, decision.scale, avoid=avoid,
                                 candidates=lambda c: oriented_samples(pf.models[c], 4000))
     assert dense is not None and on_knob(dense[0])
     np.testing.assert_allclose(np.linalg.norm(dense[1]), 1.0, atol=1e-6)
@@ -304,3 +330,34 @@ def test_a_pose_not_yet_known_well_enough_is_not_decided(shapes):
                                    pf.contact_positions[:n], pf.bank.points[c],
                                    pf.bank.normals[c], 1e-4).max() for n in (10, 40)]
     assert spreads[1] < spreads[0]
+
+
+def test_a_turn_about_a_round_axis_leaves_the_surface_in_place():
+    """A cylinder 1% out of round, touched only where its turn about the axis moves the
+    surface least: kept in the pose, that nearly free turn puts points between the touches
+    several noise stds off; left out (the caller adds the shape's roughness) they are
+    pinned within the noise."""
+    from tactile_viz.engine.belief.pose_refinement import surface_uncertainty
+
+    a, b = 1.0, 1.01
+
+    def normals_at(p):
+        g = np.stack([p[:, 0] / a**2, p[:, 1] / b**2, np.zeros(len(p))], axis=1)
+        cap = np.abs(p[:, 2]) >= 2.999
+        g[cap] = np.c_[np.zeros((cap.sum(), 2)), np.sign(p[cap, 2])]
+        return g / np.linalg.norm(g, axis=1, keepdims=True)
+
+    def evaluate(classes, local):
+        return np.zeros(local.shape[:2]), normals_at(local[0])[None]
+
+    near_axes = np.radians(np.r_[[np.linspace(-2, 2, 5) + k for k in (0, 90, 180, 270)]].ravel())
+    side = np.c_[a * np.cos(near_axes), b * np.sin(near_axes), np.linspace(-2, 2, 20)]
+    caps = np.array([[0.3, 0.2, 3.0], [-0.2, 0.3, 3.0], [0.1, -0.3, -3.0], [-0.3, -0.1, -3.0]])
+    ring = np.radians(np.arange(0, 360, 5))
+    points = np.c_[a * np.cos(ring), b * np.sin(ring), np.zeros(len(ring))]
+    noise = 0.01
+    args = (evaluate, 0, np.eye(3), np.zeros(3), np.vstack([side, caps]), points,
+            normals_at(points), noise**2)
+    assert surface_uncertainty(*args).max() > 3 * noise
+    free = surface_uncertainty(*args, free_turns=np.array([[0.0, 0.0, 1.0]]), pivot=np.zeros(3))
+    assert free.max() < noise

@@ -103,6 +103,8 @@ class Decision:
         While the MAP is the one hypothesis but its pose is not yet known well enough: the
         point of its surface (world frame) whose place is least certain, and its outward
         normal; a touch there pins the pose most.
+    scale : float, scene units
+        The fit posterior's noise scale ``s`` (0 when not assessed).
     """
 
     decided: bool
@@ -110,6 +112,7 @@ class Decision:
     hypotheses: tuple = ()
     fits: bool = False
     loosest: object = None
+    scale: float = 0.0
 
     @property
     def rivals(self):
@@ -225,7 +228,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     if fits and level >= confidence:
         loosest = _loosest(pf, hypotheses[0], scale2, confidence, pose_tolerance)
     decided = not belief.novel and fits and level >= confidence and loosest is None
-    return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest)
+    return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
+                    float(np.sqrt(scale2)))
 
 
 def _loosest(pf, hypothesis, scale2, confidence, tolerance):
@@ -235,9 +239,16 @@ def _loosest(pf, hypothesis, scale2, confidence, tolerance):
     if not np.isfinite(tolerance):
         return None
     c = hypothesis.class_index
-    spread = surface_uncertainty(pf.bank.evaluate, c, hypothesis.rotation,
-                                 hypothesis.translation, pf.contact_positions,
-                                 pf.bank.points[c], pf.bank.normals[c], scale2)
+    group = symmetry_group(pf.models[c])
+    axes = np.eye(3) if group.is_sphere else np.reshape(
+        [] if group.axis is None else group.axis, (-1, 3))
+    # A round shape's own turns move its surface by its detail (roughness) at most.
+    spread = np.hypot(group.roughness, surface_uncertainty(
+        pf.bank.evaluate, c, hypothesis.rotation, hypothesis.translation,
+        pf.contact_positions, pf.bank.points[c], pf.bank.normals[c], scale2,
+        free_turns=axes @ hypothesis.rotation.T,
+        pivot=transform_points(group.centre[None], hypothesis.rotation,
+                               hypothesis.translation)[0]))
     worst = int(np.argmax(spread))
     if norm.ppf(0.5 + confidence / 2) * spread[worst] <= tolerance * pf.models[c].length:
         return None
@@ -395,27 +406,41 @@ def pose_disagreements(bank, class_index, rotation, translation, rotations, tran
     return np.maximum(spread[:count], spread[count:])
 
 
-def disagreement_target(bank, hypotheses, reach, avoid=(), candidates=None):
+def disagreement_target(bank, hypotheses, scale, avoid=(), crowd=(), candidates=None):
     """Where a touch tells the hypotheses apart best.
 
-    Every candidate point ``x`` of every hypothesis (posed) is one unless a point to
-    avoid (a contact, a target the sensor could not reach, the path of a missed probe) lies
-    within its radius; its score is ``p_k sum_j p_j min(f_j(x)^2, reach^2)``, with
-    ``f_j`` the signed distance of hypothesis ``j`` (a touch at ``x`` refutes ``j`` by
-    about ``f_j(x)^2 / 2 s^2``) and ``p`` the fit posteriors. For ``j`` of another class
-    than ``k``, ``|f_j|`` is the smaller at ``j``'s pose and at ``k``'s: what their shapes
-    differ in, not what a refit would absorb.
+    Every candidate point ``x`` of every hypothesis ``k`` (posed) is one unless a point to
+    avoid (a target the sensor could not reach, the path of a missed probe) lies within
+    its radius. Its score is the posterior mass a touch there is expected to take from the
+    wrong hypotheses::
+
+        p_k sum_{j != k} p_j (1 - exp(-f_j(x)^2 / (2 s^2)))
+
+    with ``f_j`` the signed distance of hypothesis ``j``, ``p`` the fit posteriors and
+    ``s`` their noise scale: if ``k`` is right the touch lands at ``x`` and scales ``p_j``
+    by ``exp(-f_j(x)^2 / 2 s^2)``. Bounded, unlike ``f_j^2``: a point far off a rival
+    refutes it no better than one a few ``s`` off, and a likely hypothesis's surface (a
+    contact expected) beats an unlikely one's (a miss expected, and a miss through a thin
+    blade refutes little). For ``j`` of another class than ``k``, ``|f_j|`` is the smaller
+    at ``j``'s pose and at ``k``'s: what their shapes differ in, not what a refit would
+    absorb.
 
     Parameters
     ----------
     bank : PriorBank
     hypotheses : sequence of Hypothesis
         At least two.
-    reach : float, scene units
-        Disagreements beyond it count as it.
+    scale : float, scene units
+        The fit posterior's noise scale ``s`` (:attr:`Decision.scale`).
     avoid : sequence of ((m, 3) float, float)
         Points (world frame) where touching again would teach nothing, each set with its
         radius (scene units).
+    crowd : sequence of ((m, 3) float, float)
+        Points (world frame) touched or aimed at before, each set with its radius: every
+        one within its radius halves a candidate's score. Under noise a second touch of
+        the one part two shapes differ in (a screwdriver's tip) teaches as much as the
+        first; without noise the first refutes the rival, or a refit absorbed it and
+        ``f_j`` there is small.
     candidates : callable, optional
         ``candidates(class_index) -> (points (m, 3), normals (m, 3))``, object frame: the
         surface points a class offers as targets (default its feature points). The part
@@ -451,11 +476,16 @@ def disagreement_target(bank, hypotheses, reach, avoid=(), candidates=None):
                                @ hypotheses[k].rotation for k in others])
             at_theirs, _ = bank.evaluate(np.array([h.class_index]), local[None])
             distance[mine] = np.minimum(distance[mine], np.abs(at_theirs[0]))
-        spread += weights[j] * np.minimum(np.square(distance), reach**2) * (owner != j)
+        refuted = -np.expm1(-np.square(distance) / (2 * max(scale, 1e-300) ** 2))
+        spread += weights[j] * refuted * (owner != j)
     score = weights[owner] * spread
     for places, radius in avoid:
         if len(places):
             score[cKDTree(places).query(points)[0] < radius] = 0.0
+    for places, radius in crowd:
+        if len(places):
+            near = cKDTree(places).query_ball_point(points, radius, return_length=True)
+            score *= 0.5 ** np.asarray(near, dtype=float)
     best = int(np.argmax(score))
     if score[best] <= 0:
         return None

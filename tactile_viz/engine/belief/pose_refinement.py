@@ -96,7 +96,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
 
 
 def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,
-                        normals, scale2):
+                        normals, scale2, free_turns=(), pivot=None):
     """How far a refined pose may still be off: the standard deviation of each surface
     point's displacement along its normal (scene units).
 
@@ -117,6 +117,14 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
         Surface points of the class and their outward unit normals.
     scale2 : float, squared scene units
         The residuals' variance ``s^2``.
+    free_turns : (k, 3) float, world frame
+        Unit axes through ``pivot`` of turns that move no surface (a round shape's axis,
+        or three for a sphere): left out of the pose, as nothing but the shape's detail
+        pins them and they move the surface by no more than that detail. Kept in, the
+        near-null direction's vast variance times the detail's small reach put a
+        hexagonal pencil's surface metres off.
+    pivot : (3,) float, world frame
+        The point the free turns' axes pass through.
 
     Returns
     -------
@@ -129,7 +137,13 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
     contact_normals = gradients[0] @ rotation.T
     jacobian = np.concatenate([np.cross(contacts - centre, contact_normals), contact_normals],
                               axis=1)
-    covariance = scale2 * np.linalg.pinv(jacobian.T @ jacobian, rcond=1e-9, hermitian=True)
+    # A turn w about an axis through the pivot p is (w, w x (c - p)) in these parameters.
+    free = np.reshape(free_turns, (-1, 3))
+    free = np.concatenate([free, np.cross(free, centre - np.asarray(
+        centre if pivot is None else pivot, dtype=float))], axis=1)
+    keep = np.eye(6) - free.T @ np.linalg.pinv(free.T) if len(free) else np.eye(6)
+    information = keep @ (jacobian.T @ jacobian) @ keep
+    covariance = scale2 * np.linalg.pinv(information, rcond=1e-9, hermitian=True)
     world = points @ rotation.T + translation
     world_normals = normals @ rotation.T
     rows = np.concatenate([np.cross(world - centre, world_normals), world_normals], axis=1)

@@ -263,16 +263,19 @@ class Planner:
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
         hypotheses = (decision.hypotheses[0],) + decision.rivals
-        # Touches are spread over the parts that differ (half the contact spacing apart):
-        # touched again and again at one spot, a rival shifts a little and absorbs it.
+        # Touches are spread over the parts that differ (each earlier one within half the
+        # contact spacing halves a place's worth), but may come back to the one part that
+        # tells the hypotheses apart while noise leaves them plausible.
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
         spread = max(2 * self.sensor_noise[0], self._p.decision_floor,
                      TELL_SPACING * self._p.contact_spacing)
+        told = np.reshape(self.state.told, (-1, 3))
+        if len(told) and len(contacts):  # a touch that landed counts once, as its contact
+            told = told[cKDTree(contacts).query(told)[0] > spread]
         found = disagreement_target(
-            self.filter.bank, hypotheses, self._p.probe_depth,
-            avoid=((contacts, spread), (np.reshape(self.state.told, (-1, 3)), spread),
-                   (refuted, self._p.contact_spacing)),
-            candidates=self._telling_candidates)
+            self.filter.bank, hypotheses, decision.scale,
+            avoid=((refuted, self._p.contact_spacing),),
+            crowd=((contacts, spread), (told, spread)), candidates=self._telling_candidates)
         if found is None:
             return None
         position, normal, owner = found
