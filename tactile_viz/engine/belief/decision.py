@@ -32,8 +32,8 @@ quadrature (``floor``) with the MAP grid's own error at its surface (``e``,
     log p_k = -(RSS_k - RSS_best) / (2 s^2)        (normalised over the hypotheses)
 
 While hypotheses other than the MAP stay plausible, :func:`disagreement_target` picks the
-point that tells them apart best: a point on one hypothesis's surface where the others'
-surfaces lie farthest, weighted by both posteriors.
+point that tells them apart best: the point of one hypothesis's surface where a touch is
+expected to take the most posterior mass from the others.
 """
 
 from dataclasses import dataclass
