@@ -60,6 +60,9 @@ class Viewport(QtInteractor):
     resized = Signal()
 
     def __init__(self, *args, **kwargs):
+        # A view inside a window is drawn on screen whatever pyvista.OFF_SCREEN says: off
+        # screen, its screenshots read whatever memory the window's buffer held.
+        kwargs.setdefault("off_screen", False)
         super().__init__(*args, **kwargs)
         self.set_background("white")
         if getattr(self, "iren", None) is not None:

@@ -39,16 +39,8 @@ def _coloured(image):
 def pictures(qapp, tmp_path_factory, settled_screenshot):
     """Per scale: the viewport after a few steps (legend hidden: its gold marker is not the
     target), the scene's length scale and the truth's longest side."""
-    import pyvista as pv
-
-    out, off_screen = {}, pv.OFF_SCREEN
-    pv.OFF_SCREEN = False  # an on-screen view, as the app's (test_render sets it for all)
-    try:
-        for key, scale in SCALES.items():
-            out[key] = _picture(qapp, settled_screenshot, tmp_path_factory.mktemp(key), *scale)
-    finally:
-        pv.OFF_SCREEN = off_screen
-    return out
+    return {key: _picture(qapp, settled_screenshot, tmp_path_factory.mktemp(key), *scale)
+            for key, scale in SCALES.items()}
 
 
 def _picture(qapp, screenshot, folder, factor, units):
