@@ -296,7 +296,9 @@ def test_dense_candidates_reach_a_small_part_the_feature_points_used_up(shapes):
     state = pf._record(0)
     decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
     rivals = (decision.hypotheses[0],) + decision.rivals
-    on_knob = lambda p: (p[..., 0] > 1.4) & (np.abs(p[..., 1]) < 0.6) & (p[..., 2] > 0.5)  # noqa: E731
+    def on_knob(p):  # the knob, or the box's top under it
+        return (p[..., 0] > 1.4) & (np.abs(p[..., 1]) < 0.6) & (p[..., 2] > 0.5)
+
     used = np.vstack([transform_points(pf.bank.points[h.class_index][on_knob(
         pf.bank.points[h.class_index])], h.rotation, h.translation) for h in rivals])
     avoid = [(pf.contact_positions, 0.3), (used, 0.12)]
@@ -361,3 +363,4 @@ def test_a_turn_about_a_round_axis_leaves_the_surface_in_place():
     assert surface_uncertainty(*args).max() > 3 * noise
     free = surface_uncertainty(*args, free_turns=np.array([[0.0, 0.0, 1.0]]), pivot=np.zeros(3))
     assert free.max() < noise
+
