@@ -87,6 +87,18 @@ def _running_qthreads(app: QCoreApplication) -> list[QThread]:
     return found
 
 
+@pytest.fixture(scope="module")
+def off_screen():
+    """``pyvista.OFF_SCREEN`` for one module's plotters, restored after it: set at import,
+    it held for the whole session and put the main window's view off screen too, whose
+    screenshots then read garbage."""
+    import pyvista as pv
+
+    before, pv.OFF_SCREEN = pv.OFF_SCREEN, True
+    yield
+    pv.OFF_SCREEN = before
+
+
 @pytest.fixture(scope="session")
 def settled_screenshot(qapp):
     """``settled_screenshot(plotter)``: the plotter's pixels once they stop changing."""

@@ -10,13 +10,7 @@ from tactile_viz.engine.session import Session, make_truth  # noqa: E402
 from tactile_viz.gui.layers import ViewportLayers  # noqa: E402
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _off_screen():
-    """Off-screen plotters here only: set for the whole session at import, it made the
-    main window's view off screen too, and its screenshots read garbage."""
-    before, pv.OFF_SCREEN = pv.OFF_SCREEN, True
-    yield
-    pv.OFF_SCREEN = before
+pytestmark = pytest.mark.usefixtures("off_screen")
 
 
 @pytest.fixture(scope="module")
