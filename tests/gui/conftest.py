@@ -21,8 +21,8 @@ os.environ["QT_QPA_PLATFORM"] = "xcb"
 try:
     import pyvistaqt  # noqa: F401
     from PySide6.QtCore import QCoreApplication, QEvent, QThread, QThreadPool
-    from PySide6.QtGui import QGuiApplication
-    from PySide6.QtWidgets import QApplication
+    from PySide6.QtGui import QGuiApplication, QWindow
+    from PySide6.QtWidgets import QApplication, QWidget
 except ImportError as exc:  # the gui extra is not installed: skip this folder
     pytest.skip(
         f"GUI tests need the gui extra (pip install -e '.[gui]'): {exc}",
@@ -66,9 +66,20 @@ def _settled_screenshot(plotter, app, timeout=10.0):
         time.sleep(0.05)
 
 
+def _top_level_widgets() -> list[QWidget]:
+    """Top-level widgets, less stale wrappers.
+
+    PySide can hand back the wrapper of a freed C++ object for a new one at the same
+    address: pyvistaqt's fallback ``QOffscreenSurface`` came back as a top-level widget on
+    CI, and ``isVisible`` then raised in every later test.
+    """
+    return [w for w in QApplication.topLevelWidgets() if isinstance(w, QWidget)]
+
+
 def _open_windows() -> list[str]:
-    widgets = [w for w in QApplication.topLevelWidgets() if w.isVisible()]
-    windows = [w for w in QGuiApplication.topLevelWindows() if w.isVisible()]
+    widgets = [w for w in _top_level_widgets() if w.isVisible()]
+    windows = [w for w in QGuiApplication.topLevelWindows()
+               if isinstance(w, QWindow) and w.isVisible()]
     names = [f"{type(w).__name__}({w.windowTitle()!r})" for w in widgets]
     names += [f"QWindow {type(w).__name__}({w.title()!r})" for w in windows]
     return names
@@ -135,7 +146,7 @@ def no_leaked_windows_or_threads(qapp):
 
     windows = _open_windows()
     # Clean up so one leaking test does not make the following ones fail too.
-    for w in QApplication.topLevelWidgets():
+    for w in _top_level_widgets():
         if w.isVisible():
             w.close()
     _flush_events(qapp)
