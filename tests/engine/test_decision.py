@@ -230,6 +230,45 @@ def test_under_noise_the_one_telling_part_is_touched_again(shapes):
     assert owner == 0 and np.allclose(position, points[top])
 
 
+def _worth_everywhere(bank, hypotheses, scale, crowd):
+    """Every candidate's worth, straight from the formula of :func:`disagreement_target`."""
+    rows = []
+    for k, h in enumerate(hypotheses):
+        for point in transform_points(bank.points[h.class_index], h.rotation, h.translation):
+            refuted = 0.0
+            for j, other in enumerate(hypotheses):
+                if j == k:
+                    continue
+                poses = [other] if other.class_index == h.class_index else [other, h]
+                distance = min(abs(bank.evaluate(np.array([other.class_index]), (
+                    (point - pose.translation) @ pose.rotation)[None, None])[0][0, 0])
+                    for pose in poses)
+                refuted += other.probability * -np.expm1(-distance**2 / (2 * scale**2))
+            near = sum(int(np.sum(np.linalg.norm(places - point, axis=1) <= radius))
+                       for places, radius in crowd)
+            rows.append((h.probability * refuted * 0.5**near, point))
+    return rows
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_telling_target_is_the_worthiest_candidate(shapes, seed):
+    """Candidates that cannot win are dropped early; the one chosen is still the one of
+    greatest worth, over classes and poses of one class alike."""
+    rng = np.random.default_rng(seed)
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    classes = rng.integers(0, 3, size=5)
+    weights = rng.dirichlet(np.ones(5) * 0.7)
+    hypotheses = tuple(Hypothesis(int(c), Rotation.random(random_state=rng).as_matrix(),
+                                  rng.normal(0, 0.3, 3), 0.0, float(w))
+                       for c, w in zip(classes, weights))
+    crowd = [(rng.normal(0, 2.0, (6, 3)), 0.8)]
+    position, _, owner = disagreement_target(pf.bank, hypotheses, 0.2, crowd=crowd)
+    rows = _worth_everywhere(pf.bank, hypotheses, 0.2, crowd)
+    best = max(worth for worth, _ in rows)
+    chosen = [worth for worth, point in rows if np.allclose(point, position)]
+    assert chosen and chosen[0] == pytest.approx(best, rel=1e-9)
+
+
 def test_a_miss_through_a_rivals_part_refutes_it(shapes):
     """Touches that miss the knob fit the box and the knobbed box alike; a probe that
     passed through where the knob would be, and ended beyond it, refutes the knobbed box

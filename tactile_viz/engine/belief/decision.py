@@ -462,31 +462,56 @@ def disagreement_target(bank, hypotheses, scale, avoid=(), crowd=(), candidates=
         owner.append(np.full(len(points[-1]), k))
     points, normals, owner = np.vstack(points), np.vstack(normals), np.concatenate(owner)
     weights = np.array([h.probability for h in hypotheses])
-    spread = np.zeros(len(points))
-    for j, h in enumerate(hypotheses):
-        distance = np.abs(_posed_distance(bank, h.class_index, h.rotation, h.translation,
-                                          points))
-        # Twins in a shared frame differ in shape, not in where each fits best: a rival
-        # tilted to absorb the contacts disagrees far along a shared handle, but a touch
-        # there is absorbed again by the next fit.
-        others = np.flatnonzero([o.class_index != h.class_index for o in hypotheses])
-        if len(others):
-            mine = np.isin(owner, others)
-            local = np.vstack([(points[owner == k] - hypotheses[k].translation)
-                               @ hypotheses[k].rotation for k in others])
-            at_theirs, _ = bank.evaluate(np.array([h.class_index]), local[None])
-            distance[mine] = np.minimum(distance[mine], np.abs(at_theirs[0]))
-        refuted = -np.expm1(-np.square(distance) / (2 * max(scale, 1e-300) ** 2))
-        spread += weights[j] * refuted * (owner != j)
-    score = weights[owner] * spread
+    excluded = np.zeros(len(points), dtype=bool)
     for places, radius in avoid:
         if len(places):
-            score[cKDTree(places).query(points)[0] < radius] = 0.0
+            excluded |= cKDTree(places).query(points)[0] < radius
+    halvings = np.zeros(len(points))
     for places, radius in crowd:
         if len(places):
-            near = cKDTree(places).query_ball_point(points, radius, return_length=True)
-            score *= 0.5 ** np.asarray(near, dtype=float)
+            halvings += cKDTree(places).query_ball_point(points, radius, return_length=True)
+    spread = np.zeros(len(points))
+    live = np.flatnonzero(~excluded)  # the candidates that may still score best
+    # Weight of the hypotheses after each one: what a candidate's spread can still gain.
+    after = np.r_[np.cumsum(weights[::-1])[::-1][1:], 0.0]
+    for j, h in enumerate(hypotheses):
+        spread[live] += weights[j] * _refuted(bank, hypotheses, j, points, owner, live, scale)
+        live = _still_possible(live, spread, weights, owner, halvings, after[j], j)
+    score = weights[owner] * spread
+    score[excluded] = 0.0
+    score *= 0.5 ** halvings
     best = int(np.argmax(score))
     if score[best] <= 0:
         return None
     return points[best], normals[best], int(owner[best])
+
+
+def _refuted(bank, hypotheses, j, points, owner, live, scale):
+    """``1 - exp(-f_j^2 / 2 s^2)`` at the candidates ``live`` (0 on ``j``'s own)."""
+    h = hypotheses[j]
+    chosen, whose = points[live], owner[live]
+    distance = np.abs(_posed_distance(bank, h.class_index, h.rotation, h.translation, chosen))
+    # Twins in a shared frame differ in shape, not in where each fits best: a rival
+    # tilted to absorb the contacts disagrees far along a shared handle, but a touch
+    # there is absorbed again by the next fit.
+    for k, other in enumerate(hypotheses):
+        mine = whose == k
+        if other.class_index != h.class_index and mine.any():
+            at_theirs = _posed_distance(bank, h.class_index, other.rotation,
+                                        other.translation, chosen[mine])
+            distance[mine] = np.minimum(distance[mine], np.abs(at_theirs))
+    refuted = -np.expm1(-np.square(distance) / (2 * max(scale, 1e-300) ** 2))
+    return refuted * (whose != j)
+
+
+def _still_possible(live, spread, weights, owner, halvings, rest, j):
+    """The candidates of ``live`` whose score, with every hypothesis after ``j`` still to
+    refute, can reach the best one's so far: each adds at most its weight. The others
+    are dropped, so the distances of the hypotheses left are looked up only where they
+    can change the choice; the choice is the same."""
+    whose = owner[live]
+    factor = weights[whose] * 0.5 ** halvings[live]
+    sure = factor * spread[live]  # the score so far: it only grows
+    gain = rest - np.where(whose > j, weights[whose], 0.0)  # hypothesis k does not refute k
+    bound = factor * (spread[live] + np.maximum(gain, 0.0)) * (1.0 + 1e-9)
+    return live[bound >= sure.max(initial=0.0)]
