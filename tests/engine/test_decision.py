@@ -402,4 +402,3 @@ def test_a_turn_about_a_round_axis_leaves_the_surface_in_place():
     assert surface_uncertainty(*args).max() > 3 * noise
     free = surface_uncertainty(*args, free_turns=np.array([[0.0, 0.0, 1.0]]), pivot=np.zeros(3))
     assert free.max() < noise
-

@@ -474,9 +474,10 @@ def disagreement_target(bank, hypotheses, scale, avoid=(), crowd=(), candidates=
     live = np.flatnonzero(~excluded)  # the candidates that may still score best
     # Weight of the hypotheses after each one: what a candidate's spread can still gain.
     after = np.r_[np.cumsum(weights[::-1])[::-1][1:], 0.0]
+    factor = weights[owner] * 0.5 ** halvings  # a candidate's score per unit of spread
     for j, h in enumerate(hypotheses):
         spread[live] += weights[j] * _refuted(bank, hypotheses, j, points, owner, live, scale)
-        live = _still_possible(live, spread, weights, owner, halvings, after[j], j)
+        live = _still_possible(live, spread, factor, weights, owner, after[j], j)
     score = weights[owner] * spread
     score[excluded] = 0.0
     score *= 0.5 ** halvings
@@ -504,14 +505,13 @@ def _refuted(bank, hypotheses, j, points, owner, live, scale):
     return refuted * (whose != j)
 
 
-def _still_possible(live, spread, weights, owner, halvings, rest, j):
+def _still_possible(live, spread, factor, weights, owner, rest, j):
     """The candidates of ``live`` whose score, with every hypothesis after ``j`` still to
     refute, can reach the best one's so far: each adds at most its weight. The others
     are dropped, so the distances of the hypotheses left are looked up only where they
     can change the choice; the choice is the same."""
     whose = owner[live]
-    factor = weights[whose] * 0.5 ** halvings[live]
-    sure = factor * spread[live]  # the score so far: it only grows
+    sure = factor[live] * spread[live]  # the score so far: it only grows
     gain = rest - np.where(whose > j, weights[whose], 0.0)  # hypothesis k does not refute k
-    bound = factor * (spread[live] + np.maximum(gain, 0.0)) * (1.0 + 1e-9)
+    bound = factor[live] * (spread[live] + np.maximum(gain, 0.0)) * (1.0 + 1e-9)
     return live[bound >= sure.max(initial=0.0)]
