@@ -172,6 +172,12 @@ class FilterParams:
     sdf_resolution: int = _filter(
         64, "Voxels along the longest side of each prior's SDF grid.", kind="int",
         valid="[8, inf)")
+    sdf_max_resolution: int = _filter(
+        256, "Up to how many voxels a prior's SDF grid is refined for thin parts (at most "
+        "sdf_resolution: never).", kind="int", valid="[0, inf)",
+        notes="Doubled from sdf_resolution while over 1% of the surface sees the grid's "
+              "normal more than 60 degrees off (parts thinner than about two voxels: a "
+              "fork's tines), up to about 10 MB a grid.")
 
     def __post_init__(self):
         check_fields(self)

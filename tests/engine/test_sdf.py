@@ -77,3 +77,45 @@ def test_bundled_grid_sdf_accuracy(bundled):
         far = np.abs(exact) > model.sdf.spacing
         assert np.all(np.sign(values[far]) == np.sign(exact[far])), f"{name}: wrong sign"
         np.testing.assert_allclose(np.linalg.norm(gradients, axis=1), 1.0, atol=1e-9)
+
+
+def _fork(cache):
+    """Four 0.08-unit tines, apart from the handle, on a 6-unit fork: thinner than two
+    voxels at 24 over the padded 8 units."""
+    import trimesh
+
+    from tactile_viz.engine.shape.objects import ModelParams, ObjectModel
+
+    parts = [trimesh.creation.box((1.6, 0.3, 3.0))]
+    parts += [trimesh.creation.box((0.12, 0.08, 3.0), trimesh.transformations.translation_matrix(
+        (x, 0.0, 3.1))) for x in (-0.6, -0.2, 0.2, 0.6)]
+    mesh = trimesh.util.concatenate(parts)
+    params = ModelParams(sdf_resolution=24, sdf_max_resolution=24, n_features=50)
+    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "fork", params=params, cache=cache)
+
+
+def test_a_grid_is_refined_until_it_resolves_thin_parts(tmp_path):
+    import trimesh
+
+    from tactile_viz.engine.io.cache import ArrayCache
+    from tactile_viz.engine.shape.objects import SURFACE_CHECKS
+    from tactile_viz.engine.shape.sdf import MAX_REFINED_NODES, THIN_MISSES, missed_share
+
+    coarse = _fork(ArrayCache(tmp_path))
+    assert coarse.grid_resolution == 24
+    samples, _ = trimesh.sample.sample_surface(coarse.mesh, SURFACE_CHECKS, seed=1)
+    _, closest, face = coarse.exact.query(samples)
+    normals = coarse.mesh.face_normals[face]
+    folded = missed_share(coarse.sdf, closest, normals)
+    assert folded > THIN_MISSES  # the tines fold
+    fine = coarse.with_params(sdf_max_resolution=256)
+    assert fine.grid_resolution > 24 and fine.sdf.codes.size <= MAX_REFINED_NODES
+    assert missed_share(fine.sdf, closest, normals) <= THIN_MISSES
+    # The choice is cached: a new model of the same mesh reads it without a fit.
+    again = type(fine)(fine.name, fine.mesh, fine.params, fine.cache)
+    assert again.grid_resolution == fine.grid_resolution and "exact" not in again.__dict__
+
+
+def test_a_compact_shape_keeps_its_grid(sphere_model):
+    refining = sphere_model.with_params(sdf_max_resolution=256)
+    assert refining.grid_resolution == sphere_model.params.sdf_resolution

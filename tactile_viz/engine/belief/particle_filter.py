@@ -58,11 +58,12 @@ class ParticleFilter:
         self.params = params or FilterParams()
         if len(library) == 0:
             raise ParameterError("the prior library is empty")
-        self.models = [model.with_params(sdf_resolution=self.params.sdf_resolution,
-                                         n_features=self.params.n_features)
-                       if (model.params.sdf_resolution, model.params.n_features)
-                       != (self.params.sdf_resolution, self.params.n_features) else model
-                       for model in library]
+        wanted = {"sdf_resolution": self.params.sdf_resolution,
+                  "sdf_max_resolution": self.params.sdf_max_resolution,
+                  "n_features": self.params.n_features}
+        self.models = [model.with_params(**wanted)
+                       if any(getattr(model.params, key) != value for key, value in wanted.items())
+                       else model for model in library]
         self.class_names = [model.name for model in self.models]
         self.rng = np.random.default_rng(rng)
         self.contact_positions = np.zeros((0, 3))

@@ -66,7 +66,7 @@ class PriorBank:
         self._models = models  # keeps the ids above theirs
         self.names = [model.name for model in models]
         self.learned = np.array([model.learned for model in models], dtype=bool)
-        layouts = [grid_layout(model.mesh.bounds, model.params.sdf_resolution,
+        layouts = [grid_layout(model.mesh.bounds, _resolution(model),
                                model.params.sdf_padding * model.size_unit) for model in models]
         self.shapes = np.array([counts for _, _, counts in layouts], dtype=np.int64)
         sizes = self.shapes.prod(axis=1)
@@ -189,3 +189,9 @@ def bank_for(models, distance_step, angle_step_deg, progress=None) -> PriorBank:
         _RECENT.clear()  # before building: two banks of a large library need not coexist
         _RECENT[key] = PriorBank(models, distance_step, angle_step_deg, progress)
     return _RECENT[key]
+
+
+def _resolution(model):
+    """The model's grid resolution, without keeping the exact distance a fit may need."""
+    with model.transient_exact():
+        return model.grid_resolution

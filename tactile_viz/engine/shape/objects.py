@@ -24,9 +24,10 @@ from ..belief.features import poisson_disk_points
 from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
 from ..params import PAPER_SIZE
 from ..belief.ppf import PairTable
-from .sdf import ExactDistance, SDFGrid, build_sdf_grid
+from .sdf import THIN_MISSES, ExactDistance, SDFGrid, build_sdf_grid, fitted_resolution
 
 ASSETS_ENV_VAR = "TACTILE_VIZ_ASSETS"
+SURFACE_CHECKS = 2000  # surface samples on which a grid is checked for thin parts
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,10 @@ class ModelParams:
     ----------
     sdf_resolution : int
         Voxels along the longest side of the padded SDF grid.
+    sdf_max_resolution : int
+        Up to how many voxels the grid is refined (doubling) while it misses thin parts
+        (:func:`~tactile_viz.engine.shape.sdf.fitted_resolution`); at most
+        ``sdf_resolution``: never.
     sdf_padding : float, size units
         Margin of the SDF grid around the bounding box (a size unit is a sixth of the
         object's longest side).
@@ -47,6 +52,7 @@ class ModelParams:
     """
 
     sdf_resolution: int = 64
+    sdf_max_resolution: int = 256
     sdf_padding: float = 1.0
     n_features: int = 200
     feature_seed: int = 0
@@ -199,11 +205,35 @@ class ObjectModel:
         prior bank copies it into its shared array."""
         if "sdf" in self.__dict__:
             return self.__dict__["sdf"]
-        params = self._sdf_params()
+        return self._grid_at(self.grid_resolution)
+
+    def _grid_at(self, resolution):
+        params = {"resolution": int(resolution), "padding": self._padding}
         arrays = self.cache.get_or_build(
             "sdf5", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
         return SDFGrid.from_arrays(arrays)
+
+    @cached_property
+    def grid_resolution(self) -> int:
+        """Voxels along the longest side of the padded grid: ``sdf_resolution``, doubled
+        while the grid misses the shape's thin parts (up to ``sdf_max_resolution``; cached
+        on disk)."""
+        if self.params.sdf_max_resolution <= self.params.sdf_resolution:
+            return self.params.sdf_resolution
+
+        def fit():
+            points, _ = trimesh.sample.sample_surface(bare_mesh(self.mesh), SURFACE_CHECKS,
+                                                          seed=0)
+            _, closest, face = self.exact.query(points)
+            # Face normals: a CAD box's vertex normals are its corners' averages.
+            return {"resolution": np.array(fitted_resolution(
+                self._grid_at, self.mesh.bounds, self._padding, closest,
+                self.mesh.face_normals[face], self.params.sdf_resolution,
+                self.params.sdf_max_resolution))}
+
+        return int(self.cache.get_or_build("sdfres", self.content_hash,
+                                           self._resolution_params(), fit)["resolution"])
 
     @cached_property
     def features(self):
@@ -240,9 +270,24 @@ class ObjectModel:
             tables[key] = table
         return table
 
+    @property
+    def _padding(self):
+        return self.params.sdf_padding * self.size_unit
+
     def _sdf_params(self):
-        return {"resolution": self.params.sdf_resolution,
-                "padding": self.params.sdf_padding * self.size_unit}
+        return {"resolution": self.grid_resolution, "padding": self._padding}
+
+    def _resolution_params(self):
+        return {"resolution": self.params.sdf_resolution, "padding": self._padding,
+                "max_resolution": self.params.sdf_max_resolution,
+                "misses": THIN_MISSES, "checks": SURFACE_CHECKS}
+
+    def _grid_stored(self):
+        refines = self.params.sdf_max_resolution > self.params.sdf_resolution
+        if refines and "grid_resolution" not in self.__dict__ and not self.cache.has(
+                "sdfres", self.content_hash, self._resolution_params()):
+            return False
+        return self.cache.has("sdf5", self.content_hash, self._sdf_params())
 
     def _features_params(self):
         return {"count": self.params.n_features, "seed": self.params.feature_seed}
@@ -256,7 +301,7 @@ class ObjectModel:
         disk cache (so that building the bank builds nothing)."""
         tables = self.__dict__.get("_pair_tables", {})
         has = lambda kind, params: self.cache.has(kind, self.content_hash, params)  # noqa: E731
-        return (("sdf" in self.__dict__ or has("sdf5", self._sdf_params()))
+        return (("sdf" in self.__dict__ or self._grid_stored())
                 and ("features" in self.__dict__ or has("features", self._features_params()))
                 and ((float(distance_step), float(angle_step_deg)) in tables
                      or has("pairs2", self._pairs_params(distance_step, angle_step_deg))))
