@@ -7,7 +7,8 @@
 One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
 40 cm, :data:`~.sizes.SIZES_M`) and the objects of :mod:`.hard_objects`, made to be hard:
 two screwdrivers that differ only at the tip, a smooth and a bumpy ball of one size, the
-mug and a copy 4% larger, a knife and a pencil, a block and a plank (symmetric). Each
+mug and a copy 4% larger, a cup and a nested copy 6% smaller (2 mm walls), a knife, a
+pencil, a fork and a spatula, a block and a plank (symmetric). Each
 known object is placed at a random pose per seed and explored until the session stops (at
 the decision with the ``recognise`` preset); the bundled novel objects (at their sizes,
 not in the library) are explored for ``--novel-steps`` steps and must not be decided.

@@ -1,6 +1,7 @@
 """Objects made to be hard to tell apart, for ``bench decide``: pairs that differ in one small
 part, same-size balls that differ in surface detail, a copy a few percent larger, thin long
-objects, a thin-walled cup and two symmetric blocks, 2 cm to 33 cm.
+objects (a knife, a pencil, a fork, a spatula), a thin-walled cup and its nested copy, and
+two symmetric blocks, 2 cm to 33 cm.
 
 Each is a distance function of :mod:`tactile_viz.assetgen.sdf`, meshed like the bundled
 objects (:func:`~tactile_viz.assetgen.build.build_mesh`, longest side 6) and then scaled to
@@ -64,6 +65,20 @@ def _cup(p):
     return s.subtract(outer, inner)
 
 
+def _fork(p):
+    handle = s.round_box(p, (0, 0, 1.6), (0.18, 0.05, 1.6), 0.03)
+    palm = s.round_box(p, (0, 0, 3.45), (0.34, 0.035, 0.3), 0.02)
+    tines = [s.round_box(p, (x, 0, 4.8), (0.055, 0.035, 1.1), 0.02)
+             for x in (-0.27, -0.09, 0.09, 0.27)]
+    return s.union(handle, palm, *tines)
+
+
+def _spatula(p):
+    handle = s.round_box(p, (0, 0, 1.5), (0.2, 0.12, 1.5), 0.05)
+    blade = s.round_box(p, (0, 0, 4.5), (0.8, 0.03, 1.5), 0.02)
+    return s.union(handle, blade)
+
+
 def _block(p):
     return s.round_box(p, (0, 0, 1.5), (1.5, 1.5, 1.5), 0.08)
 
@@ -81,21 +96,25 @@ HARD_SPECS = (
     ObjectSpec("knife", "known", None, _knife, WIDE),
     ObjectSpec("pencil", "known", None, _pencil, WIDE),
     ObjectSpec("cup", "known", None, _cup, WIDE),
+    ObjectSpec("fork", "known", None, _fork, WIDE),
+    ObjectSpec("spatula", "known", None, _spatula, WIDE),
     ObjectSpec("block", "known", None, _block, WIDE),
     ObjectSpec("plank", "known", None, _plank, WIDE),
 )
 
 # Longest sides in metres, 2 cm (a die-sized block) to 33 cm. mug_1_large is the bundled mug_1 4% larger than its 10 cm copy
-# in the known set (a scaled twin).
+# in the known set (a scaled twin); cup_nested the cup 6% smaller, as nested cups are. The
+# fork's tines (2.3 mm) are thinner than two voxels of a 64-voxel grid.
 HARD_SIZES_M = {
     "screwdriver_flat": 0.20, "screwdriver_cross": 0.20, "ball_smooth": 0.10,
     "ball_bumpy": 0.10, "knife": 0.25, "pencil": 0.18, "cup": 0.08, "block": 0.02,
-    "plank": 0.33, "mug_1_large": 0.104,
+    "plank": 0.33, "mug_1_large": 0.104, "fork": 0.20, "spatula": 0.30, "cup_nested": 0.075,
 }
 # Which pairs are twins (for the table): each name's hard counterpart, if any.
 COUNTERPARTS = {"screwdriver_flat": "screwdriver_cross", "screwdriver_cross": "screwdriver_flat",
                 "ball_smooth": "ball_bumpy", "ball_bumpy": "ball_smooth",
-                "mug_1_large": "mug_1", "mug_1": "mug_1_large"}
+                "mug_1_large": "mug_1", "mug_1": "mug_1_large",
+                "cup": "cup_nested", "cup_nested": "cup"}
 
 
 def hard_meshes(folder):
@@ -104,7 +123,10 @@ def hard_meshes(folder):
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = {}
-    for spec in HARD_SPECS + (replace(by_name("mug_1"), name="mug_1_large"),):
+    copies = (replace(by_name("mug_1"), name="mug_1_large"),
+              replace(HARD_SPECS[[spec.name for spec in HARD_SPECS].index("cup")],
+                      name="cup_nested"))
+    for spec in HARD_SPECS + copies:
         path = folder / f"{spec.name}.ply"
         if not path.exists():
             mesh = build_mesh(spec)
