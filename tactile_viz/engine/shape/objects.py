@@ -223,13 +223,14 @@ class ObjectModel:
             return self.params.sdf_resolution
 
         def fit():
-            points, _ = trimesh.sample.sample_surface(bare_mesh(self.mesh), SURFACE_CHECKS,
-                                                          seed=0)
+            # On a bare copy, whose triangles and normals do not stay on the mesh.
+            surface = bare_mesh(self.mesh)
+            points, _ = trimesh.sample.sample_surface(surface, SURFACE_CHECKS, seed=0)
             _, closest, face = self.exact.query(points)
             # Face normals: a CAD box's vertex normals are its corners' averages.
             return {"resolution": np.array(fitted_resolution(
                 self._grid_at, self.mesh.bounds, self._padding, closest,
-                self.mesh.face_normals[face], self.params.sdf_resolution,
+                surface.face_normals[face], self.params.sdf_resolution,
                 self.params.sdf_max_resolution))}
 
         return int(self.cache.get_or_build("sdfres", self.content_hash,
