@@ -336,7 +336,8 @@ def fitted_resolution(grid_at, bounds, padding, points, normals, resolution, max
     """
     while missed_share(grid_at(resolution), points, normals) > THIN_MISSES:
         finer = 2 * resolution
-        if finer > max_resolution or np.prod(grid_layout(bounds, finer, padding)[2]) > MAX_REFINED_NODES:
+        nodes = np.prod(grid_layout(bounds, finer, padding)[2])
+        if finer > max_resolution or nodes > MAX_REFINED_NODES:
             break
         resolution = finer
     return resolution
