@@ -124,8 +124,7 @@ def hard_meshes(folder):
     folder.mkdir(parents=True, exist_ok=True)
     paths = {}
     copies = (replace(by_name("mug_1"), name="mug_1_large"),
-              replace(HARD_SPECS[[spec.name for spec in HARD_SPECS].index("cup")],
-                      name="cup_nested"))
+              ObjectSpec("cup_nested", "known", None, _cup, WIDE))
     for spec in HARD_SPECS + copies:
         path = folder / f"{spec.name}.ply"
         if not path.exists():

@@ -24,7 +24,8 @@ from ..belief.features import poisson_disk_points
 from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
 from ..params import PAPER_SIZE
 from ..belief.ppf import PairTable
-from .sdf import THIN_MISSES, ExactDistance, SDFGrid, build_sdf_grid, fitted_resolution
+from .sdf import (MAX_REFINED_NODES, MISS_COSINE, THIN_MISSES, ExactDistance, SDFGrid,
+                  build_sdf_grid, fitted_resolution)
 
 ASSETS_ENV_VAR = "TACTILE_VIZ_ASSETS"
 SURFACE_CHECKS = 2000  # surface samples on which a grid is checked for thin parts
@@ -281,7 +282,8 @@ class ObjectModel:
     def _resolution_params(self):
         return {"resolution": self.params.sdf_resolution, "padding": self._padding,
                 "max_resolution": self.params.sdf_max_resolution,
-                "misses": THIN_MISSES, "checks": SURFACE_CHECKS}
+                "misses": THIN_MISSES, "cosine": MISS_COSINE, "nodes": MAX_REFINED_NODES,
+                "checks": SURFACE_CHECKS}
 
     def _grid_stored(self):
         refines = self.params.sdf_max_resolution > self.params.sdf_resolution
