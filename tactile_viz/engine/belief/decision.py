@@ -44,6 +44,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, norm
 
 from .discrimination import contenders, lookalikes
+from .oriented import oriented_evaluator
 from .pose_refinement import refine_poses, surface_uncertainty
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
@@ -129,7 +130,7 @@ UNDECIDED = Decision(False, 0.0)
 
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
-           pose_tolerance=np.inf):
+           pose_tolerance=np.inf, normal_noise_deg=0.0):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -158,6 +159,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         (:func:`~.pose_refinement.surface_uncertainty`), times the two-sided normal
         quantile of ``confidence``, is within it (a 2 cm block under 2 mm noise is known
         long before it is posed within 10% of its size).
+    normal_noise_deg : float
+        The sensor's normal noise (std, degrees): with ``floor`` it weighs a contact's
+        normal against its position when it is matched to a hypothesis's surface
+        (:mod:`.oriented`).
 
     Returns
     -------
@@ -193,7 +198,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, classes, rotations, translations, contacts,
             outside, pf.params.refine_iterations,
-            trim=pf.params.outlier_probability)
+            trim=pf.params.outlier_probability, normals=pf.contact_normals,
+            oriented=oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg))
     except np.linalg.LinAlgError:
         return UNDECIDED
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)

@@ -20,7 +20,7 @@ _FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothi
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
-                 iterations=10, trim=0.0):
+                 iterations=10, trim=0.0, normals=None, oriented=None):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -40,6 +40,13 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         Gauss-Newton steps.
     trim : float
         Fraction of the contacts (the farthest from each pose) left out, 0-0.5.
+    normals : (m, 3) float, world frame, optional
+        The contacts' measured outward normals, for ``oriented``.
+    oriented : callable, optional
+        ``oriented(classes (k,), points (k, m, 3), normals (k, m, 3))`` -> residuals and
+        outward normals as ``evaluate``'s, object frame: the contacts' residuals are its
+        (:class:`~.oriented.OrientedEvaluator`: to the nearest surface facing their way);
+        the non-contacts' stay ``evaluate``'s.
 
     Returns
     -------
@@ -53,6 +60,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
     points = np.vstack([contacts, noncontacts])
     inside_only = np.arange(len(points)) >= len(contacts)
+    measured = None if normals is None else np.asarray(normals, dtype=float)
     drop = int(np.ceil(trim * len(contacts)))
     centre = contacts.mean(axis=0)
     arm = points - centre  # a = p - c, (m + q, 3)
@@ -62,7 +70,15 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     def residuals(rotations, translations):
         local = np.einsum("kij,mi->kmj", rotations, points) - np.einsum(
             "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
-        values, gradients = evaluate(classes, local)
+        if oriented is None:
+            values, gradients = evaluate(classes, local)
+        else:
+            values, gradients = np.empty(local.shape[:2]), np.empty(local.shape)
+            m = len(contacts)
+            values[:, :m], gradients[:, :m] = oriented(
+                classes, local[:, :m], np.einsum("kij,mi->kmj", rotations, measured))
+            if len(noncontacts):
+                values[:, m:], gradients[:, m:] = evaluate(classes, local[:, m:])
         active = ~inside_only | (values < 0)
         if drop:
             farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]

@@ -155,7 +155,8 @@ class Planner:
                       same_mode=max(p.decision_same_mode, 2 * noise),
                       carried=self.state.hypotheses,
                       free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit),
-                      pose_tolerance=p.decision_pose_error)
+                      pose_tolerance=p.decision_pose_error,
+                      normal_noise_deg=self.sensor_noise[1])
 
     def _coverage(self, recon, map_vertices, contacts):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP

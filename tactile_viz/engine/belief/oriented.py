@@ -1,0 +1,127 @@
+"""Contacts measured to the nearest surface that faces the way they do (beyond the paper).
+
+A signed distance grid answers "how far is the nearest surface", whichever way that surface
+faces. Near a thin wall that is the wrong question under noise: a contact pushed into a
+2 mm wall by noise lies at most 1 mm from one of its faces, so a shape with a wall where
+the object has none (the larger of two nested cups, a mug 4% larger than the truth) fits
+noisy contacts *better* than the object itself: its residuals are folded. At 2 mm / 2
+degrees that decided a cup for its nested twin and a mug for its larger copy.
+
+A contact also reports its normal, and the folded fit explains it with a face turned
+away. Here a contact ``x`` with measured normal ``n`` is matched to the surface sample
+``(p, m)`` nearest in position and normal together,
+
+    |x - p|^2 + lambda^2 |n - m|^2,        lambda = s / sigma_n,
+
+the joint Gaussian of a position with noise ``s`` and a normal with noise ``sigma_n``
+(small angles: ``|n - m| ~ angle``), and its residual is its distance to that sample's
+tangent plane, ``r = m . (x - p)`` (point-to-plane: exact on planes, sampling-independent
+to first order). A tangent plane says nothing far from its sample: when ``x`` lies
+further than the samples' spacing ``h`` from ``p`` along the plane (a contact on a mug's
+body where a hypothesis puts its handle matches the handle's far side), the residual is
+``sign(r) sqrt(r^2 + (t - h)^2)`` with ``t`` that tangential offset. A face turned away costs ``2 lambda`` in position, so a contact on the outer
+face of a thin wall is measured to the outer face, and the residual a right hypothesis
+leaves is the noise, unfolded. With ``sigma_n`` far above ``s`` it is the nearest-point
+distance.
+"""
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from ..shape.meshes import bare_mesh
+
+SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
+MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough
+_KEEP = 32  # classes whose samples a bank keeps (least recently used dropped)
+
+
+class OrientedSurface:
+    """A class's surface samples in a tree over position and scaled normal.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The class's surface, object frame.
+    weight : float, length units
+        ``lambda``: the position a unit change of normal is worth.
+    count : int
+        Surface samples (face normals; deterministic).
+    """
+
+    def __init__(self, mesh, weight, count=SAMPLES):
+        mesh = bare_mesh(mesh)
+        points, faces = trimesh.sample.sample_surface(mesh, count, seed=0)
+        self.points = np.asarray(points, float)
+        self.normals = np.asarray(mesh.face_normals[faces], float)
+        self.spacing = float(np.sqrt(max(mesh.area, 0.0) / count))
+        self.weight = float(weight)
+        self.tree = cKDTree(np.hstack([self.points, self.weight * self.normals]))
+
+    def residuals(self, points, normals):
+        """Point-to-plane residuals of ``points (m, 3)`` with measured ``normals (m, 3)``
+        (object frame) and the matched samples' normals: ``(m,)``, ``(m, 3)``."""
+        _, index = self.tree.query(np.hstack([points, self.weight * normals]))
+        matched = self.normals[index]
+        offset = points - self.points[index]
+        along = np.einsum("ij,ij->i", matched, offset)
+        across = np.linalg.norm(offset - along[:, None] * matched, axis=1)
+        beyond = np.maximum(across - self.spacing, 0.0)
+        return np.copysign(np.hypot(along, beyond), along), matched
+
+
+class OrientedEvaluator:
+    """``evaluate(classes (k,), points (k, m, 3), normals (k, m, 3))`` -> point-to-plane
+    residuals ``(k, m)`` and the matched outward normals ``(k, m, 3)``, object frames: the
+    contact part of :func:`~.pose_refinement.refine_poses` with ``oriented``.
+
+    Parameters
+    ----------
+    models : sequence of PriorModel
+        Their meshes are sampled when a class is first evaluated.
+    weight : float, length units
+        ``lambda`` (:func:`normal_weight`).
+    cache : dict, optional
+        Where the sampled surfaces are kept between evaluators (by class and weight).
+    """
+
+    def __init__(self, models, weight, cache=None):
+        self.models, self.weight = models, float(weight)
+        self.cache = {} if cache is None else cache
+
+    def surface(self, class_index):
+        key = (int(class_index), self.weight)
+        surface = self.cache.pop(key, None)
+        if surface is None:
+            surface = OrientedSurface(self.models[class_index].mesh, self.weight)
+        self.cache[key] = surface  # most recently used last
+        while len(self.cache) > _KEEP:
+            self.cache.pop(next(iter(self.cache)))
+        return surface
+
+    def __call__(self, classes, points, normals):
+        classes = np.asarray(classes)
+        values = np.empty(points.shape[:2])
+        gradients = np.empty(points.shape)
+        for class_index in np.unique(classes):  # one look-up for all poses of a class
+            mine = classes == class_index
+            found, matched = self.surface(class_index).residuals(
+                points[mine].reshape(-1, 3), normals[mine].reshape(-1, 3))
+            values[mine] = found.reshape(-1, points.shape[1])
+            gradients[mine] = matched.reshape(-1, points.shape[1], 3)
+        return values, gradients
+
+
+def normal_weight(position_scale, normal_noise_deg):
+    """``lambda = s / sigma_n``: scene units per unit of normal difference, with
+    ``sigma_n`` at least ``MIN_NORMAL_NOISE_DEG``, rounded to a power of ``sqrt(2)`` (the
+    samples are kept by it, and ``s`` follows the MAP's size from step to step)."""
+    weight = float(position_scale) / np.radians(max(float(normal_noise_deg),
+                                                    MIN_NORMAL_NOISE_DEG))
+    return float(2.0 ** (np.round(2 * np.log2(max(weight, 1e-300))) / 2))
+
+
+def oriented_evaluator(bank, models, position_scale, normal_noise_deg):
+    """An :class:`OrientedEvaluator` whose samples a prior bank keeps between steps."""
+    cache = bank.__dict__.setdefault("_oriented", {})
+    return OrientedEvaluator(models, normal_weight(position_scale, normal_noise_deg), cache)

@@ -1,0 +1,122 @@
+"""Contacts measured to the nearest surface facing their way: thin walls do not fold the
+noise, a face turned away does not explain a contact, and nested twins are told apart."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.belief.decision import decide
+from tactile_viz.engine.belief.oriented import OrientedSurface, normal_weight
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.particles import Particles
+from tactile_viz.engine.belief.pose_refinement import refine_poses
+from tactile_viz.engine.params import FilterParams
+
+WALL = 0.002  # a 2 mm plate, 10 cm square, its top face at z = 1 mm
+
+
+@pytest.fixture(scope="module")
+def plate():
+    return trimesh.creation.box(extents=(0.1, 0.1, WALL))
+
+
+def _up(count):
+    return np.tile([0.0, 0.0, 1.0], (count, 1))
+
+
+def test_noise_through_a_thin_wall_is_not_folded(plate):
+    """Touches of the top face pushed up to 1.5 mm into a 2 mm plate: the nearest surface
+    (the bottom face, past the middle) would halve them; matched to the face turned their
+    way they are the offsets themselves."""
+    offsets = np.linspace(-0.0015, 0.0015, 13)
+    points = np.column_stack([np.zeros(13), np.linspace(-0.03, 0.03, 13), WALL / 2 + offsets])
+    surface = OrientedSurface(plate, normal_weight(0.002, 2.0))
+    residuals, matched = surface.residuals(points, _up(13))
+    np.testing.assert_allclose(residuals, offsets, atol=1e-4)
+    np.testing.assert_allclose(matched, _up(13))
+    nearest = np.abs(trimesh.proximity.signed_distance(plate, points))
+    assert nearest[offsets < 0].max() < 0.0011  # what the nearest face leaves of 1.5 mm
+
+
+def test_a_face_turned_away_does_not_explain_a_contact(plate):
+    """A touch on the top face whose normal points down lies on no face that faces its
+    way nearer than the bottom face, a wall's thickness off."""
+    surface = OrientedSurface(plate, normal_weight(0.002, 2.0))
+    residuals, matched = surface.residuals(np.array([[0.0, 0.0, WALL / 2]]), -_up(1))
+    np.testing.assert_allclose(np.abs(residuals), WALL, atol=1e-9)
+    np.testing.assert_allclose(matched, -_up(1))
+
+
+def test_a_tangent_plane_counts_only_near_its_sample(plate):
+    """A touch 5 cm beyond the plate's edge, in the plane of its top face: the top face's
+    tangent plane passes through it, but the plate does not."""
+    surface = OrientedSurface(plate, normal_weight(0.002, 2.0))
+    residuals, _ = surface.residuals(np.array([[0.1, 0.0, WALL / 2]]), _up(1))
+    assert abs(residuals[0]) > 0.04
+
+
+def test_huge_normal_noise_leaves_the_nearest_point(plate):
+    """With normals worth nothing the match is the nearest sample, whichever way it
+    faces: a 1.5 mm push into the plate is measured to the bottom face."""
+    surface = OrientedSurface(plate, normal_weight(0.002, 1e6))
+    residuals, _ = surface.residuals(np.array([[0.0, 0.0, WALL / 2 - 0.0015]]), _up(1))
+    assert abs(residuals[0]) < 0.0006
+
+
+def _tube(outer, inner, height):
+    return trimesh.creation.annulus(r_min=inner, r_max=outer, height=height, sections=96)
+
+
+@pytest.fixture(scope="module")
+def nested(tmp_path_factory):
+    """Two tubes 10% apart in size, walls 10% of the radius: the smaller one's outside is
+    the larger one's inside."""
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path_factory.mktemp("cache"))
+    large = _tube(1.0, 0.9, 2.0)
+    small = _tube(0.9, 0.81, 1.8)
+    return PriorLibrary([ObjectModel.from_arrays(m.vertices, m.faces, name, cache=cache)
+                         for m, name in ((large, "large"), (small, "small"))])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_smaller_of_nested_tubes_is_told_from_the_larger(nested, seed):
+    """Noisy touches of the small tube's outside: the large tube's inner wall lies where
+    they do, but faces the other way; the decision's fit gives the small tube the
+    posterior."""
+    rng = np.random.default_rng(seed)
+    angles = rng.uniform(0, 2 * np.pi, 40)
+    normals = np.column_stack([np.cos(angles), np.sin(angles), np.zeros(40)])
+    heights = rng.uniform(-0.7, 0.7, 40)
+    points = 0.9 * normals + np.column_stack([np.zeros((40, 2)), heights])
+    points += rng.normal(0.0, 0.03, points.shape)
+    pf = ParticleFilter(nested, FilterParams(), rng=0)
+    pf.contact_positions, pf.contact_normals = points, normals
+    pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
+                             np.zeros((2, 3)), np.log([0.5, 0.5]))
+    decision = decide(pf, pf._record(0), 0.99, floor=0.03, same_mode=0.1,
+                      normal_noise_deg=2.0)
+    chance = {nested.names[h.class_index]: 0.0 for h in decision.hypotheses}
+    for h in decision.hypotheses:
+        chance[nested.names[h.class_index]] += h.probability
+    assert chance["small"] > 0.99 and chance["large"] < 0.01
+
+
+def test_refinement_on_a_thin_plate_finds_the_face_the_touches_face(plate, tmp_path):
+    """Touches of the top face and a start 1.8 mm low (the bottom face nearer): refined
+    along the matched faces the plate rises to the touches."""
+    from tactile_viz.engine.belief.oriented import OrientedEvaluator
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    model = ObjectModel.from_arrays(plate.vertices, plate.faces, "plate",
+                                    cache=ArrayCache(tmp_path))
+    rng = np.random.default_rng(4)
+    points = np.column_stack([rng.uniform(-0.04, 0.04, (30, 2)), np.full(30, WALL / 2)])
+    oriented = OrientedEvaluator([model], normal_weight(0.002, 2.0))
+    _, translations, misfit = refine_poses(
+        None, [0], np.eye(3)[None], np.array([[0.0, 0.0, -0.0018]]), points,
+        normals=_up(30), oriented=oriented)
+    assert abs(translations[0, 2]) < 1e-5  # along the plate it is free
+    assert misfit[0] < 30 * 0.0001**2  # RMS under 0.1 mm
