@@ -402,3 +402,17 @@ def test_a_turn_about_a_round_axis_leaves_the_surface_in_place():
     assert surface_uncertainty(*args).max() > 3 * noise
     free = surface_uncertainty(*args, free_turns=np.array([[0.0, 0.0, 1.0]]), pivot=np.zeros(3))
     assert free.max() < noise
+
+
+def test_only_the_most_plausible_rivals_are_aimed_at_and_carried():
+    """Forty plausible rivals (every flat face of a library fits touches of one flat
+    face): the MAX_RIVALS most probable are the rivals, most probable first."""
+    from tactile_viz.engine.belief.decision import MAX_RIVALS
+
+    rng = np.random.default_rng(0)
+    chances = rng.dirichlet(np.ones(41))
+    hypotheses = tuple(Hypothesis(0, np.eye(3), np.zeros(3), 0.0, float(p)) for p in chances)
+    rivals = Decision(False, 0.1, hypotheses).rivals
+    assert len(rivals) == MAX_RIVALS
+    expected = np.sort(chances[1:][chances[1:] >= 1e-3])[::-1][:MAX_RIVALS]
+    np.testing.assert_allclose([h.probability for h in rivals], expected)

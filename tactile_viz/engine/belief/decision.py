@@ -60,6 +60,7 @@ GRID_ERROR_PERCENTILE = 95
 AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfaces do
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
+MAX_RIVALS = 8  # the most plausible rivals aimed at and carried to the next step
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,8 +118,12 @@ class Decision:
 
     @property
     def rivals(self):
-        """The hypotheses besides the MAP that are still plausible."""
-        return tuple(h for h in self.hypotheses[1:] if h.probability >= PLAUSIBLE)
+        """The hypotheses besides the MAP that are still plausible, the ``MAX_RIVALS``
+        most plausible: contacts on one flat face fit every flat face of a library about
+        as well, and carried from step to step the rivals grew past a hundred, each
+        weighed against each other for every telling target."""
+        plausible = [h for h in self.hypotheses[1:] if h.probability >= PLAUSIBLE]
+        return tuple(sorted(plausible, key=lambda h: -h.probability)[:MAX_RIVALS])
 
     @property
     def carried(self):
