@@ -120,3 +120,22 @@ def test_refinement_on_a_thin_plate_finds_the_face_the_touches_face(plate, tmp_p
         normals=_up(30), oriented=oriented)
     assert abs(translations[0, 2]) < 1e-5  # along the plate it is free
     assert misfit[0] < 30 * 0.0001**2  # RMS under 0.1 mm
+
+
+def test_a_bank_keeps_the_samples_of_a_bounded_number_of_classes():
+    """Classes weighed once in a long session of a large library: the least recently
+    used samples are dropped, and a class sampled again gives the same residuals."""
+    from types import SimpleNamespace
+
+    from tactile_viz.engine.belief import oriented
+
+    models = [SimpleNamespace(mesh=trimesh.creation.box(extents=(1.0, 1.0, 0.1 + 0.01 * k)))
+              for k in range(oriented._KEEP + 4)]
+    evaluate = oriented.OrientedEvaluator(models, 0.05)
+    points, normals = np.array([[[0.1, 0.2, 0.3]]]), np.array([[[0.0, 0.0, 1.0]]])
+    first, _ = evaluate([0], points, normals)
+    for k in range(len(models)):
+        evaluate([k], points, normals)
+    assert len(evaluate.cache) == oriented._KEEP
+    again, _ = evaluate([0], points, normals)
+    np.testing.assert_allclose(again, first)

@@ -33,7 +33,7 @@ from ..shape.meshes import bare_mesh
 
 SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
 MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough
-_KEEP = 32  # classes whose samples a bank keeps (least recently used dropped)
+_KEEP = 16  # classes whose samples a bank keeps, about 3 MB each (least recently used dropped)
 
 
 class OrientedSurface:
