@@ -105,21 +105,26 @@ def test_the_smaller_of_nested_tubes_is_told_from_the_larger(nested, seed):
 
 
 def test_refinement_on_a_thin_plate_finds_the_face_the_touches_face(plate, tmp_path):
-    """Touches of the top face and a start 1.8 mm low (the bottom face nearer): refined
-    along the matched faces the plate rises to the touches."""
-    from tactile_viz.engine.belief.oriented import OrientedEvaluator
+    """Touches of the top face and a start 1.5 mm high, the touches inside the plate
+    nearer its bottom face, which faces away from them: on the grid alone the plate
+    stays up; with the faces turned their way it sinks to them."""
+    from tactile_viz.engine.belief.oriented import oriented_evaluator
     from tactile_viz.engine.io.cache import ArrayCache
 
     model = ObjectModel.from_arrays(plate.vertices, plate.faces, "plate",
                                     cache=ArrayCache(tmp_path))
+    pf = ParticleFilter(PriorLibrary([model]), FilterParams(), rng=0)
     rng = np.random.default_rng(4)
     points = np.column_stack([rng.uniform(-0.04, 0.04, (30, 2)), np.full(30, WALL / 2)])
-    oriented = OrientedEvaluator([model], normal_weight(0.002, 2.0))
-    _, translations, misfit = refine_poses(
-        None, [0], np.eye(3)[None], np.array([[0.0, 0.0, -0.0018]]), points,
-        normals=_up(30), oriented=oriented)
-    assert abs(translations[0, 2]) < 1e-5  # along the plate it is free
-    assert misfit[0] < 30 * 0.0001**2  # RMS under 0.1 mm
+    start = np.array([[0.0, 0.0, 0.0015]])
+    heights = {}
+    for name, oriented in (("grid", None),
+                           ("oriented", oriented_evaluator(pf.bank, pf.models, 0.001, 2.0))):
+        _, translations, _ = refine_poses(pf.bank.evaluate, [0], np.eye(3)[None], start,
+                                          points, normals=_up(30), oriented=oriented)
+        heights[name] = translations[0, 2]
+    assert abs(heights["oriented"]) < 2e-4  # along the plate it is free
+    assert heights["grid"] > 0.001  # held by the bottom face
 
 
 def test_a_bank_keeps_the_samples_of_a_bounded_number_of_classes():
@@ -132,7 +137,7 @@ def test_a_bank_keeps_the_samples_of_a_bounded_number_of_classes():
     models = [SimpleNamespace(mesh=trimesh.creation.box(extents=(1.0, 1.0, 0.1 + 0.01 * k)))
               for k in range(oriented._KEEP + 4)]
     evaluate = oriented.OrientedEvaluator(models, 0.05)
-    points, normals = np.array([[[0.1, 0.2, 0.3]]]), np.array([[[0.0, 0.0, 1.0]]])
+    points, normals = np.array([[0.1, 0.2, 0.3]]), np.array([[0.0, 0.0, 1.0]])
     first, _ = evaluate([0], points, normals)
     for k in range(len(models)):
         evaluate([k], points, normals)

@@ -8,7 +8,9 @@ noisy contacts *better* than the object itself: its residuals are folded. At 2 m
 degrees that decided a cup for its nested twin and a mug for its larger copy.
 
 A contact also reports its normal, and the folded fit explains it with a face turned
-away. Here a contact ``x`` with measured normal ``n`` is matched to the surface sample
+away: the grid's gradient there points against the measured normal. Such a contact (only
+such: elsewhere the grid's distance is as good, and exact samples would make every flat
+face of a library fit touches of one flat face alike) is matched to the surface sample
 ``(p, m)`` nearest in position and normal together,
 
     |x - p|^2 + lambda^2 |n - m|^2,        lambda = s / sigma_n,
@@ -17,12 +19,10 @@ the joint Gaussian of a position with noise ``s`` and a normal with noise ``sigm
 (small angles: ``|n - m| ~ angle``), and its residual is its distance to that sample's
 tangent plane, ``r = m . (x - p)`` (point-to-plane: exact on planes, sampling-independent
 to first order). A tangent plane says nothing far from its sample: when ``x`` lies
-further than the samples' spacing ``h`` from ``p`` along the plane (a contact on a mug's
-body where a hypothesis puts its handle matches the handle's far side), the residual is
-``sign(r) sqrt(r^2 + (t - h)^2)`` with ``t`` that tangential offset. A face turned away costs ``2 lambda`` in position, so a contact on the outer
-face of a thin wall is measured to the outer face, and the residual a right hypothesis
-leaves is the noise, unfolded. With ``sigma_n`` far above ``s`` it is the nearest-point
-distance.
+further than the samples' spacing ``h`` from ``p`` along the plane, the residual is
+``sign(r) sqrt(r^2 + (t - h)^2)`` with ``t`` that tangential offset. A face turned away
+costs ``2 lambda`` in position, so a contact on the outer face of a thin wall is measured
+to the outer face, and the residual a right hypothesis leaves is the noise, unfolded.
 """
 
 import numpy as np
@@ -71,9 +71,9 @@ class OrientedSurface:
 
 
 class OrientedEvaluator:
-    """``evaluate(classes (k,), points (k, m, 3), normals (k, m, 3))`` -> point-to-plane
-    residuals ``(k, m)`` and the matched outward normals ``(k, m, 3)``, object frames: the
-    contact part of :func:`~.pose_refinement.refine_poses` with ``oriented``.
+    """``evaluate(classes (q,), points (q, 3), normals (q, 3))`` -> point-to-plane
+    residuals ``(q,)`` and the matched outward normals ``(q, 3)``, each point in its
+    class's object frame: ``oriented`` of :func:`~.pose_refinement.refine_poses`.
 
     Parameters
     ----------
@@ -101,14 +101,11 @@ class OrientedEvaluator:
 
     def __call__(self, classes, points, normals):
         classes = np.asarray(classes)
-        values = np.empty(points.shape[:2])
-        gradients = np.empty(points.shape)
-        for class_index in np.unique(classes):  # one look-up for all poses of a class
+        values, gradients = np.empty(len(points)), np.empty((len(points), 3))
+        for class_index in np.unique(classes):  # one look-up a class
             mine = classes == class_index
-            found, matched = self.surface(class_index).residuals(
-                points[mine].reshape(-1, 3), normals[mine].reshape(-1, 3))
-            values[mine] = found.reshape(-1, points.shape[1])
-            gradients[mine] = matched.reshape(-1, points.shape[1], 3)
+            values[mine], gradients[mine] = self.surface(class_index).residuals(
+                points[mine], normals[mine])
         return values, gradients
 
 

@@ -43,10 +43,12 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     normals : (m, 3) float, world frame, optional
         The contacts' measured outward normals, for ``oriented``.
     oriented : callable, optional
-        ``oriented(classes (k,), points (k, m, 3), normals (k, m, 3))`` -> residuals and
-        outward normals as ``evaluate``'s, object frame: the contacts' residuals are its
-        (:class:`~.oriented.OrientedEvaluator`: to the nearest surface facing their way);
-        the non-contacts' stay ``evaluate``'s.
+        ``oriented(classes (q,), points (q, 3), normals (q, 3))`` -> residuals ``(q,)`` and
+        outward normals ``(q, 3)``, object frame
+        (:class:`~.oriented.OrientedEvaluator`: to the nearest surface facing their way):
+        the residual of a contact whose nearest surface on the grid faces away from its
+        measured normal (noise pushed it past a thin wall's middle, or the hypothesis
+        explains it with a wall's far side).
 
     Returns
     -------
@@ -70,15 +72,13 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     def residuals(rotations, translations):
         local = np.einsum("kij,mi->kmj", rotations, points) - np.einsum(
             "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
-        if oriented is None:
-            values, gradients = evaluate(classes, local)
-        else:
-            values, gradients = np.empty(local.shape[:2]), np.empty(local.shape)
+        values, gradients = evaluate(classes, local)
+        if oriented is not None:
             m = len(contacts)
-            values[:, :m], gradients[:, :m] = oriented(
-                classes, local[:, :m], np.einsum("kij,mi->kmj", rotations, measured))
-            if len(noncontacts):
-                values[:, m:], gradients[:, m:] = evaluate(classes, local[:, m:])
+            facing = np.einsum("kij,mi->kmj", rotations, measured)  # R^T n
+            k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients[:, :m], facing) < 0)
+            if len(k):
+                values[k, i], gradients[k, i] = oriented(classes[k], local[k, i], facing[k, i])
         active = ~inside_only | (values < 0)
         if drop:
             farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]
