@@ -144,3 +144,13 @@ def test_a_bank_keeps_the_samples_of_a_bounded_number_of_classes():
     assert len(evaluate.cache) == oriented._KEEP
     again, _ = evaluate([0], points, normals)
     np.testing.assert_allclose(again, first)
+
+
+def test_oriented_residuals_without_normals_are_refused(plate):
+    """A caller that asks for oriented residuals must give the normals they need."""
+    from tactile_viz.engine.belief.oriented import OrientedEvaluator
+
+    with pytest.raises(ValueError, match="normals"):
+        refine_poses(lambda c, x: (np.zeros(x.shape[:2]), np.zeros(x.shape)), [0],
+                     np.eye(3)[None], np.zeros((1, 3)), np.zeros((3, 3)),
+                     oriented=OrientedEvaluator([], 1.0))

@@ -62,6 +62,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
     points = np.vstack([contacts, noncontacts])
     inside_only = np.arange(len(points)) >= len(contacts)
+    if oriented is not None and normals is None:
+        raise ValueError("refine_poses: oriented residuals need the contacts' normals")
     measured = None if normals is None else np.asarray(normals, dtype=float)
     drop = int(np.ceil(trim * len(contacts)))
     centre = contacts.mean(axis=0)
