@@ -44,7 +44,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, norm
 
 from .discrimination import contenders, lookalikes
-from .oriented import oriented_evaluator
+from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import refine_poses, surface_uncertainty
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
@@ -52,6 +52,7 @@ from ..transforms import transform_points
 POSE_PARAMETERS = 6
 TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
+HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
 ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in steps of
@@ -199,12 +200,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                                    np.reshape([h.translation for h in kept], (-1, 3))])
     outside = pf.noncontact_positions if free_space is None else np.vstack(
         [pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
+    oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg)
     try:
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, classes, rotations, translations, contacts,
             outside, pf.params.refine_iterations,
-            trim=pf.params.outlier_probability, normals=pf.contact_normals,
-            oriented=oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg))
+            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented)
     except np.linalg.LinAlgError:
         return UNDECIDED
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
@@ -214,7 +215,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
-    log_p = -(misfit[keep] - best) / (2 * scale2) - occam  # the fit posterior, Gaussian
+    turned = turned_cost(oriented, classes[keep], rotations[keep], translations[keep],
+                         contacts, pf.contact_normals, normal_noise_deg)
+    log_p = -(misfit[keep] - best) / (2 * scale2) - turned - occam  # the fit posterior
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
     order = np.r_[0, order[order != 0]]  # the MAP candidate leads
@@ -323,13 +326,18 @@ def flips(pf, class_index, rotation, translation):
 
 def _candidates(pf, particles, chosen, same_mode):
     """Indices of the MAP particle, the heaviest particle of each of the other classes held
-    (up to ``OTHER_CLASSES``, heaviest class first) and the heaviest particles of up to
+    (up to ``HELD_CLASSES`` holding ``PLAUSIBLE`` of the posterior, at least
+    ``OTHER_CLASSES``; heaviest class first: a pencil's posterior spread over six thin
+    classes, and weighing four of them the decision could not reach its confidence)
+    and the heaviest particles of up to
     ``OTHER_MODES`` other pose modes of the MAP's class (poses apart by more than
     ``MODE_ANGLE_DEG`` or ``same_mode``, whose surfaces differ: a symmetry is not a mode)."""
     kept = [chosen]
-    held = contenders(particles, OTHER_CLASSES + 1, 0.0)
-    kept += [int(i) for i in held if particles.classes[i] != particles.classes[chosen]]
-    kept = kept[:OTHER_CLASSES + 1]
+    held = contenders(particles, HELD_CLASSES + 1, 0.0)
+    mass = np.bincount(particles.classes, np.exp(particles.log_weights))
+    held = [int(i) for i in held if particles.classes[i] != particles.classes[chosen]]
+    kept += [i for n, i in enumerate(held)
+             if n < OTHER_CLASSES or mass[particles.classes[i]] >= PLAUSIBLE][:HELD_CLASSES]
     order = np.argsort(-particles.log_weights, kind="stable")[:TOP_PARTICLES]
     mine = [int(i) for i in order if particles.classes[i] == particles.classes[chosen]]
     modes = [chosen]
