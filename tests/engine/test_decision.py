@@ -416,3 +416,23 @@ def test_only_the_most_plausible_rivals_are_aimed_at_and_carried():
     assert len(rivals) == MAX_RIVALS
     expected = np.sort(chances[1:][chances[1:] >= 1e-3])[::-1][:MAX_RIVALS]
     np.testing.assert_allclose([h.probability for h in rivals], expected)
+
+
+def test_every_class_the_filter_holds_is_weighed(tmp_path):
+    """Seven boxes holding the class posterior between them (a thin object's broad
+    likelihood spreads it so): each is weighed, so that the weighed classes can hold the
+    confidence; with four besides the MAP they held five sevenths."""
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path)
+    boxes = [trimesh.creation.box(extents=(6, 3, 2 + 0.3 * k)) for k in range(7)]
+    library = PriorLibrary([ObjectModel.from_arrays(m.vertices, m.faces, f"box{k}", cache=cache)
+                            for k, m in enumerate(boxes)])
+    touches = _touches(library["box0"], 30, seed=1)
+    pf = ParticleFilter(library, FilterParams(), rng=0)
+    pf.contact_positions = np.array([t.position for t in touches])
+    pf.contact_normals = np.array([t.normal for t in touches])
+    pf.particles = Particles(np.arange(7), np.repeat(np.eye(3)[None], 7, axis=0),
+                             np.zeros((7, 3)), np.full(7, -np.log(7)))
+    decision = decide(pf, pf._record(0), 0.99, floor=0.01, same_mode=0.1)
+    assert {h.class_index for h in decision.hypotheses} == set(range(7))
