@@ -21,7 +21,11 @@ class's refined RMS distance to the contacts was about 0.01 size units, its twin
 4. a lookalike that then fits better than every contender joins the belief at its refined
    pose, with the paper's relative weight against the MAP;
 5. the MAP is the candidate whose refined pose has the least squared distance: a
-   contender's own particle, or the lookalike that joined.
+   contender's own particle, or the lookalike that joined. Under the sensor's position
+   noise (``position_noise``) the contacts are measured to the face turned their way and
+   their normals weigh in (:mod:`.oriented`): the least ``RSS / (2 noise^2)`` plus the
+   normals' cost. A knife's blade fitted noisy touches of a pencil better than the pencil,
+   and with a blade the MAP the novelty test judged the pencil novel.
 
 The contenders' particles are left as they are: moving the heaviest particle of a class to
 its refined pose (and its weight by the gain) made that pose's mode win over the class's

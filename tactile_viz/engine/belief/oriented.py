@@ -23,6 +23,9 @@ further than the samples' spacing ``h`` from ``p`` along the plane, the residual
 ``sign(r) sqrt(r^2 + (t - h)^2)`` with ``t`` that tangential offset. A face turned away
 costs ``2 lambda`` in position, so a contact on the outer face of a thin wall is measured
 to the outer face, and the residual a right hypothesis leaves is the noise, unfolded.
+
+The same match weighs the normals themselves (:func:`turned_cost`, for every contact): a
+round rod's contacts face every way about its axis, a blade's only a few ways.
 """
 
 import numpy as np

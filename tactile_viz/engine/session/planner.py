@@ -194,10 +194,14 @@ class Planner:
         rivals = (p.decision_targets and not belief.novel and not decided
                   and not confirm and decision.fits and len(decision.rivals) > 0
                   and self.state.telling_steps < p.decision_patience)
-        # So is the MAP's pose, once it is the one hypothesis left but not yet known well
-        # enough (a 2 cm block under 2 mm noise), within the same patience.
-        posing = (p.decision_targets and not belief.novel and not rivals
-                  and decision.loosest is not None
+        # So is the MAP, once it is the one hypothesis left but its pose is not yet known
+        # well enough (a 2 cm block under 2 mm noise) or the filter's posterior not yet
+        # held by the classes weighed (a fork's spread over four thin classes, 0.988 when
+        # its surface was covered), within the same patience.
+        settling = (decision.fits and bool(decision.hypotheses)
+                    and decision.hypotheses[0].probability >= p.decision_confidence)
+        posing = (p.decision_targets and not belief.novel and not rivals and not decided
+                  and (decision.loosest is not None or settling)
                   and self.state.telling_steps < p.decision_patience)
         # The DHD stop waits for the decision's checks too: they are a step or two, and a
         # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
@@ -234,6 +238,11 @@ class Planner:
                         confirming=True, **keep)
         if stop.rivals and (aim := self._telling_apart(decision, contacts)) is not None:
             return Plan(aim, None, telling_apart=True, **keep)
+        if stop.posing and decision.loosest is None:
+            # The filter's posterior settles with touches anywhere: the paper's target.
+            return Plan(self._next_target(coverage.surface, coverage.reachable, recon, model,
+                                          rotation, translation, contacts), None,
+                        telling_apart=True, **keep)
         if stop.posing:
             # Where the pose is least certain (the fit's covariance), on the MAP surface.
             position, normal = decision.loosest
