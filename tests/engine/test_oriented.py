@@ -92,16 +92,23 @@ def test_the_smaller_of_nested_tubes_is_told_from_the_larger(nested, seed):
     heights = rng.uniform(-0.7, 0.7, 40)
     points = 0.9 * normals + np.column_stack([np.zeros((40, 2)), heights])
     points += rng.normal(0.0, 0.03, points.shape)
-    pf = ParticleFilter(nested, FilterParams(), rng=0)
+    chance = _fit_posterior(nested, points, normals, noise=0.03, same_mode=0.1)
+    assert chance["small"] > 0.99 and chance["large"] < 0.01
+
+
+def _fit_posterior(library, points, normals, noise, same_mode):
+    """The decision's fit posterior of each class of a two-class library, both weighed at
+    the identity: ``{name: probability}``."""
+    pf = ParticleFilter(library, FilterParams(), rng=0)
     pf.contact_positions, pf.contact_normals = points, normals
     pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
                              np.zeros((2, 3)), np.log([0.5, 0.5]))
-    decision = decide(pf, pf._record(0), 0.99, floor=0.03, same_mode=0.1,
+    decision = decide(pf, pf._record(0), 0.99, floor=noise, same_mode=same_mode,
                       normal_noise_deg=2.0)
-    chance = {nested.names[h.class_index]: 0.0 for h in decision.hypotheses}
+    chance = {name: 0.0 for name in library.names}
     for h in decision.hypotheses:
-        chance[nested.names[h.class_index]] += h.probability
-    assert chance["small"] > 0.99 and chance["large"] < 0.01
+        chance[library.names[h.class_index]] += h.probability
+    return chance
 
 
 def test_refinement_on_a_thin_plate_finds_the_face_the_touches_face(plate, tmp_path):
@@ -203,15 +210,7 @@ def test_a_noisy_rod_is_decided_a_rod_not_a_blade(rod_and_blade, seed):
     fits their positions about as well, but not their normals, which turn all the way
     round."""
     points, normals = _touches_of_the_rod(np.random.default_rng(seed), 12, 0.002, 2.0)
-    pf = ParticleFilter(rod_and_blade, FilterParams(), rng=0)
-    pf.contact_positions, pf.contact_normals = points, normals
-    pf.particles = Particles(np.array([0, 1]), np.repeat(np.eye(3)[None], 2, axis=0),
-                             np.zeros((2, 3)), np.log([0.5, 0.5]))
-    decision = decide(pf, pf._record(0), 0.99, floor=0.002, same_mode=0.004,
-                      normal_noise_deg=2.0)
-    chance = {name: 0.0 for name in rod_and_blade.names}
-    for h in decision.hypotheses:
-        chance[rod_and_blade.names[h.class_index]] += h.probability
+    chance = _fit_posterior(rod_and_blade, points, normals, noise=0.002, same_mode=0.004)
     assert chance["rod"] > 0.99
 
 
