@@ -29,6 +29,15 @@ def inverse_transform_points(points, rotation, translation):
     return (np.asarray(points, dtype=float) - translation) @ np.asarray(rotation)
 
 
+def inverse_transform_points_batch(points, rotations, translations=None):
+    """``points (m, 3)`` (world frame) in each of ``k`` poses' object frames,
+    ``R_k^T (p - t_k)``: ``(k, m, 3)``. Without ``translations`` only turned (normals)."""
+    local = np.einsum("kij,mi->kmj", rotations, points)
+    if translations is None:
+        return local
+    return local - np.einsum("kij,ki->kj", rotations, translations)[:, None]
+
+
 def invert(rotation, translation):
     """Inverse of a rigid transform ``(R, t)``, as ``(R.T, -R.T t)``."""
     rotation = np.asarray(rotation, dtype=float)

@@ -227,3 +227,22 @@ def test_under_noise_the_filter_takes_the_rod_not_the_blade(rod_and_blade, seed)
                           np.zeros((2, 3)), np.log([0.6, 0.4]))
     particles, chosen = discriminate(pf, particles)
     assert rod_and_blade.names[particles.classes[chosen]] == "rod"
+
+
+def test_points_in_several_poses_frames_agree_with_one_pose_at_a_time():
+    """The batched world-to-object transform of the refinement and the normals' cost is
+    the single-pose one, pose by pose; without translations it only turns."""
+    from scipy.spatial.transform import Rotation
+
+    from tactile_viz.engine.transforms import (inverse_transform_points,
+                                               inverse_transform_points_batch)
+
+    rng = np.random.default_rng(5)
+    rotations = Rotation.random(4, random_state=5).as_matrix()
+    translations, points = rng.normal(size=(4, 3)), rng.normal(size=(7, 3))
+    batch = inverse_transform_points_batch(points, rotations, translations)
+    for k in range(4):
+        np.testing.assert_allclose(batch[k], inverse_transform_points(
+            points, rotations[k], translations[k]))
+        np.testing.assert_allclose(inverse_transform_points_batch(points, rotations)[k],
+                                   points @ rotations[k])

@@ -33,6 +33,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..shape.meshes import bare_mesh
+from ..transforms import inverse_transform_points_batch
 
 SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
 MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough
@@ -138,9 +139,8 @@ def turned_cost(oriented, classes, rotations, translations, contacts, normals, n
     """
     sigma = np.radians(max(float(noise_deg), MIN_NORMAL_NOISE_DEG))
     rotations = np.asarray(rotations, float)
-    local = np.einsum("kij,mi->kmj", rotations, contacts) - np.einsum(
-        "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
-    facing = np.einsum("kij,mi->kmj", rotations, normals)  # R^T n
+    local = inverse_transform_points_batch(contacts, rotations, translations)
+    facing = inverse_transform_points_batch(normals, rotations)
     m = len(contacts)
     _, matched = oriented(np.repeat(classes, m), local.reshape(-1, 3), facing.reshape(-1, 3))
     apart = np.linalg.norm(facing.reshape(-1, 3) - matched, axis=1).reshape(-1, m)

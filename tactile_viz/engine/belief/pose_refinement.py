@@ -15,6 +15,8 @@ squares: a wrong reading cannot pull the pose).
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..transforms import inverse_transform_points_batch
+
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 _FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothing constrains stays put
 
@@ -72,12 +74,11 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     rotations, translations = np.array(rotations, float), np.array(translations, float)
 
     def residuals(rotations, translations):
-        local = np.einsum("kij,mi->kmj", rotations, points) - np.einsum(
-            "kij,ki->kj", rotations, translations)[:, None]  # x = R^T (p - t)
+        local = inverse_transform_points_batch(points, rotations, translations)  # R^T (p - t)
         values, gradients = evaluate(classes, local)
         if oriented is not None:
             m = len(contacts)
-            facing = np.einsum("kij,mi->kmj", rotations, measured)  # R^T n
+            facing = inverse_transform_points_batch(measured, rotations)  # R^T n
             k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients[:, :m], facing) < 0)
             if len(k):
                 values[k, i], gradients[k, i] = oriented(classes[k], local[k, i], facing[k, i])
