@@ -256,6 +256,13 @@ class SessionParams:
         notes="At most the distance to the nearest contact, around every non-contact and "
               "every sample of a missed probe's path, so a probe through a phantom part of a "
               "wrong prior removes it there.")
+    gpis_carve_estimate: bool = _gpis(
+        True, "Cut the same balls out of the GPIS posterior mean, the estimate itself "
+        "(beyond the paper).", kind="bool",
+        notes="The thin-plate correction can put surface far from every contact where the "
+              "contacts lie outside the prior; a miss there changes neither the carved prior "
+              "nor the correction, so without the cut such a part stays in the estimate and "
+              "the exploration aims at it again and again.")
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",

@@ -12,7 +12,8 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..shape.gpis import ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis, zero_level_surface
+from ..shape.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, cut_free_space,
+                          fit_gpis, zero_level_surface)
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
@@ -56,6 +57,8 @@ class Estimation:
             fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
                             self.state.gpis_scale)
         self.state.gpis_scale = fit.scale
+        fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
+                                 self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
         spacing = None
@@ -178,6 +181,13 @@ class Estimation:
         return carved_prior(self._prior(model, rotation, translation),
                             np.vstack([noncontacts, free_space]), contacts,
                             self._p.gpis_carve_radius)
+
+    def _cut_estimate(self, fit, contacts, noncontacts, free_space):
+        """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)."""
+        if not self._p.gpis_carve_estimate:
+            return fit
+        return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
+                              self._p.gpis_carve_radius)
 
     def _prior(self, model, rotation, translation):
         return PosedSDF(model, rotation, translation)

@@ -48,6 +48,8 @@ class Learning:
         fit = self._refit(kernel, snapshot.contacts, snapshot.normals,
                           self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
                           prior, snapshot.gpis_scale)
+        fit = self._cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
+                                 snapshot.free_space)
         vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing)
         if len(faces) == 0:
             raise SessionError("the reconstruction has no surface at the learned resolution")

@@ -22,7 +22,7 @@ that passed through the prior's phantom part removes it there. The scale ``a`` t
 Newton step on the log marginal likelihood per fit, in ``log a`` so that it stays positive.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
@@ -32,8 +32,8 @@ from scipy.ndimage import map_coordinates, maximum_filter, minimum_filter
 from skimage.measure import marching_cubes
 
 from .gpis_compiled import compiled_corrections
-from .gpis_prior import (CarvedPrior, carved_prior, noncontact_observations,  # noqa: F401
-                         observations)
+from .gpis_prior import (CarvedPrior, carved_prior, free_space_cut,  # noqa: F401
+                         noncontact_observations, observations)
 
 _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)
@@ -234,6 +234,9 @@ class GPISFit:
     compiled : bool
         Sum the mean's value correction by a compiled loop (the same sum, rounded
         differently; :mod:`.gpis_incremental`).
+    cut : FreeSpaceCut or None
+        Balls of space known to be empty removed from the posterior mean's solid (beyond
+        the paper; :func:`cut_free_space`); the variance is the fit's.
     """
 
     points: np.ndarray
@@ -246,6 +249,7 @@ class GPISFit:
     log_marginal_likelihood: float
     prior: object
     compiled: bool = False
+    cut: object = None
 
     @property
     def radius(self):
@@ -269,6 +273,8 @@ class GPISFit:
             values[start:start + _CHUNK] += self.scale * self._correction(part)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
                 part, self.points, self.kernel) @ self.alpha
+        if self.cut is not None:
+            self.cut(query, values, gradients)
         return values, gradients
 
     def _correction(self, query):
@@ -288,6 +294,8 @@ class GPISFit:
         for start in range(0, len(query), _CHUNK):
             part = query[start:start + _CHUNK]
             values[start:start + _CHUNK] += self.scale * self._correction(part)
+        if self.cut is not None:
+            self.cut(query, values)
         return values
 
     def variance(self, query):
@@ -412,6 +420,25 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     weights = np.zeros(4 * len(everything))
     weights[kept] = alpha
     return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
+
+
+def cut_free_space(fit, free_points, contacts, radius):
+    """``fit`` with balls about ``free_points`` cut out of its mean's solid, each at most
+    ``radius`` and never reaching a contact (:func:`carved_prior`'s balls; the fit itself
+    is not changed).
+
+    The prior's carve removes a wrong prior's phantom parts; this one removes what the
+    posterior's correction makes where probes found nothing: the thin-plate correction
+    reaches the whole box, and where the contacts lie outside the prior it can pull the
+    surface out by much more than the contacts' own offset, far from any of them. A miss
+    there changes neither the carved prior (already outside) nor the correction, so without
+    the cut the exploration would aim at such a part again and again.
+
+    Returns
+    -------
+    GPISFit
+    """
+    return replace(fit, cut=free_space_cut(free_points, contacts, radius))
 
 
 def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None):

@@ -83,33 +83,51 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
     callable
         The carved prior, same signature as ``prior``.
     """
+    cut = free_space_cut(free_points, contacts, radius, neighbours)
+    return prior if cut is None else CarvedPrior(prior, cut)
+
+
+def free_space_cut(free_points, contacts, radius, neighbours=8):
+    """The balls :func:`carved_prior` cuts, as a :class:`FreeSpaceCut` (None: no ball)."""
     free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
     if radius <= 0 or len(free_points) == 0:
-        return prior
+        return None
     radii = np.full(len(free_points), float(radius))
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
     if len(contacts):
         radii = np.minimum(radii, cKDTree(contacts).query(free_points)[0])
     keep = radii > 0
-    free_points, radii = free_points[keep], radii[keep]
-    if len(free_points) == 0:
-        return prior
-    return CarvedPrior(prior, free_points, radii, min(neighbours, len(free_points)))
+    if not keep.any():
+        return None
+    return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())))
 
 
 class CarvedPrior:
-    """``prior`` with balls of ``radii`` about ``free_points`` cut out (see
-    :func:`carved_prior`); a callable with the prior's signature that pickles."""
+    """``prior`` with a :class:`FreeSpaceCut` applied (see :func:`carved_prior`); a
+    callable with the prior's signature that pickles."""
 
-    def __init__(self, prior, free_points, radii, neighbours):
-        self.prior, self.free_points, self.radii = prior, free_points, radii
-        self.neighbours = int(neighbours)
-        self.tree = cKDTree(free_points)
+    def __init__(self, prior, cut):
+        self.prior, self.cut = prior, cut
 
     def __call__(self, points):
         points = np.atleast_2d(points)
         values, gradients = self.prior(points)
-        values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
+        return self.cut(points, np.array(values, dtype=float),
+                        np.array(gradients, dtype=float))
+
+
+class FreeSpaceCut:
+    """Balls of ``radii`` about ``free_points`` removed from a field's solid:
+    ``f'(x) = max(f(x), r_i - |x - f_i|)`` over the ``neighbours`` nearest centres."""
+
+    def __init__(self, free_points, radii, neighbours):
+        self.free_points, self.radii = free_points, radii
+        self.neighbours = int(neighbours)
+        self.tree = cKDTree(free_points)
+
+    def __call__(self, points, values, gradients=None):
+        """The cut ``values`` (k,) and, when given, ``gradients`` (k, 3) at ``points``
+        (k, 3); the arrays are changed in place and returned."""
         candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
         if len(candidates) == 0:
             return values, gradients
@@ -121,10 +139,11 @@ class CarvedPrior:
                                                                  len(self.free_points) - 1)]
         wins = cut > values[candidates]
         changed = candidates[wins]
-        offset = points[changed] - centre[wins]
-        length = np.linalg.norm(offset, axis=1, keepdims=True)
         values[changed] = cut[wins]
-        gradients[changed] = -offset / np.maximum(length, 1e-12)
+        if gradients is not None:
+            offset = points[changed] - centre[wins]
+            length = np.linalg.norm(offset, axis=1, keepdims=True)
+            gradients[changed] = -offset / np.maximum(length, 1e-12)
         return values, gradients
 
     def _nearest(self, points, values):
