@@ -34,6 +34,7 @@ from .param_schema import (Declaration, check_fields, declarations_of, documente
 PAPER_SIZE = 6.0  # longest side of the paper's normalised objects: one size unit is 1/6 of it
 GPIS_KERNELS = ("wendland", "thin-plate")
 CHECK_LINE_AIMS = ("gap", "gap-weakest", "contact")
+CARVE_ESTIMATE = ("noisy", "always", "never")
 _filter = functools.partial(param, component="filter")
 _session = functools.partial(param, component="session")
 _gpis = functools.partial(param, component="gpis")
@@ -256,13 +257,15 @@ class SessionParams:
         notes="At most the distance to the nearest contact, around every non-contact and "
               "every sample of a missed probe's path, so a probe through a phantom part of a "
               "wrong prior removes it there.")
-    gpis_carve_estimate: bool = _gpis(
-        True, "Cut the same balls out of the GPIS posterior mean, the estimate itself "
-        "(beyond the paper).", kind="bool",
-        notes="The thin-plate correction can put surface far from every contact where the "
-              "contacts lie outside the prior; a miss there changes neither the carved prior "
-              "nor the correction, so without the cut such a part stays in the estimate and "
-              "the exploration aims at it again and again.")
+    gpis_carve_estimate: str = _gpis(
+        "noisy", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
+        "itself (beyond the paper): with a noisy sensor, always or never.", kind="choice",
+        choices=CARVE_ESTIMATE,
+        notes="Under sensor noise the thin-plate correction puts surface far from every "
+              "contact, which a miss does not remove (the carved prior is already outside "
+              "there), so the exploration aims at it again and again and it stays in the "
+              "reconstruction. Exact contacts' correction is reliable: there the cut only "
+              "dents true parts near missed probes (docs/novel.md).")
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
@@ -453,6 +456,6 @@ def with_changes(params: SessionParams, **changes) -> SessionParams:
     return replace(params, filter=replace(params.filter, **ours["filter"]), **ours["session"])
 
 
-__all__ = ["CHECK_LINE_AIMS", "Declaration", "FilterParams", "GPIS_KERNELS", "PAPER_SIZE",
+__all__ = ["CARVE_ESTIMATE", "CHECK_LINE_AIMS", "Declaration", "FilterParams", "GPIS_KERNELS", "PAPER_SIZE",
            "SessionParams", "declaration", "declarations", "length_fields", "scaled_lengths",
            "with_changes"]

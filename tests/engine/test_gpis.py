@@ -5,7 +5,7 @@ from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
 from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
-                                     carved_prior, fit_gpis, gradient_rows, kernel_blocks,
+                                     carved_prior, cut_free_space, fit_gpis, gradient_rows, kernel_blocks,
                                      indefinite_nugget, stable_cholesky,
                                      value_correction, value_rows, zero_level_surface)
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
@@ -180,6 +180,27 @@ def test_carving_corrects_a_refuted_part_and_keeps_the_prior_elsewhere(mug_data)
     assert len(untouched) > 100
     kept = np.mean((carved.mean_value(untouched) < 0) == (plain.mean_value(untouched) < 0))
     assert kept > 0.95
+
+
+def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
+    # The posterior's own inside far from every contact (where a thin-plate correction can
+    # put a phantom part) is removed where a probe passed; at the contacts and away from
+    # the balls the mean, and everywhere the variance, are the fit's.
+    points, normals, prior, _ = mug_data
+    plain = fit_gpis(points, normals, prior, ThinPlateKernel(12.0))
+    candidates = np.random.default_rng(5).uniform(-3, 3, size=(6000, 3))
+    distance_to_contacts = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=-1), 1)
+    refuted = candidates[(plain.mean_value(candidates) < -0.05) & (distance_to_contacts > 1.0)][:20]
+    assert len(refuted) == 20
+    cut = cut_free_space(plain, refuted, points, 0.6)
+    np.testing.assert_allclose(cut.mean_value(refuted), 0.6)
+    np.testing.assert_array_equal(cut.mean_value(points), plain.mean_value(points))
+    np.testing.assert_array_equal(cut.variance(candidates[:50]), plain.variance(candidates[:50]))
+    reach = 0.6 + np.abs(plain.mean_value(candidates))
+    far = np.min(np.linalg.norm(candidates[:, None] - refuted[None], axis=-1), axis=1) > reach
+    np.testing.assert_array_equal(cut.mean(candidates[far])[0], plain.mean(candidates[far])[0])
+    np.testing.assert_allclose(cut.mean(refuted)[0], cut.mean_value(refuted))
+    assert cut_free_space(plain, refuted, points, 0.0).cut is None
 
 
 def test_inverse_from_cholesky_matches_a_solve(rng):

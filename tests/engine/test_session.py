@@ -4,6 +4,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import cKDTree
 
 from tactile_viz.__main__ import main
 from tactile_viz.engine import ContactSimulator, PriorLibrary
@@ -698,3 +699,27 @@ def test_a_pickled_session_steps_on_as_the_original(bundled, known, truth, strat
     copy = pickle.loads(pickle.dumps(session))
     assert copy.step_count == session.step_count
     assert _same_steps([copy.step() for _ in range(3)], [session.step() for _ in range(3)])
+
+
+def _inside_balls(session, snapshot):
+    """How far (>= 0) each GPIS vertex of ``snapshot`` lies inside the largest ball the
+    carve cuts about a point where the sensor found nothing."""
+    free = np.vstack([snapshot.noncontacts, snapshot.free_space])
+    radii = np.minimum(session.params.gpis_carve_radius,
+                       cKDTree(snapshot.contacts).query(free)[0])
+    distance, index = cKDTree(free).query(snapshot.gpis_vertices, k=16)
+    return np.max(np.clip(radii[index] - distance, 0, None), axis=1)
+
+
+@pytest.mark.parametrize("when, cut", [("noisy", True), ("never", False)])
+def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model, when, cut):
+    box = trimesh.creation.box((6.0, 3.0, 3.0))
+    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
+                                                    cache=sphere_model.cache)])
+    params = session_preset("recommended", gpis_carve_estimate=when)
+    session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params,
+                      sensor_noise=(0.06, 2.0))
+    session.run(max_steps=30)
+    depth = _inside_balls(session, _last_reconstruction(session))
+    cell = session.latest.gpis_spacing or 6.0 / params.gpis_resolution
+    assert (depth.max() <= cell) == cut

@@ -184,7 +184,8 @@ class Estimation:
 
     def _cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)."""
-        if not self._p.gpis_carve_estimate:
+        when = self._p.gpis_carve_estimate
+        if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
             return fit
         return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
                               self._p.gpis_carve_radius)
