@@ -201,6 +201,12 @@ def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
     np.testing.assert_array_equal(cut.mean(candidates[far])[0], plain.mean(candidates[far])[0])
     np.testing.assert_allclose(cut.mean(refuted)[0], cut.mean_value(refuted))
     assert cut_free_space(plain, refuted, points, 0.0).cut is None
+    # Within keep_within of a contact the fit's mean stands.
+    near = refuted[distance_to_contacts[(plain.mean_value(candidates) < -0.05)
+                                        & (distance_to_contacts > 1.0)][:20] < 1.3]
+    kept = cut_free_space(plain, refuted, points, 0.6, keep_within=1.3)
+    assert len(near)
+    np.testing.assert_array_equal(kept.mean_value(near), plain.mean_value(near))
 
 
 def test_inverse_from_cholesky_matches_a_solve(rng):

@@ -702,12 +702,15 @@ def test_a_pickled_session_steps_on_as_the_original(bundled, known, truth, strat
 
 
 def _inside_balls(session, snapshot):
-    """How far (>= 0) each GPIS vertex of ``snapshot`` lies inside the largest ball the
-    carve cuts about a point where the sensor found nothing."""
+    """How far (>= 0) each GPIS vertex of ``snapshot`` farther than ``eps`` from every
+    contact lies inside the largest ball the carve cuts about a point where the sensor found
+    nothing."""
     free = np.vstack([snapshot.noncontacts, snapshot.free_space])
-    radii = np.minimum(session.params.gpis_carve_radius,
-                       cKDTree(snapshot.contacts).query(free)[0])
-    distance, index = cKDTree(free).query(snapshot.gpis_vertices, k=16)
+    contacts = cKDTree(snapshot.contacts)
+    radii = np.minimum(session.params.gpis_carve_radius, contacts.query(free)[0])
+    vertices = snapshot.gpis_vertices
+    vertices = vertices[contacts.query(vertices)[0] > session.params.eps]
+    distance, index = cKDTree(free).query(vertices, k=16)
     return np.max(np.clip(radii[index] - distance, 0, None), axis=1)
 
 

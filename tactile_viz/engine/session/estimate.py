@@ -183,12 +183,13 @@ class Estimation:
                             self._p.gpis_carve_radius)
 
     def _cut_estimate(self, fit, contacts, noncontacts, free_space):
-        """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)."""
+        """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)
+        where no contact is within ``eps`` (where the surface is not covered)."""
         when = self._p.gpis_carve_estimate
         if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
             return fit
         return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
-                              self._p.gpis_carve_radius)
+                              self._p.gpis_carve_radius, keep_within=self._p.eps)
 
     def _prior(self, model, rotation, translation):
         return PosedSDF(model, rotation, translation)

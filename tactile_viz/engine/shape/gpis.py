@@ -422,23 +422,26 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
 
 
-def cut_free_space(fit, free_points, contacts, radius):
+def cut_free_space(fit, free_points, contacts, radius, keep_within=0.0):
     """``fit`` with balls about ``free_points`` cut out of its mean's solid, each at most
-    ``radius`` and never reaching a contact (:func:`carved_prior`'s balls; the fit itself
-    is not changed).
+    ``radius`` and never reaching a contact (:func:`carved_prior`'s balls), except within
+    ``keep_within`` of a contact; the fit itself is not changed.
 
     The prior's carve removes a wrong prior's phantom parts; this one removes what the
     posterior's correction makes where probes found nothing: the thin-plate correction
-    reaches the whole box, and where the contacts lie outside the prior it can pull the
-    surface out by much more than the contacts' own offset, far from any of them. A miss
-    there changes neither the carved prior (already outside) nor the correction, so without
-    the cut the exploration would aim at such a part again and again.
+    reaches the whole box, and under sensor noise it can put surface far from every
+    contact. A miss there changes neither the carved prior (already outside) nor the
+    correction, so without the cut the exploration would aim at such a part again and
+    again. Near the contacts the correction is the data's, and a ball there would dent a
+    thin part a probe passed close by: ``keep_within`` (the session's ``eps``, the
+    distance at which a contact covers the surface) keeps it.
 
     Returns
     -------
     GPISFit
     """
-    return replace(fit, cut=free_space_cut(free_points, contacts, radius))
+    return replace(fit, cut=free_space_cut(free_points, contacts, radius,
+                                           keep_within=keep_within))
 
 
 def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None):

@@ -87,8 +87,9 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
     return prior if cut is None else CarvedPrior(prior, cut)
 
 
-def free_space_cut(free_points, contacts, radius, neighbours=8):
-    """The balls :func:`carved_prior` cuts, as a :class:`FreeSpaceCut` (None: no ball)."""
+def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0):
+    """The balls :func:`carved_prior` cuts, as a :class:`FreeSpaceCut` (None: no ball);
+    points within ``keep_within`` of a contact are never cut."""
     free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
     if radius <= 0 or len(free_points) == 0:
         return None
@@ -99,7 +100,8 @@ def free_space_cut(free_points, contacts, radius, neighbours=8):
     keep = radii > 0
     if not keep.any():
         return None
-    return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())))
+    kept = (cKDTree(contacts), float(keep_within)) if keep_within > 0 and len(contacts) else None
+    return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())), kept)
 
 
 class CarvedPrior:
@@ -118,17 +120,23 @@ class CarvedPrior:
 
 class FreeSpaceCut:
     """Balls of ``radii`` about ``free_points`` removed from a field's solid:
-    ``f'(x) = max(f(x), r_i - |x - f_i|)`` over the ``neighbours`` nearest centres."""
+    ``f'(x) = max(f(x), r_i - |x - f_i|)`` over the ``neighbours`` nearest centres, except
+    within ``kept = (contacts' tree, distance)`` of a contact (None: everywhere)."""
 
-    def __init__(self, free_points, radii, neighbours):
+    def __init__(self, free_points, radii, neighbours, kept=None):
         self.free_points, self.radii = free_points, radii
         self.neighbours = int(neighbours)
         self.tree = cKDTree(free_points)
+        self.kept = kept
 
     def __call__(self, points, values, gradients=None):
         """The cut ``values`` (k,) and, when given, ``gradients`` (k, 3) at ``points``
         (k, 3); the arrays are changed in place and returned."""
         candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
+        if self.kept is not None and len(candidates):
+            tree, within = self.kept
+            near = tree.query(points[candidates], distance_upper_bound=within)[0] <= within
+            candidates = candidates[~near]
         if len(candidates) == 0:
             return values, gradients
         distance, index = self._nearest(points[candidates], values[candidates])
