@@ -30,7 +30,6 @@ PRESET_TABLE = {
     # is covered.
     "paper": {"contenders": 0, "refine_learned": 0, "gpis_kernel": "thin-plate",
               "gpis_radius_factor": 1.0, "gpis_noncontacts": False, "gpis_carve_radius": 0.0,
-              "gpis_carve_estimate": "never",
               "gpis_incremental": False, "gpis_refit_every": 1, "gpis_box_tolerance": 0.0,
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "sdf_max_resolution": 0},
