@@ -457,6 +457,6 @@ def with_changes(params: SessionParams, **changes) -> SessionParams:
     return replace(params, filter=replace(params.filter, **ours["filter"]), **ours["session"])
 
 
-__all__ = ["CARVE_ESTIMATE", "CHECK_LINE_AIMS", "Declaration", "FilterParams", "GPIS_KERNELS", "PAPER_SIZE",
-           "SessionParams", "declaration", "declarations", "length_fields", "scaled_lengths",
-           "with_changes"]
+__all__ = ["CARVE_ESTIMATE", "CHECK_LINE_AIMS", "Declaration", "FilterParams", "GPIS_KERNELS",
+           "PAPER_SIZE", "SessionParams", "declaration", "declarations", "length_fields",
+           "scaled_lengths", "with_changes"]
