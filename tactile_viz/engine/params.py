@@ -266,7 +266,7 @@ class SessionParams:
               "there), so the exploration aims at it again and again. The cut removes it "
               "(same data: dragon 2.48 -> 1.15), but with fewer phantom targets the stop "
               "comes sooner, and the protocol's final errors under noise were worse at seeds "
-              "12200-12201 (docs/novel.md): off by default.")
+              "12200-12201, 0.418 -> 0.502 (docs/novel.md): off by default.")
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
