@@ -5,8 +5,8 @@ from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
 from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
-                                     carved_prior, cut_free_space, fit_gpis, gradient_rows, kernel_blocks,
-                                     indefinite_nugget, stable_cholesky,
+                                     carved_prior, cut_free_space, fit_gpis, gradient_rows,
+                                     kernel_blocks, indefinite_nugget, stable_cholesky,
                                      value_correction, value_rows, zero_level_surface)
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
@@ -190,7 +190,8 @@ def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
     plain = fit_gpis(points, normals, prior, ThinPlateKernel(12.0))
     candidates = np.random.default_rng(5).uniform(-3, 3, size=(6000, 3))
     distance_to_contacts = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=-1), 1)
-    refuted = candidates[(plain.mean_value(candidates) < -0.05) & (distance_to_contacts > 1.0)][:20]
+    far_inside = (plain.mean_value(candidates) < -0.05) & (distance_to_contacts > 1.0)
+    refuted = candidates[far_inside][:20]
     assert len(refuted) == 20
     cut = cut_free_space(plain, refuted, points, 0.6)
     np.testing.assert_allclose(cut.mean_value(refuted), 0.6)
@@ -202,8 +203,7 @@ def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
     np.testing.assert_allclose(cut.mean(refuted)[0], cut.mean_value(refuted))
     assert cut_free_space(plain, refuted, points, 0.0).cut is None
     # Within keep_within of a contact the fit's mean stands.
-    near = refuted[distance_to_contacts[(plain.mean_value(candidates) < -0.05)
-                                        & (distance_to_contacts > 1.0)][:20] < 1.3]
+    near = refuted[distance_to_contacts[far_inside][:20] < 1.3]
     kept = cut_free_space(plain, refuted, points, 0.6, keep_within=1.3)
     assert len(near)
     np.testing.assert_array_equal(kept.mean_value(near), plain.mean_value(near))

@@ -600,12 +600,17 @@ def test_a_session_driven_by_misses_for_a_while(bundled, known):
     assert any(s.decided and s.map_class == "bottle_1" for s in session.snapshots)
 
 
+def _box_library(sphere_model):
+    """A library of one 6 x 3 x 3 box, the only prior of a sphere's novel sessions."""
+    box = trimesh.creation.box((6.0, 3.0, 3.0))
+    return PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
+                                                 cache=sphere_model.cache)])
+
+
 def _sphere_against_a_box(sphere_model, check_lines):
     """A session on a sphere with only a box as prior (novel), with a loose eps so its
     estimate is covered early and the check lines decide the stop."""
-    box = trimesh.creation.box((6.0, 3.0, 3.0))
-    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
-                                                    cache=sphere_model.cache)])
+    library = _box_library(sphere_model)
     params = session_preset("recommended", check_lines=check_lines, eps=2.0)
     return Session(make_truth(sphere_model, rng=0), library, seed=0, params=params), library
 
@@ -716,9 +721,7 @@ def _inside_balls(session, snapshot):
 
 @pytest.mark.parametrize("when, cut", [("noisy", True), ("never", False)])
 def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model, when, cut):
-    box = trimesh.creation.box((6.0, 3.0, 3.0))
-    library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box",
-                                                    cache=sphere_model.cache)])
+    library = _box_library(sphere_model)
     params = session_preset("recommended", gpis_carve_estimate=when)
     session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))

@@ -266,9 +266,7 @@ class GPISFit:
         query = np.atleast_2d(query)
         values, gradients = self.prior(query)
         values, gradients = np.array(values, dtype=float), np.array(gradients, dtype=float)
-        if len(self.points) == 0:
-            return values, gradients
-        for start in range(0, len(query), _CHUNK):
+        for start in range(0, len(query) if len(self.points) else 0, _CHUNK):
             part = query[start:start + _CHUNK]
             values[start:start + _CHUNK] += self.scale * self._correction(part)
             gradients[start:start + _CHUNK] += self.scale * gradient_rows(
@@ -289,9 +287,7 @@ class GPISFit:
         """Posterior mean value only (cheaper): (k,)."""
         query = np.atleast_2d(query)
         values = np.array(self.prior(query)[0], dtype=float)
-        if len(self.points) == 0:
-            return values
-        for start in range(0, len(query), _CHUNK):
+        for start in range(0, len(query) if len(self.points) else 0, _CHUNK):
             part = query[start:start + _CHUNK]
             values[start:start + _CHUNK] += self.scale * self._correction(part)
         if self.cut is not None:

@@ -95,12 +95,13 @@ def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0)
         return None
     radii = np.full(len(free_points), float(radius))
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
-    if len(contacts):
-        radii = np.minimum(radii, cKDTree(contacts).query(free_points)[0])
+    tree = cKDTree(contacts) if len(contacts) else None
+    if tree is not None:
+        radii = np.minimum(radii, tree.query(free_points)[0])
     keep = radii > 0
     if not keep.any():
         return None
-    kept = (cKDTree(contacts), float(keep_within)) if keep_within > 0 and len(contacts) else None
+    kept = (tree, float(keep_within)) if keep_within > 0 and tree is not None else None
     return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())), kept)
 
 
