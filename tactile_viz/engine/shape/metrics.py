@@ -56,12 +56,26 @@ def oriented_samples(model, count=2000, seed=0):
     return cache[(count, seed)]
 
 
+def sample_tree(model, count=4000):
+    """A KD-tree of :func:`surface_samples` (object frame), cached with them."""
+    cache = model.__dict__.setdefault("_sample_trees", {})
+    if count not in cache:
+        cache[count] = cKDTree(surface_samples(model, count))
+    return cache[count]
+
+
 def pose_error(model, rotation, translation, truth, count=4000):
-    """TWD between ``model`` placed at ``(rotation, translation)`` and the ground truth."""
-    estimate = transform_points(surface_samples(model, count), rotation, translation)
-    actual = transform_points(surface_samples(truth.model, count), truth.rotation,
-                              truth.translation)
-    return two_way_hausdorff(estimate, actual)
+    """TWD between ``model`` placed at ``(rotation, translation)`` and the ground truth.
+
+    Each direction is measured in the object frame of the samples it is measured to, so
+    that both KD-trees are the models' cached ones (:func:`sample_tree`)."""
+    # The estimate's pose in the truth's object frame: R_t^T (R x + t - t_t).
+    turn = truth.rotation.T @ rotation
+    shift = truth.rotation.T @ (np.asarray(translation, dtype=float) - truth.translation)
+    estimate = transform_points(surface_samples(model, count), turn, shift)
+    actual = transform_points(surface_samples(truth.model, count), turn.T, -turn.T @ shift)
+    return max(float(sample_tree(truth.model, count).query(estimate)[0].max()),
+               float(sample_tree(model, count).query(actual)[0].max()))
 
 
 def symmetries(model):

@@ -93,9 +93,11 @@ class ObjectModel:
         return f"ObjectModel({self.name!r}, faces={len(self.mesh.faces)})"
 
     def __getstate__(self):
-        # The exact distance holds libigl trees, which do not pickle; it is rebuilt on use.
+        # The exact distance holds libigl trees, which do not pickle; it is rebuilt on use,
+        # as are the metrics' KD-trees.
         state = dict(self.__dict__)
         state.pop("exact", None)
+        state.pop("_sample_trees", None)
         return state
 
     @classmethod
