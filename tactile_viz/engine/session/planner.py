@@ -330,8 +330,17 @@ class Planner:
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
-        far = cKDTree(refuted).query(vertices)[0] >= radius
+        far = self._refuted_tree(refuted).query(vertices, distance_upper_bound=radius)[0] >= radius
         return far if far.any() else np.ones(len(vertices), bool)
+
+    def _refuted_tree(self, refuted):
+        """A KD-tree of ``refuted`` points, kept while they stay the same (a step asks
+        twice, and a step without a miss adds none)."""
+        kept = self.__dict__.get("_refuted_kdtree")
+        key = refuted.tobytes()
+        if kept is None or kept[0] != key:
+            kept = self._refuted_kdtree = key, cKDTree(refuted)
+        return kept[1]
 
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the

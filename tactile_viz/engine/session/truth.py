@@ -1,6 +1,7 @@
 """What a simulated trial measures against its ground truth (a mixin of
 :class:`~.loop.Session`), and the ground truth of a trial."""
 
+import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
@@ -29,13 +30,22 @@ class TruthMetrics:
             self._truth_kdtree = cKDTree(self._truth_samples)
         return self._truth_kdtree
 
+    def _pose_error(self, model, rotation, translation):
+        """:func:`~..shape.metrics.pose_error` of the MAP, remembered for the last pose (the
+        MAP often stays where it was for many steps)."""
+        key = (id(model), np.asarray(rotation).tobytes(), np.asarray(translation).tobytes())
+        last = self.__dict__.get("_last_pose_error")
+        if last is None or last[0] != key:
+            last = self._last_pose_error = key, metric_pose_error(
+                model, rotation, translation, self.truth, self._p.metric_samples)
+        return last[1]
+
     def _truth_metrics(self, model, rotation, translation, recon, contacts):
         """Pose error, reconstruction error and truth coverage against the simulated
         object (None without one; the reconstruction error also while known)."""
         if self.truth is None:
             return None, None, None
-        pose_error = metric_pose_error(model, rotation, translation, self.truth,
-                                       self._p.metric_samples)
+        pose_error = self._pose_error(model, rotation, translation)
         recon_error = None
         if recon is not None and len(recon.faces):
             mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
