@@ -5,6 +5,7 @@ from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
 from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
+                                     _pair_terms,
                                      carved_prior, cut_free_space, fit_gpis, gradient_rows,
                                      kernel_blocks, indefinite_nugget, stable_cholesky,
                                      value_correction, value_rows, zero_level_surface)
@@ -61,6 +62,29 @@ def test_kernel_derivative_blocks_match_finite_differences(rng, kernel, function
                 h = 1e-5
     np.testing.assert_allclose(value_rows(x, y, radius), blocks[::4])
     np.testing.assert_allclose(gradient_rows(x, y, radius)[:, 1], blocks[2::4])
+
+
+def _numpy_blocks(x, y, kernel):
+    """``kernel_blocks`` as numpy arrays (what the compiled loop replaced)."""
+    diff, value, g, hessian = _pair_terms(x, y, kernel)
+    blocks = np.empty(value.shape + (4, 4))
+    blocks[..., 0, 0] = value
+    blocks[..., 1:, 0] = g[..., None] * diff
+    blocks[..., 0, 1:] = -(g[..., None] * diff)
+    blocks[..., 1:, 1:] = hessian
+    return blocks.transpose(0, 2, 1, 3).reshape(4 * len(x), 4 * len(y))
+
+
+@pytest.mark.parametrize("kernel", [ThinPlateKernel(14.0), ThinPlateKernel(1e-3),
+                                    WendlandKernel(2.5), WendlandKernel(1e4)])
+def test_compiled_kernel_rows_are_numpys_to_the_bit(rng, kernel):
+    # The compiled loops replace numpy's (p, q, 3, 3) temporaries; every trajectory stays
+    # the same only if every entry is rounded as numpy rounds it.
+    x, y = rng.normal(scale=3.0, size=(40, 3)), rng.normal(scale=3.0, size=(25, 3))
+    x[3], y[7] = y[5], y[6]  # zero distances, across and within the sets
+    assert np.array_equal(kernel_blocks(x, y, kernel), _numpy_blocks(x, y, kernel))
+    assert np.array_equal(kernel_blocks(y, y, kernel), _numpy_blocks(y, y, kernel))
+    assert np.array_equal(value_rows(x, y, kernel), _numpy_blocks(x, y, kernel)[::4])
 
 
 @pytest.mark.parametrize("kernel", [12.0, WendlandKernel(3.0)])

@@ -31,7 +31,7 @@ from scipy.spatial.distance import cdist
 from scipy.ndimage import map_coordinates, maximum_filter, minimum_filter
 from skimage.measure import marching_cubes
 
-from .gpis_compiled import compiled_corrections
+from .gpis_compiled import compiled_corrections, compiled_kernel_blocks, compiled_value_rows
 from .gpis_prior import (CarvedPrior, carved_prior, free_space_cut,  # noqa: F401
                          noncontact_observations, observations)
 
@@ -129,27 +129,18 @@ def kernel_blocks(x, y, kernel):
     -------
     (4p, 4q) float
         Row ``4 i + c`` is component ``c`` (0 value, 1-3 gradient) at ``x[i]``, likewise for
-        columns and ``y``.
+        columns and ``y``: ``[[k, -g d^T], [g d, -(g' d d^T / r + g I)]]`` with
+        ``d = x_i - y_j`` (:func:`_pair_terms`), summed by a compiled loop.
     """
-    diff, value, g, hessian = _pair_terms(x, y, kernel)
-    blocks = np.empty(value.shape + (4, 4))
-    blocks[..., 0, 0] = value
-    first = g[..., None] * diff
-    blocks[..., 1:, 0] = first            # cov(df(x)/dx_i, f(y))
-    blocks[..., 0, 1:] = -first           # cov(f(x), df(y)/dy_j)
-    blocks[..., 1:, 1:] = hessian
-    p, q = value.shape
-    return blocks.transpose(0, 2, 1, 3).reshape(4 * p, 4 * q)
+    kernel = as_kernel(kernel)
+    return compiled_kernel_blocks(x, y, kernel.radius, isinstance(kernel, WendlandKernel))
 
 
 def value_rows(x, y, kernel):
-    """Covariance of values at ``x`` with [value, gradient] at ``y`` (``a = 1``): (p, 4q)."""
-    diff = x[:, None, :] - y[None, :, :]
-    value, g, _ = as_kernel(kernel).profile(np.linalg.norm(diff, axis=-1), second=False)
-    rows = np.empty(value.shape + (4,))
-    rows[..., 0] = value
-    rows[..., 1:] = -g[..., None] * diff
-    return rows.reshape(len(x), -1)
+    """Covariance of values at ``x`` with [value, gradient] at ``y`` (``a = 1``): (p, 4q),
+    ``[k, -g d^T]`` per point of ``y`` (compiled loop)."""
+    kernel = as_kernel(kernel)
+    return compiled_value_rows(x, y, kernel.radius, isinstance(kernel, WendlandKernel))
 
 
 def value_correction(x, y, weights, kernel):
@@ -415,7 +406,8 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
             step /= 2
     weights = np.zeros(4 * len(everything))
     weights[kept] = alpha
-    return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior)
+    return GPISFit(everything, kept, float(scale), kernel, noise, factor, weights, value, prior,
+                   compiled=True)
 
 
 def cut_free_space(fit, free_points, contacts, radius, keep_within=0.0):
