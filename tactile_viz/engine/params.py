@@ -271,7 +271,9 @@ class SessionParams:
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
         notes="On in the fast preset: the GPIS fit 5-11x and its surface 3-5x faster, but "
-              "4 of 6 novel reconstructions worse at seed 9100 (docs/gpis.md).")
+              "4 of 6 novel reconstructions worse at seed 9100, and the dragon stopped "
+              "before its thin parts were touched at seeds 12500-12502 (0.376 -> 0.752; "
+              "docs/gpis.md).")
     gpis_refit_every: int = _gpis(
         10, "With gpis_incremental: the scale's Newton step every this many fits (1: all).",
         kind="int", valid="[1, 100]")
