@@ -325,6 +325,17 @@ class SessionParams:
               "sofa's foot or a chair's rung thinner than a cell can fall between the "
               "samples and vanish; the protocol's home_chair error fell from 0.591 to 0.507, "
               "docs/benchmarks.md). Exploration keeps gpis_resolution.")
+    final_candidates: int = _gpis(
+        10, "When a novel session stops with part of its reconstruction farther than eps "
+        "from every contact, the reported surface is the newest one the contacts cover of "
+        "this and the last this many steps' MAP priors, each without and with the carve's "
+        "cut (beyond the paper; 0: the last step's MAP prior, as the paper).", kind="int",
+        valid="[0, 100]",
+        notes="A novel object's MAP prior switches from step to step, and a switch at the "
+              "last step can leave surface 2 units from every contact (mug_2 at seed 12201: "
+              "0.39 at step 394, 2.29 at the cap). Covered: every vertex within eps of a "
+              "contact, the stop's own test. Where no candidate is covered the last surface "
+              "stands; the exploration never changes (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
         "new prior.", kind="int", valid="[8, inf)",

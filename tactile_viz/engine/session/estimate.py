@@ -7,6 +7,7 @@ A mixin of :class:`~.loop.Session` (reads its filter, parameters in scene units 
 exploration state).
 """
 
+import functools
 import time
 
 import numpy as np
@@ -70,17 +71,73 @@ class Estimation:
         timings["surface"] = time.perf_counter() - clock
         return recon
 
-    def _final_surface(self, recon, map_vertices, contacts, timings):
+    def _final_surface(self, recon, map_vertices, contacts, timings, prior=None):
         """The reconstruction a stopping session reports: the same fit at
-        ``final_resolution`` (thin parts between the exploration grid's samples appear)."""
-        if recon is None or recon.empty or (self._p.final_resolution
-                                             == self._p.gpis_resolution):
+        ``final_resolution`` (thin parts between the exploration grid's samples appear),
+        or, where part of it lies farther than ``eps`` from every contact, the newest
+        reconstruction of a recent MAP prior that the contacts cover
+        (:meth:`_best_supported`; ``prior`` is the step's ``(class, rotation,
+        translation)``)."""
+        if recon is None or recon.empty:
             return recon
+        p = self._p
         clock = time.perf_counter()
-        low, high, _ = self._gpis_box(map_vertices, contacts)
-        final = self._surface(recon.fit, (low, high), self._p.final_resolution)
-        timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
-        return recon if final.empty else final
+        final = recon
+        if p.final_resolution != p.gpis_resolution:
+            low, high, _ = self._gpis_box(map_vertices, contacts)
+            final = self._surface(recon.fit, (low, high), p.final_resolution)
+            final = recon if final.empty else final
+        if p.final_candidates and support(final.vertices, cKDTree(contacts)) > p.eps:
+            final = self._best_supported(final, contacts, prior)
+        if final is not recon:
+            timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
+        return final
+
+    def _best_supported(self, final, contacts, prior=None):
+        """``final``, or the newest reconstruction the contacts cover (every vertex within
+        ``eps`` of a contact): the GPIS fitted to every observation with the MAP prior of
+        this step and of each of the last ``final_candidates`` steps, each without and
+        then with the carve's cut of the estimate (beyond the paper). A novel object's
+        MAP prior switches from step to step, and a switch at the last step can leave
+        surface far from every contact. Where none is covered, ``final`` stands: the
+        surface the prior predicts beyond the contacts may be the object's."""
+        f, p = self.filter, self._p
+        free = np.vstack([f.noncontact_positions, self.state.free_space])
+        observed, tree = self._noncontact_points(), cKDTree(contacts)
+        cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
+                                radius=p.gpis_carve_radius, keep_within=p.eps)
+        priors = self._recent_priors(p.final_candidates, prior)
+        for index, (class_name, rotation, translation) in enumerate(priors):
+            model = f.models[f.class_names.index(class_name)]
+            low, high, kernel = self._gpis_box(
+                transform_points(model.mesh.vertices, rotation, translation), contacts)
+            if index == 0 and prior is not None:
+                candidates = [cut(final.fit)]  # this step's own: its uncut fit is final's
+            else:
+                prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+                                              f.noncontact_positions, self.state.free_space)
+                fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
+                                self.state.gpis_scale, newton=False)
+                candidates = [fit, cut(fit)]
+            for candidate in candidates:
+                vertices, faces = zero_level_surface(candidate, (low, high), p.final_resolution)
+                if len(faces) and support(vertices, tree) <= p.eps:
+                    return self._surface(candidate, (low, high), p.final_resolution)
+        return final
+
+    def _recent_priors(self, count, current=None):
+        """The distinct MAP priors ``(class, rotation, translation)`` of ``current`` and the
+        last ``count`` novel steps, newest first."""
+        priors = []
+        recent = [(snapshot.map_class, snapshot.map_rotation, snapshot.map_translation)
+                  for snapshot in reversed(self.snapshots[-count:]) if snapshot.novel]
+        for prior in ([current] if current is not None else []) + recent:
+            prior = (prior[0], np.asarray(prior[1]), np.asarray(prior[2]))
+            if not any(
+                    prior[0] == other[0] and np.array_equal(prior[1], other[1])
+                    and np.array_equal(prior[2], other[2]) for other in priors):
+                priors.append(prior)
+        return priors
 
     def _surface(self, fit, bounds, resolution, spacing=None):
         """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
@@ -202,3 +259,18 @@ class Estimation:
         free_space = self.state.free_space if free_space is None else free_space
         reach = self._p.gpis_support if self._p.gpis_kernel == "wendland" else self._unit
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
+
+
+def support(vertices, contacts_tree):
+    """How far the surface's farthest vertex lies from every contact (the DHD of all its
+    vertices, scene units; ``inf`` without vertices).
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+    contacts_tree : scipy.spatial.cKDTree
+        Of the contacts, world frame.
+    """
+    if len(vertices) == 0:
+        return np.inf
+    return float(contacts_tree.query(vertices)[0].max())

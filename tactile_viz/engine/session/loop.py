@@ -440,7 +440,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                                        map_vertices, recon, contacts, decision)  # l.6: 36
         self.state.adopt(plan)
         if plan.terminated:
-            recon = self._final_surface(recon, map_vertices, contacts, timings)
+            recon = self._final_surface(recon, map_vertices, contacts, timings,
+                                        (model.name, *pose))
         with _timed(timings, "metrics"):
             errors = self._truth_metrics(model, *pose, recon, contacts)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
