@@ -347,6 +347,7 @@ def test_paper_preset_is_the_papers_gpis():
     assert params.gpis_carve_radius == 0 and not params.cover_prior
     assert not params.target_uncovered and params.check_lines == 0
     assert params.approach_clearance == 0.5
+    assert params.final_candidates == 0  # the last step's MAP prior, whatever it leaves
 
 
 def _plan_check(session, *args):
@@ -729,3 +730,46 @@ def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model
     depth = _inside_balls(session, _last_reconstruction(session))
     cell = session.latest.gpis_spacing or 6.0 / params.gpis_resolution
     assert (depth.max() <= cell) == cut
+
+
+def _with_phantom(recon, far):
+    """``recon`` with one more vertex at ``far`` (a phantom part) and its fit kept."""
+    return replace(recon, vertices=np.vstack([recon.vertices, far]),
+                   variance=np.append(recon.variance, recon.variance.max()))
+
+
+@pytest.mark.parametrize("eps, replaced", [(2.5, True), (0.01, False)])
+def test_a_stopping_session_reports_a_surface_its_contacts_cover(sphere_model, eps, replaced):
+    library = _box_library(sphere_model)
+    params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25)
+    session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+    session.run()
+    last = session.latest
+    assert last.terminated and last.novel
+    contacts = session.filter.contact_positions
+    far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
+    final = _with_phantom(_recon_of(session, last), far)
+    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
+                                                      last.map_translation))
+    # Covered: every vertex within eps of a contact, the phantom gone; where no candidate
+    # is covered (eps 0.01), the surface stands as it was, phantom and all.
+    assert (cKDTree(contacts).query(recon.vertices)[0].max() <= session._p.eps) == replaced
+    assert (recon is final) != replaced
+    # The session reported such a surface itself where its last one was not covered.
+    reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
+    assert reported <= session._p.eps or not replaced
+
+
+def _recon_of(session, snapshot):
+    """The reconstruction of ``snapshot`` (surface, variance and the fit behind it)."""
+    from tactile_viz.engine.session.snapshot import Reconstruction
+
+    model = session.filter.models[session.filter.class_names.index(snapshot.map_class)]
+    prior = session._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
+                                snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
+    low, high, kernel = session._gpis_box(snapshot.map_vertices, snapshot.contacts)
+    fit = session._refit(kernel, snapshot.contacts, snapshot.normals,
+                         session._noncontact_points(snapshot.noncontacts, snapshot.free_space),
+                         prior, snapshot.gpis_scale)
+    return Reconstruction(snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
+                          None, fit, snapshot.gpis_resolution)
