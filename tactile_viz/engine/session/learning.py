@@ -34,7 +34,10 @@ class Learning:
                                           if snapshot.map_class in self.library else None)
 
     def _surface_at(self, snapshot, resolution):
-        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
+        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells, fitted with
+        the snapshot's MAP prior (a stopped session may report the surface of a recent
+        prior instead, ``final_candidates``; it is learned as reported at
+        ``final_resolution``, the default ``learned_resolution``)."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
         self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
