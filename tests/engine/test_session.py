@@ -749,8 +749,8 @@ def test_a_stopping_session_reports_a_surface_its_contacts_cover(sphere_model, e
     contacts = session.filter.contact_positions
     far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
     final = _with_phantom(_recon_of(session, last), far)
-    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
-                                                      last.map_translation))
+    recon = session._newest_covered(final, contacts, (last.map_class, last.map_rotation,
+                                                     last.map_translation))
     # Covered: every vertex within eps of a contact, the phantom gone; where no candidate
     # is covered (eps 0.01), the surface stands as it was, phantom and all.
     assert (cKDTree(contacts).query(recon.vertices)[0].max() <= session._p.eps) == replaced

@@ -76,7 +76,7 @@ class Estimation:
         ``final_resolution`` (thin parts between the exploration grid's samples appear),
         or, where part of it lies farther than ``eps`` from every contact, the newest
         reconstruction of a recent MAP prior that the contacts cover
-        (:meth:`_best_supported`; ``prior`` is the step's ``(class, rotation,
+        (:meth:`_newest_covered`; ``prior`` is the step's ``(class, rotation,
         translation)``)."""
         if recon is None or recon.empty:
             return recon
@@ -88,12 +88,12 @@ class Estimation:
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
         if p.final_candidates and support(final.vertices, cKDTree(contacts)) > p.eps:
-            final = self._best_supported(final, contacts, prior)
+            final = self._newest_covered(final, contacts, prior)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
-    def _best_supported(self, final, contacts, prior=None):
+    def _newest_covered(self, final, contacts, prior=None):
         """``final``, or the newest reconstruction the contacts cover (every vertex within
         ``eps`` of a contact): the GPIS fitted to every observation with the MAP prior of
         this step and of each of the last ``final_candidates`` steps, each without and
