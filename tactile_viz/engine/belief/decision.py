@@ -230,7 +230,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                                   float(probability[k])) for k in order)
     # The filter's broad likelihood cannot tell near twins apart, but it does say which
     # classes matter: those weighed here must hold the confidence between them.
-    weighed = {belief.class_names[c] for c in classes[keep]}
+    # Summed in name order: a set's order follows the string hash, which changes from one
+    # process to the next, and so would the sum's last bit.
+    weighed = sorted({belief.class_names[c] for c in classes[keep]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
     level = min(weighed_share, hypotheses[0].probability)
     # The MAP must also fit within the noise: a rival that was never sampled cannot be
