@@ -14,51 +14,9 @@ import math
 import numpy as np
 from numba import njit
 
+from ..shape.sdf import grid_lookup as _lookup
+
 _TINY = 1e-12  # as sdf._TINY: below it a gradient vanishes
-
-
-@njit(cache=True, inline="always")
-def _lookup(codes, gradient_codes, offset, shape, origin, spacing, step, x, y, z):
-    """Value and unnormalised gradient of one grid at one point (see sdf.interpolate)."""
-    px, py, pz = x, y, z
-    upper = (origin[0] + spacing * (shape[0] - 1), origin[1] + spacing * (shape[1] - 1),
-             origin[2] + spacing * (shape[2] - 1))
-    cx = min(max(px, origin[0]), upper[0])
-    cy = min(max(py, origin[1]), upper[1])
-    cz = min(max(pz, origin[2]), upper[2])
-    fx = (cx - origin[0]) / spacing
-    fy = (cy - origin[1]) / spacing
-    fz = (cz - origin[2]) / spacing
-    ix = min(int(fx), shape[0] - 2)
-    iy = min(int(fy), shape[1] - 2)
-    iz = min(int(fz), shape[2] - 2)
-    fx -= ix
-    fy -= iy
-    fz -= iz
-    nz = shape[2]
-    nyz = shape[1] * nz
-    base = offset + ix * nyz + iy * nz + iz
-    value = 0.0
-    gx = 0.0
-    gy = 0.0
-    gz = 0.0
-    for dx in range(2):
-        wx = fx if dx else 1.0 - fx
-        for dy in range(2):
-            wy = fy if dy else 1.0 - fy
-            for dz in range(2):
-                w = wx * wy * (fz if dz else 1.0 - fz)
-                corner = base + dx * nyz + dy * nz + dz
-                value += w * codes[corner]
-                gx += w * gradient_codes[corner, 0]
-                gy += w * gradient_codes[corner, 1]
-                gz += w * gradient_codes[corner, 2]
-    ox, oy, oz = px - cx, py - cy, pz - cz
-    outside = math.sqrt(ox * ox + oy * oy + oz * oz)
-    value = value * step + outside
-    if outside > 0:
-        gx, gy, gz = ox / outside, oy / outside, oz / outside
-    return value, gx, gy, gz
 
 
 @njit(cache=True)

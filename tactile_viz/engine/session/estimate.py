@@ -71,7 +71,7 @@ class Estimation:
         timings["surface"] = time.perf_counter() - clock
         return recon
 
-    def _final_surface(self, recon, map_vertices, contacts, timings, prior=None):
+    def _final_surface(self, recon, map_vertices, contacts, timings, prior):
         """The reconstruction a stopping session reports: the same fit at
         ``final_resolution`` (thin parts between the exploration grid's samples appear),
         or, where part of it lies farther than ``eps`` from every contact, the newest
@@ -87,23 +87,27 @@ class Estimation:
             low, high, _ = self._gpis_box(map_vertices, contacts)
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
-        if p.final_candidates and support(final.vertices, cKDTree(contacts)) > p.eps:
+        if p.final_candidates:
             final = self._newest_covered(final, contacts, prior)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
-    def _newest_covered(self, final, contacts, prior=None):
-        """``final``, or the newest reconstruction the contacts cover (every vertex within
-        ``eps`` of a contact): the GPIS fitted to every observation with the MAP prior of
-        this step and of each of the last ``final_candidates`` steps, each without and
-        then with the carve's cut of the estimate (beyond the paper). A novel object's
-        MAP prior switches from step to step, and a switch at the last step can leave
-        surface far from every contact. Where none is covered, ``final`` stands: the
-        surface the prior predicts beyond the contacts may be the object's."""
+    def _newest_covered(self, final, contacts, prior):
+        """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
+        else the newest reconstruction they cover: the GPIS fitted to every observation
+        with the MAP prior of this step and of each of the last ``final_candidates``
+        steps, each without and then with the carve's cut of the estimate (beyond the
+        paper). A novel object's MAP prior switches from step to step, and a switch at the
+        last step can leave surface far from every contact. Where none is covered,
+        ``final`` stands: the surface the prior predicts beyond the contacts may be the
+        object's."""
         f, p = self.filter, self._p
+        tree = cKDTree(contacts)
+        if support(final.vertices, tree) <= p.eps:
+            return final
         free = np.vstack([f.noncontact_positions, self.state.free_space])
-        observed, tree = self._noncontact_points(), cKDTree(contacts)
+        observed = self._noncontact_points()
         cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
                                 radius=p.gpis_carve_radius, keep_within=p.eps)
         priors = self._recent_priors(p.final_candidates, prior)
@@ -111,7 +115,7 @@ class Estimation:
             model = f.models[f.class_names.index(class_name)]
             low, high, kernel = self._gpis_box(
                 transform_points(model.mesh.vertices, rotation, translation), contacts)
-            if index == 0 and prior is not None:
+            if index == 0:
                 candidates = [cut(final.fit)]  # this step's own: its uncut fit is final's
             else:
                 prior_mean = self._gpis_prior(model, rotation, translation, contacts,
@@ -125,13 +129,13 @@ class Estimation:
                     return self._surface(candidate, (low, high), p.final_resolution)
         return final
 
-    def _recent_priors(self, count, current=None):
+    def _recent_priors(self, count, current):
         """The distinct MAP priors ``(class, rotation, translation)`` of ``current`` and the
-        last ``count`` novel steps, newest first."""
+        last ``count`` novel steps, newest first (``current`` first)."""
         priors = []
         recent = [(snapshot.map_class, snapshot.map_rotation, snapshot.map_translation)
                   for snapshot in reversed(self.snapshots[-count:]) if snapshot.novel]
-        for prior in ([current] if current is not None else []) + recent:
+        for prior in [current] + recent:
             prior = (prior[0], np.asarray(prior[1]), np.asarray(prior[2]))
             if not any(
                     prior[0] == other[0] and np.array_equal(prior[1], other[1])

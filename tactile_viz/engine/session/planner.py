@@ -330,7 +330,8 @@ class Planner:
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
-        far = self._refuted_tree(refuted).query(vertices, distance_upper_bound=radius)[0] >= radius
+        distance = self._refuted_tree(refuted).query(vertices, distance_upper_bound=radius)[0]
+        far = distance >= radius
         return far if far.any() else np.ones(len(vertices), bool)
 
     def _refuted_tree(self, refuted):

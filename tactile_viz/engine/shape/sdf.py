@@ -267,44 +267,61 @@ def interpolate(codes, gradient_codes, offset, shape, origin, spacing, value_ste
 
 
 @njit(cache=True, inline="always")
-def _axis(point, low, spacing, count):
-    """The clamped coordinate, the cell and the fraction along one axis of a grid."""
-    clamped = min(max(point, low), low + spacing * (count - 1))
-    position = (clamped - low) / spacing
-    cell = min(np.int64(position), count - 2)  # position >= 0: trunc is floor
-    return clamped, cell, position - cell
+def grid_lookup(codes, gradient_codes, offset, shape, origin, spacing, step, x, y, z):
+    """Value and unnormalised gradient of one grid at one point: :func:`interpolate`'s
+    terms, each rounded as its numpy expressions were (no fastmath; the prior bank's
+    likelihood loops use it too)."""
+    px, py, pz = x, y, z
+    upper = (origin[0] + spacing * (shape[0] - 1), origin[1] + spacing * (shape[1] - 1),
+             origin[2] + spacing * (shape[2] - 1))
+    cx = min(max(px, origin[0]), upper[0])
+    cy = min(max(py, origin[1]), upper[1])
+    cz = min(max(pz, origin[2]), upper[2])
+    fx = (cx - origin[0]) / spacing
+    fy = (cy - origin[1]) / spacing
+    fz = (cz - origin[2]) / spacing
+    ix = min(int(fx), shape[0] - 2)
+    iy = min(int(fy), shape[1] - 2)
+    iz = min(int(fz), shape[2] - 2)
+    fx -= ix
+    fy -= iy
+    fz -= iz
+    nz = shape[2]
+    nyz = shape[1] * nz
+    base = offset + ix * nyz + iy * nz + iz
+    value = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for dx in range(2):
+        wx = fx if dx else 1.0 - fx
+        for dy in range(2):
+            wy = fy if dy else 1.0 - fy
+            for dz in range(2):
+                w = wx * wy * (fz if dz else 1.0 - fz)
+                corner = base + dx * nyz + dy * nz + dz
+                value += w * codes[corner]
+                gx += w * gradient_codes[corner, 0]
+                gy += w * gradient_codes[corner, 1]
+                gz += w * gradient_codes[corner, 2]
+    ox, oy, oz = px - cx, py - cy, pz - cz
+    outside = np.sqrt(ox * ox + oy * oy + oz * oz)
+    value = value * step + outside
+    if outside > 0:
+        gx, gy, gz = ox / outside, oy / outside, oz / outside
+    return value, gx, gy, gz
 
 
 @njit(cache=True)
 def _interpolate(codes, gradient_codes, offset, shape, origin, spacing, value_step, points,
                  tiny, values, gradients):
-    """:func:`interpolate` of (n, 3) points, each operation rounded as the numpy
-    expression it replaced (no fastmath): the trilinear sum over the corners in the same
-    order, the distance beyond the grid, the unit gradient (:func:`normalise_rows`)."""
+    """:func:`interpolate` of (n, 3) points by :func:`grid_lookup`, each gradient made unit
+    as :func:`normalise_rows` makes it."""
     for i in range(len(points)):
-        cx, bx, fx = _axis(points[i, 0], origin[i, 0], spacing[i], shape[i, 0])
-        cy, by, fy = _axis(points[i, 1], origin[i, 1], spacing[i], shape[i, 1])
-        cz, bz, fz = _axis(points[i, 2], origin[i, 2], spacing[i], shape[i, 2])
-        nz = shape[i, 2]
-        nyz = shape[i, 1] * nz
-        index = offset[i] + bx * nyz + by * nz + bz
-        value, gx, gy, gz = 0.0, 0.0, 0.0, 0.0
-        for dx in range(2):
-            wx = fx if dx else 1 - fx
-            for dy in range(2):
-                wxy = wx * (fy if dy else 1 - fy)
-                for dz in range(2):
-                    weight = wxy * (fz if dz else 1 - fz)
-                    corner = index + (dx * nyz + dy * nz + dz)
-                    value += weight * codes[corner]
-                    gx += weight * gradient_codes[corner, 0]
-                    gy += weight * gradient_codes[corner, 1]
-                    gz += weight * gradient_codes[corner, 2]
-        ox, oy, oz = points[i, 0] - cx, points[i, 1] - cy, points[i, 2] - cz
-        outside = np.sqrt(ox * ox + oy * oy + oz * oz)
-        values[i] = value * value_step[i] + outside
-        if outside > 0:
-            gx, gy, gz = ox / outside, oy / outside, oz / outside
+        value, gx, gy, gz = grid_lookup(codes, gradient_codes, offset[i], shape[i], origin[i],
+                                        spacing[i], value_step[i], points[i, 0], points[i, 1],
+                                        points[i, 2])
+        values[i] = value
         norm = np.sqrt(gx * gx + gy * gy + gz * gz)
         if norm > tiny:
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = gx / norm, gy / norm, gz / norm
