@@ -738,8 +738,8 @@ def _with_phantom(recon, far):
                    variance=np.append(recon.variance, recon.variance.max()))
 
 
-@pytest.mark.parametrize("eps, replaced", [(2.5, True), (0.01, False)])
-def test_a_stopping_session_reports_a_surface_its_contacts_cover(sphere_model, eps, replaced):
+@pytest.mark.parametrize("eps, covered", [(2.5, True), (0.01, False)])
+def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps, covered):
     library = _box_library(sphere_model)
     params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25)
     session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
@@ -749,15 +749,20 @@ def test_a_stopping_session_reports_a_surface_its_contacts_cover(sphere_model, e
     contacts = session.filter.contact_positions
     far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
     final = _with_phantom(_recon_of(session, last), far)
-    recon = session._newest_covered(final, contacts, (last.map_class, last.map_rotation,
+    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
                                                      last.map_translation))
-    # Covered: every vertex within eps of a contact, the phantom gone; where no candidate
-    # is covered (eps 0.01), the surface stands as it was, phantom and all.
-    assert (cKDTree(contacts).query(recon.vertices)[0].max() <= session._p.eps) == replaced
-    assert (recon is final) != replaced
+    # Covered: every vertex within eps of a contact. Where no candidate is covered (eps
+    # 0.01), the best supported one: the phantom 40 units off is gone either way.
+    support = cKDTree(contacts).query(recon.vertices)[0].max()
+    assert (support <= session._p.eps) == covered
+    assert recon is not final and support < 20.0
     # The session reported such a surface itself where its last one was not covered.
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
-    assert reported <= session._p.eps or not replaced
+    assert reported <= session._p.eps or not covered
+    # A surface no candidate is better supported than stands.
+    best = session._best_supported(recon, contacts, (last.map_class, last.map_rotation,
+                                                    last.map_translation))
+    assert cKDTree(contacts).query(best.vertices)[0].max() <= support
 
 
 def _recon_of(session, snapshot):

@@ -75,8 +75,8 @@ class Estimation:
         """The reconstruction a stopping session reports: the same fit at
         ``final_resolution`` (thin parts between the exploration grid's samples appear),
         or, where part of it lies farther than ``eps`` from every contact, the newest
-        reconstruction of a recent MAP prior that the contacts cover
-        (:meth:`_newest_covered`; ``prior`` is the step's ``(class, rotation,
+        reconstruction of a recent MAP prior that the contacts cover, else the best
+        supported (:meth:`_best_supported`; ``prior`` is the step's ``(class, rotation,
         translation)``)."""
         if recon is None or recon.empty:
             return recon
@@ -88,24 +88,26 @@ class Estimation:
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
         if p.final_candidates:
-            final = self._newest_covered(final, contacts, prior)
+            final = self._best_supported(final, contacts, prior)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
-    def _newest_covered(self, final, contacts, prior):
+    def _best_supported(self, final, contacts, prior):
         """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
-        else the newest reconstruction they cover: the GPIS fitted to every observation
-        with the MAP prior of this step and of each of the last ``final_candidates``
-        steps, each without and then with the carve's cut of the estimate (beyond the
-        paper). A novel object's MAP prior switches from step to step, and a switch at the
-        last step can leave surface far from every contact. Where none is covered,
-        ``final`` stands: the surface the prior predicts beyond the contacts may be the
-        object's."""
+        else the newest reconstruction they cover, else the best supported one (the least
+        :func:`support`): the GPIS fitted to every observation with the MAP prior of this
+        step and of each of the last ``final_candidates`` steps, each without and then
+        with the carve's cut of the estimate (beyond the paper). A novel object's MAP prior
+        switches from step to step, and a switch at the last step can leave surface far
+        from every contact (under noise, where the prior switches most, at the step cap
+        too); a candidate's support bounds how far its surface can lie from the object."""
         f, p = self.filter, self._p
         tree = cKDTree(contacts)
-        if support(final.vertices, tree) <= p.eps:
+        best_support = support(final.vertices, tree)
+        if best_support <= p.eps:
             return final
+        best = None
         free = np.vstack([f.noncontact_positions, self.state.free_space])
         observed = self._noncontact_points()
         cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
@@ -125,9 +127,12 @@ class Estimation:
                 candidates = [fit, cut(fit)]
             for candidate in candidates:
                 vertices, faces = zero_level_surface(candidate, (low, high), p.final_resolution)
-                if len(faces) and support(vertices, tree) <= p.eps:
+                candidate_support = support(vertices, tree) if len(faces) else np.inf
+                if candidate_support <= p.eps:
                     return self._surface(candidate, (low, high), p.final_resolution)
-        return final
+                if candidate_support < best_support:
+                    best_support, best = candidate_support, (candidate, (low, high))
+        return final if best is None else self._surface(best[0], best[1], p.final_resolution)
 
     def _recent_priors(self, count, current):
         """The distinct MAP priors ``(class, rotation, translation)`` of ``current`` and the
