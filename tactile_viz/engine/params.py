@@ -329,13 +329,14 @@ class SessionParams:
         10, "When a novel session stops with part of its reconstruction farther than eps "
         "from every contact, the reported surface is the newest one the contacts cover of "
         "this and the last this many steps' MAP priors, each without and with the carve's "
-        "cut (beyond the paper; 0: the last step's MAP prior, as the paper).", kind="int",
-        valid="[0, 100]",
+        "cut, else the best supported of them (beyond the paper; 0: the last step's MAP "
+        "prior, as the paper).", kind="int", valid="[0, 100]",
         notes="A novel object's MAP prior switches from step to step, and a switch at the "
               "last step can leave surface 2 units from every contact (mug_2 at seed 12201: "
               "0.39 at step 394, 2.29 at the cap). Covered: every vertex within eps of a "
-              "contact, the stop's own test. Where no candidate is covered the last surface "
-              "stands; the exploration never changes (docs/gpis.md).")
+              "contact, the stop's own test. Where no candidate is covered, the one whose "
+              "farthest vertex lies nearest a contact, if nearer than the last surface's; "
+              "the exploration never changes (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
         "new prior.", kind="int", valid="[8, inf)",
