@@ -246,7 +246,8 @@ class Estimation:
         """The GPIS prior mean: the MAP shape with the refuted space cut out."""
         return carved_prior(self._prior(model, rotation, translation),
                             np.vstack([noncontacts, free_space]), contacts,
-                            self._p.gpis_carve_radius)
+                            self._p.gpis_carve_radius,
+                            inside_only=not self._p.gpis_carve_outside)
 
     def _cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)

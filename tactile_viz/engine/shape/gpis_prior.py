@@ -55,7 +55,7 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     return everything, kept, residual[kept], noise
 
 
-def carved_prior(prior, free_points, contacts, radius, neighbours=8):
+def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only=False):
     """The prior mean with the space known to be empty cut out of its shape.
 
     A ball around each free-space point (where a probe passed without touching) is removed
@@ -64,7 +64,9 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
     ``r_i = min(radius, distance from f_i to the nearest contact)``. Unlike a value
     observation, which moves the field within a kernel's reach of the point only as far as
     the other data allow, the cut removes a phantom part of a wrong-class prior wherever a
-    probe refuted it.
+    probe refuted it. With ``inside_only`` only the free points inside the prior's solid
+    cut: a probe that passed beside a part of the prior, not through it, refutes nothing
+    of it (a ball about it would cut a real sofa foot the probe passed 0.2 from).
 
     Parameters
     ----------
@@ -77,12 +79,17 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8):
         Largest ball radius; 0 returns ``prior`` itself.
     neighbours : int
         Balls considered per query point (the nearest centres).
+    inside_only : bool
+        Cut only about the free points where ``prior`` is negative.
 
     Returns
     -------
     callable
         The carved prior, same signature as ``prior``.
     """
+    if inside_only and len(free_points):
+        free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
+        free_points = free_points[np.asarray(prior(free_points)[0]) < 0]
     cut = free_space_cut(free_points, contacts, radius, neighbours)
     return prior if cut is None else CarvedPrior(prior, cut)
 
