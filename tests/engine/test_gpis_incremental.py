@@ -230,3 +230,20 @@ def test_noncontact_rows_extend_the_factor_after_the_contacts(mug, rng):
     query = points[:13] + 0.2
     np.testing.assert_allclose(fit.mean_value(query), full.mean_value(query), atol=1e-8)
     np.testing.assert_allclose(fit.variance(query), full.variance(query), atol=1e-8)
+
+
+def test_a_probe_beside_the_prior_cuts_nothing_of_it(rng):
+    # Free points 0.2 outside a ball of radius 3 refute nothing of it; with their balls of
+    # 0.6 they would cut 0.4 into it. One inside still cuts.
+    directions = rng.normal(size=(20, 3))
+    beside = 3.2 * directions / np.linalg.norm(directions, axis=1)[:, None]
+    through = np.array([[0.0, 0.0, 2.9]])
+    free = np.vstack([beside, through])
+    surface = 3.0 * directions / np.linalg.norm(directions, axis=1)[:, None]
+    old = carved_prior(_Ball(), free, np.zeros((0, 3)), 0.6)
+    new = carved_prior(_Ball(), free, np.zeros((0, 3)), 0.6, inside_only=True)
+    assert np.all(old(surface)[0] > 0.3)
+    np.testing.assert_array_equal(new(surface)[0], _Ball()(surface)[0])
+    assert new(through)[0][0] > 0.5
+    # Nothing inside: the prior itself.
+    assert carved_prior(_Ball(), beside, np.zeros((0, 3)), 0.6, inside_only=True).__class__ is _Ball

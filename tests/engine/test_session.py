@@ -724,7 +724,8 @@ def _inside_balls(session, snapshot):
 @pytest.mark.parametrize("when, cut", [("noisy", True), ("never", False)])
 def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model, when, cut):
     library = _box_library(sphere_model)
-    params = session_preset("recommended", gpis_carve_estimate=when)
+    # The balls of every free point (gpis_carve_outside), as _inside_balls measures them.
+    params = session_preset("recommended", gpis_carve_estimate=when, gpis_carve_outside=True)
     session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))
     session.run(max_steps=30)
