@@ -116,6 +116,22 @@ def test_learned_shape_keeps_its_measured_size():
     assert abs(model.mesh.volume - 24.0) < 1e-4
 
 
+@pytest.mark.parametrize("touched", [True, False])
+def test_a_learned_shape_keeps_the_pieces_contacts_support(touched):
+    # A GPIS parts a thin leg from a seat: the leg's piece carries its contacts and stays;
+    # a piece nothing touched is dropped, and the largest piece stays either way.
+    seat = trimesh.creation.box(extents=(4.0, 4.0, 1.0))
+    leg = trimesh.creation.box(extents=(0.3, 0.3, 2.0))
+    leg.apply_translation([1.5, 1.5, -2.0])
+    surface = trimesh.util.concatenate([seat, leg])
+    contacts = np.array([[0.0, 0.0, 0.5], [1.5, 1.5, -3.0 if touched else 10.0]])
+    model = learned_model_from_surface(surface.vertices, surface.faces, "learned_chair",
+                                       contacts=contacts, reach=0.6)
+    assert np.isclose(model.mesh.volume, seat.volume + (leg.volume if touched else 0.0))
+    alone = learned_model_from_surface(surface.vertices, surface.faces, "learned_seat")
+    assert np.isclose(alone.mesh.volume, seat.volume)
+
+
 def _last_reconstruction(session):
     """The last snapshot with a GPIS surface (a run may end judged known)."""
     return next(s for s in reversed(session.snapshots)

@@ -1,7 +1,9 @@
 """Learning a shape: a novel object's reconstruction as a new prior (paper, shape transfer
 learning)."""
 
+import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from ..errors import SessionError
 from ..shape.gpis import ThinPlateKernel, zero_level_surface
@@ -31,7 +33,8 @@ class Learning:
             vertices, faces = self._surface_at(snapshot, resolution)
         return learned_model_from_surface(vertices, faces, name,
                                           params=self.library[snapshot.map_class].params
-                                          if snapshot.map_class in self.library else None)
+                                          if snapshot.map_class in self.library else None,
+                                          contacts=snapshot.contacts, reach=self._p.eps)
 
     def _surface_at(self, snapshot, resolution):
         """The snapshot's GPIS zero level set on a grid of ``resolution`` cells, fitted with
@@ -59,8 +62,14 @@ class Learning:
         return vertices, faces
 
 
-def learned_model_from_surface(vertices, faces, name, params=None):
-    """An :class:`ObjectModel` from a reconstructed surface (largest connected piece).
+def learned_model_from_surface(vertices, faces, name, params=None, contacts=None, reach=0.0):
+    """An :class:`ObjectModel` from a reconstructed surface: its largest connected piece and
+    every other piece with a vertex within ``reach`` of one of ``contacts`` (world frame,
+    scene units).
+
+    A GPIS parts a thin leg from a chair's seat, and the leg's piece carries its contacts;
+    a piece no contact supports is a blob nothing touched. (The largest piece alone made a
+    learned chair of TWD 0.594 from a surface of 0.375.)
 
     The surface keeps its measured size: it is in the same world units as the object it was
     learned from, whereas scaling its (pose-dependent) bounding box to the bundled objects'
@@ -69,6 +78,11 @@ def learned_model_from_surface(vertices, faces, name, params=None):
     mesh = trimesh.Trimesh(vertices, faces, process=True)
     pieces = mesh.split(only_watertight=False)
     if len(pieces):
-        mesh = max(pieces, key=lambda piece: abs(piece.area))
+        largest = max(range(len(pieces)), key=lambda index: abs(pieces[index].area))
+        contacts = np.reshape([] if contacts is None else contacts, (-1, 3))
+        tree = cKDTree(contacts) if len(contacts) else None
+        kept = [piece for index, piece in enumerate(pieces) if index == largest or (
+            tree is not None and tree.query(piece.vertices)[0].min() <= reach)]
+        mesh = trimesh.util.concatenate(kept)
     return ObjectModel.from_arrays(mesh.vertices, mesh.faces, name, params=params,
                                    longest_side=None, learned=True)
