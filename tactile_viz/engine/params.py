@@ -282,8 +282,12 @@ class SessionParams:
               "before its thin parts were touched at seeds 12500-12502 (0.376 -> 0.752; "
               "docs/gpis.md).")
     gpis_refit_every: int = _gpis(
-        10, "With gpis_incremental: the scale's Newton step every this many fits (1: all).",
-        kind="int", valid="[1, 100]")
+        10, "The kernel scale's Newton step every this many fits (1: all, the paper's).",
+        kind="int", valid="[1, 100]",
+        notes="A full fit without it is one Cholesky factorisation instead of two and the "
+              "inverse. Under 10 contacts every fit takes it, then every contacts // 10 "
+              "fits up to this many. gpis_incremental also refits when gpis_refit_score "
+              "asks.")
     gpis_refit_score: float = _gpis(
         4.0, "With gpis_incremental: also refit when the likelihood's gradient in the log "
         "scale exceeds this many standard deviations.", valid="[0.5, 100]")

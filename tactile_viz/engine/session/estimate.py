@@ -55,8 +55,10 @@ class Estimation:
             fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
                                         self._noncontact_points(), prior)
         else:
+            newton = self._newton_due(len(contacts))
             fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
-                            self.state.gpis_scale)
+                            self.state.gpis_scale, newton=newton)
+            self.state.gpis_fits = 0 if newton else self.state.gpis_fits + 1
         self.state.gpis_scale = fit.scale
         fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
@@ -181,6 +183,13 @@ class Estimation:
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         return fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton,
                         **self._observation_options(noncontacts))
+
+    def _newton_due(self, contacts):
+        """Whether a full fit takes the scale's Newton step: every ``gpis_refit_every``
+        fits, and more often while there are few contacts (every ``contacts // 10`` fits:
+        the data grow by at most a tenth between two steps)."""
+        every = min(self._p.gpis_refit_every, max(1, contacts // 10))
+        return self.state.gpis_fits + 1 >= every
 
     def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
         """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
