@@ -33,14 +33,14 @@ PRESET_TABLE = {
               "gpis_incremental": False, "gpis_refit_every": 1, "gpis_box_tolerance": 0.0,
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "sdf_max_resolution": 0,
-              "final_candidates": 0},
+              "final_candidates": 0, "variance_points": 1500},
     # A robot that only needs to know what and where the object is: the default, stopped
     # as soon as the object is decided.
     "recognise": {"stop_at_decision": True},
     # Coarser grids and fewer feature points, and the GPIS kept from step to step: about
     # half the time per step.
     "fast": {"n_features": 120, "sdf_resolution": 48, "n_s": 15, "max_new_per_class": 800,
-             "gpis_resolution": 24, "final_resolution": 48, "variance_points": 800,
+             "gpis_resolution": 24, "final_resolution": 48, "variance_points": 250,
              "metric_samples": 2000, "gpis_incremental": True},
     # The default plus the local refinement of the MAP pose (beyond the paper).
     "refined": {"refine_map": True},

@@ -147,6 +147,29 @@ def test_paper_preset_refits_in_full_every_step(bundled, monkeypatch):
     assert all(call["newton"] for call in calls)
 
 
+def test_a_full_fit_takes_the_scales_newton_step_as_the_data_grow(bundled, monkeypatch):
+    params = session_preset("recommended")
+    assert not params.gpis_incremental and params.gpis_refit_every > 1
+    calls = []
+    monkeypatch.setattr(estimate, "fit_gpis", lambda *args, **kwargs: calls.append(
+        (len(args[0]), kwargs["newton"])) or fit_gpis(*args, **kwargs))
+    session = _novel_session(bundled, "recommended")
+    session.run(max_steps=45)
+    # One fit a novel step (a stopping session's final candidates follow, without it).
+    fits = calls[:sum(s.gpis_faces is not None for s in session.snapshots)]
+    assert sum(contacts >= 20 for contacts, _ in fits) > 5
+    skipped = 0
+    for contacts, newton in fits:
+        # Every fit under 10 contacts, then every contacts // 10 fits at most.
+        assert newton or (contacts >= 20 and skipped + 1 < min(contacts // 10,
+                                                                 params.gpis_refit_every))
+        skipped = 0 if newton else skipped + 1
+    assert not all(newton for _, newton in fits)
+    # Between two Newton steps the scale stays.
+    scales = [s.gpis_scale for s in session.snapshots if s.gpis_faces is not None]
+    assert len(set(scales)) <= sum(newton for _, newton in fits) + 1
+
+
 def test_fast_session_extends_its_fit_and_goes_on_identically(bundled):
     session = _novel_session(bundled, "fast")
     session.run(max_steps=14)

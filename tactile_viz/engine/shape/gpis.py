@@ -292,8 +292,10 @@ class GPISFit:
             return np.full(len(query), self.prior_variance)
         result = np.empty(len(query))
         for start in range(0, len(query), _CHUNK):
-            cross = self.scale * value_rows(query[start:start + _CHUNK], self.points,
-                                            self.kernel)[:, self.kept]
+            cross = value_rows(query[start:start + _CHUNK], self.points, self.kernel)
+            if len(self.kept) < cross.shape[1]:  # some non-contact rows are not observed
+                cross = cross[:, self.kept]
+            cross *= self.scale
             reduced = solve_triangular(self.factor, cross.T, lower=True, check_finite=False)
             result[start:start + _CHUNK] = self.prior_variance - np.sum(reduced**2, axis=0)
         return np.maximum(result, 0.0)
