@@ -796,3 +796,21 @@ def _recon_of(session, snapshot):
                          prior, snapshot.gpis_scale)
     return Reconstruction(snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
                           None, fit, snapshot.gpis_resolution)
+
+
+def test_the_variance_between_its_samples_is_a_mean_of_the_nearest():
+    from tactile_viz.engine.session.estimate import Estimation
+
+    class Field:  # a smooth stand-in for a fit's variance
+        def variance(self, points):
+            return 1.0 + points[:, 2]
+
+    vertices = trimesh.creation.icosphere(subdivisions=4, radius=3.0).vertices
+    subset = np.random.default_rng(0).choice(len(vertices), 400, replace=False)
+    variance = Estimation._subset_variance(Field(), vertices, subset)
+    exact = Field().variance(vertices)
+    np.testing.assert_array_equal(variance[subset], exact[subset])
+    assert variance.min() >= exact[subset].min() and variance.max() <= exact[subset].max()
+    assert np.abs(variance - exact).max() < 0.1 * np.ptp(exact)
+    every = np.random.default_rng(1).permutation(len(vertices))
+    np.testing.assert_allclose(Estimation._subset_variance(Field(), vertices, every), exact)

@@ -171,13 +171,17 @@ class Estimation:
         return Reconstruction(vertices, faces, variance, subset, fit, resolution, spacing)
 
     @staticmethod
-    def _subset_variance(fit, vertices, subset):
-        """The variance at ``vertices[subset]``; other vertices show the nearest one's."""
-        variance = np.zeros(len(vertices))
-        variance[subset] = fit.variance(vertices[subset])
+    def _subset_variance(fit, vertices, subset, neighbours=4):
+        """The variance at ``vertices[subset]``; other vertices show the inverse-distance
+        mean of the ``neighbours`` nearest ones' (for display only: targets are drawn from
+        the subset)."""
+        values, variance = fit.variance(vertices[subset]), np.empty(len(vertices))
         if len(subset) < len(vertices):
-            nearest = cKDTree(vertices[subset]).query(vertices)[1]
-            variance = variance[subset][nearest]
+            k = min(neighbours, len(subset))
+            distance, nearest = cKDTree(vertices[subset]).query(vertices, k=[*range(1, k + 1)])
+            weights = 1.0 / np.maximum(distance, 1e-12)
+            variance = np.sum(weights * values[nearest], axis=1) / np.sum(weights, axis=1)
+        variance[subset] = values
         return variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
