@@ -178,8 +178,8 @@ def stable_cholesky(matrix, max_tries=8):
     jitter = 0.0
     for attempt in range(max_tries):
         try:
-            return cholesky(matrix + jitter * np.eye(len(matrix)), lower=True,
-                            check_finite=False), jitter
+            shifted = matrix + jitter * np.eye(len(matrix)) if jitter else matrix
+            return cholesky(shifted, lower=True, check_finite=False), jitter
         except LinAlgError:
             jitter = scale * 10.0 ** (attempt - 10)
     raise LinAlgError(f"matrix not positive definite even with jitter {jitter:.3g}")
@@ -303,7 +303,9 @@ class GPISFit:
 
 def _log_likelihood_terms(gram0, residual, scale, noise):
     """Cholesky, alpha and log marginal likelihood of ``a K0 + diag(noise)``."""
-    factor, _ = stable_cholesky(scale * gram0 + np.diag(noise))
+    matrix = scale * gram0
+    matrix.flat[::len(matrix) + 1] += noise
+    factor, _ = stable_cholesky(matrix)
     alpha = cho_solve((factor, True), residual, check_finite=False)
     value = (-0.5 * residual @ alpha - np.sum(np.log(np.diag(factor)))
              - 0.5 * len(residual) * _LOG_2PI)
@@ -386,7 +388,9 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     if len(everything) == 0:
         return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)
-    gram0 = kernel_blocks(everything, everything, kernel)[np.ix_(kept, kept)]
+    gram0 = kernel_blocks(everything, everything, kernel)
+    if len(kept) < len(gram0):  # some non-contact rows are not observed
+        gram0 = gram0[np.ix_(kept, kept)]
     try:
         factor, alpha, value = _log_likelihood_terms(gram0, residual, scale, noise)
     except LinAlgError:  # thin-plate R too small: jitter as a nugget of the kernel
