@@ -330,7 +330,7 @@ class SessionParams:
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
         notes="The target is the largest variance among them; other vertices show the "
-              "nearest one's. Each costs a solve against the whole factor (O(m^2)): at 250 "
+              "inverse-distance mean of the 4 nearest. Each costs a solve against the whole factor (O(m^2)): at 250 "
               "contacts 1,500 of them took 76 ms a step. 400 (the paper's configuration "
               "kept 1,500) sample a size-6 surface about every 0.4, within eps.")
     final_resolution: int = _gpis(
