@@ -177,8 +177,9 @@ class Estimation:
         the subset)."""
         values, variance = fit.variance(vertices[subset]), np.empty(len(vertices))
         if len(subset) < len(vertices):
-            k = min(neighbours, len(subset))
-            distance, nearest = cKDTree(vertices[subset]).query(vertices, k=[*range(1, k + 1)])
+            k = min(neighbours, len(subset))  # as a list, k keeps the (v, k) shape at 1
+            distance, nearest = cKDTree(vertices[subset]).query(vertices,
+                                                                k=list(range(1, k + 1)))
             weights = 1.0 / np.maximum(distance, 1e-12)
             variance = np.sum(weights * values[nearest], axis=1) / np.sum(weights, axis=1)
         variance[subset] = values
