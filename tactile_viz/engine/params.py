@@ -280,7 +280,9 @@ class SessionParams:
         notes="On in the fast preset: the GPIS fit 5-11x and its surface 3-5x faster, but "
               "4 of 6 novel reconstructions worse at seed 9100, and the dragon stopped "
               "before its thin parts were touched at seeds 12500-12502 (0.376 -> 0.752; "
-              "docs/gpis.md).")
+              "docs/gpis.md). Since the full fit's Newton step every few fits and 400 "
+              "variance points it is no faster (78.7 against 70.2 ms a novel step, seeds "
+              "13300-13302).")
     gpis_refit_every: int = _gpis(
         10, "The kernel scale's Newton step every this many fits (1: all, the paper's).",
         kind="int", valid="[1, 100]",
@@ -330,9 +332,10 @@ class SessionParams:
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
         notes="The target is the largest variance among them; other vertices show the "
-              "inverse-distance mean of the 4 nearest. Each costs a solve against the whole factor (O(m^2)): at 250 "
-              "contacts 1,500 of them took 76 ms a step. 400 (the paper's configuration "
-              "kept 1,500) sample a size-6 surface about every 0.4, within eps.")
+              "inverse-distance mean of the 4 nearest. Each costs a solve against the "
+              "whole factor (O(m^2)): at 250 contacts 1,500 of them took 76 ms a step. "
+              "400 (the paper's configuration kept 1,500) sample a size-6 surface about "
+              "every 0.4, within eps.")
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",
