@@ -142,6 +142,12 @@ class FilterParams:
               "on the bundled chair), and the novelty test failed at them.")
     refine_iterations: int = _filter(
         10, "Gauss-Newton steps of each pose refinement.", kind="int", valid=_AT_LEAST_1)
+    refine_warm_iterations: int = _filter(
+        3, "Under sensor noise, the steps of a contender's refinement that starts from its "
+        "pose refined at the last step (0: every refinement starts afresh).", kind="int",
+        valid=_AT_LEAST_0, notes="A particle that survived resampling was refined on all "
+        "but the newest contact; ten steps from its own pose, each looking every "
+        "turned-away contact up in the surface samples, were half of a noisy step.")
     contenders: int = _filter(
         4, "Classes whose heaviest particles are refined to tell near twins apart (beyond "
         "the paper; 0 off).", kind="int", valid=_AT_LEAST_0, control=(0, 50),

@@ -111,7 +111,7 @@ def test_a_better_fitting_lookalike_joins_and_becomes_the_map(twins, contending)
     only_plain = Particles(np.zeros(3, int), np.repeat(np.eye(3)[None], 3, axis=0),
                            np.array([[0.0, 0, 0], [0.05, 0, 0], [0, 0.05, 0]]),
                            np.log([0.5, 0.3, 0.2]))
-    belief, chosen = discriminate(pf, only_plain)
+    belief, chosen, _ = discriminate(pf, only_plain)
     if not contending:
         assert chosen is None and belief is only_plain
         return
@@ -130,7 +130,7 @@ def test_the_best_fit_wins_over_the_heavier_twin(twins):
     turn = Rotation.from_rotvec([0.0, 0.0, np.radians(3)]).as_matrix()
     both = Particles(np.array([1, 0]), np.stack([np.eye(3), turn]),
                      np.array([[0.05, 0.0, 0.0], [0.0, 0.1, 0.0]]), np.log([0.7, 0.3]))
-    belief, chosen = discriminate(pf, both)
+    belief, chosen, _ = discriminate(pf, both)
     assert belief is both and chosen == 1
 
 
@@ -139,7 +139,7 @@ def test_one_class_and_no_better_lookalike_changes_nothing(twins):
     pf.contact_positions, pf.contact_normals = _touched(twins, "mug_1", 40)
     alone = Particles(np.zeros(2, int), np.repeat(np.eye(3)[None], 2, axis=0),
                       np.zeros((2, 3)), np.log([0.6, 0.4]))
-    belief, chosen = discriminate(pf, alone)
+    belief, chosen, _ = discriminate(pf, alone)
     assert chosen is None and belief is alone
 
 

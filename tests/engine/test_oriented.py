@@ -4,6 +4,7 @@ noise, a face turned away does not explain a contact, and nested twins are told 
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
 from tactile_viz.engine.belief.decision import decide
@@ -225,8 +226,69 @@ def test_under_noise_the_filter_takes_the_rod_not_the_blade(rod_and_blade, seed)
     pf.contact_positions, pf.contact_normals = points, normals
     particles = Particles(np.array([1, 0]), np.repeat(np.eye(3)[None], 2, axis=0),
                           np.zeros((2, 3)), np.log([0.6, 0.4]))
-    particles, chosen = discriminate(pf, particles)
+    particles, chosen, _ = discriminate(pf, particles)
     assert rod_and_blade.names[particles.classes[chosen]] == "rod"
+
+
+def _refinements(monkeypatch):
+    """Record each refine_poses call of the discrimination: (iterations, start rotations)."""
+    from tactile_viz.engine.belief import discrimination
+
+    calls, refine = [], discrimination.refine_poses
+
+    def spy(evaluate, classes, rotations, translations, contacts, noncontacts, iterations,
+            **options):
+        calls.append((iterations, np.array(rotations)))
+        return refine(evaluate, classes, rotations, translations, contacts, noncontacts,
+                      iterations, **options)
+
+    monkeypatch.setattr(discrimination, "refine_poses", spy)
+    return calls
+
+
+def _rod_filter(library, noise, warm_iterations=3):
+    points, normals = _touches_of_the_rod(np.random.default_rng(3), 13, noise, 2.0)
+    pf = ParticleFilter(library, FilterParams(position_noise=noise,
+                                              refine_warm_iterations=warm_iterations), rng=0)
+    pf.contact_positions, pf.contact_normals = points[:12], normals[:12]
+    turned = Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix()
+    particles = Particles(np.array([1, 0]), np.stack([turned, np.eye(3)]), np.zeros((2, 3)),
+                          np.log([0.6, 0.4]))
+    return pf, particles, points, normals
+
+
+def test_under_noise_the_next_refinement_starts_where_the_last_ended(rod_and_blade,
+                                                                    monkeypatch):
+    """A contender refined at the last step starts from that pose and takes
+    ``refine_warm_iterations`` steps; the rod stays the MAP."""
+    from tactile_viz.engine.belief.discrimination import discriminate
+
+    pf, particles, points, normals = _rod_filter(rod_and_blade, 0.002)
+    calls = _refinements(monkeypatch)
+    particles, chosen, refined = discriminate(pf, particles)
+    assert [c[0] for c in calls] == [pf.params.refine_iterations]
+    assert len(refined) == 2 and {key[0] for key in refined} == {0, 1}
+    pf.contact_positions, pf.contact_normals = points, normals  # one contact more
+    calls.clear()
+    particles, chosen, again = discriminate(pf, particles, refined)
+    assert [c[0] for c in calls] == [pf.params.refine_warm_iterations]
+    starts = np.stack([refined[key][0] for key in again])  # in the candidates' order
+    np.testing.assert_array_equal(calls[0][1], starts)
+    assert rod_and_blade.names[particles.classes[chosen]] == "rod"
+
+
+@pytest.mark.parametrize("noise, warm_iterations", [(0.0, 3), (0.002, 0)])
+def test_without_noise_or_warm_steps_every_refinement_starts_afresh(rod_and_blade, monkeypatch,
+                                                                   noise, warm_iterations):
+    from tactile_viz.engine.belief.discrimination import discriminate
+
+    pf, particles, _, _ = _rod_filter(rod_and_blade, noise, warm_iterations)
+    _, chosen, refined = discriminate(pf, particles)
+    calls = _refinements(monkeypatch)
+    _, chosen_again, _ = discriminate(pf, particles, refined)
+    assert [c[0] for c in calls] == [pf.params.refine_iterations]
+    np.testing.assert_array_equal(calls[0][1][:2], particles.rotations[[0, 1]])
+    assert chosen_again == chosen
 
 
 def test_points_in_several_poses_frames_agree_with_one_pose_at_a_time():

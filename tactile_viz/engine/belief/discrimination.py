@@ -69,7 +69,7 @@ def lookalikes(bank, rotation, translation, contacts, exclude, count, within):
     return best[misfit[best] < within**2]
 
 
-def discriminate(pf, particles):
+def discriminate(pf, particles, warm=None):
     """One discrimination step (see the module docstring).
 
     Parameters
@@ -77,6 +77,8 @@ def discriminate(pf, particles):
     pf : ParticleFilter
         Its parameters, bank, observations and :meth:`log_evidence_of` are used.
     particles : Particles
+    warm : dict, optional
+        The last step's ``refined`` (under noise the refinement starts from it).
 
     Returns
     -------
@@ -84,10 +86,12 @@ def discriminate(pf, particles):
         The belief, with refined contenders and any lookalike that joined.
     chosen : int or None
         Index of the MAP in it, or None when no class contends (the heaviest stays MAP).
+    refined : dict
+        This step's refined poses, for the next step's ``warm``.
     """
     params = pf.params
     if not params.contenders or len(pf.contact_positions) < 3:
-        return particles, None
+        return particles, None, {}
     heaviest = int(np.argmax(particles.log_weights))
     held = contenders(particles, params.contenders, params.contender_mass)
     held = np.r_[heaviest, held[held != heaviest]]
@@ -96,19 +100,17 @@ def discriminate(pf, particles):
                         particles.classes[held], params.contenders, params.sigma_d)
     n = len(held)
     if n < 2 and not len(others):
-        return particles, None
+        return particles, None, {}
     candidates = Particles.concatenate([
         particles.take(held),
         Particles(others, np.repeat(rotation[None], len(others), axis=0),
                   np.repeat(translation[None], len(others), axis=0), np.zeros(len(others)))])
     oriented = _oriented(pf)
     try:
-        rotations, translations, misfit = refine_poses(
-            pf.bank.evaluate, candidates.classes, candidates.rotations, candidates.translations,
-            pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
-            trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented)
+        rotations, translations, misfit, refined = _refined(pf, candidates, oriented,
+                                                            warm or {})
     except np.linalg.LinAlgError:
-        return particles, None
+        return particles, None, {}
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     if oriented is not None:
         # In nats: the normals weigh in (a knife's blade fits a noisy pencil's positions).
@@ -117,7 +119,7 @@ def discriminate(pf, particles):
             pf.contact_normals, MIN_NORMAL_NOISE_DEG)
     joining = n + np.flatnonzero(misfit[n:] < misfit[:n].min())
     if n < 2 and not len(joining):
-        return particles, None
+        return particles, None, refined
     positions = np.r_[held, len(particles) + np.arange(len(joining))]
     if len(joining):
         # Lookalikes: the paper's new-particle weight, relative to the MAP.
@@ -130,7 +132,40 @@ def discriminate(pf, particles):
         belief = Particles.concatenate([particles, joined])
         particles = Particles(belief.classes, belief.rotations, belief.translations,
                               normalise_log_weights(belief.log_weights))
-    return particles, int(positions[int(np.argmin(misfit[np.r_[np.arange(n), joining]]))])
+    chosen = int(positions[int(np.argmin(misfit[np.r_[np.arange(n), joining]]))])
+    return particles, chosen, refined
+
+
+def _refined(pf, candidates, oriented, warm):
+    """The candidates' poses refined (:func:`.pose_refinement.refine_poses`), their
+    misfits, and the poses by candidate (class and unrefined pose) for the next step.
+
+    Under noise a candidate the last step refined (the same class at the same pose: a
+    particle that survived resampling, or a lookalike at an unchanged MAP) starts from
+    that refined pose and takes ``refine_warm_iterations`` steps: one new contact moves
+    its optimum little, and the oriented look-ups of ten steps from the particle's pose
+    were most of a noisy step. Without noise the refinement starts afresh (as measured)."""
+    params = pf.params
+    keys = [(int(c), r.tobytes(), t.tobytes()) for c, r, t in
+            zip(candidates.classes, candidates.rotations, candidates.translations)]
+    rotations, translations = candidates.rotations.copy(), candidates.translations.copy()
+    started = np.zeros(len(keys), dtype=bool)
+    if oriented is not None and params.refine_warm_iterations:
+        for index, key in enumerate(keys):
+            if key in warm:
+                rotations[index], translations[index] = warm[key]
+                started[index] = True
+    misfit = np.empty(len(keys))
+    for chosen, iterations in ((started, params.refine_warm_iterations),
+                               (~started, params.refine_iterations)):
+        if chosen.any():
+            rotations[chosen], translations[chosen], misfit[chosen] = refine_poses(
+                pf.bank.evaluate, candidates.classes[chosen], rotations[chosen],
+                translations[chosen], pf.contact_positions, pf.noncontact_positions,
+                iterations, trim=params.outlier_probability, normals=pf.contact_normals,
+                oriented=oriented)
+    refined = {key: (rotations[index], translations[index]) for index, key in enumerate(keys)}
+    return rotations, translations, misfit, refined
 
 
 def _oriented(pf):

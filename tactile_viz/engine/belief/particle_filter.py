@@ -72,6 +72,7 @@ class ParticleFilter:
         self.particles = None
         self.step_count = 0
         self.state = None
+        self.refined = {}  # the discrimination's last refined poses (its warm starts)
         self._bank = None
 
     @property
@@ -87,7 +88,7 @@ class ParticleFilter:
         return {**self.__dict__, "_bank": None}
 
     _STATE = ("particles", "contact_positions", "contact_normals", "noncontact_positions",
-              "step_count", "state")
+              "step_count", "state", "refined")
 
     def checkpoint(self):
         """What :meth:`restore` needs to undo later updates.
@@ -196,7 +197,7 @@ class ParticleFilter:
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
-        self.particles, chosen = discriminate(self, self.particles)
+        self.particles, chosen, self.refined = discriminate(self, self.particles, self.refined)
         if self.bank.large:
             release_freed_memory()
         return self._record(sampled, chosen)
