@@ -103,6 +103,23 @@ def test_a_symmetry_of_the_shape_is_one_mode(shapes):
     assert same < 0.02 and other > 0.5
 
 
+def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
+    """Poses of one class within the tolerance are one mode, kept once: as the pose of the
+    least cost (the normals weighed in), whichever fits the positions closest."""
+    from tactile_viz.engine.belief.decision import _distinct
+
+    pf = ParticleFilter(shapes, FilterParams(), rng=0)
+    nudged = Rotation.from_euler("z", 2, degrees=True).as_matrix()
+    rotations = np.stack([np.eye(3), np.eye(3), nudged, nudged])
+    classes = np.array([1, 0, 0, 2])
+    kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
+                     np.array([3.0, 2.0, 1.0, 5.0]), tolerance=0.3)
+    np.testing.assert_array_equal(kept, [0, 2, 3])  # the MAP candidate always leads
+    kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
+                     np.array([3.0, 1.0, 2.0, np.inf]), tolerance=0.3)
+    np.testing.assert_array_equal(kept, [0, 1])
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_decision_holds_at_any_size(tmp_path, scale):
     from tactile_viz.engine.io.cache import ArrayCache
