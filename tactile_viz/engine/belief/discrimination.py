@@ -146,15 +146,17 @@ def _refined(pf, candidates, oriented, warm):
     its optimum little, and the oriented look-ups of ten steps from the particle's pose
     were most of a noisy step. Without noise the refinement starts afresh (as measured)."""
     params = pf.params
+    if oriented is None or not params.refine_warm_iterations:
+        return (*refine_poses(
+            pf.bank.evaluate, candidates.classes, candidates.rotations, candidates.translations,
+            pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
+            trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented), {})
     keys = [(int(c), r.tobytes(), t.tobytes()) for c, r, t in
             zip(candidates.classes, candidates.rotations, candidates.translations)]
     rotations, translations = candidates.rotations.copy(), candidates.translations.copy()
-    started = np.zeros(len(keys), dtype=bool)
-    if oriented is not None and params.refine_warm_iterations:
-        for index, key in enumerate(keys):
-            if key in warm:
-                rotations[index], translations[index] = warm[key]
-                started[index] = True
+    started = np.array([key in warm for key in keys], dtype=bool)
+    for index in np.flatnonzero(started):
+        rotations[index], translations[index] = warm[keys[index]]
     misfit = np.empty(len(keys))
     for chosen, iterations in ((started, params.refine_warm_iterations),
                                (~started, params.refine_iterations)):
