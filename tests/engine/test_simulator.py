@@ -55,6 +55,22 @@ def test_first_crossing_wins(bundled):
     assert observation.position[0] < 0 and observation.normal[0] < -0.9
 
 
+def test_a_path_is_evaluated_in_batches_as_it_would_be_whole(truth, rng):
+    """The first sample inside, wherever it falls among the doubling batches (a batch's
+    first sample included), gives the contact the whole path's distances give."""
+    simulator = ContactSimulator(truth)
+    for crossing in (1, 31, 32, 33, 95, 96, 97, 500):
+        point = truth.surface_points(1, rng)[0]
+        _, _, normal = truth.closest(point[None])
+        start = point + (crossing - 0.5) * simulator.step * normal[0]
+        samples = sample_path([start, point - 0.2 * normal[0]], simulator.step)
+        distance = truth.signed_distance(samples)
+        hit = np.flatnonzero(distance <= 0)[0]
+        expected = simulator._bisect(samples[hit - 1], samples[hit], distance[hit - 1])
+        observation = simulator.probe([start, point - 0.2 * normal[0]])
+        np.testing.assert_array_equal(observation.position, expected)
+
+
 def test_same_seed_same_noisy_observations(truth):
     paths = [_inward_probe(truth, np.random.default_rng(i)) for i in range(10)]
 

@@ -127,17 +127,32 @@ class ContactSimulator:
             A non-contact is reported at the end of the path.
         """
         samples = sample_path(path, self.step)
-        distance = self.truth.signed_distance(samples)
-        if distance[0] < 0:
+        hit, before = self._first_inside(samples)
+        if hit == 0:
             _, closest, normal = self.truth.closest(samples[:1])
             return self._contact(closest[0], normal[0])
-        crossing = np.flatnonzero(distance <= 0)
-        if len(crossing) == 0:
+        if hit is None:
             return NonContact(self._noisy_position(samples[-1]))
-        hit = crossing[0]
-        position = self._bisect(samples[hit - 1], samples[hit], distance[hit - 1])
+        position = self._bisect(samples[hit - 1], samples[hit], before)
         _, _, normal = self.truth.closest(position[None])
         return self._contact(position, normal[0])
+
+    def _first_inside(self, samples):
+        """The index of the first sample on or inside the surface (``None`` if none) and
+        the signed distance of the one before it. The path's samples are evaluated in
+        batches that double, from 32: a probe mostly stops early, and a sample's distance
+        does not depend on its batch."""
+        start, size, before = 0, 32, None
+        while start < len(samples):
+            distance = self.truth.signed_distance(samples[start:start + size])
+            if start == 0 and distance[0] < 0:
+                return 0, None
+            crossing = np.flatnonzero(distance <= 0)
+            if len(crossing):
+                hit = crossing[0]
+                return start + hit, distance[hit - 1] if hit else before
+            start, size, before = start + size, 2 * size, distance[-1]
+        return None, None
 
     def _bisect(self, outside, inside, outside_distance):
         """A point within ``tolerance`` of the surface between an outside and an inside point."""

@@ -50,7 +50,8 @@ class TruthMetrics:
         if recon is not None and len(recon.faces):
             mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
             samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
-            recon_error = max(float(self._truth_tree().query(samples)[0].max()),
+            recon_error = max(directed_hausdorff(samples, self._truth_samples,
+                                                 self._truth_tree()),
                               directed_hausdorff(self._truth_samples, samples))
         return (float(pose_error), recon_error,
                 directed_hausdorff(self._truth_samples, contacts))

@@ -5,6 +5,7 @@ units."""
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import directed_hausdorff as scipy_directed_hausdorff
 from scipy.spatial.transform import Rotation
 
 from .meshes import bare_mesh
@@ -24,14 +25,25 @@ def error_threshold(size=PAPER_SIZE):
     return ERROR_THRESHOLD * (float(size) / PAPER_SIZE)
 
 
-def directed_hausdorff(from_points, to_points):
-    """``max_a min_b |a - b|`` for (n, 3) and (m, 3) point sets (``inf`` if ``to`` is empty)."""
+def directed_hausdorff(from_points, to_points, tree=None):
+    """``max_a min_b |a - b|`` for (n, 3) and (m, 3) point sets (``inf`` if ``to`` is empty).
+
+    Exact either way, and the faster of two ways: a KD-tree (``tree``, of ``to_points``,
+    built when not given) where the sets lie close, scipy's early break where some points
+    lie far (a query slows with its distance, the early break speeds up: 6 ms against
+    0.5 ms on a novel object's MAP prior, 1.8 ms against 18 ms on a known one's). A probe
+    of 64 of ``from_points`` chooses: far when its largest distance is over twice its
+    median."""
     from_points, to_points = np.atleast_2d(from_points), np.atleast_2d(to_points)
     if len(from_points) == 0:
         return 0.0
     if len(to_points) == 0:
         return float("inf")
-    return float(cKDTree(to_points).query(from_points)[0].max())
+    tree = cKDTree(to_points) if tree is None else tree
+    probe = tree.query(from_points[::max(1, len(from_points) // 64)])[0]
+    if len(from_points) > 256 and probe.max() > 2 * np.median(probe):
+        return float(scipy_directed_hausdorff(from_points, to_points, seed=0)[0])
+    return float(tree.query(from_points)[0].max())
 
 
 def two_way_hausdorff(a, b):
@@ -74,8 +86,9 @@ def pose_error(model, rotation, translation, truth, count=4000):
     shift = truth.rotation.T @ (np.asarray(translation, dtype=float) - truth.translation)
     estimate = transform_points(surface_samples(model, count), turn, shift)
     actual = transform_points(surface_samples(truth.model, count), turn.T, -turn.T @ shift)
-    return max(float(sample_tree(truth.model, count).query(estimate)[0].max()),
-               float(sample_tree(model, count).query(actual)[0].max()))
+    return max(directed_hausdorff(estimate, surface_samples(truth.model, count),
+                                  sample_tree(truth.model, count)),
+               directed_hausdorff(actual, surface_samples(model, count), sample_tree(model, count)))
 
 
 def symmetries(model):

@@ -1,0 +1,24 @@
+import numpy as np
+import pytest
+
+from tactile_viz.engine.shape.metrics import directed_hausdorff
+
+
+def _brute(a, b):
+    return float(np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min(axis=1).max())
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e-3, 0.5, 30.0])
+def test_directed_hausdorff_is_exact_near_and_far(offset, rng):
+    """Close sets go by KD-tree, far ones by the early break: the same number either way."""
+    surface = rng.normal(size=(1500, 3))
+    surface /= np.linalg.norm(surface, axis=1, keepdims=True)
+    other = surface[rng.permutation(1500)[:900]] + offset * rng.normal(size=(900, 3))
+    other[:5] += [offset * 10, 0, 0]
+    for a, b in ((surface, other), (other, surface), (surface[:3], other), (other, surface[:1])):
+        assert directed_hausdorff(a, b) == pytest.approx(_brute(a, b), rel=1e-12)
+
+
+def test_directed_hausdorff_of_empty_sets():
+    assert directed_hausdorff(np.zeros((0, 3)), np.ones((4, 3))) == 0.0
+    assert directed_hausdorff(np.ones((4, 3)), np.zeros((0, 3))) == float("inf")
