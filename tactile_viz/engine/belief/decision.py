@@ -242,7 +242,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # process to the next, and so would the sum's last bit.
     weighed = sorted({belief.class_names[c] for c in classes[keep]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
-    level = min(weighed_share, hypotheses[0].probability)
+    lead = _lead(hypotheses)
+    level = min(weighed_share, lead.probability)
     # The MAP must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
     # A shape round but for small detail (a bumpy ball) is posed about its round axis
@@ -250,14 +251,29 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # the noise and that detail.
     roughness = symmetry_group(pf.models[classes[0]]).roughness
     dof = len(contacts) - POSE_PARAMETERS
-    fits = dof > 0 and misfit[0] <= chi2.ppf(confidence, dof) * max(floor2 + roughness**2,
-                                                                     1e-300)
+    fits = dof > 0 and lead.misfit <= chi2.ppf(confidence, dof) * max(
+        floor2 + roughness**2, 1e-300)
     loosest = None
     if fits and level >= confidence:
-        loosest = _loosest(pf, hypotheses[0], scale2, confidence, pose_tolerance)
+        loosest = _loosest(pf, lead, scale2, confidence, pose_tolerance)
     decided = not belief.novel and fits and level >= confidence and loosest is None
+    if decided:  # the decided pose is the one reported and aimed from
+        hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)))
+
+
+def _lead(hypotheses):
+    """The MAP class's most probable hypothesis: the one a decision is about.
+
+    The filter's broad likelihood can leave the class's heaviest particle in a turn that
+    another of its poses fits far better: a bumpy ball's particle sat 60-180 degrees off
+    for 120 steps, noiseless, while the fit put 1.000 on a pose 0.2 degrees off, and the
+    ball was never decided. The particle's pose stays the one reported and aimed from
+    until the decision (leading with the best pose at every step moved novel objects'
+    early known steps)."""
+    mine = [h for h in hypotheses if h.class_index == hypotheses[0].class_index]
+    return max(mine, key=lambda h: h.probability)
 
 
 def _loosest(pf, hypothesis, scale2, confidence, tolerance):
