@@ -271,8 +271,13 @@ def _lead(hypotheses):
     for 120 steps, noiseless, while the fit put 1.000 on a pose 0.2 degrees off, and the
     ball was never decided. The particle's pose stays the one reported and aimed from
     until the decision (leading with the best pose at every step moved novel objects'
-    early known steps)."""
-    mine = [h for h in hypotheses if h.class_index == hypotheses[0].class_index]
+    early known steps). Only a pose that fits the contacts' positions as well as the
+    particle's can lead: by its normals alone a knife 6 degrees off, with 7 times the
+    squared residuals of the knife's other poses, led at 0.995 and a fork was decided as
+    the knife at 1 mm (seed 14410)."""
+    first = hypotheses[0]
+    mine = [h for h in hypotheses
+            if h.class_index == first.class_index and h.misfit <= first.misfit]
     return max(mine, key=lambda h: h.probability)
 
 
