@@ -147,6 +147,24 @@ def test_the_decision_is_about_the_classs_most_probable_pose(shapes):
     assert np.degrees(Rotation.from_matrix(few.hypotheses[0].rotation).magnitude()) > 45
 
 
+def test_a_pose_leads_only_where_positions_alone_refute_the_particles():
+    """Better normals alone, or residuals lower by less than the confidence's margin, do
+    not move the decision off the particle's pose; another class never leads."""
+    from tactile_viz.engine.belief.decision import _lead
+
+    def hypothesis(class_index, misfit, probability):
+        return Hypothesis(class_index, np.eye(3), np.zeros(3), misfit, probability)
+
+    first = hypothesis(0, 1.0, 0.0)
+    margin = 2 * 0.01 * np.log(100)
+    close = hypothesis(0, 1.0 - 0.9 * margin, 1.0)
+    assert _lead((first, close), 0.01, 0.99) is first
+    far = hypothesis(0, 1.0 - 1.1 * margin, 0.7)
+    likelier = hypothesis(0, 0.5, 0.2)
+    assert _lead((first, close, likelier, far), 0.01, 0.99) is far
+    assert _lead((first, hypothesis(1, 0.0, 1.0)), 0.01, 0.99) is first
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_decision_holds_at_any_size(tmp_path, scale):
     from tactile_viz.engine.io.cache import ArrayCache
