@@ -42,7 +42,8 @@ def directed_hausdorff(from_points, to_points, tree=None):
     tree = cKDTree(to_points) if tree is None else tree
     probe = tree.query(from_points[::max(1, len(from_points) // 64)])[0]
     if len(from_points) > 256 and probe.max() > 2 * np.median(probe):
-        return float(scipy_directed_hausdorff(from_points, to_points, seed=0)[0])
+        # The shuffle's seed by position: newer scipy names it `rng`, older `seed`.
+        return float(scipy_directed_hausdorff(from_points, to_points, 0)[0])
     return float(tree.query(from_points)[0].max())
 
 
