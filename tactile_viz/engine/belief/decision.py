@@ -269,14 +269,9 @@ def _lead(hypotheses, scale2, confidence):
     lower by ``2 s^2 log(1 / (1 - confidence))``), the most probable such.
 
     The filter's broad likelihood can leave the class's heaviest particle in a turn that
-    another of its poses fits far better: a bumpy ball's sat 60-180 degrees off for 120
-    steps, noiseless, its residuals 100 times those of a pose 0.2 degrees off, and the
-    ball was never decided. The particle's pose stays the one reported and aimed from
-    until the decision (leading with the best pose at every step moved novel objects'
-    early known steps). Chosen by probability alone, a knife 6 degrees off with 7 times
-    the residuals of its other poses led by its normals and a fork was decided as the
-    knife (1 mm, seed 14410); allowed any pose that fits as well, a cross screwdriver
-    turned as well as the particle led and a flat one was decided as it (2 mm, 14410)."""
+    another of its poses fits far better (a bumpy ball's, 60-180 degrees off for 120
+    steps). Normals alone, or an equal fit, must not move the decision: a fork was decided
+    as a knife and a flat screwdriver as the cross so (docs/decision.md)."""
     first = hypotheses[0]
     margin = 2 * scale2 * np.log(1 / (1 - confidence))
     better = [h for h in hypotheses[1:]

@@ -40,10 +40,11 @@ def directed_hausdorff(from_points, to_points, tree=None):
     if len(to_points) == 0:
         return float("inf")
     tree = cKDTree(to_points) if tree is None else tree
-    probe = tree.query(from_points[::max(1, len(from_points) // 64)])[0]
-    if len(from_points) > 256 and probe.max() > 2 * np.median(probe):
-        # The shuffle's seed by position: newer scipy names it `rng`, older `seed`.
-        return float(scipy_directed_hausdorff(from_points, to_points, 0)[0])
+    if len(from_points) > 256:  # fewer are queried whole at once
+        probe = tree.query(from_points[::len(from_points) // 64])[0]
+        if probe.max() > 2 * np.median(probe):
+            # The shuffle's seed by position: newer scipy names it `rng`, older `seed`.
+            return float(scipy_directed_hausdorff(from_points, to_points, 0)[0])
     return float(tree.query(from_points)[0].max())
 
 
