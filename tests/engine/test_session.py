@@ -1,4 +1,5 @@
 import json
+import pickle
 from dataclasses import replace
 
 import numpy as np
@@ -209,6 +210,30 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
     assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error", "n_particles",
             "n_contacts", "n_noncontacts", "step_seconds"} <= set(record)
     json.dumps(record)
+
+
+def test_the_drawn_variance_is_spread_when_first_read_and_pickled_as_values(novel_session):
+    """A novel step's snapshot holds its variance as a deferred spread of the candidates'
+    (headless runs never draw it); read, it is every vertex's, the candidates' exactly;
+    pickled (to the app from its engine process), it carries the values, not the fit."""
+    from tactile_viz.engine.session.snapshot import Reconstruction, spread_variance
+
+    step = next(s for s in reversed(novel_session.snapshots) if s.gpis_vertices is not None
+                and not s.terminated)
+    deferred = step.__dict__["gpis_variance"]
+    assert callable(deferred)
+    assert not any(isinstance(cell.cell_contents, Reconstruction)
+                   for cell in deferred.__closure__)  # a snapshot does not keep the fit
+    copy = pickle.loads(pickle.dumps(step))
+    assert not callable(copy.__dict__["gpis_variance"])
+    variance = step.gpis_variance
+    assert variance.shape == (len(step.gpis_vertices),) and not variance.flags.writeable
+    assert variance is step.gpis_variance  # computed once
+    np.testing.assert_array_equal(copy.gpis_variance, variance)
+    assert np.all(np.isfinite(variance)) and np.all(variance >= 0)
+    subset = np.random.default_rng(0).choice(len(variance), 50, replace=False)
+    np.testing.assert_array_equal(spread_variance(step.gpis_vertices, subset,
+                                                  variance[subset])[subset], variance[subset])
 
 
 def test_rrt_strategy_runs(bundled, known):
@@ -758,7 +783,7 @@ def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model
 def _with_phantom(recon, far):
     """``recon`` with one more vertex at ``far`` (a phantom part) and its fit kept."""
     return replace(recon, vertices=np.vstack([recon.vertices, far]),
-                   variance=np.append(recon.variance, recon.variance.max()))
+                   vertex_variance=np.append(recon.variance, recon.variance.max()))
 
 
 @pytest.mark.parametrize("eps, covered", [(2.5, True), (0.01, False)])
@@ -799,23 +824,19 @@ def _recon_of(session, snapshot):
     fit = session._refit(kernel, snapshot.contacts, snapshot.normals,
                          session._noncontact_points(snapshot.noncontacts, snapshot.free_space),
                          prior, snapshot.gpis_scale)
-    return Reconstruction(snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
-                          None, fit, snapshot.gpis_resolution)
+    return Reconstruction(snapshot.gpis_vertices, snapshot.gpis_faces, None, np.zeros(0), fit,
+                          snapshot.gpis_resolution, vertex_variance=snapshot.gpis_variance)
 
 
 def test_the_variance_between_its_samples_is_a_mean_of_the_nearest():
-    from tactile_viz.engine.session.estimate import Estimation
-
-    class Field:  # a smooth stand-in for a fit's variance
-        def variance(self, points):
-            return 1.0 + points[:, 2]
+    from tactile_viz.engine.session.snapshot import spread_variance
 
     vertices = trimesh.creation.icosphere(subdivisions=4, radius=3.0).vertices
+    exact = 1.0 + vertices[:, 2]  # a smooth stand-in for a fit's variance
     subset = np.random.default_rng(0).choice(len(vertices), 400, replace=False)
-    variance = Estimation._subset_variance(Field(), vertices, subset)
-    exact = Field().variance(vertices)
+    variance = spread_variance(vertices, subset, exact[subset])
     np.testing.assert_array_equal(variance[subset], exact[subset])
     assert variance.min() >= exact[subset].min() and variance.max() <= exact[subset].max()
     assert np.abs(variance - exact).max() < 0.1 * np.ptp(exact)
     every = np.random.default_rng(1).permutation(len(vertices))
-    np.testing.assert_allclose(Estimation._subset_variance(Field(), vertices, every), exact)
+    np.testing.assert_allclose(spread_variance(vertices, every, exact[every]), exact)

@@ -32,16 +32,17 @@ def farthest_vertex(vertices, contacts):
     return int(np.argmax(distance))
 
 
-def variance_target(vertices, variance, subset, reachable, contacts, uncovered_beyond=None):
+def variance_target(vertices, subset, variance, reachable, contacts, uncovered_beyond=None):
     """Index of the GPIS-DHD target of a novel object: the surface vertex of largest
     posterior variance (paper III-F).
 
     Parameters
     ----------
     vertices : (v, 3) float
-    variance : (v,) float
     subset : (k,) int
         The vertices whose variance was evaluated (the candidates).
+    variance : (k,) float
+        The posterior variance at ``vertices[subset]``.
     reachable : (v,) bool
         Vertices away from given-up targets and missed probes (others only if none is).
     contacts : (n, 3) float
@@ -52,7 +53,7 @@ def variance_target(vertices, variance, subset, reachable, contacts, uncovered_b
     -------
     int
     """
-    score = variance[subset]
+    score = np.asarray(variance, dtype=float)
     distance = cKDTree(contacts).query(vertices[subset])[0]
     uncovered = distance > (-1.0 if uncovered_beyond is None else uncovered_beyond)
     for usable in (reachable[subset] & uncovered, reachable[subset]):

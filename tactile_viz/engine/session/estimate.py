@@ -159,31 +159,18 @@ class Estimation:
         low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
         vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
                                              spacing=spacing)
-        variance, subset = np.zeros(len(vertices)), None
+        subset, candidates, everywhere = None, np.zeros(0), None
         if len(vertices):
             count = min(self._p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             if spacing is not None:
-                variance, self.state.variance_cache = lattice_variance(
+                everywhere, self.state.variance_cache = lattice_variance(
                     fit, vertices, low, spacing, self.state.variance_cache)
+                candidates = everywhere[subset]
             else:
-                variance = self._subset_variance(fit, vertices, subset)
-        return Reconstruction(vertices, faces, variance, subset, fit, resolution, spacing)
-
-    @staticmethod
-    def _subset_variance(fit, vertices, subset, neighbours=4):
-        """The variance at ``vertices[subset]``; other vertices show the inverse-distance
-        mean of the ``neighbours`` nearest ones' (for display only: targets are drawn from
-        the subset)."""
-        values, variance = fit.variance(vertices[subset]), np.empty(len(vertices))
-        if len(subset) < len(vertices):
-            k = min(neighbours, len(subset))  # as a list, k keeps the (v, k) shape at 1
-            distance, nearest = cKDTree(vertices[subset]).query(vertices,
-                                                                k=list(range(1, k + 1)))
-            weights = 1.0 / np.maximum(distance, 1e-12)
-            variance = np.sum(weights * values[nearest], axis=1) / np.sum(weights, axis=1)
-        variance[subset] = values
-        return variance
+                candidates = fit.variance(vertices[subset])
+        return Reconstruction(vertices, faces, subset, candidates, fit, resolution, spacing,
+                              everywhere)
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         return fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton,

@@ -464,7 +464,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             log_threshold=float(belief.log_threshold), novel=bool(belief.novel),
             gpis_vertices=None if recon is None else frozen(recon.vertices),
             gpis_faces=None if recon is None else frozen(recon.faces),
-            gpis_variance=None if recon is None else frozen(recon.variance),
+            gpis_variance=None if recon is None else recon.deferred_variance(),
             gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
             target=None if self.state.target is None else frozen(self.state.target.position),
             dhd=float(plan.dhd), truth_coverage=truth_coverage, pose_error=pose_error,

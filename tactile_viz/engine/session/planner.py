@@ -306,7 +306,7 @@ class Planner:
         """The :class:`Aim` of the next step: the novel or the known rule of
         :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
-            index = variance_target(recon.vertices, recon.variance, recon.subset, reachable,
+            index = variance_target(recon.vertices, recon.subset, recon.candidate_variance, reachable,
                                     contacts, self._p.eps if self._p.target_uncovered
                                     else None)
             target = recon.vertices[index]

@@ -2,8 +2,10 @@
 of a sensor, the targets it reaches for and the reconstruction of a novel object."""
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 
@@ -12,6 +14,26 @@ def frozen(array):
     array = np.array(array)
     array.flags.writeable = False
     return array
+
+
+class _Deferred:
+    """A field that may be given as a zero-argument callable, called on first read and
+    kept (read-only): what only a viewer reads is computed only if one does. A pickled
+    snapshot carries the value."""
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, instance, owner=None):
+        if instance is None:
+            raise AttributeError(self.name)  # (to dataclasses: a field without a default)
+        value = instance.__dict__[self.name]
+        if callable(value):
+            value = instance.__dict__[self.name] = frozen(value())
+        return value
+
+    def __set__(self, instance, value):
+        instance.__dict__[self.name] = value
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +69,7 @@ class Snapshot:
     novel: bool
     gpis_vertices: object
     gpis_faces: object
-    gpis_variance: object
+    gpis_variance: object = _Deferred()
     gpis_scale: object
     target: object
     dhd: float
@@ -64,6 +86,9 @@ class Snapshot:
     translation_error: object = None
     decided: bool = False
     decision_confidence: float = 0.0
+
+    def __getstate__(self):
+        return {**self.__dict__, "gpis_variance": self.gpis_variance}
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -112,30 +137,77 @@ class Reconstruction:
     vertices : (v, 3) float
         The zero level set of the posterior mean (marching cubes), world frame.
     faces : (f, 3) int
-    variance : (v,) float
-        Posterior variance at the vertices (evaluated at ``subset``, nearest elsewhere; or
-        interpolated along the grid's edges everywhere with ``spacing``).
     subset : (k,) int or None
         The vertices where the variance was evaluated (the target's candidates).
+    candidate_variance : (k,) float
+        Posterior variance at ``vertices[subset]``.
     fit : GPISFit
     resolution : int
         Marching-cubes cells along the box's longest side.
     spacing : float or None
         The grid's cell when kept from step to step (``gpis_incremental``), on a lattice
         anchored at the origin; None: the box's longest side over ``resolution``.
+    vertex_variance : (v,) float or None
+        The variance at every vertex where it was interpolated along the grid's edges
+        (with ``spacing``); None: :attr:`variance` spreads the candidates'.
     """
 
     vertices: np.ndarray
     faces: np.ndarray
-    variance: np.ndarray
     subset: object
+    candidate_variance: np.ndarray
     fit: object
     resolution: int
     spacing: object = None
+    vertex_variance: object = None
 
     @property
     def empty(self):
         return len(self.vertices) == 0
+
+    @cached_property
+    def variance(self):
+        """Posterior variance at every vertex, (v,) float: ``vertex_variance``, else
+        :func:`spread_variance` of the candidates' (computed when first read)."""
+        if self.vertex_variance is not None:
+            return self.vertex_variance
+        if self.subset is None:
+            return np.zeros(len(self.vertices))
+        return spread_variance(self.vertices, self.subset, self.candidate_variance)
+
+    def deferred_variance(self):
+        """:attr:`variance`, or a callable that computes it without this object (a
+        snapshot keeps what a viewer may draw, not the fit)."""
+        if "variance" in self.__dict__ or self.vertex_variance is not None or self.subset is None:
+            return frozen(self.variance)
+        vertices, subset, values = self.vertices, self.subset, self.candidate_variance
+        return lambda: spread_variance(vertices, subset, values)
+
+
+def spread_variance(vertices, subset, values, neighbours=4):
+    """Values known at ``vertices[subset]`` spread to every vertex: each other vertex gets
+    the inverse-distance mean of its ``neighbours`` nearest known ones (for display: the
+    target is drawn from the subset).
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+    subset : (k,) int
+    values : (k,) float
+
+    Returns
+    -------
+    (v,) float
+    """
+    values = np.asarray(values, dtype=float)
+    spread = np.empty(len(vertices))
+    if len(subset) < len(vertices):
+        k = min(neighbours, len(subset))  # as a list, k keeps the (v, k) shape at 1
+        distance, nearest = cKDTree(vertices[subset]).query(vertices, k=list(range(1, k + 1)))
+        weights = 1.0 / np.maximum(distance, 1e-12)
+        spread = np.sum(weights * values[nearest], axis=1) / np.sum(weights, axis=1)
+    spread[subset] = values
+    return spread
 
 
 @dataclass(frozen=True)

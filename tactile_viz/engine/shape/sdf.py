@@ -94,8 +94,9 @@ class ExactDistance:
         return np.where(inside, -distance, distance), closest, face
 
     def _closest(self, points):
-        workers = os.cpu_count() or 1
-        if len(points) < _PARALLEL_BATCH or workers == 1:
+        # (os.cpu_count reads the system's CPU list: 13 us, as long as a small query)
+        workers = 1 if len(points) < _PARALLEL_BATCH else os.cpu_count() or 1
+        if workers == 1:
             return self._tree.squared_distance(self.vertices, self.faces, points)
         chunks = [np.ascontiguousarray(c) for c in np.array_split(points, workers)]
         with ThreadPoolExecutor(workers) as pool:
