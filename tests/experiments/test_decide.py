@@ -46,11 +46,12 @@ def test_a_trial_is_right_only_if_decided_on_the_truth_within_the_threshold():
 
 def test_the_table_counts_per_noise_level_and_lists_the_misses():
     results = [_result("mug_1", 7), _result("knife", None),
+               _result("block", 5, size=0.02, pose=0.0001),
                _result("mug_1", 9, noise=(0.002, 2.0)),
                _result("neptune", None, novel=True, tag="novel", map_class="guitar_1")]
     text = decide.markdown([decide.summary(r) for r in results])
-    assert "| 0, 0 | 2 | 1 (50.0%) | 1 | 7.0 |" in text
-    assert "| 0.002, 2 | 1 | 1 (100.0%) | 0 | 9.0 |" in text
+    assert "| 0, 0 | 3 | 2 (66.7%) | 1/2 (50.0%) | 1 | 6.0 |" in text  # the block: 2 cm
+    assert "| 0.002, 2 | 1 | 1 (100.0%) | 1/1 (100.0%) | 0 | 9.0 |" in text
     assert "| knife | 0 | 0, 0 | - |" in text
     assert "1/1" in text  # the novel object judged novel
 
