@@ -32,13 +32,15 @@ from .resampling import merge_close_poses, stochastic_universal_resampling  # no
 from .discrimination import discriminate
 from .pose_refinement import refine_poses
 from .prior_bank import PriorBank, bank_for, release_freed_memory
+from ..shape.sdf import ExactDistance
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
 NOISE_OFFSETS = np.array([0.0, -1.0, 1.0, -2.0, 2.0])  # position-noise stds along a normal
-# A noise offset counts where the grid's normal turns by more than 60 degrees within it: a
-# fold of the distance field (a thin wall's middle, the inside of a sharp edge), not a
-# curvature a grid of ~0.1-unit voxels resolves over the offset's ~0.1 units.
+# A noise offset counts where the nearest face's normal turns by more than 60 degrees
+# within it: a fold of the distance field (a thin wall's middle, the inside of a sharp
+# edge), not a curvature, which turns the normal by a few degrees over the offset.
 FOLD_COSINE = 0.5
+EXACT_KEPT = 8  # classes whose exact distance (libigl trees, ~8 MB each) the filter keeps
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
 
@@ -414,7 +416,12 @@ class ParticleFilter:
         best offset within the position noise where that offset crosses a fold of the
         distance field (a thin wall's middle), and
         without the worst ``ceil(eps n)`` contacts (``eps = outlier_probability``): one
-        wrong contact cannot make a known object novel."""
+        wrong contact cannot make a known object novel.
+
+        Distances and normals are the MAP mesh's own (exact distance, nearest face's
+        normal), not its grid's: a tine or a rod one or two voxels across has grid normals
+        that point anywhere a few millimetres inside it, where noisy readings lie (a fork
+        at 2 mm flipped between known and novel)."""
         params = self.params
         rotation, translation = best.rotations[0], best.translations[0]
         if params.position_noise > 0 and len(self.contact_positions) >= 3:
@@ -423,8 +430,9 @@ class ParticleFilter:
             rotation, translation = self._refined_map(best)
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
-        distance, gradients = self.bank.evaluate(best.classes[:1], local[None])
-        distance, own = distance[0], gradients[0]
+        exact = self._exact(int(best.classes[0]))
+        distance, _, faces = exact.query(local)
+        own = exact.face_normal(faces)
         terms = log_contact_likelihood(distance, own, normals, params.sigma_d, params.sigma_n,
                                        params.outlier_probability)
         for offset in params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ():
@@ -434,15 +442,28 @@ class ParticleFilter:
             # slack that no noise explains (sofa_2 passed as sofa_1). The distance stays
             # the reading's own, so a shape that merely lies near the contacts gains
             # nothing; the offset costs as a distance does, with the same sigma_d.
-            _, gradients = self.bank.evaluate(best.classes[:1], (local + offset * normals)[None])
-            fold = np.einsum("ij,ij->i", gradients[0], own) < FOLD_COSINE
-            shifted = log_contact_likelihood(distance, gradients[0], normals, params.sigma_d,
+            shifted_normal = exact.face_normal(exact.query(local + offset * normals)[2])
+            fold = np.einsum("ij,ij->i", shifted_normal, own) < FOLD_COSINE
+            shifted = log_contact_likelihood(distance, shifted_normal, normals, params.sigma_d,
                                              params.sigma_n, params.outlier_probability)
             prior = -0.5 * (offset / params.sigma_d) ** 2
             terms = np.where(fold, np.maximum(terms, shifted + prior), terms)
         total, kept = _trimmed(terms, params.outlier_probability)
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
+
+    def _exact(self, class_index):
+        """The exact distance of a class's mesh (:class:`~..shape.sdf.ExactDistance`),
+        kept on the bank for the last :data:`EXACT_KEPT` classes asked for."""
+        kept = self.bank.__dict__.setdefault("_exact", {})
+        model = self.models[class_index]
+        exact = kept.pop(class_index, None) or model.__dict__.get("exact")
+        if exact is None:
+            exact = ExactDistance(model.mesh.vertices, model.mesh.faces)
+        kept[class_index] = exact  # most recently used last
+        while len(kept) > EXACT_KEPT:
+            kept.pop(next(iter(kept)))
+        return exact
 
     def _record(self, sampled, chosen=None):
         params = self.params

@@ -108,6 +108,10 @@ class ExactDistance:
         """Signed distance only: (k,) float for (k, 3) points."""
         return self.query(points)[0]
 
+    def face_normal(self, face):
+        """Outward unit normals of faces: (k, 3) float for (k,) face indices."""
+        return self._face_normals[face]
+
     def surface_normal(self, closest, face):
         """Outward unit normal at surface points, interpolated from the vertex normals.
 
