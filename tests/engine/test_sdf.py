@@ -162,3 +162,19 @@ def test_compiled_interpolation_is_numpys_to_the_bit(sphere_model, rng):
     # Several grids at once, broadcast per row (the prior bank's call).
     stacked = grid.evaluate(points.reshape(2, -1, 3))
     assert np.array_equal(stacked[0].ravel(), values)
+
+
+def test_the_nearest_face_is_the_signed_querys_without_its_sign(bundled, rng):
+    """``nearest_face`` (the noisy novelty test's look-up) skips only the inside test."""
+    exact = bundled["mug_1"].exact
+    points = bundled["mug_1"].mesh.sample(300) + rng.normal(0.0, 0.2, (300, 3))
+    signed, closest, face = exact.query(points)
+    distance, nearest = exact.nearest_face(points)
+    np.testing.assert_array_equal(distance, np.abs(signed))
+    np.testing.assert_array_equal(nearest, face)
+    normals = exact.face_normal(nearest)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+    # Points just outside a face lie along its outward normal from their closest point.
+    outside = signed > 1e-3
+    along = np.einsum("ij,ij->i", points[outside] - closest[outside], normals[outside])
+    assert np.median(along / signed[outside]) > 0.99

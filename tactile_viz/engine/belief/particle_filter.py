@@ -430,19 +430,23 @@ class ParticleFilter:
             rotation, translation = self._refined_map(best)
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
+        offsets = params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ()
         exact = self._exact(int(best.classes[0]))
-        distance, _, faces = exact.query(local)
-        own = exact.face_normal(faces)
+        # One look-up for the readings and their offsets; the likelihood needs no sign.
+        distance, faces = exact.nearest_face(
+            np.vstack([local, *(local + offset * normals for offset in offsets)]))
+        distance, faces = distance[:len(local)], faces.reshape(-1, len(local))
+        own = exact.face_normal(faces[0])
         terms = log_contact_likelihood(distance, own, normals, params.sigma_d, params.sigma_n,
                                        params.outlier_probability)
-        for offset in params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ():
+        for offset, at_offset in zip(offsets, faces[1:]):
             # The normal a reading ``offset`` off along its normal would meet, where the
             # offset crosses a fold of the distance field (FOLD_COSINE) and nowhere else: a
             # best-of-five normal elsewhere grants every contact on a near twin's curves
             # slack that no noise explains (sofa_2 passed as sofa_1). The distance stays
             # the reading's own, so a shape that merely lies near the contacts gains
             # nothing; the offset costs as a distance does, with the same sigma_d.
-            shifted_normal = exact.face_normal(exact.query(local + offset * normals)[2])
+            shifted_normal = exact.face_normal(at_offset)
             fold = np.einsum("ij,ij->i", shifted_normal, own) < FOLD_COSINE
             shifted = log_contact_likelihood(distance, shifted_normal, normals, params.sigma_d,
                                              params.sigma_n, params.outlier_probability)

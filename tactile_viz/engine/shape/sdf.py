@@ -13,6 +13,7 @@ Two kinds, both with negative values inside:
 """
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -67,12 +68,17 @@ class ExactDistance:
         self.faces = np.ascontiguousarray(faces, dtype=np.int64)
         self._tree = igl.AABB()
         self._tree.init(self.vertices, self.faces)
-        self._winding = igl.FastWindingNumberBVH()
-        self._winding.init(self.vertices, self.faces)
         normals = np.cross(self.vertices[self.faces[:, 1]] - self.vertices[self.faces[:, 0]],
                            self.vertices[self.faces[:, 2]] - self.vertices[self.faces[:, 0]])
         self._face_normals = normalise_rows(normals)
         self._vertex_normals = _area_weighted_vertex_normals(self.vertices, self.faces, normals)
+
+    @cached_property
+    def _winding(self):
+        """The inside test's tree, built when a sign is first asked for."""
+        winding = igl.FastWindingNumberBVH()
+        winding.init(self.vertices, self.faces)
+        return winding
 
     def query(self, points):
         """Signed distance, closest surface point and face index.
@@ -107,6 +113,23 @@ class ExactDistance:
     def signed_distance(self, points):
         """Signed distance only: (k,) float for (k, 3) points."""
         return self.query(points)[0]
+
+    def nearest_face(self, points):
+        """Unsigned distance to the surface and the nearest face (no inside test: a
+        quarter of :meth:`query`'s time on a few hundred points).
+
+        Parameters
+        ----------
+        points : (k, 3) float, object frame
+
+        Returns
+        -------
+        distance : (k,) float
+        face : (k,) int
+        """
+        points = np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
+        squared, face, _ = self._closest(points)
+        return np.sqrt(np.maximum(squared, 0.0)), face
 
     def face_normal(self, face):
         """Outward unit normals of faces: (k, 3) float for (k,) face indices."""
