@@ -108,6 +108,10 @@ def _fmt(value, spec=".1f"):
     return "-" if value is None else format(value, spec)
 
 
+def _percent(count, total):
+    return f"{100 * count / max(total, 1):.1f}%"
+
+
 def markdown(summaries):
     """One table row per noise level, then every known trial that was not right."""
     lines = ["| noise (m, deg) | known trials | right at the decision | "
@@ -122,8 +126,9 @@ def markdown(summaries):
         right = sum(s["right"] for s in known)
         band = [s["right"] for s in known if BAND_M[0] <= s["size"] <= BAND_M[1]]
         lines.append(
-            f"| {noise[0]:g}, {noise[1]:g} | {len(known)} | {right} ({100 * right / max(len(known), 1):.1f}%) | "
-            f"{sum(band)}/{len(band)} ({100 * sum(band) / max(len(band), 1):.1f}%) | "
+            f"| {noise[0]:g}, {noise[1]:g} | {len(known)} | "
+            f"{right} ({_percent(right, len(known))}) | "
+            f"{sum(band)}/{len(band)} ({_percent(sum(band), len(band))}) | "
             f"{sum(s['decided_at'] is None for s in known)} | "
             f"{_fmt(_median([s['decided_at'] for s in known]))} | "
             f"{_fmt(_median([s['rotation_error_deg'] for s in known if s['right']]), '.2f')} | "

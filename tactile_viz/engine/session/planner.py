@@ -306,9 +306,9 @@ class Planner:
         """The :class:`Aim` of the next step: the novel or the known rule of
         :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
-            index = variance_target(recon.vertices, recon.subset, recon.candidate_variance, reachable,
-                                    contacts, self._p.eps if self._p.target_uncovered
-                                    else None)
+            index = variance_target(recon.vertices, recon.subset, recon.candidate_variance,
+                                    reachable, contacts,
+                                    self._p.eps if self._p.target_uncovered else None)
             target = recon.vertices[index]
             _, gradient = recon.fit.mean(target[None])
             return Aim(target, normalise_rows(gradient)[0], recon.fit.mean_value)

@@ -12,11 +12,10 @@ Two kinds, both with negative values inside:
   same for many grids stored one after another (the prior bank).
 """
 
-from dataclasses import dataclass
-from functools import cached_property
-
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from functools import cached_property
 
 import igl
 import numpy as np
