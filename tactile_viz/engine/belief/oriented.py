@@ -33,6 +33,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..shape.meshes import bare_mesh
+from .prior_bank import kept_recent
 from ..transforms import inverse_transform_points_batch
 
 SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
@@ -100,14 +101,9 @@ class OrientedEvaluator:
         self.cache = {} if cache is None else cache
 
     def surface(self, class_index):
-        key = (int(class_index), self.weight)
-        surface = self.cache.pop(key, None)
-        if surface is None:
-            surface = OrientedSurface(self.models[class_index].mesh, self.weight)
-        self.cache[key] = surface  # most recently used last
-        while len(self.cache) > _KEEP:
-            self.cache.pop(next(iter(self.cache)))
-        return surface
+        return kept_recent(self.cache, (int(class_index), self.weight),
+                           lambda: OrientedSurface(self.models[class_index].mesh, self.weight),
+                           _KEEP)
 
     def __call__(self, classes, points, normals):
         classes = np.asarray(classes)

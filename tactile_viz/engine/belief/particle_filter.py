@@ -31,7 +31,7 @@ from ..params import FilterParams
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 from .discrimination import discriminate
 from .pose_refinement import refine_poses
-from .prior_bank import PriorBank, bank_for, release_freed_memory
+from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
 from ..shape.sdf import ExactDistance
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
@@ -459,15 +459,10 @@ class ParticleFilter:
     def _exact(self, class_index):
         """The exact distance of a class's mesh (:class:`~..shape.sdf.ExactDistance`),
         kept on the bank for the last :data:`EXACT_KEPT` classes asked for."""
-        kept = self.bank.__dict__.setdefault("_exact", {})
         model = self.models[class_index]
-        exact = kept.pop(class_index, None) or model.__dict__.get("exact")
-        if exact is None:
-            exact = ExactDistance(model.mesh.vertices, model.mesh.faces)
-        kept[class_index] = exact  # most recently used last
-        while len(kept) > EXACT_KEPT:
-            kept.pop(next(iter(kept)))
-        return exact
+        return kept_recent(self.bank.__dict__.setdefault("_exact", {}), class_index,
+                           lambda: model.__dict__.get("exact")
+                           or ExactDistance(model.mesh.vertices, model.mesh.faces), EXACT_KEPT)
 
     def _record(self, sampled, chosen=None):
         params = self.params

@@ -155,6 +155,18 @@ class PriorBank:
 LARGE = 200e6  # bytes of a bank beyond which a filter trims the heap after each update
 
 
+def kept_recent(cache, key, build, keep):
+    """``cache[key]``, made by ``build()`` when absent; only the ``keep`` most recently
+    asked for stay (what a bank keeps per class: a thousand priors' would not fit)."""
+    value = cache.pop(key, None)
+    if value is None:
+        value = build()
+    cache[key] = value  # most recently used last
+    while len(cache) > keep:
+        cache.pop(next(iter(cache)))
+    return value
+
+
 def release_freed_memory():
     """Hand freed buffers back to the system. glibc keeps them for reuse, and a large
     library's transient arrays fragment its heap: with 1,000 priors the process held 370 MB

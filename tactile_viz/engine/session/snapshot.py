@@ -178,7 +178,7 @@ class Reconstruction:
     def deferred_variance(self):
         """:attr:`variance`, or a callable that computes it without this object (a
         snapshot keeps what a viewer may draw, not the fit)."""
-        if "variance" in self.__dict__ or self.vertex_variance is not None or self.subset is None:
+        if self.vertex_variance is not None or self.subset is None:
             return frozen(self.variance)
         vertices, subset, values = self.vertices, self.subset, self.candidate_variance
         return lambda: spread_variance(vertices, subset, values)

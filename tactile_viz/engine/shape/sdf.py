@@ -115,7 +115,7 @@ class ExactDistance:
 
     def nearest_face(self, points):
         """:meth:`query`'s distance unsigned and its face, ``(k,)`` each: without the
-        inside test, a quarter of the time on a few hundred points."""
+        inside test, whose winding numbers take ten times the closest points' time."""
         points = np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
         squared, face, _ = self._closest(points)
         return np.sqrt(np.maximum(squared, 0.0)), face
