@@ -498,3 +498,24 @@ def test_every_class_the_filter_holds_is_weighed(tmp_path):
                              np.zeros((7, 3)), np.full(7, -np.log(7)))
     decision = decide(pf, pf._record(0), 0.99, floor=0.01, same_mode=0.1)
     assert {h.class_index for h in decision.hypotheses} == set(range(7))
+
+
+def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
+    """Exact touches of the cylinder, and neither the grid's error nor the facets'
+    roughness allowed: the grid's interpolation of the curved side fails the chi-squared
+    test, the mesh passes it; a mesh that does not fit either leaves it undecided."""
+    from tactile_viz.engine.belief import decision as module
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    monkeypatch.setattr(module, "grid_error", lambda bank, class_index: 0.0)
+    group = module.symmetry_group
+    monkeypatch.setattr(module, "symmetry_group",
+                        lambda model: dataclasses.replace(group(model), roughness=0.0))
+    lead = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).hypotheses[0]
+    limit = module.chi2.ppf(0.99, 40 - module.POSE_PARAMETERS) * 1e-10
+    assert lead.misfit > limit  # the grid alone would refuse it
+    assert module._mesh_misfit(pf, lead, pf.noncontact_positions, None) < limit
+    assert decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).fits
+    monkeypatch.setattr(module, "_mesh_misfit", lambda *args: np.inf)
+    refused = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1)
+    assert not refused.fits and not refused.decided

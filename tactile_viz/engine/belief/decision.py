@@ -13,7 +13,8 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
 4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
    ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
    (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
-   residuals beyond the noise).
+   residuals beyond the noise); when its grid's residuals fail, those on its mesh are
+   tested without the grid's error.
 
 The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
 classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the
@@ -61,6 +62,8 @@ OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
 ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in steps of
 ROUND_TURN_DEG = 15.0  # (a handle turned 45 degrees off lies 3 cm from one 20 degrees off)
+FAN_DEG = np.arange(-30.0, 31.0, 5.0)  # turns about a round axis tried at each near hypothesis
+FAN_NATS = 20.0  # hypotheses within this cost of the least costly are turned so
 GRID_ERROR_PERCENTILE = 95
 AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfaces do
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
@@ -222,6 +225,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         turned[finite] = turned_cost(oriented, classes[finite], rotations[finite],
                                      translations[finite], contacts, pf.contact_normals,
                                      normal_noise_deg)
+    rotations, translations, misfit, turned = _turned_about_round_axis(
+        pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
+        normal_noise_deg)
     # Each mode is kept as its most probable pose, the normals weighed in: a cross
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
@@ -251,8 +257,13 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # the noise and that detail.
     roughness = symmetry_group(pf.models[classes[0]]).roughness
     dof = len(contacts) - POSE_PARAMETERS
-    fits = dof > 0 and lead.misfit <= chi2.ppf(confidence, dof) * max(
-        floor2 + roughness**2, 1e-300)
+    quantile = chi2.ppf(confidence, dof) if dof > 0 else 0.0
+    fits = dof > 0 and lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
+    if dof > 0 and not fits:
+        # The grid errs most inside thin parts, where noisy readings lie, and more than
+        # its error at the surface says: the mesh itself is asked, with no grid error.
+        fits = _mesh_misfit(pf, lead, outside, oriented) <= quantile * max(
+            floor**2 + roughness**2, 1e-300)
     loosest = None
     if fits and level >= confidence:
         loosest = _loosest(pf, lead, scale2, confidence, pose_tolerance)
@@ -261,6 +272,22 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)))
+
+
+def _mesh_misfit(pf, hypothesis, outside, oriented):
+    """A hypothesis's squared residuals refined on its class's mesh (exact distance) from
+    its pose, as :func:`~.pose_refinement.refine_poses` sums them on the grid."""
+    exact = pf.exact_distance(hypothesis.class_index)
+
+    def evaluate(classes, points):
+        distance, _, face = exact.query(points.reshape(-1, 3))
+        return distance.reshape(points.shape[:-1]), exact.face_normal(face).reshape(points.shape)
+
+    *_, misfit = refine_poses(evaluate, [hypothesis.class_index], hypothesis.rotation[None],
+                              hypothesis.translation[None], pf.contact_positions, outside,
+                              pf.params.refine_iterations, trim=pf.params.outlier_probability,
+                              normals=pf.contact_normals, oriented=oriented)
+    return float(misfit[0])
 
 
 def _lead(hypotheses, scale2, confidence):
@@ -338,12 +365,8 @@ def flips(pf, class_index, rotation, translation):
     """
     cache = pf.bank.__dict__.setdefault("_flips", {})
     if class_index not in cache:
-        mesh = pf.models[class_index].mesh
-        axes = np.asarray(mesh.principal_inertia_vectors)
-        moments = np.asarray(mesh.principal_inertia_components, float)
+        axes, round_axes, centre = _principal_axes(pf, class_index)
         turns = [Rotation.from_rotvec(np.pi * a).as_matrix() for a in axes]
-        round_axes = [axis for i, axis in enumerate(axes)
-                      if np.ptp(np.delete(moments, i)) <= ROUND_MOMENTS * np.delete(moments, i).max()]
         # One round axis (a mug): its modes are one turn, swept finely; a near-sphere's
         # are not a one-parameter family, and eighths about each axis keep it affordable.
         step = ROUND_TURN_DEG if len(round_axes) == 1 else 45.0
@@ -351,10 +374,75 @@ def flips(pf, class_index, rotation, translation):
             turns += [Rotation.from_rotvec(angle * axis).as_matrix()
                       for angle in np.radians(np.arange(step, 360, step))
                       if not np.isclose(angle, np.pi)]
-        cache[class_index] = np.stack(turns), np.asarray(mesh.center_mass, float)
+        cache[class_index] = np.stack(turns), centre
     turns, centre = cache[class_index]
-    # x -> S (x - c) + c in the object frame, then the pose: R S and t + R (c - S c).
+    return _turned(rotation, translation, turns, centre)
+
+
+def _turned(rotation, translation, turns, centre):
+    """A pose with its object turned by ``turns (f, 3, 3)`` about ``centre`` (object frame):
+    x -> S (x - c) + c, then the pose: R S and t + R (c - S c)."""
     return rotation @ turns, translation + (centre - turns @ centre) @ rotation.T
+
+
+def _principal_axes(pf, class_index):
+    """A class's principal axes ``(3, 3)``, those it is nearly round about (its other two
+    moments within ``ROUND_MOMENTS``) and its centre of mass, object frame."""
+    cache = pf.bank.__dict__.setdefault("_axes", {})
+    if class_index not in cache:
+        mesh = pf.models[class_index].mesh
+        axes = np.asarray(mesh.principal_inertia_vectors)
+        moments = np.asarray(mesh.principal_inertia_components, float)
+        round_axes = [axis for i, axis in enumerate(axes)
+                      if np.ptp(np.delete(moments, i)) <= ROUND_MOMENTS * np.delete(moments, i).max()]
+        cache[class_index] = axes, np.reshape(round_axes, (-1, 3)), np.asarray(mesh.center_mass, float)
+    return cache[class_index]
+
+
+def _turned_about_round_axis(pf, oriented, classes, rotations, translations, misfit, turned,
+                             scale2, outside, normal_noise_deg):
+    """Each refined hypothesis near the least costly (``FAN_NATS``) whose shape is round
+    about one axis, turned about it by ``FAN_DEG`` and kept at its least costly turn
+    (squared residuals over ``2 s^2`` and the normals' cost).
+
+    The positions pin such a pose about its axis only by a small part, whose normals pin
+    it far better: at 2 mm noise a flat screwdriver's refined pose sat 20 degrees off
+    about its shaft, its tip's normals 20-60 degrees off, and the cross was decided.
+
+    Returns
+    -------
+    rotations, translations, misfit, turned : the arrays given, those hypotheses replaced
+    """
+    cost = misfit / (2 * scale2) + turned
+    if not np.isfinite(cost).any():
+        return rotations, translations, misfit, turned
+    near = [k for k in np.flatnonzero(cost <= np.nanmin(cost) + FAN_NATS)
+            if len(_principal_axes(pf, classes[k])[1]) == 1]
+    if not near:
+        return rotations, translations, misfit, turned
+    posed = []
+    for k in near:
+        _, (axis,), centre = _principal_axes(pf, classes[k])
+        turns = Rotation.from_rotvec(np.radians(FAN_DEG)[:, None] * axis).as_matrix()
+        posed.append(_turned(rotations[k], translations[k], turns, centre))
+    fan_classes = np.repeat(classes[near], len(FAN_DEG))
+    fan_rotations = np.concatenate([r for r, _ in posed])
+    fan_translations = np.concatenate([t for _, t in posed])
+    *_, fan_misfit = refine_poses(pf.bank.evaluate, fan_classes, fan_rotations, fan_translations,
+                                  pf.contact_positions, outside, 0,
+                                  trim=pf.params.outlier_probability, normals=pf.contact_normals,
+                                  oriented=oriented)
+    fan_turned = turned_cost(oriented, fan_classes, fan_rotations, fan_translations,
+                             pf.contact_positions, pf.contact_normals, normal_noise_deg)
+    fan_cost = (fan_misfit / (2 * scale2) + fan_turned).reshape(len(near), len(FAN_DEG))
+    rotations, translations = rotations.copy(), translations.copy()
+    misfit, turned = misfit.copy(), turned.copy()
+    for row, k in enumerate(near):
+        best = row * len(FAN_DEG) + int(np.argmin(fan_cost[row]))
+        if fan_cost.flat[best] < cost[k]:
+            rotations[k], translations[k] = fan_rotations[best], fan_translations[best]
+            misfit[k], turned[k] = fan_misfit[best], fan_turned[best]
+    return rotations, translations, misfit, turned
 
 
 def _candidates(pf, particles, chosen, same_mode):

@@ -431,7 +431,7 @@ class ParticleFilter:
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
         offsets = params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ()
-        exact = self._exact(int(best.classes[0]))
+        exact = self.exact_distance(int(best.classes[0]))
         # One look-up for the readings and their offsets; the likelihood needs no sign.
         distance, faces = exact.nearest_face(
             np.vstack([local, *(local + offset * normals for offset in offsets)]))
@@ -456,7 +456,7 @@ class ParticleFilter:
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
 
-    def _exact(self, class_index):
+    def exact_distance(self, class_index):
         """The exact distance of a class's mesh (:class:`~..shape.sdf.ExactDistance`),
         kept on the bank for the last :data:`EXACT_KEPT` classes asked for."""
         model = self.models[class_index]
