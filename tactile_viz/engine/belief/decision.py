@@ -22,7 +22,9 @@ MAP's pose turned half about each principal axis of its shape (:func:`flips`: a 
 down fits touches of its outside as well, and the particles may never have held it), and
 the plausible hypotheses of the step before (a mode the particles lost under noise is
 weighed until it no longer fits). Each
-is refined to its best pose (:func:`~.pose_refinement.refine_poses`); two hypotheses of one
+is refined to its best pose (:func:`~.pose_refinement.refine_poses`), and one whose shape
+is round about an axis turned about it to where its normals fit best
+(:func:`_turned_about_round_axis`); two hypotheses of one
 class whose posed surfaces agree (a symmetry of the shape, or two particles of one mode)
 are one. Their fit posterior is Gaussian in the refined residuals with one noise scale,
 ``s^2 = max(RSS_best / (n - 6), floor^2 + e^2)``: the residual scatter of the best fit (six
@@ -401,9 +403,9 @@ def _principal_axes(pf, class_index):
 
 def _turned_about_round_axis(pf, oriented, classes, rotations, translations, misfit, turned,
                              scale2, outside, normal_noise_deg):
-    """Each refined hypothesis near the least costly (``FAN_NATS``) whose shape is round
-    about one axis, turned about it by ``FAN_DEG`` and kept at its least costly turn
-    (squared residuals over ``2 s^2`` and the normals' cost).
+    """The least costly refined hypothesis of each class within ``FAN_NATS`` of the least
+    costly of all whose shape is round about one axis, turned about it by ``FAN_DEG`` and
+    kept at its least costly turn (squared residuals over ``2 s^2`` and the normals' cost).
 
     The positions pin such a pose about its axis only by a small part, whose normals pin
     it far better: at 2 mm noise a flat screwdriver's refined pose sat 20 degrees off
@@ -416,8 +418,11 @@ def _turned_about_round_axis(pf, oriented, classes, rotations, translations, mis
     cost = misfit / (2 * scale2) + turned
     if not np.isfinite(cost).any():
         return rotations, translations, misfit, turned
+    # The least costly of each class only: the flips of a round class lie 15 degrees
+    # apart, and fanning each one was half the decision's time.
     near = [k for k in np.flatnonzero(cost <= np.nanmin(cost) + FAN_NATS)
-            if len(_principal_axes(pf, classes[k])[1]) == 1]
+            if len(_principal_axes(pf, classes[k])[1]) == 1
+            and cost[k] == cost[classes == classes[k]].min()]
     if not near:
         return rotations, translations, misfit, turned
     posed = []
