@@ -403,9 +403,9 @@ def _principal_axes(pf, class_index):
 
 def _turned_about_round_axis(pf, oriented, classes, rotations, translations, misfit, turned,
                              scale2, outside, normal_noise_deg):
-    """The least costly refined hypothesis of each class within ``FAN_NATS`` of the least
-    costly of all whose shape is round about one axis, turned about it by ``FAN_DEG`` and
-    kept at its least costly turn (squared residuals over ``2 s^2`` and the normals' cost).
+    """Each refined hypothesis within ``FAN_NATS`` of the least costly whose shape is round
+    about one axis, turned about it by ``FAN_DEG`` and kept at its least costly turn
+    (squared residuals over ``2 s^2`` and the normals' cost).
 
     The positions pin such a pose about its axis only by a small part, whose normals pin
     it far better: at 2 mm noise a flat screwdriver's refined pose sat 20 degrees off
@@ -418,11 +418,8 @@ def _turned_about_round_axis(pf, oriented, classes, rotations, translations, mis
     cost = misfit / (2 * scale2) + turned
     if not np.isfinite(cost).any():
         return rotations, translations, misfit, turned
-    # The least costly of each class only: the flips of a round class lie 15 degrees
-    # apart, and fanning each one was half the decision's time.
     near = [k for k in np.flatnonzero(cost <= np.nanmin(cost) + FAN_NATS)
-            if len(_principal_axes(pf, classes[k])[1]) == 1
-            and cost[k] == cost[classes == classes[k]].min()]
+            if len(_principal_axes(pf, classes[k])[1]) == 1]
     if not near:
         return rotations, translations, misfit, turned
     posed = []
