@@ -526,7 +526,7 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     positions barely tell, the blade's normals do; the hypothesis is turned back within
     the fan's step (up to the blade's half turn)."""
     from tactile_viz.engine.io.cache import ArrayCache
-    from tactile_viz.engine.belief import decision as module
+    from tactile_viz.engine.belief import round_turns as module
     from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
     from tactile_viz.engine.belief.pose_refinement import refine_poses
 
@@ -542,17 +542,17 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     pf = ParticleFilter(library, FilterParams(), rng=0)
     pf.contact_positions = points + rng.normal(0.0, 0.05, points.shape)
     pf.contact_normals = model.mesh.face_normals[faces]
-    axes, round_axes, centre = module._principal_axes(pf, 0)
+    axes, round_axes, centre = module.principal_axes(pf, 0)
     assert len(round_axes) == 1 and abs(round_axes[0] @ [0, 0, 1]) > 0.99
     turn = Rotation.from_rotvec(np.radians(20) * round_axes[0]).as_matrix()
-    rotations, translations = module._turned(np.eye(3), np.zeros(3), turn[None], centre)
+    rotations, translations = module.turned_poses(np.eye(3), np.zeros(3), turn[None], centre)
     oriented = oriented_evaluator(pf.bank, pf.models, 0.05, 0.0)
     *_, misfit = refine_poses(pf.bank.evaluate, np.array([0]), rotations, translations,
                               pf.contact_positions, None, 0, normals=pf.contact_normals,
                               oriented=oriented)
     turned = turned_cost(oriented, np.array([0]), rotations, translations,
                          pf.contact_positions, pf.contact_normals, 0.0)
-    rotations, _, _, after = module._turned_about_round_axis(
+    rotations, _, _, after = module.turn_round_hypotheses(
         pf, oriented, np.array([0]), rotations, translations, misfit, turned, 0.05**2,
         np.zeros((0, 3)), 0.0)
     angle = np.degrees(Rotation.from_matrix(rotations[0]).magnitude())

@@ -18,13 +18,13 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
 
 The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
 classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the
-MAP's pose turned half about each principal axis of its shape (:func:`flips`: a mug upside
+MAP's pose turned half about each principal axis of its shape (:func:`~.round_turns.flips`: a mug upside
 down fits touches of its outside as well, and the particles may never have held it), and
 the plausible hypotheses of the step before (a mode the particles lost under noise is
 weighed until it no longer fits). Each
 is refined to its best pose (:func:`~.pose_refinement.refine_poses`), and one whose shape
 is round about an axis turned about it to where its normals fit best
-(:func:`_turned_about_round_axis`); two hypotheses of one
+(:func:`~.round_turns.turn_round_hypotheses`); two hypotheses of one
 class whose posed surfaces agree (a symmetry of the shape, or two particles of one mode)
 are one. Their fit posterior is Gaussian in the refined residuals with one noise scale,
 ``s^2 = max(RSS_best / (n - 6), floor^2 + e^2)``: the residual scatter of the best fit (six
@@ -47,12 +47,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.spatial.transform import Rotation
 from scipy.stats import chi2, norm
 
 from .discrimination import contenders, lookalikes
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import refine_poses, surface_uncertainty
+from .round_turns import flips, turn_round_hypotheses
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 
@@ -62,10 +62,6 @@ OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a riva
 HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
-ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in steps of
-ROUND_TURN_DEG = 15.0  # (a handle turned 45 degrees off lies 3 cm from one 20 degrees off)
-FAN_DEG = np.arange(-30.0, 31.0, 5.0)  # turns about a round axis tried at each near hypothesis
-FAN_NATS = 20.0  # hypotheses within this cost of the least costly are turned so
 GRID_ERROR_PERCENTILE = 95
 AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfaces do
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
@@ -227,7 +223,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         turned[finite] = turned_cost(oriented, classes[finite], rotations[finite],
                                      translations[finite], contacts, pf.contact_normals,
                                      normal_noise_deg)
-    rotations, translations, misfit, turned = _turned_about_round_axis(
+    rotations, translations, misfit, turned = turn_round_hypotheses(
         pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
         normal_noise_deg)
     # Each mode is kept as its most probable pose, the normals weighed in: a cross
@@ -348,103 +344,6 @@ def used_pose_parameters(model, scale2):
     free = 3 if group.is_sphere else (1 if group.axis is not None else 0)
     r2 = group.roughness**2
     return POSE_PARAMETERS - free * (1.0 - r2 / (r2 + scale2))
-
-
-def flips(pf, class_index, rotation, translation):
-    """The MAP's pose turned half about each principal axis of its shape (through the
-    centre of mass), and in steps of ``ROUND_TURN_DEG`` about an axis the shape is nearly
-    round about (its other two moments within ``ROUND_MOMENTS``; in eighths of a turn
-    about each when there are more than one, a near-sphere): the modes a
-    near-symmetric shape is most easily mistaken in (a mug upside down, or its handle
-    anywhere round the body while nothing touched it), which the particles may never have
-    held. The refinement cannot turn a hypothesis towards an untouched handle, so the
-    steps must be fine enough that one lies near it.
-
-    Returns
-    -------
-    rotations : (k, 3, 3) float
-    translations : (k, 3) float
-    """
-    cache = pf.bank.__dict__.setdefault("_flips", {})
-    if class_index not in cache:
-        axes, round_axes, centre = _principal_axes(pf, class_index)
-        turns = [Rotation.from_rotvec(np.pi * a).as_matrix() for a in axes]
-        # One round axis (a mug): its modes are one turn, swept finely; a near-sphere's
-        # are not a one-parameter family, and eighths about each axis keep it affordable.
-        step = ROUND_TURN_DEG if len(round_axes) == 1 else 45.0
-        for axis in round_axes:
-            turns += [Rotation.from_rotvec(angle * axis).as_matrix()
-                      for angle in np.radians(np.arange(step, 360, step))
-                      if not np.isclose(angle, np.pi)]
-        cache[class_index] = np.stack(turns), centre
-    turns, centre = cache[class_index]
-    return _turned(rotation, translation, turns, centre)
-
-
-def _turned(rotation, translation, turns, centre):
-    """A pose with its object turned by ``turns (f, 3, 3)`` about ``centre`` (object frame):
-    x -> S (x - c) + c, then the pose: R S and t + R (c - S c)."""
-    return rotation @ turns, translation + (centre - turns @ centre) @ rotation.T
-
-
-def _principal_axes(pf, class_index):
-    """A class's principal axes ``(3, 3)``, those it is nearly round about (its other two
-    moments within ``ROUND_MOMENTS``) and its centre of mass, object frame."""
-    cache = pf.bank.__dict__.setdefault("_axes", {})
-    if class_index not in cache:
-        mesh = pf.models[class_index].mesh
-        axes = np.asarray(mesh.principal_inertia_vectors)
-        moments = np.asarray(mesh.principal_inertia_components, float)
-        round_axes = [axis for i, axis in enumerate(axes)
-                      if np.ptp(np.delete(moments, i)) <= ROUND_MOMENTS * np.delete(moments, i).max()]
-        cache[class_index] = axes, np.reshape(round_axes, (-1, 3)), np.asarray(mesh.center_mass, float)
-    return cache[class_index]
-
-
-def _turned_about_round_axis(pf, oriented, classes, rotations, translations, misfit, turned,
-                             scale2, outside, normal_noise_deg):
-    """Each refined hypothesis within ``FAN_NATS`` of the least costly whose shape is round
-    about one axis, turned about it by ``FAN_DEG`` and kept at its least costly turn
-    (squared residuals over ``2 s^2`` and the normals' cost).
-
-    The positions pin such a pose about its axis only by a small part, whose normals pin
-    it far better: at 2 mm noise a flat screwdriver's refined pose sat 20 degrees off
-    about its shaft, its tip's normals 20-60 degrees off, and the cross was decided.
-
-    Returns
-    -------
-    rotations, translations, misfit, turned : the arrays given, those hypotheses replaced
-    """
-    cost = misfit / (2 * scale2) + turned
-    if not np.isfinite(cost).any():
-        return rotations, translations, misfit, turned
-    near = [k for k in np.flatnonzero(cost <= np.nanmin(cost) + FAN_NATS)
-            if len(_principal_axes(pf, classes[k])[1]) == 1]
-    if not near:
-        return rotations, translations, misfit, turned
-    posed = []
-    for k in near:
-        _, (axis,), centre = _principal_axes(pf, classes[k])
-        turns = Rotation.from_rotvec(np.radians(FAN_DEG)[:, None] * axis).as_matrix()
-        posed.append(_turned(rotations[k], translations[k], turns, centre))
-    fan_classes = np.repeat(classes[near], len(FAN_DEG))
-    fan_rotations = np.concatenate([r for r, _ in posed])
-    fan_translations = np.concatenate([t for _, t in posed])
-    *_, fan_misfit = refine_poses(pf.bank.evaluate, fan_classes, fan_rotations, fan_translations,
-                                  pf.contact_positions, outside, 0,
-                                  trim=pf.params.outlier_probability, normals=pf.contact_normals,
-                                  oriented=oriented)
-    fan_turned = turned_cost(oriented, fan_classes, fan_rotations, fan_translations,
-                             pf.contact_positions, pf.contact_normals, normal_noise_deg)
-    fan_cost = (fan_misfit / (2 * scale2) + fan_turned).reshape(len(near), len(FAN_DEG))
-    rotations, translations = rotations.copy(), translations.copy()
-    misfit, turned = misfit.copy(), turned.copy()
-    for row, k in enumerate(near):
-        best = row * len(FAN_DEG) + int(np.argmin(fan_cost[row]))
-        if fan_cost.flat[best] < cost[k]:
-            rotations[k], translations[k] = fan_rotations[best], fan_translations[best]
-            misfit[k], turned[k] = fan_misfit[best], fan_turned[best]
-    return rotations, translations, misfit, turned
 
 
 def _candidates(pf, particles, chosen, same_mode):
