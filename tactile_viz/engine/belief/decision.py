@@ -18,8 +18,9 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
 
 The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
 classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the
-MAP's pose turned half about each principal axis of its shape (:func:`~.round_turns.flips`: a mug upside
-down fits touches of its outside as well, and the particles may never have held it), and
+MAP's pose turned half about each principal axis of its shape
+(:func:`~.round_turns.flips`: a mug upside down fits touches of its outside as well, and
+the particles may never have held it), and
 the plausible hypotheses of the step before (a mode the particles lost under noise is
 weighed until it no longer fits). Each
 is refined to its best pose (:func:`~.pose_refinement.refine_poses`), and one whose shape

@@ -64,9 +64,11 @@ def principal_axes(pf, class_index):
         mesh = pf.models[class_index].mesh
         axes = np.asarray(mesh.principal_inertia_vectors)
         moments = np.asarray(mesh.principal_inertia_components, float)
-        round_axes = [axis for i, axis in enumerate(axes)
-                      if np.ptp(np.delete(moments, i)) <= ROUND_MOMENTS * np.delete(moments, i).max()]
-        cache[class_index] = axes, np.reshape(round_axes, (-1, 3)), np.asarray(mesh.center_mass, float)
+        others = [np.delete(moments, i) for i in range(3)]
+        round_axes = [axis for axis, pair in zip(axes, others)
+                      if np.ptp(pair) <= ROUND_MOMENTS * pair.max()]
+        cache[class_index] = (axes, np.reshape(round_axes, (-1, 3)),
+                              np.asarray(mesh.center_mass, float))
     return cache[class_index]
 
 
