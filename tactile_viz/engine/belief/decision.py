@@ -224,14 +224,14 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         turned[finite] = turned_cost(oriented, classes[finite], rotations[finite],
                                      translations[finite], contacts, pf.contact_normals,
                                      normal_noise_deg)
-    rotations, translations, misfit, turned = turn_round_hypotheses(
-        pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
-        normal_noise_deg)
     # Each mode is kept as its most probable pose, the normals weighed in: a cross
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
     keep = _distinct(pf.bank, classes, rotations, translations,
                      misfit / (2 * scale2) + turned, same_mode)
+    rotations, translations, misfit, turned = turn_round_hypotheses(
+        pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
+        normal_noise_deg, among=keep)
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior

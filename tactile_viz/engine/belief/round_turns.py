@@ -73,7 +73,7 @@ def principal_axes(pf, class_index):
 
 
 def turn_round_hypotheses(pf, oriented, classes, rotations, translations, misfit, turned,
-                          scale2, outside, normal_noise_deg):
+                          scale2, outside, normal_noise_deg, among=None):
     """Each refined hypothesis within ``FAN_NATS`` of the least costly whose shape is round
     about one axis, turned about it by ``FAN_DEG`` and kept at its least costly turn
     (squared residuals over ``2 s^2`` and the normals' cost).
@@ -98,6 +98,9 @@ def turn_round_hypotheses(pf, oriented, classes, rotations, translations, misfit
     outside : (q, 3) float, world frame
         Non-contacts and points of missed paths, as refined.
     normal_noise_deg : float
+    among : (j,) int, optional
+        The hypotheses that may be turned (default all): one a mode, the flips of a round
+        class 15 degrees apart being one.
 
     Returns
     -------
@@ -106,7 +109,8 @@ def turn_round_hypotheses(pf, oriented, classes, rotations, translations, misfit
     cost = misfit / (2 * scale2) + turned
     if not np.isfinite(cost).any():
         return rotations, translations, misfit, turned
-    near = [k for k in np.flatnonzero(cost <= np.nanmin(cost) + FAN_NATS)
+    among = np.arange(len(cost)) if among is None else np.asarray(among)
+    near = [k for k in among[cost[among] <= np.nanmin(cost) + FAN_NATS]
             if len(principal_axes(pf, classes[k])[1]) == 1]
     if not near:
         return rotations, translations, misfit, turned
