@@ -257,12 +257,13 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     roughness = symmetry_group(pf.models[classes[0]]).roughness
     dof = len(contacts) - POSE_PARAMETERS
     quantile = chi2.ppf(confidence, dof) if dof > 0 else 0.0
-    fits = dof > 0 and lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
-    if dof > 0 and not fits:
-        # The grid errs most inside thin parts, where noisy readings lie, and more than
-        # its error at the surface says: the mesh itself is asked, with no grid error.
-        fits = _mesh_misfit(pf, lead, outside, oriented) <= quantile * max(
-            floor**2 + roughness**2, 1e-300)
+    # The grid errs most inside thin parts, where noisy readings lie, and more than its
+    # error at the surface says: where the grid's residuals fail, the mesh is asked, with
+    # no grid error.
+    fits = dof > 0 and (
+        lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
+        or _mesh_misfit(pf, lead, outside, oriented) <= quantile * max(
+            floor**2 + roughness**2, 1e-300))
     loosest = None
     if fits and level >= confidence:
         loosest = _loosest(pf, lead, scale2, confidence, pose_tolerance)

@@ -15,7 +15,8 @@ from .pose_refinement import refine_poses
 
 ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in steps of
 ROUND_TURN_DEG = 15.0  # (a handle turned 45 degrees off lies 3 cm from one 20 degrees off)
-FAN_DEG = np.arange(-30.0, 31.0, 5.0)  # turns about a round axis tried at each near hypothesis
+# Turns tried about a round axis at each near hypothesis (not 0: its own cost is known).
+FAN_DEG = np.r_[-30:0:5, 5:31:5].astype(float)
 FAN_NATS = 20.0  # hypotheses within this cost of the least costly are turned so
 
 
