@@ -384,6 +384,12 @@ class SessionParams:
         notes="A target whose procedure ends nearer is given up.")
     max_follow: float = _session(
         3.0, "Longest surface-following path of one step.", valid=_POSITIVE, length=1)
+    way_back_anchors: int = _session(
+        3, "Contacts a missed target's way back tries in turn, nearest first (the paper: "
+        "one).", kind="int", valid=_AT_LEAST_1, control=(1, 10),
+        notes="A noisy reading can lie off a thin part (2 mm beside a fork's 3 mm tine): "
+              "the way back to it touches nothing, and every step after a miss adds no "
+              "contact.")
     rrt_step: float = _session(
         0.3, "Length of one step of the RRT strategy.", valid=_POSITIVE, length=1)
     metric_samples: int = _session(

@@ -248,6 +248,30 @@ def test_the_dhd_stop_waits_for_the_decisions_checks(shapes, monkeypatch):
     assert session.state.decision_checks >= params.decision_checks  # swept, nothing surprised
 
 
+def test_a_recognising_session_waits_while_its_map_does_not_fit(shapes, monkeypatch):
+    """Covered, but its MAP not yet within the noise: a session that stops at the decision
+    touches on, within its patience; one that does not stops at the DHD stop."""
+    from tactile_viz.engine.session import planner
+
+    def never_fits(pf, belief, *args, **kwargs):
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        return Decision(False, 1.0, (first,), False)
+
+    monkeypatch.setattr(planner, "decide", never_fits)
+
+    def last(stop):
+        params = session_preset("recognise", eps=12.0, decision_cover=12.0,
+                                decision_patience=6, stop_at_decision=stop)
+        session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+        return session.run(max_steps=40), session
+
+    (waited, session), (plain, _) = last(True), last(False)
+    assert waited.terminated and not waited.decided and waited.step < 39
+    assert session.state.telling_steps == 6
+    assert plain.terminated and plain.step + 6 <= waited.step
+
+
 def test_telling_touches_are_spread_over_the_parts_that_differ(shapes):
     """Touched again and again at one spot, a rival shifts a little and absorbs it."""
     from tactile_viz.engine.session.planner import TELL_SPACING

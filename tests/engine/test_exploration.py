@@ -70,6 +70,23 @@ def test_a_target_out_of_reach_is_reported(simulator):
     assert not reached and _on_sphere(observations[-1])
 
 
+@pytest.mark.parametrize("anchors", [1, 2])
+def test_a_way_back_that_touches_nothing_tries_the_next_contact(simulator, anchors):
+    # The nearest contact is a reading 0.5 off the sphere (noise, or a wrong one): the way
+    # back to it ends in free space; the next nearest is on the sphere.
+    target, normal = np.array([3.5, 0.0, 0.5]), np.array([1.0, 0.0, 0.0])
+    contacts = np.array([[3.4, 0.3, 0.6], [3.0, 0, 0]])
+    normals = np.array([[1.0, 0, 0], [1.0, 0, 0]])
+    paths, observations, reached = enforce_contact(simulator, target, normal, contacts,
+                                                   normals, depth=0.4, anchors=anchors)
+    assert isinstance(observations[0], NonContact)
+    if anchors == 1:  # the paper's: only the miss is recorded
+        assert len(observations) == 1 and not reached and len(paths) == 2
+    else:
+        assert reached and len(observations) == 2 and _on_sphere(observations[1])
+        np.testing.assert_allclose(paths[2][1], contacts[1])
+
+
 def test_following_off_an_edge_comes_back_to_the_surface(simulator):
     contacts, normals = np.array([[0.0, 0, 3.0]]), np.array([[0.0, 0, 1.0]])
     paths, observations = follow_surface(simulator, np.array([50.0, 0, 3.0]), contacts, normals,

@@ -269,23 +269,24 @@ def sweep_line(simulator, through, direction, radius=10.0):
 
 
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,
-                    clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0):
+                    clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0, anchors=1):
     """:func:`enforce_contact_moves` carried out by ``simulator`` (the way back ends two of
     its steps inside the anchor)."""
     return drive(enforce_contact_moves(target, normal, contacts, contact_normals, depth,
                                        clearance, follow_step, spacing, max_follow,
-                                       2 * simulator.step), simulator)
+                                       2 * simulator.step, anchors), simulator)
 
 
 def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
                           clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0,
-                          back_depth=0.04):
+                          back_depth=0.04, anchors=1):
     """Reach for a target as in the paper's figure; yields the guarded moves, returns what
     was touched.
 
     The sensor moves from just outside ``target`` inward along ``-normal`` up to ``depth``.
     A miss is recorded as a non-contact; the sensor then moves from the probe's end toward
-    the nearest contact (a contact on the way counts) and from wherever it touched follows
+    the nearest contact (a contact on the way counts; touching nothing, toward the next
+    nearest, up to ``anchors`` contacts) and from wherever it touched follows
     the surface in small in-contact steps toward the target, until it stands at least
     ``spacing`` from every earlier contact. That contact is recorded. When the way back
     touches nothing, only the miss is recorded (the target counts as not reached).
@@ -306,6 +307,8 @@ def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
         Longest surface path before giving up.
     back_depth : float
         How far inside the nearest contact the way back to it ends.
+    anchors : int
+        Contacts the way back tries in turn (the paper: the nearest only).
 
     Returns
     -------
@@ -322,14 +325,17 @@ def enforce_contact_moves(target, normal, contacts, contact_normals, depth=1.0,
     if isinstance(observation, Contact):
         return [path], [observation], True
     tree = cKDTree(contacts)
-    nearest = int(tree.query(path[-1])[1])
-    anchor, anchor_normal = contacts[nearest], contact_normals[nearest]
-    back = np.stack([path[-1], anchor, anchor - back_depth * anchor_normal])
-    touched = yield back
-    paths = [path, back]
+    paths, touched = [path], None
+    for nearest in np.atleast_1d(tree.query(path[-1], k=min(anchors, len(contacts)))[1]):
+        anchor, anchor_normal = contacts[nearest], contact_normals[nearest]
+        back = np.stack([paths[-1][-1], anchor, anchor - back_depth * anchor_normal])
+        touched = yield back
+        paths.append(back)
+        if isinstance(touched, Contact):
+            break
     if not isinstance(touched, Contact):
-        # The nearest contact is not there again: a wrong reading, or one that noise put
-        # farther off than the way back reaches. Anchoring on it would record it again.
+        # No anchor is there again: wrong readings, or ones that noise put farther off
+        # than the way back reaches. Anchoring on one would record it again.
         return paths, [observation], False
     follow_paths, touched = yield from follow_toward_moves(touched, target, tree, follow_step,
                                                            spacing, max_follow)

@@ -286,7 +286,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                 + 3 * self.sensor_noise[0])
         return "target", enforce_contact_moves(
             target, normal, contacts, normals, depth, clearance, p.follow_step,
-            p.contact_spacing, p.max_follow, back)
+            p.contact_spacing, p.max_follow, back, p.way_back_anchors)
 
     def _observe_move(self, result, timings):
         """Take the result of the current guarded move; the step's snapshot when its

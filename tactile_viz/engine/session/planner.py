@@ -200,8 +200,12 @@ class Planner:
         # its surface was covered), within the same patience.
         settling = (decision.fits and bool(decision.hypotheses)
                     and decision.hypotheses[0].probability >= p.decision_confidence)
+        # A session that stops at the decision also waits while a known MAP does not yet
+        # fit within the noise (17 touches of a pencil at 2 mm, 2.5 times their expected
+        # residuals, covered it): more touches fit it, or judge the object novel.
+        doubting = p.stop_at_decision and bool(decision.hypotheses) and not decision.fits
         posing = (p.decision_targets and not belief.novel and not rivals and not decided
-                  and (decision.loosest is not None or settling)
+                  and (decision.loosest is not None or settling or doubting)
                   and self.state.telling_steps < p.decision_patience)
         # The DHD stop waits for the decision's checks too: they are a step or two, and a
         # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
