@@ -538,11 +538,41 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     lead = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).hypotheses[0]
     limit = module.chi2.ppf(0.99, 40 - module.POSE_PARAMETERS) * 1e-10
     assert lead.misfit > limit  # the grid alone would refuse it
-    assert module._mesh_misfit(pf, lead, pf.noncontact_positions, None) < limit
+    assert module.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
+                              pf.noncontact_positions, None) < limit
     assert decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).fits
-    monkeypatch.setattr(module, "_mesh_misfit", lambda *args: np.inf)
+    monkeypatch.setattr(module, "mesh_misfit", lambda *args: np.inf)
     refused = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1)
     assert not refused.fits and not refused.decided
+
+
+def test_the_plausible_hypotheses_are_weighed_on_their_meshes(shapes, monkeypatch):
+    """The grid prefers the box, the meshes the knobbed box by far: the two swap and keep
+    their share; an implausible third is left as it was, and a lone plausible hypothesis
+    is not weighed again."""
+    from tactile_viz.engine.belief import mesh_fit as module
+
+    pf, _ = _filter(shapes, _touches(shapes["box"], 20, seed=4))
+    weighed_classes = []
+
+    def mesh_misfit(pf, class_index, *args):
+        weighed_classes.append(class_index)
+        return {0: 4.0, 1: 1.0}[class_index]
+
+    monkeypatch.setattr(module, "mesh_misfit", mesh_misfit)
+    classes, rotations = np.arange(3), np.repeat(np.eye(3)[None], 3, axis=0)
+
+    def weigh(probabilities):
+        return np.exp(module.weighed_on_meshes(
+            pf, classes, rotations, np.zeros((3, 3)), np.log(probabilities), np.zeros(3),
+            np.zeros((0, 3)), None, floor=0.1))
+
+    p = weigh([0.6, 0.4, 1e-6])
+    assert p[1] > 0.99 * (p[0] + p[1]) and sorted(weighed_classes) == [0, 1]
+    np.testing.assert_allclose([p[0] + p[1], p[2]], [1.0, 1e-6])
+    weighed_classes.clear()
+    np.testing.assert_allclose(weigh([1.0, 1e-5, 1e-7]), [1.0, 1e-5, 1e-7])
+    assert weighed_classes == []
 
 
 def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):

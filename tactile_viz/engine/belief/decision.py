@@ -52,12 +52,12 @@ from scipy.stats import chi2, norm
 
 from .discrimination import contenders, lookalikes
 from .oriented import oriented_evaluator, turned_cost
-from .pose_refinement import refine_poses, surface_uncertainty
+from .mesh_fit import mesh_misfit, weighed_on_meshes
+from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
 from .round_turns import flips, turn_round_hypotheses
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 
-POSE_PARAMETERS = 6
 TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
 HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
@@ -235,6 +235,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior
+    log_p = weighed_on_meshes(pf, classes[keep], rotations[keep], translations[keep], log_p,
+                              turned[keep] + occam, outside, oriented, floor)
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
     order = np.r_[0, order[order != 0]]  # the MAP candidate leads
@@ -262,7 +264,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # no grid error.
     fits = dof > 0 and (
         lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
-        or _mesh_misfit(pf, lead, outside, oriented) <= quantile * max(
+        or mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
+                       oriented) <= quantile * max(
             floor**2 + roughness**2, 1e-300))
     loosest = None
     if fits and level >= confidence:
@@ -272,22 +275,6 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)))
-
-
-def _mesh_misfit(pf, hypothesis, outside, oriented):
-    """A hypothesis's squared residuals refined on its class's mesh (exact distance) from
-    its pose, as :func:`~.pose_refinement.refine_poses` sums them on the grid."""
-    exact = pf.exact_distance(hypothesis.class_index)
-
-    def evaluate(classes, points):
-        distance, _, face = exact.query(points.reshape(-1, 3))
-        return distance.reshape(points.shape[:-1]), exact.face_normal(face).reshape(points.shape)
-
-    *_, misfit = refine_poses(evaluate, [hypothesis.class_index], hypothesis.rotation[None],
-                              hypothesis.translation[None], pf.contact_positions, outside,
-                              pf.params.refine_iterations, trim=pf.params.outlier_probability,
-                              normals=pf.contact_normals, oriented=oriented)
-    return float(misfit[0])
 
 
 def _lead(hypotheses, scale2, confidence):

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from ..transforms import inverse_transform_points_batch
 
+POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 _FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothing constrains stays put
 
