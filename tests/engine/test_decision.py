@@ -546,6 +546,43 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     assert not refused.fits and not refused.decided
 
 
+def test_a_bumpy_ball_is_turned_to_where_its_bumps_fit(tmp_path):
+    """A ball with six knobs of different sizes, posed 90 degrees off: its turns are
+    searched all round its centre, and the hypothesis comes back near the truth."""
+    from tactile_viz.engine.io.cache import ArrayCache
+    from tactile_viz.engine.belief import round_turns as module
+    from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
+    from tactile_viz.engine.belief.pose_refinement import refine_poses
+
+    parts = [trimesh.creation.icosphere(subdivisions=3, radius=3.0)]
+    for k, direction in enumerate(Rotation.random(6, random_state=1).apply([0.0, 0.0, 1.0])):
+        parts.append(trimesh.creation.icosphere(subdivisions=2, radius=0.25 + 0.05 * k))
+        parts[-1].apply_translation(2.95 * direction)
+    shape = trimesh.util.concatenate(parts)
+    library = PriorLibrary([ObjectModel.from_arrays(shape.vertices, shape.faces, "ball",
+                                                    cache=ArrayCache(tmp_path))])
+    model = library["ball"]
+    assert module._rough_sphere(model)
+    points, faces = trimesh.sample.sample_surface_even(model.mesh, 80, seed=3)
+    pf = ParticleFilter(library, FilterParams(), rng=0)
+    pf.contact_positions = points + np.random.default_rng(3).normal(0.0, 0.02, points.shape)
+    pf.contact_normals = model.mesh.face_normals[faces]
+    centre = module.principal_axes(pf, 0)[2]
+    turn = Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix()
+    rotations, translations = module.turned_poses(np.eye(3), np.zeros(3), turn[None], centre)
+    oriented = oriented_evaluator(pf.bank, pf.models, 0.02, 0.0)
+    *_, misfit = refine_poses(pf.bank.evaluate, np.array([0]), rotations, translations,
+                              pf.contact_positions, None, 0, normals=pf.contact_normals,
+                              oriented=oriented)
+    turned = turned_cost(oriented, np.array([0]), rotations, translations,
+                         pf.contact_positions, pf.contact_normals, 0.0)
+    rotations, _, _, after = module.turn_near_spheres(
+        pf, oriented, np.array([0]), rotations, translations, misfit, turned, 0.02**2,
+        np.zeros((0, 3)), 0.0)
+    assert np.degrees(Rotation.from_matrix(rotations[0]).magnitude()) <= 5.0
+    assert after[0] < turned[0]
+
+
 def test_the_plausible_hypotheses_are_weighed_on_their_meshes(shapes, monkeypatch):
     """The grid prefers the box, the meshes the knobbed box by far: the two swap and keep
     their share; an implausible third is left as it was, and a lone plausible hypothesis

@@ -54,7 +54,7 @@ from .discrimination import contenders, lookalikes
 from .oriented import oriented_evaluator, turned_cost
 from .mesh_fit import mesh_misfit, weighed_on_meshes
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
-from .round_turns import flips, turn_round_hypotheses
+from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 
@@ -229,9 +229,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
     keep = _distinct(pf.bank, classes, rotations, translations,
                      misfit / (2 * scale2) + turned, same_mode)
-    rotations, translations, misfit, turned = turn_round_hypotheses(
-        pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
-        normal_noise_deg, among=keep)
+    for turn in (turn_round_hypotheses, turn_near_spheres):
+        rotations, translations, misfit, turned = turn(
+            pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
+            normal_noise_deg, among=keep)
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior

@@ -2,14 +2,17 @@
 
 A mug upside down fits touches of its outside as well, and its handle may lie anywhere
 round its body while nothing touched it; a screwdriver under noise is posed about its
-shaft only by its tip. :func:`flips` proposes the first kind to the decision, and
-:func:`turn_round_hypotheses` turns the refined hypotheses of a round shape about its axis
-to where the contacts' normals fit best.
+shaft only by its tip, and a bumpy ball all round by its bumps. :func:`flips` proposes the
+first kind to the decision, :func:`turn_round_hypotheses` turns the refined hypotheses of
+a round shape about its axis to where the contacts' normals fit best, and
+:func:`turn_near_spheres` a bumpy ball's about its centre.
 """
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..shape.symmetry import symmetry_group
+from ..transforms import inverse_transform_points_batch
 from .oriented import turned_cost
 from .pose_refinement import refine_poses
 
@@ -18,6 +21,10 @@ ROUND_TURN_DEG = 15.0  # (a handle turned 45 degrees off lies 3 cm from one 20 d
 # Turns tried about a round axis at each near hypothesis (not 0: its own cost is known).
 FAN_DEG = np.r_[-30:0:5, 5:31:5].astype(float)
 FAN_NATS = 20.0  # hypotheses within this cost of the least costly are turned so
+SPHERE_TURNS = 2000  # turns of a near-sphere tried (about 20 degrees apart), scored unrefined,
+SPHERE_SCREENED = 100  # the closest this many by position weighed by their normals too,
+SPHERE_REFINED = 8  # the least costly this many refined
+SPHERE_DETAIL = 0.002  # a sphere's detail (RMS, share of its size) that makes its turn count
 
 
 def flips(pf, class_index, rotation, translation):
@@ -138,3 +145,76 @@ def turn_round_hypotheses(pf, oriented, classes, rotations, translations, misfit
             rotations[k], translations[k] = fan_rotations[best], fan_translations[best]
             misfit[k], turned[k] = fan_misfit[best], fan_turned[best]
     return rotations, translations, misfit, turned
+
+
+def sphere_turns(count=SPHERE_TURNS):
+    """``count`` turns spread over all of SO(3), the same every call: ``(count, 3, 3)``."""
+    return Rotation.random(count, random_state=0).as_matrix()
+
+
+def turn_near_spheres(pf, oriented, classes, rotations, translations, misfit, turned, scale2,
+                      outside, normal_noise_deg, among=None):
+    """The least costly hypothesis of each class within ``FAN_NATS`` of the least costly
+    whose shape is a sphere but for its detail (:func:`_rough_sphere`), turned about its centre
+    to every one of :func:`sphere_turns`; the ``SPHERE_SCREENED`` whose contacts lie closest
+    are weighed with their normals, the ``SPHERE_REFINED`` least costly refined, and the
+    hypothesis kept at the least costly of those if it beats its own cost.
+
+    Positions alone pin a bumpy ball's turn only by bumps as small as the noise; the
+    bumps' normals pin it better, wherever the particles left it: at 1 mm noise the bumpy
+    ball's hypotheses sat where their normals cost 23 nats, at its true pose 7.5, and the
+    smooth ball was decided. Parameters and returns as :func:`turn_round_hypotheses`.
+    """
+    cost = misfit / (2 * scale2) + turned
+    if not np.isfinite(cost).any():
+        return rotations, translations, misfit, turned
+    among = np.arange(len(cost)) if among is None else np.asarray(among)
+    near = {}  # one search a class (it covers every turn), from its least costly hypothesis
+    for k in among[np.argsort(cost[among], kind="stable")]:
+        if cost[k] <= np.nanmin(cost) + FAN_NATS and _rough_sphere(pf.models[classes[k]]):
+            near.setdefault(int(classes[k]), int(k))
+    rotations, translations = rotations.copy(), translations.copy()
+    misfit, turned = misfit.copy(), turned.copy()
+    turns = sphere_turns()
+    for k in near.values():
+        centre = principal_axes(pf, classes[k])[2]
+        tried_rotations, tried_translations = turned_poses(rotations[k], translations[k],
+                                                           turns, centre)
+        tried_classes = np.full(len(turns), classes[k])
+        # Screened by the contacts' distances alone (cheap), then by their normals too.
+        local = inverse_transform_points_batch(pf.contact_positions, tried_rotations,
+                                               tried_translations)
+        values, _ = pf.bank.evaluate(tried_classes, local)
+        screened = np.argsort(np.square(values).sum(axis=1), kind="stable")[:SPHERE_SCREENED]
+        normals_cost = turned_cost(oriented, tried_classes[screened], tried_rotations[screened],
+                                   tried_translations[screened], pf.contact_positions,
+                                   pf.contact_normals, normal_noise_deg)
+        screened_cost = np.square(values[screened]).sum(axis=1) / (2 * scale2) + normals_cost
+        best = screened[np.argsort(screened_cost, kind="stable")[:SPHERE_REFINED]]
+        total, refined = _cost(pf, oriented, tried_classes[best], tried_rotations[best],
+                               tried_translations[best], outside, normal_noise_deg, scale2,
+                               pf.params.refine_iterations)
+        j = int(np.argmin(total))
+        if total[j] < cost[k]:
+            rotations[k], translations[k], misfit[k], turned[k] = (r[j] for r in refined)
+    return rotations, translations, misfit, turned
+
+
+def _rough_sphere(model):
+    """Whether a shape is a sphere but for detail above ``SPHERE_DETAIL`` of its size."""
+    group = symmetry_group(model)
+    return bool(group.is_sphere and group.roughness > SPHERE_DETAIL * model.length)
+
+
+def _cost(pf, oriented, classes, rotations, translations, outside, normal_noise_deg, scale2,
+          iterations):
+    """Poses refined ``iterations`` times, their ``misfit / (2 s^2) + turned`` and
+    ``(rotations, translations, misfit, turned)``."""
+    rotations, translations, misfit = refine_poses(
+        pf.bank.evaluate, classes, rotations, translations, pf.contact_positions, outside,
+        iterations, trim=pf.params.outlier_probability, normals=pf.contact_normals,
+        oriented=oriented)
+    turned = turned_cost(oriented, classes, rotations, translations, pf.contact_positions,
+                         pf.contact_normals, normal_noise_deg)
+    cost = np.where(np.isfinite(misfit), misfit / (2 * scale2) + turned, np.inf)
+    return cost, (rotations, translations, misfit, turned)
