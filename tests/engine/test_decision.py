@@ -546,13 +546,40 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     assert not refused.fits and not refused.decided
 
 
+def _turned_back(library, turn_hypotheses, rotvec_of, noise, count):
+    """Touches of a one-class library (``count`` even samples, ``noise`` std), a hypothesis
+    posed off by the turn ``rotvec_of(pf)`` about the class's centre of mass, and
+    ``turn_hypotheses`` of :mod:`round_turns` applied: its rotation and normals' cost after,
+    and the normals' cost before."""
+    from tactile_viz.engine.belief import round_turns as module
+    from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
+    from tactile_viz.engine.belief.pose_refinement import refine_poses
+
+    model = library[library.names[0]]
+    points, faces = trimesh.sample.sample_surface_even(model.mesh, count, seed=3)
+    pf = ParticleFilter(library, FilterParams(), rng=0)
+    pf.contact_positions = points + np.random.default_rng(3).normal(0.0, noise, points.shape)
+    pf.contact_normals = model.mesh.face_normals[faces]
+    turn = Rotation.from_rotvec(rotvec_of(pf)).as_matrix()
+    rotations, translations = module.turned_poses(np.eye(3), np.zeros(3), turn[None],
+                                                  module.principal_axes(pf, 0)[2])
+    oriented = oriented_evaluator(pf.bank, pf.models, noise, 0.0)
+    *_, misfit = refine_poses(pf.bank.evaluate, np.array([0]), rotations, translations,
+                              pf.contact_positions, None, 0, normals=pf.contact_normals,
+                              oriented=oriented)
+    turned = turned_cost(oriented, np.array([0]), rotations, translations,
+                         pf.contact_positions, pf.contact_normals, 0.0)
+    rotations, _, _, after = turn_hypotheses(pf, oriented, np.array([0]), rotations,
+                                             translations, misfit, turned, noise**2,
+                                             np.zeros((0, 3)), 0.0)
+    return rotations[0], after[0], turned[0]
+
+
 def test_a_bumpy_ball_is_turned_to_where_its_bumps_fit(tmp_path):
     """A ball with six knobs of different sizes, posed 90 degrees off: its turns are
     searched all round its centre, and the hypothesis comes back near the truth."""
     from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.belief import round_turns as module
-    from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
-    from tactile_viz.engine.belief.pose_refinement import refine_poses
 
     parts = [trimesh.creation.icosphere(subdivisions=3, radius=3.0)]
     for k, direction in enumerate(Rotation.random(6, random_state=1).apply([0.0, 0.0, 1.0])):
@@ -561,26 +588,11 @@ def test_a_bumpy_ball_is_turned_to_where_its_bumps_fit(tmp_path):
     shape = trimesh.util.concatenate(parts)
     library = PriorLibrary([ObjectModel.from_arrays(shape.vertices, shape.faces, "ball",
                                                     cache=ArrayCache(tmp_path))])
-    model = library["ball"]
-    assert module._rough_sphere(model)
-    points, faces = trimesh.sample.sample_surface_even(model.mesh, 80, seed=3)
-    pf = ParticleFilter(library, FilterParams(), rng=0)
-    pf.contact_positions = points + np.random.default_rng(3).normal(0.0, 0.02, points.shape)
-    pf.contact_normals = model.mesh.face_normals[faces]
-    centre = module.principal_axes(pf, 0)[2]
-    turn = Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix()
-    rotations, translations = module.turned_poses(np.eye(3), np.zeros(3), turn[None], centre)
-    oriented = oriented_evaluator(pf.bank, pf.models, 0.02, 0.0)
-    *_, misfit = refine_poses(pf.bank.evaluate, np.array([0]), rotations, translations,
-                              pf.contact_positions, None, 0, normals=pf.contact_normals,
-                              oriented=oriented)
-    turned = turned_cost(oriented, np.array([0]), rotations, translations,
-                         pf.contact_positions, pf.contact_normals, 0.0)
-    rotations, _, _, after = module.turn_near_spheres(
-        pf, oriented, np.array([0]), rotations, translations, misfit, turned, 0.02**2,
-        np.zeros((0, 3)), 0.0)
-    assert np.degrees(Rotation.from_matrix(rotations[0]).magnitude()) <= 5.0
-    assert after[0] < turned[0]
+    assert module._rough_sphere(library["ball"])
+    rotation, after, before = _turned_back(library, module.turn_near_spheres,
+                                           lambda pf: [np.pi / 2, 0.0, 0.0], 0.02, 80)
+    assert np.degrees(Rotation.from_matrix(rotation).magnitude()) <= 5.0
+    assert after < before
 
 
 def test_the_plausible_hypotheses_are_weighed_on_their_meshes(shapes, monkeypatch):
@@ -618,8 +630,6 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     the fan's step (up to the blade's half turn)."""
     from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.belief import round_turns as module
-    from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
-    from tactile_viz.engine.belief.pose_refinement import refine_poses
 
     rod = trimesh.creation.cylinder(radius=0.5, height=5.0, sections=64)
     blade = trimesh.creation.box(extents=(0.15, 0.9, 1.0))
@@ -627,25 +637,14 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     shape = trimesh.util.concatenate([rod, blade])
     library = PriorLibrary([ObjectModel.from_arrays(shape.vertices, shape.faces, "driver",
                                                     cache=ArrayCache(tmp_path))])
-    model = library["driver"]
-    rng = np.random.default_rng(3)
-    points, faces = trimesh.sample.sample_surface_even(model.mesh, 60, seed=3)
-    pf = ParticleFilter(library, FilterParams(), rng=0)
-    pf.contact_positions = points + rng.normal(0.0, 0.05, points.shape)
-    pf.contact_normals = model.mesh.face_normals[faces]
-    axes, round_axes, centre = module.principal_axes(pf, 0)
-    assert len(round_axes) == 1 and abs(round_axes[0] @ [0, 0, 1]) > 0.99
-    turn = Rotation.from_rotvec(np.radians(20) * round_axes[0]).as_matrix()
-    rotations, translations = module.turned_poses(np.eye(3), np.zeros(3), turn[None], centre)
-    oriented = oriented_evaluator(pf.bank, pf.models, 0.05, 0.0)
-    *_, misfit = refine_poses(pf.bank.evaluate, np.array([0]), rotations, translations,
-                              pf.contact_positions, None, 0, normals=pf.contact_normals,
-                              oriented=oriented)
-    turned = turned_cost(oriented, np.array([0]), rotations, translations,
-                         pf.contact_positions, pf.contact_normals, 0.0)
-    rotations, _, _, after = module.turn_round_hypotheses(
-        pf, oriented, np.array([0]), rotations, translations, misfit, turned, 0.05**2,
-        np.zeros((0, 3)), 0.0)
-    angle = np.degrees(Rotation.from_matrix(rotations[0]).magnitude())
+
+    def about_the_axis(pf):
+        round_axes = module.principal_axes(pf, 0)[1]
+        assert len(round_axes) == 1 and abs(round_axes[0] @ [0, 0, 1]) > 0.99
+        return np.radians(20) * round_axes[0]
+
+    rotation, after, before = _turned_back(library, module.turn_round_hypotheses,
+                                           about_the_axis, 0.05, 60)
+    angle = np.degrees(Rotation.from_matrix(rotation).magnitude())
     assert min(angle, 180 - angle) <= 5.0 + 1e-6
-    assert after[0] < turned[0]
+    assert after < before
