@@ -127,23 +127,17 @@ def turn_round_hypotheses(pf, oriented, classes, rotations, translations, misfit
         _, (axis,), centre = principal_axes(pf, classes[k])
         turns = Rotation.from_rotvec(np.radians(FAN_DEG)[:, None] * axis).as_matrix()
         posed.append(turned_poses(rotations[k], translations[k], turns, centre))
-    fan_classes = np.repeat(classes[near], len(FAN_DEG))
-    fan_rotations = np.concatenate([r for r, _ in posed])
-    fan_translations = np.concatenate([t for _, t in posed])
-    *_, fan_misfit = refine_poses(pf.bank.evaluate, fan_classes, fan_rotations, fan_translations,
-                                  pf.contact_positions, outside, 0,
-                                  trim=pf.params.outlier_probability, normals=pf.contact_normals,
-                                  oriented=oriented)
-    fan_turned = turned_cost(oriented, fan_classes, fan_rotations, fan_translations,
-                             pf.contact_positions, pf.contact_normals, normal_noise_deg)
-    fan_cost = (fan_misfit / (2 * scale2) + fan_turned).reshape(len(near), len(FAN_DEG))
+    fan_cost, fan = _cost(pf, oriented, np.repeat(classes[near], len(FAN_DEG)),
+                          np.concatenate([r for r, _ in posed]),
+                          np.concatenate([t for _, t in posed]), outside, normal_noise_deg,
+                          scale2, 0)
+    fan_cost = fan_cost.reshape(len(near), len(FAN_DEG))
     rotations, translations = rotations.copy(), translations.copy()
     misfit, turned = misfit.copy(), turned.copy()
     for row, k in enumerate(near):
         best = row * len(FAN_DEG) + int(np.argmin(fan_cost[row]))
         if fan_cost.flat[best] < cost[k]:
-            rotations[k], translations[k] = fan_rotations[best], fan_translations[best]
-            misfit[k], turned[k] = fan_misfit[best], fan_turned[best]
+            rotations[k], translations[k], misfit[k], turned[k] = (r[best] for r in fan)
     return rotations, translations, misfit, turned
 
 
@@ -173,6 +167,8 @@ def turn_near_spheres(pf, oriented, classes, rotations, translations, misfit, tu
     for k in among[np.argsort(cost[among], kind="stable")]:
         if cost[k] <= np.nanmin(cost) + FAN_NATS and _rough_sphere(pf.models[classes[k]]):
             near.setdefault(int(classes[k]), int(k))
+    if not near:
+        return rotations, translations, misfit, turned
     rotations, translations = rotations.copy(), translations.copy()
     misfit, turned = misfit.copy(), turned.copy()
     turns = sphere_turns()
