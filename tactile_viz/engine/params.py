@@ -314,14 +314,16 @@ class SessionParams:
         notes="The paper's, the default: among all; restricting it stopped home_chair and "
               "noisy_dino earlier with less of the object touched, seed 0.")
     check_lines: int = _session(
-        24, "Checks that must touch nothing unpredicted before a covered novel object stops "
+        48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
         notes="Once a novel object's estimate is covered, this many checks must each touch "
               "nothing farther than contact_spacing from the estimate and from every contact "
               "before the session stops; a check that does restarts the count (part of the "
               "object was never predicted) and grows a frontier from the contact: targets "
               "eps along four tangents, each contact on new ground growing it again, and the "
-              "session does not stop while one is queued.")
+              "session does not stop while one is queued. 48 (24 before): five novel objects "
+              "x 8 fresh seeds, TWD 0.487 -> 0.380, trials over 0.6 from 4 to 1 of 39, "
+              "steps +16% (docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,

@@ -68,6 +68,7 @@ CONFIGS = {
     "target-uncovered": ("recommended", {"target_uncovered": True}),
     "check-lines8": ("recommended", {"check_lines": 8}),
     "check-lines24": ("recommended", {"check_lines": 24}),
+    "check-lines72": ("recommended", {"check_lines": 72}),
     # How far outside a target the approach starts (2.0 in the paper preset; 0.5 before).
     "approach0.5": ("recommended", {"approach_clearance": 0.5}),
     "approach1": ("recommended", {"approach_clearance": 1.0}),
