@@ -349,6 +349,12 @@ class MainWindow(QMainWindow):
         self.wait_for_worker()
         self.plots.close()
         self.plotter.close()
+        # pyvistaqt keeps its GL context's surface, which Qt frees with the widget; a Python
+        # wrapper still alive then is what PySide hands out for the next object at that
+        # address (a dock's toggle action once came back as a QOffscreenSurface).
+        forget = getattr(self.plotter, "_forget_context", None)
+        if forget is not None:
+            forget()
         super().closeEvent(event)
 
     # ------------------------------------------------------------------ scene events
