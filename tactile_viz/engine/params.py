@@ -122,6 +122,11 @@ class FilterParams:
         0, "Particle budget (beyond the paper): at most this many of a step's new point-pair "
         "particles are kept, the heaviest; 0 keeps all.", kind="int", valid=_AT_LEAST_0,
         notes="The heaviest are those resampling would keep anyway.")
+    support_sigma: float = _filter(
+        0.15, "With a table (beyond the paper): std of a hypothesis' lowest point off the "
+        "plane.", valid=_POSITIVE, length=1, control=(1e-3, 10.0),
+        notes="A pose prior: a hypothesis floating above or sinking through the table by d "
+        "costs (d / s)^2 / 2 nats, s this in quadrature with twice the position noise.")
     merge_distance: float = _filter(
         0.0, "Particle merging (beyond the paper; 0 off): the translation cell size.",
         valid=_AT_LEAST_0, length=1, notes="After each step, particles of one class whose "

@@ -129,22 +129,25 @@ def code_version():
 
 
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recommended",
-              max_steps=None, progress=False, params=None, finish=None, sensor=None):
+              max_steps=None, progress=False, params=None, finish=None, sensor=None,
+              scene=None):
     """Run one trial and return its JSON-ready result dict.
 
     ``params`` (a ``SessionParams``) replaces the preset's parameters when given (``preset``
     is then only a label). ``finish(session)`` is called after the last step; the dict it
     returns is merged into the result (benchmarks add final contacts, baselines, ...).
     ``sensor`` holds the simulated sensor's noise and outliers (:func:`sensor_settings`).
+    ``scene`` (a :class:`~tactile_viz.engine.scene.Scene`) puts the object at rest on its
+    table, probed with its tip within its reach cone.
     """
     sensor = {**NOISELESS, **(sensor or {})}
     if max_steps is not None and max_steps < 1:
         raise ParameterError(f"max_steps must be at least 1, got {max_steps}")
     params = with_outliers(params or session_preset(preset), sensor["outlier_probability"])
-    truth = make_truth(truth_model, rng=[seed, 0])
+    truth = make_truth(truth_model, rng=[seed, 0], scene=scene)
     session = Session(truth, library, strategy, params, seed=seed,
                       sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
-                      sensor_outliers=sensor["outliers"])
+                      sensor_outliers=sensor["outliers"], scene=scene)
     start = time.perf_counter()
     steps = run_steps(session, progress, max_steps or params.max_steps_novel, truth_model.name,
                       max_steps)
@@ -156,7 +159,8 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist(),
                            "file_to_world": (truth_pose @ truth_model.file_to_object).tolist()},
-            "sensor": sensor, "terminated_at": last.step if last.terminated else None,
+            "sensor": sensor, "scene": None if scene is None else scene.as_dict(),
+            "terminated_at": last.step if last.terminated else None,
             "decided_at": next((s["t"] for s in steps if s["decided"]), None),
             "code_version": code_version(),
             "seconds": time.perf_counter() - start, "steps": steps}

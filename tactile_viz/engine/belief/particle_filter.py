@@ -32,6 +32,8 @@ from .resampling import merge_close_poses, stochastic_universal_resampling  # no
 from .discrimination import discriminate
 from .pose_refinement import refine_poses
 from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
+from ..scene import FREE
+from ..shape.resting import hull_points, lowest_heights
 from ..shape.sdf import ExactDistance
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
@@ -56,8 +58,9 @@ class ParticleFilter:
     rng : int, numpy.random.Generator or None
     """
 
-    def __init__(self, library, params=None, rng=None):
+    def __init__(self, library, params=None, rng=None, scene=None):
         self.params = params or FilterParams()
+        self.scene = FREE if scene is None else scene
         if len(library) == 0:
             raise ParameterError("the prior library is empty")
         wanted = {"sdf_resolution": self.params.sdf_resolution,
@@ -143,13 +146,33 @@ class ParticleFilter:
                 values = kernels.distances(*grids, classes[part], particles.rotations[part],
                                            particles.translations[part],
                                            np.ascontiguousarray(noncontacts, dtype=float))
+                if self.scene.tip_radius:  # a tip of radius r missed: its centre was
+                    values = values - self.scene.tip_radius  # at least r off the surface
                 total[part] += log_noncontact_likelihood(values, params.sigma_d).sum(axis=1)
         return total
 
     def log_evidence_of(self, particles):
-        """``log p(D_1:t | z)`` of particles over every observation so far."""
-        return self.log_likelihood(particles, self.contact_positions, self.contact_normals,
-                                   self.noncontact_positions)
+        """``log p(D_1:t | z)`` of particles over every observation so far, with the
+        table's pose prior (:meth:`log_support`)."""
+        evidence = self.log_likelihood(particles, self.contact_positions,
+                                       self.contact_normals, self.noncontact_positions)
+        return evidence + self.log_support(particles) if self.scene.has_table else evidence
+
+    def log_support(self, particles):
+        """The table's pose prior (beyond the paper; 0 without a table): ``-(d / s)^2 / 2``
+        for a hypothesis whose lowest point lies ``d`` off the plane, ``s`` the
+        ``support_sigma`` in quadrature with twice the position noise. (N,) float."""
+        scene = self.scene
+        out = np.zeros(len(particles))
+        if not scene.has_table or len(particles) == 0:
+            return out
+        sigma = float(np.hypot(self.params.support_sigma, 2 * self.params.position_noise))
+        for c in np.unique(particles.classes):
+            members = np.flatnonzero(particles.classes == c)
+            gap = lowest_heights(hull_points(self.models[int(c)]), particles.rotations[members],
+                                 particles.translations[members], scene.up, scene.table_point)
+            out[members] = -0.5 * (gap / sigma) ** 2
+        return out
 
     # ----------------------------------------------------------------- the step
     def update(self, observations):
@@ -225,7 +248,10 @@ class ParticleFilter:
         # object_to_world = T_g(s)^-1 R_x(angle) T_g(m): the feature point onto the contact.
         rotations = rs[0].T @ rotation_about_x(angles)[a] @ rm
         translations = position - np.einsum("kij,kj->ki", rotations, points)
-        return Particles(c, rotations, translations, np.full(len(c), -np.log(len(c))))
+        particles = Particles(c, rotations, translations, np.full(len(c), -np.log(len(c))))
+        if not self.scene.has_table:
+            return particles
+        return _with_log_weights(particles, self.log_support(particles))
 
     def _resample(self, particles):
         weights = np.exp(particles.log_weights)
@@ -283,6 +309,8 @@ class ParticleFilter:
         classes, rotations, translations = (candidates.classes, candidates.rotations,
                                              candidates.translations)
         log_subset = self.log_likelihood(candidates, subset_p, subset_n)
+        if self.scene.has_table:
+            log_subset = log_subset + self.log_support(candidates)
         # Each class's best candidate (the first of equals), and its evidence over all data.
         order = np.lexsort((-log_subset, classes))
         best = order[np.flatnonzero(np.r_[True, np.diff(classes[order]) != 0])]

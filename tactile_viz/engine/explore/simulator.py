@@ -5,6 +5,11 @@ the object's longest side); a contact is detected when the ground-truth signed d
 crosses zero and located by bisection to within the zero-level tolerance; it reports the
 position and the true outward normal. A start inside the object follows the gradient of
 the exact signed distance out to the surface, which ends at the closest surface point.
+
+With a :class:`~..scene.Scene` the sensor is a robot's: the path is the centre of a sphere
+of the tip's radius, which touches where the object's distance falls to that radius or the
+tip reaches the table (reported as a contact on the plane, normal up); a contact reports
+the touched surface point; a path below the table or outside the reach cone is an error.
 """
 
 from dataclasses import dataclass
@@ -14,6 +19,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from ..errors import ParameterError
+from ..scene import FREE
 from ..shape.meshes import bare_mesh
 from .observations import Contact, NonContact
 from ..shape.sdf import normalise_rows
@@ -90,10 +96,13 @@ class ContactSimulator:
         Scene units; default a third of the object's longest side (3 cm on a 10 cm object).
     rng : int, numpy.random.Generator or None
         Seeds the noise.
+    scene : Scene, optional
+        The table, the reach cone and the tip's radius (default: the paper's free space).
     """
 
     def __init__(self, truth, step=None, tolerance=None, position_noise=0.0,
-                 normal_noise_deg=0.0, rng=None, outlier_fraction=0.0, outlier_distance=None):
+                 normal_noise_deg=0.0, rng=None, outlier_fraction=0.0, outlier_distance=None,
+                 scene=FREE):
         for name, value in (("step", step), ("tolerance", tolerance)):
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a positive finite number, got {value!r}")
@@ -112,6 +121,7 @@ class ContactSimulator:
         self.outlier_distance = (float(outlier_distance) if outlier_distance is not None
                                  else truth.model.length / 3)
         self.rng = np.random.default_rng(rng)
+        self.scene = FREE if scene is None else scene
 
     def probe(self, path):
         """Move along a polyline until the first contact or its end.
@@ -125,7 +135,14 @@ class ContactSimulator:
         -------
         Contact or NonContact
             A non-contact is reported at the end of the path.
+
+        Raises
+        ------
+        ParameterError
+            With a scene, for a path below the table or outside the reach cone.
         """
+        if not self.scene.is_free:
+            return self._probe_in_scene(path)
         samples = sample_path(path, self.step)
         hit, before = self._first_inside(samples)
         if hit == 0:
@@ -137,14 +154,45 @@ class ContactSimulator:
         _, _, normal = self.truth.closest(position[None])
         return self._contact(position, normal[0])
 
-    def _first_inside(self, samples):
+    def _probe_in_scene(self, path):
+        """:meth:`probe` of a tip of the scene's radius over its table."""
+        scene = self.scene
+        scene.check_path(path, self.tolerance)
+        samples = sample_path(path, self.step)
+        hit, before = self._first_inside(samples, self._gap)
+        if hit is None:
+            return NonContact(self._noisy_position(samples[-1]))
+        if hit == 0:
+            centre = samples[0]
+        else:
+            centre = self._bisect(samples[hit - 1], samples[hit], before, self._gap)
+        distance, closest, normal = self.truth.closest(centre[None])
+        table = scene.height(centre[None])[0] if scene.has_table else np.inf
+        if table < distance[0]:  # the tip met the table first
+            point = centre - table * scene.up
+            return self._contact(point, scene.up.copy())
+        # The closest surface point: where the sphere touches (from a start inside the
+        # object too, as without a scene).
+        return self._contact(closest[0], normal[0])
+
+    def _gap(self, points):
+        """How far the tip's sphere at ``points`` is from touching the object or the table
+        (<= 0: touching), scene units."""
+        scene = self.scene
+        gap = self.truth.signed_distance(points) - scene.tip_radius
+        if scene.has_table:
+            gap = np.minimum(gap, scene.height(points) - scene.tip_radius)
+        return gap
+
+    def _first_inside(self, samples, field=None):
         """The index of the first sample on or inside the surface (``None`` if none) and
         the signed distance of the one before it. The path's samples are evaluated in
         batches that double, from 32: a probe mostly stops early, and a sample's distance
         does not depend on its batch."""
+        field = self.truth.signed_distance if field is None else field
         start, size, before = 0, 32, None
         while start < len(samples):
-            distance = self.truth.signed_distance(samples[start:start + size])
+            distance = field(samples[start:start + size])
             if start == 0 and distance[0] < 0:
                 return 0, None
             crossing = np.flatnonzero(distance <= 0)
@@ -154,13 +202,14 @@ class ContactSimulator:
             start, size, before = start + size, 2 * size, distance[-1]
         return None, None
 
-    def _bisect(self, outside, inside, outside_distance):
+    def _bisect(self, outside, inside, outside_distance, field=None):
         """A point within ``tolerance`` of the surface between an outside and an inside point."""
+        field = self.truth.signed_distance if field is None else field
         if outside_distance <= self.tolerance:
             return outside
         for _ in range(64):
             middle = (outside + inside) / 2
-            value = self.truth.signed_distance(middle[None])[0]
+            value = field(middle[None])[0]
             if abs(value) <= self.tolerance:
                 return middle
             if value > 0:

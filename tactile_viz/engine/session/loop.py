@@ -30,6 +30,8 @@ import numpy as np
 
 from ..errors import SessionError
 from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
+from ..explore.scene_moves import first_moves, reach_moves, rrt_scene_moves
+from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
 from ..shape.metrics import surface_samples
 from ..io.observation_file import RecordedStep
@@ -115,12 +117,18 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
     sensor : object, optional
         A robot: ``sensor.probe(path)`` carries out one guarded move (ignored with a truth,
         whose simulator is the sensor).
+    scene : Scene, optional
+        The robot's world: a table, the reach cone, the tip's radius (:mod:`..scene`);
+        default the paper's free space. Paths are then the tip's centre's, straight and
+        within the cone; table contacts are misses of the object; the DHD stop and the
+        decision's coverage count only the part of the estimate a probe can reach.
     """
 
     def __init__(self, truth: GroundTruth | None, library: PriorLibrary,
                  strategy: str = "gpis-dhd", params: SessionParams | None = None,
                  seed: int = 0, sensor_noise: tuple[float, float] = (0.0, 0.0),
-                 sensor: Sensor | None = None, sensor_outliers: float = 0.0) -> None:
+                 sensor: Sensor | None = None, sensor_outliers: float = 0.0,
+                 scene: Scene | None = None) -> None:
         if strategy not in STRATEGIES:
             raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
@@ -132,6 +140,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         self.seed = int(seed)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
         self.sensor_outliers = float(sensor_outliers)
+        self.scene = FREE if scene is None else scene
         self.rng = np.random.default_rng([self.seed, 1])
         self.simulator = None
         self.sensor = sensor
@@ -140,7 +149,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
                                               normal_noise_deg=self.sensor_noise[1],
                                               rng=np.random.default_rng([self.seed, 2]),
-                                              outlier_fraction=sensor_outliers)
+                                              outlier_fraction=sensor_outliers,
+                                              scene=self.scene)
             self.sensor = self.simulator
             self._truth_samples = transform_points(
                 surface_samples(truth.model, self.params.metric_samples), truth.rotation,
@@ -151,7 +161,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         if any(self.sensor_noise):
             filter_params = noise_matched(filter_params, *self.sensor_noise)
         self.filter = ParticleFilter(library, filter_params,
-                                     rng=np.random.default_rng([self.seed, 3]))
+                                     rng=np.random.default_rng([self.seed, 3]),
+                                     scene=self.scene)
         self.snapshots = []
         self._p, self._unit = scaled_lengths(self.params, self._filter_unit), self._filter_unit
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
@@ -163,7 +174,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         return {"truth": self.truth, "library": self.library, "strategy": self.strategy,
                 "params": self.params, "seed": self.seed, "sensor_noise": self.sensor_noise,
                 "sensor": None if self.simulator is not None else self.sensor,
-                "sensor_outliers": self.sensor_outliers}
+                "sensor_outliers": self.sensor_outliers, "scene": self.scene}
 
     def __getstate__(self):
         # The filter goes whole: its models then travel as references in the engine
@@ -266,6 +277,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         for the target chosen last step) or the first touch, a check, an RRT step."""
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         p, unit = self._p, self._unit
+        if not self.scene.is_free:
+            return self._scene_procedure(rng)
         if len(contacts) == 0 or (self.state.target is None and self.state.check is None
                                   and self.strategy != "rrt"):
             return "first", first_contact_moves(
@@ -288,11 +301,53 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             target, normal, contacts, normals, depth, clearance, p.follow_step,
             p.contact_spacing, p.max_follow, back, p.way_back_anchors)
 
+    def _scene_procedure(self, rng):
+        """:meth:`_procedure` in a robot's scene: the same steps, each path a straight line
+        of the tip's centre within the reach cone, ended at the table
+        (:mod:`..explore.scene_moves`)."""
+        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        p, unit, scene = self._p, self._unit, self.scene
+        if len(contacts) == 0 or (self.state.target is None and self.state.check is None
+                                  and self.strategy != "rrt"):
+            centre = scene.table_point if scene.has_table else np.zeros(3)
+            return "first", first_moves(scene, centre, rng, FIRST_LINE_REACH * self._filter_unit,
+                                        unit=self._filter_unit)
+        if self.strategy == "rrt":
+            low, high = contacts.min(axis=0) - RRT_MARGIN * unit, contacts.max(axis=0) + RRT_MARGIN * unit
+            return "rrt", rrt_scene_moves(scene, contacts, normals, (low, high), rng,
+                                          p.rrt_step, p.probe_depth, p.approach_clearance, unit)
+        if self.state.check is not None:
+            return "check", _one_move(self.state.check.path)
+        target, normal, estimate = self.state.target
+        depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
+        back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
+                + 3 * self.sensor_noise[0])
+        return "target", reach_moves(scene, target, normal, contacts, normals, depth,
+                                     clearance, p.follow_step, p.contact_spacing, p.max_follow,
+                                     back, p.way_back_anchors)
+
+    def _seen(self, observation):
+        """A result as the object's belief takes it: a contact with the scene's table is
+        a miss of the object where the tip stopped."""
+        if (isinstance(observation, Contact) and self.scene.has_table
+                and self.scene.is_table_contact(observation.position, observation.normal,
+                                                self._table_tolerance())):
+            return NonContact(self.scene.centre_of(observation.position, self.scene.up))
+        return observation
+
+    def _table_tolerance(self):
+        """How far off the plane a reported contact may be and still be the table: the
+        simulator's tolerance and three position-noise stds."""
+        return (getattr(self.sensor, "tolerance", self._filter_unit * PAPER_SIZE / 600)
+                + 3 * self.sensor_noise[0] + 1e-9)
+
     def _observe_move(self, result, timings):
         """Take the result of the current guarded move; the step's snapshot when its
         procedure is done, else None."""
         self._use_lengths()
         kind, procedure, rng, _ = self._live_procedure()
+        result = self._seen(result)
         self.state.results.append(result)
         try:
             path = procedure.send(result)
@@ -349,6 +404,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             if not isinstance(observation, (Contact, NonContact)):
                 raise SessionError(f"not an observation: {observation!r} (use Contact or "
                                    "NonContact)")
+        observations = [self._seen(observation) for observation in observations]
         points = np.asarray(np.zeros((0, 3)) if free_space is None else free_space, float)
         if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
             raise SessionError("free_space must be a finite (k, 3) array of points")
@@ -434,7 +490,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         self.state.hypotheses = decision.carried
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):
-            coverage = self._coverage(recon, map_vertices, contacts)  # l.8: d_H, eq. 35
+            coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
+                                      model, pose)
             stop = self._stop_test(coverage, belief, decision)        # l.1: d_H <= eps
             plan = self._choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
                                        map_vertices, recon, contacts, decision)  # l.6: 36

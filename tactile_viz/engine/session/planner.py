@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 from ..belief.decision import UNDECIDED, decide, disagreement_target
 from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                                    raster_path, variance_target, widest_gap)
+from ..explore.scene_moves import check_line
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
@@ -48,6 +49,7 @@ from .state import Aim, Check
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
+SCENE_MARGIN = 0.1  # a scene's probe is not asked to reach this close above the table
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
@@ -158,20 +160,42 @@ class Planner:
                       pose_tolerance=p.decision_pose_error,
                       normal_noise_deg=self.sensor_noise[1])
 
-    def _coverage(self, recon, map_vertices, contacts):
+    def _coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
         surface) by the contacts: l.8, eq. 35, over the vertices still to visit; with
-        ``cover_prior`` a novel object's MAP prior counts too (beyond the paper)."""
-        surface = recon.vertices if recon is not None and not recon.empty else map_vertices
+        ``cover_prior`` a novel object's MAP prior counts too (beyond the paper). In a
+        robot's scene only what its probe can reach counts (:meth:`_in_scene`)."""
+        reconstructed = recon is not None and not recon.empty
+        surface = recon.vertices if reconstructed else map_vertices
         reachable = self._reachable(surface)
+        map_reach = None
+        if not self.scene.is_free and model is not None:
+            map_reach = self._in_scene(map_vertices, vertex_normals(model) @ pose[0].T,
+                                       ValueOf(self._prior(model, *pose)))
+            if reconstructed:
+                reachable = _both(reachable, self._in_scene(
+                    surface, mesh_vertex_normals(recon.vertices, recon.faces),
+                    recon.fit.mean_value))
+            else:
+                reachable = _both(reachable, map_reach)
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
         if recon is not None and self._p.cover_prior:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
                                                            self._p.gpis_carve_radius))
+            if map_reach is not None:
+                prior_open = _both(prior_open, map_reach)
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
+
+    def _in_scene(self, vertices, normals, outside):
+        """Mask of the estimate's vertices the scene's probe can reach
+        (:meth:`~..scene.Scene.reachable`): above the table, facing the reach cone, and
+        where the tip fits (only with a tip radius; ``outside`` is then evaluated)."""
+        return self.scene.reachable(vertices, normals,
+                                    outside if self.scene.tip_radius > 0 else None,
+                                    margin=SCENE_MARGIN * self._unit)
 
     def _stop_test(self, coverage, belief, decision=UNDECIDED):
         """The :class:`Stop`: l.1, ``d_H(S*, X_c) <= eps``, held by the extensions
@@ -373,6 +397,8 @@ class Planner:
             shell = 2 * self._p.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
                                       unit=self._unit)
+        if not self.scene.is_free:
+            return self._scene_check(estimate, contacts, through)
         if through is None:
             direction = next_sweep_direction(self.state.check_directions, self.rng)
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
@@ -385,6 +411,20 @@ class Planner:
                                            reach=SWEEP_RADIUS * unit, unit=unit)
             path = raster_path(through, min(gap, MAX_RASTER_RADIUS * unit), direction,
                                spacing=0.2 * unit, reach=SWEEP_RADIUS * unit)
+        return Check(estimate, through, direction, path)
+
+    def _scene_check(self, estimate, contacts, through):
+        """A check of a robot's scene: one straight line through the gap (else a contact
+        moved by about ``eps``) from the clearest direction of the cone, to the table."""
+        scene, unit = self.scene, self._unit
+        if through is None:
+            through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
+                0.0, self._p.eps, size=3)
+        if scene.has_table:  # a gap below the tip's reach is looked for just above it
+            low = scene.tip_radius + SCENE_MARGIN * unit - scene.height(through[None])[0]
+            through = through + max(0.0, low) * scene.up
+        path, direction = check_line(scene, through, estimate, self.state.check_directions,
+                                     reach=SWEEP_RADIUS * unit, unit=unit)
         return Check(estimate, through, direction, path)
 
     def _weakest_support(self, estimate, contacts):
@@ -416,6 +456,26 @@ def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
     :func:`~tactile_viz.engine.shape.meshes.bare_mesh`): a long run meets many MAP classes."""
     return bare_mesh(model.mesh).vertex_normals
+
+
+def _both(mask, other):
+    """``mask & other``, or ``other`` alone when nothing is left of both (``mask`` when
+    nothing is left of ``other``)."""
+    both = mask & other
+    if both.any():
+        return both
+    return other if other.any() else mask
+
+
+def mesh_vertex_normals(vertices, faces):
+    """Area-weighted vertex normals of a triangle mesh, (v, 3), unit (zero-area: +z)."""
+    vertices, faces = np.asarray(vertices, float), np.asarray(faces)
+    face_normals = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
+                            vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    normals = np.zeros_like(vertices)
+    for corner in range(3):
+        np.add.at(normals, faces[:, corner], face_normals)
+    return normalise_rows(normals, fallback=np.array([0.0, 0.0, 1.0]))
 
 
 def segment_points(segments, spacing):

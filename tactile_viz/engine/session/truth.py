@@ -9,6 +9,7 @@ from ..shape.metrics import directed_hausdorff, pose_difference
 from ..shape.metrics import pose_error as metric_pose_error
 from ..shape.objects import ObjectModel
 from ..explore.simulator import GroundTruth
+from ..shape.resting import resting_pose
 from ..transforms import random_pose
 
 
@@ -57,8 +58,14 @@ class TruthMetrics:
                 directed_hausdorff(self._truth_samples, contacts))
 
 
-def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0) -> GroundTruth:
+def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0,
+               scene=None) -> GroundTruth:
     """The ground truth of a trial: ``model`` at a random pose, translated up to
-    ``max_translation`` size units (a sixth of its longest side each)."""
+    ``max_translation`` size units (a sixth of its longest side each); with a ``scene``
+    that has a table, at a random stable pose on it
+    (:func:`~..shape.resting.resting_pose`)."""
+    if scene is not None and scene.has_table:
+        rotation, translation = resting_pose(model, scene, rng, 0.5 * max_translation)
+        return GroundTruth(model, rotation, translation)
     rotation, translation = random_pose(rng, max_translation * model.size_unit)
     return GroundTruth(model, rotation, translation)

@@ -1,0 +1,175 @@
+"""The guarded moves of a robot's scene: every path a straight line of the tip's centre,
+travelling within the reach cone and ended at the table (:class:`~..scene.Scene`).
+
+The same procedures as :mod:`.exploration` (the first touch, contact enforcement with its
+way back and surface following, a check line, an RRT step), each a generator that yields
+paths and is sent their results, returning ``(paths, observations[, reached])``. Where the
+free-space procedures move sideways across the surface or come back under an edge, these
+lift the tip and come down again: a contact is always approached from within the cone.
+Targets and contacts are surface points; a path aims the tip's centre at the point plus
+the tip's radius along its normal. Table contacts never reach these procedures: the
+session turns them into misses first.
+"""
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import TactileVizError
+from ..shape.sdf import normalise_rows
+from .exploration import sweep_directions
+from .observations import Contact
+
+FIRST_SPREAD = 1.0  # size units: the first lines pass this far beside the table point
+FIRST_HEIGHT = 4.0  # size units: ... and at most this high above it
+
+
+def first_moves(scene, centre, rng, radius=10.0, attempts=50, unit=1.0):
+    """The random first touch: lines from random directions of the cone, each through a
+    random point above the table near ``centre`` (the table point; without a table,
+    ``centre`` offset up to ``unit / 2``), down to the table.
+
+    Returns ``(paths, observations)``: the misses, then the contact.
+    """
+    paths, observations = [], []
+    for _ in range(attempts):
+        direction = scene.random_directions(1, rng)[0]
+        if scene.has_table:
+            offset = rng.uniform(-FIRST_SPREAD, FIRST_SPREAD, size=3) * unit
+            offset -= (offset @ scene.up) * scene.up
+            through = centre + offset + rng.uniform(0.0, FIRST_HEIGHT) * unit * scene.up
+        else:
+            through = centre + rng.uniform(-0.5, 0.5, size=3) * unit
+        path = scene.line(through, direction, radius, radius)
+        observation = yield path
+        paths.append(path)
+        observations.append(observation)
+        if isinstance(observation, Contact):
+            return paths, observations
+    raise TactileVizError(f"no contact after {attempts} random lines from above the table: "
+                          "is the object on the table near its point?")
+
+
+def reach_moves(scene, target, normal, contacts, contact_normals, depth=1.0, clearance=0.5,
+                follow_step=0.1, spacing=0.3, max_follow=3.0, back_depth=0.04, anchors=1):
+    """Reach for a target from within the cone (the scene's
+    :func:`~.exploration.enforce_contact_moves`): down onto the target along the cone's
+    direction nearest its inward normal; after a miss, down onto the nearest contact (the
+    next nearest when that touches nothing, up to ``anchors``), then surface following
+    toward the target in lifted steps (:func:`follow_moves`).
+
+    Returns
+    -------
+    paths, observations, reached
+        As :func:`~.exploration.enforce_contact_moves`.
+    """
+    path = scene.line(scene.centre_of(target, normal), scene.approach(normal), clearance, depth)
+    observation = yield path
+    if isinstance(observation, Contact):
+        return [path], [observation], True
+    tree = cKDTree(contacts)
+    paths, touched = [path], None
+    for nearest in np.atleast_1d(tree.query(path[-1], k=min(anchors, len(contacts)))[1]):
+        anchor, anchor_normal = contacts[nearest], contact_normals[nearest]
+        back = scene.line(scene.centre_of(anchor, anchor_normal), scene.approach(anchor_normal),
+                          clearance, back_depth)
+        touched = yield back
+        paths.append(back)
+        if isinstance(touched, Contact):
+            break
+    if not isinstance(touched, Contact):
+        return paths, [observation], False
+    follow_paths, touched = yield from follow_moves(scene, touched, target, tree, follow_step,
+                                                    spacing, max_follow)
+    reached = bool(tree.query(touched.position)[0] >= spacing)
+    return paths + follow_paths, [observation, touched], reached
+
+
+def follow_moves(scene, contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
+    """Follow the surface from ``contact`` toward ``target``: each step moves ``step``
+    along the tangent plane and comes down there from within the cone; a miss (off an
+    edge) ends the following. Stops as :func:`~.exploration.follow_toward_moves` does.
+
+    Returns
+    -------
+    paths : list of (2, 3) arrays
+    contact : Contact
+    """
+    paths, travelled = [], 0.0
+    while travelled < max_follow and tree.query(contact.position)[0] < spacing:
+        position, normal = contact.position, normalise_rows(contact.normal[None])[0]
+        tangent = target - position
+        tangent -= (tangent @ normal) * normal
+        length = float(np.linalg.norm(tangent))
+        if length < step / 2:
+            break
+        moved = position + min(step, length) * tangent / length
+        path = scene.line(scene.centre_of(moved, normal), scene.approach(normal),
+                          2 * step, 2 * step)
+        following = yield path
+        paths.append(path)
+        if not isinstance(following, Contact):
+            break
+        advance = float(np.linalg.norm(following.position - position))
+        if advance < step / 10:
+            break
+        travelled += advance
+        contact = following
+    return paths, contact
+
+
+def cone_directions(scene, count=64):
+    """Spread directions of travel inside the cone (at least one: straight down),
+    (k, 3) float."""
+    candidates = -sweep_directions(count)
+    inside = candidates[scene.in_reach(candidates, slack_deg=0.0)]
+    return np.vstack([-scene.up[None], inside])
+
+
+def check_line(scene, through, surface, used=(), reach=10.0, wanted=0.5, unit=1.0):
+    """A check through ``through``: a straight line down from within the cone, from the
+    direction that passes farthest from the estimated surface (least used among the clear
+    ones), to the table.
+
+    Returns
+    -------
+    path : (2, 3) float
+    direction : (3,) float
+        Its direction of travel.
+    """
+    candidates = cone_directions(scene)
+    distances = np.linspace(0.3 * unit, reach, 40)
+    samples = through - distances[None, :, None] * candidates[:, None, :]
+    clearance = np.full(len(candidates), np.inf)
+    if len(surface):
+        clearance = cKDTree(surface).query(samples.reshape(-1, 3))[0].reshape(
+            len(candidates), -1).min(1)
+    used = np.reshape(used, (-1, 3))
+    novelty = -(candidates @ used.T).max(axis=1) if len(used) else np.zeros(len(candidates))
+    direction = candidates[int(np.argmax(np.minimum(clearance, wanted * unit) + 1e-3 * novelty))]
+    return scene.line(through, direction, reach, reach), direction
+
+
+def rrt_scene_moves(scene, contacts, contact_normals, workspace, rng, step=0.3, depth=1.0,
+                    clearance=0.5, unit=1.0):
+    """The RRT step of a scene: a random workspace sample, a step along the tangent plane
+    of its nearest contact, touched from within the cone; off an edge, down onto the
+    contact again."""
+    low, high = workspace
+    toward = rng.uniform(low, high)
+    nearest = int(cKDTree(contacts).query(toward)[1])
+    start, normal = contacts[nearest], contact_normals[nearest]
+    tangent = toward - start
+    tangent -= (tangent @ normal) * normal
+    length = float(np.linalg.norm(tangent))
+    if length < 1e-9:
+        helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+        tangent, length = np.cross(normal, helper), 1.0
+        length = float(np.linalg.norm(tangent))
+    moved = start + min(step, max(length, 1e-3 * unit)) * tangent / length
+    path = scene.line(scene.centre_of(moved, normal), scene.approach(normal), clearance, depth)
+    observation = yield path
+    if isinstance(observation, Contact):
+        return [path], [observation]
+    back = scene.line(scene.centre_of(start, normal), scene.approach(normal), clearance,
+                      0.2 * unit)
+    return [path, back], [(yield back)]

@@ -1,0 +1,113 @@
+"""How an object rests on a table: its stable poses (trimesh) and its lowest points.
+
+An object at rest on a plane lies in one of a few stable poses, turned about the vertical,
+its lowest point on the plane (``trimesh.poses.compute_stable_poses``: the quasi-static
+chance of landing on each face of the convex hull when dropped).
+"""
+
+import functools
+
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from .meshes import bare_mesh
+
+MIN_PROBABILITY = 0.02  # stable poses rarer than this are left out
+MAX_POSES = 12
+
+
+@functools.lru_cache(maxsize=64)
+def stable_rotations(model):
+    """The stable poses of ``model`` on a plane whose normal is +z.
+
+    Returns
+    -------
+    rotations : (k, 3, 3) float
+        Object frame to a frame whose +z is up; at least one (the identity when trimesh
+        finds none).
+    probabilities : (k,) float
+        Summing to 1.
+    """
+    mesh = bare_mesh(model.mesh)
+    try:
+        transforms, probabilities = trimesh.poses.compute_stable_poses(mesh, n_samples=1)
+    except Exception:  # noqa: BLE001 -- a degenerate hull: no preferred pose
+        transforms, probabilities = np.eye(4)[None], np.ones(1)
+    probabilities = np.asarray(probabilities, float)
+    keep = np.flatnonzero(probabilities >= MIN_PROBABILITY)[:MAX_POSES]
+    if len(keep) == 0:
+        keep = np.arange(min(1, len(probabilities)))
+    if len(keep) == 0:
+        return np.eye(3)[None], np.ones(1)
+    rotations = np.asarray(transforms)[keep, :3, :3]
+    probabilities = probabilities[keep] / probabilities[keep].sum()
+    return rotations, probabilities
+
+
+@functools.lru_cache(maxsize=64)
+def hull_points(model):
+    """The vertices of ``model``'s convex hull, (h, 3), object frame: where its lowest
+    point in any pose lies."""
+    mesh = bare_mesh(model.mesh)
+    try:
+        return np.asarray(mesh.convex_hull.vertices, float)
+    except Exception:  # noqa: BLE001 -- a flat or degenerate mesh: all its vertices
+        return np.asarray(mesh.vertices, float)
+
+
+def lowest_heights(points, rotations, translations, up, floor_point):
+    """The height above a plane of the lowest of ``points`` at each pose.
+
+    Parameters
+    ----------
+    points : (h, 3) float, object frame
+    rotations : (n, 3, 3) float
+    translations : (n, 3) float
+        ``object_to_world`` poses.
+    up : (3,) float
+        The plane's upward unit normal.
+    floor_point : (3,) float
+        A point of the plane, world frame.
+
+    Returns
+    -------
+    (n,) float, scene units
+    """
+    # up . (R p + t) - up . q = (R^T up) . p + up . (t - q)
+    tilted = np.einsum("nij,i->nj", rotations, up)
+    return (tilted @ points.T).min(axis=1) + (translations - floor_point) @ up
+
+
+def resting_pose(model, scene, rng=None, max_offset=0.5):
+    """A random stable pose of ``model`` on the scene's table: a stable pose drawn by its
+    probability, turned about the vertical at random, its lowest point on the plane, its
+    centre within ``max_offset`` size units of the table point horizontally.
+
+    Returns
+    -------
+    rotation : (3, 3) float
+    translation : (3,) float
+        ``object_to_world``.
+    """
+    rng = np.random.default_rng(rng)
+    rotations, probabilities = stable_rotations(model)
+    stable = rotations[rng.choice(len(rotations), p=probabilities)]
+    turn = Rotation.from_rotvec(rng.uniform(0, 2 * np.pi) * np.array([0.0, 0.0, 1.0]))
+    to_world = _z_to(scene.up)
+    rotation = to_world @ turn.as_matrix() @ stable
+    offset = rng.uniform(-1.0, 1.0, size=3) * max_offset * model.size_unit
+    offset -= (offset @ scene.up) * scene.up
+    translation = scene.table_point + offset
+    low = lowest_heights(hull_points(model), rotation[None], translation[None], scene.up,
+                         scene.table_point)[0]
+    return rotation, translation - low * scene.up
+
+
+def _z_to(up):
+    """A rotation taking +z to ``up``."""
+    z = np.array([0.0, 0.0, 1.0])
+    if np.allclose(up, z):
+        return np.eye(3)
+    rotation, _ = Rotation.align_vectors(up[None], z[None])
+    return rotation.as_matrix()
