@@ -25,6 +25,7 @@ from ..shape.objects import ObjectModel
 from .observation_file import ObservationFileError, format_observations, parse_observations
 from ..param_schema import check_integer
 from ..params import SessionParams
+from ..scene import Scene
 from ..explore.simulator import GroundTruth
 
 FORMAT = "tactile_viz-session"
@@ -45,7 +46,8 @@ def save_session(session, path):
               "sensor_outliers": setup.get("sensor_outliers", 0.0) if truth else 0.0,
               "steps": session.step_count, "library": library.names,
               "learned": [model.name for model in library if model.learned],
-              "truth_name": None if truth is None else truth.model.name}
+              "truth_name": None if truth is None else truth.model.name,
+              "scene": setup["scene"].as_dict() if setup.get("scene") is not None else None}
     arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
               "contacts": session.filter.contact_positions,
               "noncontacts": session.filter.noncontact_positions}
@@ -97,7 +99,8 @@ def _read(path, build):
     session = build(truth=truth, library=library, strategy=config["strategy"],
                     params=SessionParams.from_dict(config["params"]), seed=config["seed"],
                     sensor_noise=tuple(config["sensor_noise"]),
-                    sensor_outliers=float(config.get("sensor_outliers", 0.0)))
+                    sensor_outliers=float(config.get("sensor_outliers", 0.0)),
+                    scene=None if config.get("scene") is None else Scene.from_dict(config["scene"]))
     steps = check_integer("steps", config["steps"])
     cap = max(session.params.max_steps_known, session.params.max_steps_novel)
     if recorded is not None and steps != len(recorded):

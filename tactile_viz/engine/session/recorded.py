@@ -17,11 +17,14 @@ class RecordedSession(Session):
         As for :class:`Session` (the recording's seed reproduces its estimates exactly).
     source : str, optional
         Where the recording came from (shown by viewers).
+    scene : Scene, optional
+        The robot's world the touches were made in (table contacts become misses; the
+        coverage counts what its probe can reach).
     """
 
     def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None,
-                 sensor_noise=(0.0, 0.0)):
-        super().__init__(None, library, strategy, params, seed, sensor_noise)
+                 sensor_noise=(0.0, 0.0), scene=None):
+        super().__init__(None, library, strategy, params, seed, sensor_noise, scene=scene)
         self.recording = list(steps)
         self.source = source
 
@@ -29,7 +32,7 @@ class RecordedSession(Session):
         """The constructor's arguments that made this session (see :meth:`Session.setup`)."""
         return {"steps": self.recording, "library": self.library, "strategy": self.strategy,
                 "params": self.params, "seed": self.seed, "source": self.source,
-                "sensor_noise": self.sensor_noise}
+                "sensor_noise": self.sensor_noise, "scene": self.scene}
 
     @property
     def replayed(self):
