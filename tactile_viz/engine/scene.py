@@ -142,19 +142,25 @@ class Scene:
         """The direction of travel for touching a surface whose outward normal is
         ``normal`` ((3,)): ``-normal`` when it lies in the cone, else the cone's direction
         nearest to it (its rim, turned toward ``-normal``)."""
-        wanted = -np.asarray(normal, dtype=float)
-        wanted = wanted / max(float(np.linalg.norm(wanted)), 1e-300)
-        if self.in_reach(wanted[None], slack_deg=0.0)[0]:
+        return self.approaches(np.asarray(normal, dtype=float)[None])[0]
+
+    def approaches(self, normals):
+        """:meth:`approach` of each of ``normals`` ((k, 3) unit), (k, 3)."""
+        wanted = -np.atleast_2d(np.asarray(normals, dtype=float))
+        wanted = wanted / np.maximum(np.linalg.norm(wanted, axis=1, keepdims=True), 1e-300)
+        inside = self.in_reach(wanted, slack_deg=0.0)
+        if inside.all():
             return wanted
         down = -self.up
-        across = wanted - (wanted @ down) * down
-        length = float(np.linalg.norm(across))
-        if length < 1e-9:  # straight up: any side of the rim
-            helper = np.eye(3)[int(np.argmin(np.abs(down)))]
-            across = np.cross(down, helper)
-            length = float(np.linalg.norm(across))
+        across = wanted - (wanted @ down)[:, None] * down
+        length = np.linalg.norm(across, axis=1)
+        helper = np.eye(3)[int(np.argmin(np.abs(down)))]
+        sideways = np.cross(down, helper)
+        across = np.where(length[:, None] < 1e-9, sideways, across)  # straight up: any side
+        across /= np.linalg.norm(across, axis=1, keepdims=True)
         angle = np.radians(self.reach_angle_deg)
-        return np.cos(angle) * down + np.sin(angle) * across / length
+        rim = np.cos(angle) * down + np.sin(angle) * across
+        return np.where(inside[:, None], wanted, rim)
 
     def random_directions(self, count, rng):
         """``count`` directions of travel drawn uniformly over the cone (over a table, its
@@ -233,7 +239,8 @@ class Scene:
         height = float(self.height(np.asarray(position, float)[None])[0])
         return abs(height) <= tolerance and float(np.asarray(normal) @ self.up) >= TABLE_NORMAL_COSINE
 
-    def reachable(self, vertices, normals, outside=None, margin=0.0, fit=0.7):
+    def reachable(self, vertices, normals, outside=None, margin=0.0, fit=0.7, clear=0.0,
+                  samples=6):
         """Mask of the surface points a probe of this scene can touch.
 
         Parameters
@@ -242,12 +249,18 @@ class Scene:
             Surface points and their outward normals.
         outside : callable, optional
             ``(k, 3) -> (k,)``: the estimate's signed distance (or anything positive
-            outside it). With a tip radius, a point counts only where the tip's sphere
-            fits beside it (the estimate at the tip's centre at least ``fit`` radii):
-            not in gaps narrower than the tip.
+            outside it). A point then counts only where the tip's sphere fits beside it
+            (the estimate at the tip's centre at least ``fit`` radii: not in gaps
+            narrower than the tip) and, with ``clear > 0``, where the way in along its
+            approach (:meth:`approaches`) is free of the estimate for ``clear``.
         margin : float
             Scene units: points lower than ``tip_radius + margin`` above the table are not
             counted (the tip rests on the table before it reaches them).
+        clear : float
+            Scene units: how far back along the approach the way must be free (0: not
+            asked).
+        samples : int
+            Points of the way in that are tested.
 
         Returns
         -------
@@ -261,10 +274,19 @@ class Scene:
             # A tip travelling within the cone touches a face only against its travel.
             limit = np.cos(np.radians(min(90.0 + self.reach_angle_deg - 5.0, 180.0)))
             keep &= normals @ self.up > limit
-        if self.tip_radius > 0 and outside is not None and keep.any():
-            index = np.flatnonzero(keep)
-            centres = vertices[index] + self.tip_radius * normals[index]
+        if outside is None or not keep.any():
+            return keep
+        index = np.flatnonzero(keep)
+        centres = vertices[index] + self.tip_radius * normals[index]
+        if self.tip_radius > 0:
             keep[index] = outside(centres) >= fit * self.tip_radius
+            index = index[keep[index]]
+            centres = vertices[index] + self.tip_radius * normals[index]
+        if clear > 0 and len(index):
+            back = np.linspace(clear / samples, clear, samples)
+            way = centres[:, None, :] - back[None, :, None] * self.approaches(normals[index])[:, None, :]
+            free = outside(way.reshape(-1, 3)).reshape(len(index), samples)
+            keep[index] = free.min(axis=1) > fit * self.tip_radius
         return keep
 
 

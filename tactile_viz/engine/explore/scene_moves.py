@@ -15,6 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import TactileVizError
+from ..session.fields import free_approach
 from ..shape.sdf import normalise_rows
 from .exploration import sweep_directions
 from .observations import Contact
@@ -50,19 +51,26 @@ def first_moves(scene, centre, rng, radius=10.0, attempts=50, unit=1.0):
 
 
 def reach_moves(scene, target, normal, contacts, contact_normals, depth=1.0, clearance=0.5,
-                follow_step=0.1, spacing=0.3, max_follow=3.0, back_depth=0.04, anchors=1):
+                follow_step=0.1, spacing=0.3, max_follow=3.0, back_depth=0.04, anchors=1,
+                estimate=None, unit=1.0):
     """Reach for a target from within the cone (the scene's
     :func:`~.exploration.enforce_contact_moves`): down onto the target along the cone's
     direction nearest its inward normal; after a miss, down onto the nearest contact (the
     next nearest when that touches nothing, up to ``anchors``), then surface following
     toward the target in lifted steps (:func:`follow_moves`).
 
+    ``estimate`` (``(k, 3) -> (k,)``, positive outside the estimated object) shortens the
+    approach to start short of what it predicts on the way (at least ``unit / 2``).
+
     Returns
     -------
     paths, observations, reached
         As :func:`~.exploration.enforce_contact_moves`.
     """
-    path = scene.line(scene.centre_of(target, normal), scene.approach(normal), clearance, depth)
+    direction = scene.approach(normal)
+    if estimate is not None:  # come in short of what the estimate predicts on the way
+        clearance = free_approach(estimate, target, -direction, clearance, unit)
+    path = scene.line(scene.centre_of(target, normal), direction, clearance, depth)
     observation = yield path
     if isinstance(observation, Contact):
         return [path], [observation], True

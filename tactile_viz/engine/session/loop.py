@@ -320,12 +320,11 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             return "check", _one_move(self.state.check.path)
         target, normal, estimate = self.state.target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
         back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
                 + 3 * self.sensor_noise[0])
         return "target", reach_moves(scene, target, normal, contacts, normals, depth,
-                                     clearance, p.follow_step, p.contact_spacing, p.max_follow,
-                                     back, p.way_back_anchors)
+                                     p.approach_clearance, p.follow_step, p.contact_spacing,
+                                     p.max_follow, back, p.way_back_anchors, estimate, unit)
 
     def _seen(self, observation):
         """A result as the object's belief takes it: a contact with the scene's table is

@@ -171,11 +171,11 @@ class Planner:
         map_reach = None
         if not self.scene.is_free and model is not None:
             map_reach = self._in_scene(map_vertices, vertex_normals(model) @ pose[0].T,
-                                       ValueOf(self._prior(model, *pose)))
+                                       ValueOf(self._prior(model, *pose)), contacts)
             if reconstructed:
                 reachable = _both(reachable, self._in_scene(
                     surface, mesh_vertex_normals(recon.vertices, recon.faces),
-                    recon.fit.mean_value))
+                    recon.fit.mean_value, contacts))
             else:
                 reachable = _both(reachable, map_reach)
         dhd = directed_hausdorff(surface[reachable], contacts)
@@ -189,13 +189,23 @@ class Planner:
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
 
-    def _in_scene(self, vertices, normals, outside):
+    def _in_scene(self, vertices, normals, outside, contacts):
         """Mask of the estimate's vertices the scene's probe can reach
-        (:meth:`~..scene.Scene.reachable`): above the table, facing the reach cone, and
-        where the tip fits (only with a tip radius; ``outside`` is then evaluated)."""
-        return self.scene.reachable(vertices, normals,
-                                    outside if self.scene.tip_radius > 0 else None,
-                                    margin=SCENE_MARGIN * self._unit)
+        (:meth:`~..scene.Scene.reachable`): above the table, facing the reach cone,
+        where the tip fits and the way in along the cone is free of the estimate for
+        ``approach_clearance``. The estimate (``outside``) is evaluated only at vertices
+        farther than ``eps / 2`` from every contact: nearer ones neither hold the stop
+        nor become targets."""
+        p = self._p
+        keep = self.scene.reachable(vertices, normals, margin=SCENE_MARGIN * self._unit)
+        far = keep.copy()
+        if len(contacts):
+            far[keep] = cKDTree(contacts).query(vertices[keep])[0] > p.eps / 2
+        if far.any():
+            keep[far] = self.scene.reachable(vertices[far], normals[far], outside,
+                                             margin=SCENE_MARGIN * self._unit,
+                                             clear=p.approach_clearance)
+        return keep
 
     def _stop_test(self, coverage, belief, decision=UNDECIDED):
         """The :class:`Stop`: l.1, ``d_H(S*, X_c) <= eps``, held by the extensions
