@@ -84,7 +84,7 @@ def test_a_pickled_session_steps_on_as_the_original(bundled, library):
     state = session.__getstate__()
     assert set(state) == {"setup", "filter", "snapshots", "checkpoint"}
     assert set(state["setup"]) == {"truth", "library", "strategy", "params", "seed",
-                                   "sensor_noise", "sensor", "sensor_outliers"}
+                                   "sensor_noise", "sensor", "sensor_outliers", "scene"}
     copy = pickle.loads(pickle.dumps(session))
     assert copy.step_count == 3 and copy.params == session.params
     for _ in range(2):
