@@ -417,3 +417,73 @@ def add_output_arguments(parser, export_help):
                              "Foxglove: touches, MAP pose, posterior, MAP shape and GPIS "
                              "markers (docs/robots.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+def reach_angle(text):
+    """An argument type: a reach cone's half-angle in degrees, in (0, 180]."""
+    value = finite_float(text)
+    if not 0 < value <= 180:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 180] degrees, got {text!r}")
+    return value
+
+
+def add_scene_arguments(parser, several_radii=False, simulated=True, unit="scene units"):
+    """The robot's scene (docs/cli.md, "The robot's scene"): ``--table``,
+    ``--table-height H``, ``--reach-angle DEG`` and ``--tip-radius R``; all off by default
+    (the paper's free space). With ``several_radii`` (a benchmark) ``--tip-radius`` (alias
+    ``--tip-radii``) takes a list of radii, one run of every trial per radius. ``simulated``:
+    the command places a simulated object (on the table); ``unit`` names the lengths' unit
+    in the help."""
+    group = parser.add_argument_group("the robot's scene (docs/cli.md; default: the paper's "
+                                      "free space)")
+    rests = (": the simulated object rests on it at a random stable pose, contacts with it "
+             "are misses of the object" if simulated
+             else ": contacts with it are misses of the object")
+    group.add_argument("--table", action="store_true",
+                       help=f"a horizontal support plane under the object, z up{rests}")
+    group.add_argument("--table-height", type=finite_float, default=None, metavar="H",
+                       help=f"the table's height z, {unit} (default 0; giving it implies "
+                            "--table)")
+    group.add_argument("--reach-angle", type=reach_angle, default=180.0, metavar="DEG",
+                       help="half-angle of the cone about straight down in which the tip "
+                            "may travel, degrees in (0, 180] (default 180: any direction)")
+    if several_radii:
+        group.add_argument("--tip-radius", "--tip-radii", dest="tip_radius",
+                           type=nonnegative_float, action=ExtendList, default=[0.0],
+                           metavar="R",
+                           help=f"radii of the spherical fingertip, {unit}, >= 0; every "
+                                "trial runs once per radius (default 0: the paper's point)")
+    else:
+        group.add_argument("--tip-radius", type=nonnegative_float, default=0.0, metavar="R",
+                           help=f"radius of the spherical fingertip, {unit}, >= 0 "
+                                "(default 0: the paper's point sensor)")
+
+
+def scene_from_args(args, tip_radius=None):
+    """The :class:`~tactile_viz.engine.scene.Scene` of the options of
+    :func:`add_scene_arguments` (``tip_radius`` replaces ``--tip-radius``: one of a
+    benchmark's radii); None when they are all at their defaults (the paper's free space)."""
+    from .engine.scene import Scene
+
+    height = getattr(args, "table_height", None)
+    table = bool(getattr(args, "table", False)) or height is not None
+    reach = float(getattr(args, "reach_angle", 180.0))
+    if tip_radius is None:
+        tip_radius = getattr(args, "tip_radius", 0.0)
+        if isinstance(tip_radius, (list, tuple)):
+            tip_radius = tip_radius[0] if len(tip_radius) == 1 else None
+            if tip_radius is None:
+                raise ValueError("several tip radii: pass one of them as tip_radius")
+    tip_radius = float(tip_radius)
+    if not table and reach == 180.0 and tip_radius == 0.0:
+        return None
+    if table:
+        return Scene.on_table(height or 0.0, reach, tip_radius)
+    return Scene(None, (0.0, 0.0, 1.0), reach, tip_radius)
+
+
+def scenes_from_args(args):
+    """One scene (or None, free space) per ``--tip-radius`` of a benchmark's options."""
+    radii = getattr(args, "tip_radius", 0.0)
+    radii = list(radii) if isinstance(radii, (list, tuple)) else [radii]
+    return [scene_from_args(args, radius) for radius in dict.fromkeys(radii)]

@@ -9,6 +9,7 @@ library's unit, else in the files' own unnamed units.
 """
 
 import argparse
+import json
 import logging
 import sys
 from pathlib import Path
@@ -347,3 +348,88 @@ def learn(session, library, name, folder, units=None, args=None):
     say(args, "note", f"learned {name} ({model.length:.3g} {units or 'scene units'} long), "
                       f"saved to {folder}")
     return {"name": name, "saved_to": str(folder), "longest_side": model.length}
+
+
+# ------------------------------------------------------------- a recording's scene
+SCENE_KEY = "scene"
+
+
+def _leading_comments(text):
+    """``(line number, key, value)`` of the ``# KEY: VALUE`` comments before a CSV's header."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            return
+        key, colon, value = stripped.lstrip("#").partition(":")
+        if colon:
+            yield number, key.strip().lower(), value.strip()
+
+
+def recorded_scene(path, units=None):
+    """The robot's scene a CSV recording names in a ``# scene: {...}`` comment before its
+    header (the JSON of :meth:`~tactile_viz.engine.scene.Scene.as_dict`, lengths in the
+    file's ``# units:``), converted to the scene unit ``units``; None when it names none
+    (and for a bag, which has no such line).
+
+    Raises
+    ------
+    ObservationFileError
+        The line is not a scene (one line naming the file and the line).
+    """
+    from ..engine.errors import TactileVizError
+    from ..engine.io.bags import is_bag
+    from ..engine.io.observation_file import ObservationFileError, file_units
+    from ..engine.scene import Scene
+    from ..engine.shape.meshes import UNITS as LENGTHS
+
+    if is_bag(path):
+        return None
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None  # reading the touches reports it
+    for number, key, value in _leading_comments(text):
+        if key != SCENE_KEY:
+            continue
+        try:
+            record = json.loads(value)
+            if not isinstance(record, dict):
+                raise ValueError("not a JSON object")
+            scene = Scene.from_dict(record)
+        except (ValueError, TypeError, TactileVizError) as error:
+            raise ObservationFileError(path, number, f"the scene line is not a scene: {error} "
+                                       '(expected e.g. # scene: {"table_point": [0, 0, 0], '
+                                       '"reach_angle_deg": 60, "tip_radius": 0.005})') from None
+        written = file_units(text, path)
+        if units is None or written is None or written == units:
+            return scene
+        scale = LENGTHS[written] / LENGTHS[units]
+        return Scene(None if scene.table_point is None else scene.table_point * scale,
+                     scene.up, scene.reach_angle_deg, scene.tip_radius * scale)
+    return None
+
+
+def scene_line(scene):
+    """The ``# scene: {...}`` comment of a recording made in ``scene`` (no newline)."""
+    return f"# {SCENE_KEY}: {json.dumps(scene.as_dict())}"
+
+
+def write_scene_line(path, scene):
+    """Add the ``# scene:`` comment of ``scene`` before the header of the CSV recording
+    ``path`` (after its ``# units:`` line); nothing for free space (None) or when the file
+    already names a scene."""
+    from ..engine.io.files import write_atomic
+
+    if scene is None or scene.is_free:
+        return
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines(keepends=True)
+    if any(key == SCENE_KEY for _, key, _ in _leading_comments(text)):
+        return
+    at = next((k for k, line in enumerate(lines)
+               if line.strip() and not line.lstrip().startswith("#")), len(lines))
+    lines.insert(at, scene_line(scene) + "\n")
+    write_atomic(path, "".join(lines).encode("utf-8"))

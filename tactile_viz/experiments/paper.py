@@ -6,6 +6,11 @@ surface of its first GPIS-DHD trial becomes a prior ``home_chair_learned``, then
 trials, seeds ``--seed`` + 1000 + i, run with the known priors plus it); the Screened
 Poisson baseline (depth 9) on each novel trial's final oriented contacts.
 
+The scene options (``--table``, ``--table-height``, ``--reach-angle``, ``--tip-radius``;
+off by default: the paper's free space) put every object of every trial at rest on a
+table, probed with a tip of that radius within the reach cone; trial files then carry the
+scene in their key (``__scene-table0-reach60-tip0.1``) and their ``scene`` record.
+
 Writes to ``--out``: ``trials/*.json`` (the ``trial`` JSON plus ``task``, ``final``
 contacts/normals, ``poisson``), ``learned/home_chair_learned.ply``, ``summary.md`` (the
 tables), ``summary.json`` (one summary per trial) and the plots ``overview.png``,
@@ -23,13 +28,13 @@ from pathlib import Path
 import numpy as np
 
 from . import aggregate
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, add_sensor_arguments,
-                  bundled_objects, count_int, existing_file, name_list, output_dir, positive_int,
-                  seed_int, workers_int)
+from ..cli import (ArgumentParser, ExtendList, add_preset_argument, add_scene_arguments,
+                  add_sensor_arguments, bundled_objects, count_int, existing_file, name_list,
+                  output_dir, positive_int, scene_from_args, seed_int, workers_int)
 from ..engine.io.files import write_atomic
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
-from .runner import make_task, open_pool, run_tasks, task_key
+from .runner import make_task, open_pool, run_tasks, scene_label, task_key, with_scene
 from .trial import sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
@@ -88,6 +93,7 @@ def build_parser():
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; rebuild summary.md and the plots from DIR/trials")
     add_sensor_arguments(parser)
+    add_scene_arguments(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
@@ -174,6 +180,21 @@ def write_json(path, value):
     write_atomic(path, json.dumps(value, indent=1).encode())
 
 
+def with_setting(tasks, sensor, scene=None):
+    """Give every task the sensor settings (:func:`with_sensor`) and the robot's ``scene``
+    (None: the paper's free space); returns a function that does the same to later
+    tasks."""
+    noisy = with_sensor(tasks, sensor)
+
+    def placed(more):
+        for task in noisy(more):
+            with_scene(task, scene)
+        return more
+
+    placed(tasks)
+    return placed
+
+
 def with_sensor(tasks, sensor):
     """Give every task the sensor settings (noise, outliers) unless they are the noiseless
     defaults; returns a function that does the same to later tasks."""
@@ -213,7 +234,7 @@ def run(args):
                                args.preset, args.max_steps)
     elif not args.no_learned:
         tasks = learn_task(tasks, args.seed, args.preset, args.max_steps, poisson)
-    noisy = with_sensor(tasks, sensor_settings(args))
+    noisy = with_setting(tasks, sensor_settings(args), scene_from_args(args))
 
     def follow_up(task, result):
         if not task["learn_as"]:
@@ -239,8 +260,9 @@ def run(args):
     if learning and learning[0] not in todo:
         prior = load_learned(learned_dir)
         if prior is not None:
-            followed = [t for t in learned_tasks(prior, args.trials, args.seed, args.preset,
-                                                 args.max_steps) if not _reuse(t)]
+            followed = [t for t in noisy(learned_tasks(prior, args.trials, args.seed,
+                                                       args.preset, args.max_steps))
+                        if not _reuse(t)]
     pool = open_pool(args.workers, args.scheduler, progress=not args.no_progress)
     try:
         for task, result in run_tasks(followed + todo, pool, follow_up,
@@ -295,6 +317,11 @@ def report(folder, command=None):
         # Trials are reproducible per seed only within one version of the code.
         counts = ", ".join(f"{v} ({n})" for v, n in sorted(versions.items()))
         lines += [f"Code version(s) of the trials (number of trials): {counts}", ""]
+    scenes = Counter(scene_label(r["scene"]) if r.get("scene") else "free space (the paper's)"
+                     for r in results if "steps" in r)
+    if any(label != "free space (the paper's)" for label in scenes):
+        counts = ", ".join(f"{label} ({n})" for label, n in sorted(scenes.items()))
+        lines += [f"Robot's scene of the trials (number of trials): {counts}", ""]
     failed = [s for s in summaries if "error" in s]
     for summary in failed:
         lines.append(f"- FAILED {summary['object']} {summary['strategy']} seed {summary['seed']}: "

@@ -4,21 +4,27 @@ The touches come from an observation file (see
 :mod:`tactile_viz.engine.io.observation_file`), made by a real sensor, another program or
 ``trial --export``. Every step of the file is replayed, also after the session would have
 stopped; the JSON is the ``trial`` command's, with null truth metrics.
+
+The robot's scene (a table, the reach cone, the tip's radius) comes from the scene options
+or, when none is given, from a CSV recording's ``# scene: {...}`` line
+(:func:`~.inputs.recorded_scene`); without either, the paper's free space.
 """
 
 import json
 import time
+from pathlib import Path
 
-from ..cli import (add_output_arguments, add_preset_argument, add_sensor_arguments,
-                   add_set_argument, seed_int, with_settings)
+from ..cli import (add_output_arguments, add_preset_argument, add_scene_arguments,
+                   add_sensor_arguments, add_set_argument, scene_from_args, seed_int,
+                   with_settings)
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.bag_export import export_bag
 from ..engine.io.bags import read_recording as read_recording_file, recording_file_warning
 from ..engine.io.export import export_session
 from ..engine.session import RecordedSession, session_preset
 from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
-                     check_learning, learn, load_priors, recording_file, say, scene_units,
-                     size_warnings)
+                     check_learning, learn, load_priors, recorded_scene, recording_file, say,
+                     scene_units, size_warnings, write_scene_line)
 from .trial import code_version, run_steps, with_outliers, write_output
 
 
@@ -36,13 +42,14 @@ def add_replay_arguments(parser):
                         help="filter seed (the trial's seed reproduces its estimate exactly)")
     add_unit_arguments(parser)
     add_sensor_arguments(parser, simulated=False)
+    add_scene_arguments(parser, simulated=False)
     add_bag_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json to DIR")
 
 
 def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, progress=False,
-           params=None, sensor_noise=(0.0, 0.0)):
+           params=None, sensor_noise=(0.0, 0.0), scene=None):
     """Feed recorded steps to a new session without a simulated object.
 
     Parameters
@@ -51,6 +58,8 @@ def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, pr
     library : PriorLibrary
     preset : str
         Names the session parameters (``params`` replaces them when given).
+    scene : Scene, optional
+        The robot's world the touches were made in (None: the paper's free space).
 
     Returns
     -------
@@ -59,7 +68,7 @@ def replay(steps, library, preset="recommended", strategy="gpis-dhd", seed=0, pr
         One :meth:`Snapshot.record` per step.
     """
     session = RecordedSession(steps, library, strategy, params or session_preset(preset), seed,
-                              sensor_noise=sensor_noise)
+                              sensor_noise=sensor_noise, scene=scene)
     return session, run_steps(session, progress, len(steps), "replay")
 
 
@@ -82,21 +91,25 @@ def run_replay_command(args):
     for message in size_warnings(args, library):
         say(args, "warning", message)
     learn_to = check_learning(args, library)
+    scene = scene_from_args(args) or recorded_scene(args.observations, units)
     start = time.perf_counter()
     session, records = replay(steps, library, args.preset, args.strategy, args.seed,
                               progress=not args.no_progress,
                               params=with_outliers(
                                   with_settings(session_preset(args.preset), args.set),
                                   args.outlier_probability),
-                              sensor_noise=(args.position_noise, args.normal_noise))
+                              sensor_noise=(args.position_noise, args.normal_noise),
+                              scene=scene)
     stop = next((r["t"] for r, s in zip(records, session.snapshots) if s.terminated), None)
     result = {"object": None, "observations": str(args.observations), "seed": args.seed,
               "strategy": args.strategy, "preset": args.preset,
               "params": session.params.to_dict(), "library": library.names,
-              "truth_pose": None, "terminated_at": stop, "code_version": code_version(),
+              "truth_pose": None, "scene": None if scene is None else scene.as_dict(),
+              "terminated_at": stop, "code_version": code_version(),
               "units": units, "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
         export_session(session, args.export, units)
+        write_scene_line(Path(args.export) / "observations.csv", scene)
     if args.export_bag:
         export_bag(session, args.export_bag, units)
     if learn_to:

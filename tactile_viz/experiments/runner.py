@@ -19,6 +19,9 @@ own ``"longest_side"``), and both are scaled to the task's ``longest_side`` (Non
 file's size). Files are read where the task runs
 (a local disk), once per process. ``library`` may be ``none`` (no bundled priors).
 
+``scene`` (optional) is a :meth:`~tactile_viz.engine.scene.Scene.as_dict` record: the
+object rests on its table and is probed with its tip within its reach cone.
+
 :func:`run_task` runs one task through :func:`~tactile_viz.experiments.trial.run_trial` and
 adds what the benchmarks need (final contacts and normals, the Screened Poisson baseline,
 the learned surface). Every random choice comes from the task's seed, so where a task runs
@@ -40,7 +43,7 @@ TIMING_KEYS = ("seconds", "step_seconds", "timings")
 def make_task(object_name, strategy="gpis-dhd", seed=0, preset="recommended", kind="protocol",
               library="known", extra_priors=(), params=None, max_steps=None, poisson=False,
               learn_as=None, poisson_depth=9, sizes=None, sensor=None, object_file=None,
-              longest_side=None):
+              longest_side=None, scene=None):
     """A task dict (see the module docstring)."""
     task = {"kind": kind, "object": object_name, "strategy": strategy, "seed": int(seed),
             "preset": preset, "library": library, "extra_priors": list(extra_priors),
@@ -54,7 +57,31 @@ def make_task(object_name, strategy="gpis-dhd", seed=0, preset="recommended", ki
         task["object_file"] = str(object_file)
     if longest_side is not None:
         task["longest_side"] = float(longest_side)
+    return with_scene(task, scene)
+
+
+def with_scene(task, scene):
+    """``task`` with the robot's ``scene`` (a Scene, its dict, or None: free space, no key)."""
+    if scene is not None and not isinstance(scene, dict):
+        scene = None if scene.is_free else scene.as_dict()
+    if scene is not None:
+        task["scene"] = dict(scene)
     return task
+
+
+def scene_label(record):
+    """A short file-name-safe label of a task's scene record: ``table0-reach60-tip0.005``."""
+    parts = []
+    if record.get("table_point") is not None:
+        point, up = record["table_point"], record.get("up", (0.0, 0.0, 1.0))
+        parts.append("table" + "_".join(f"{v:g}" for v in point)
+                     if list(up) != [0.0, 0.0, 1.0] or any(point[:2])
+                     else f"table{point[2]:g}")
+    if record.get("reach_angle_deg", 180.0) < 180.0:
+        parts.append(f"reach{record['reach_angle_deg']:g}")
+    if record.get("tip_radius", 0.0) > 0:
+        parts.append(f"tip{record['tip_radius']:g}")
+    return "-".join(parts) or "free"
 
 
 def library_label(task):
@@ -74,6 +101,8 @@ def task_key(task):
     if task.get("sensor"):
         parts.append("noise-" + "-".join(f"{v:g}" for v in task["sensor"].values()
                                          if v is not None))
+    if task.get("scene"):
+        parts.append("scene-" + scene_label(task["scene"]))
     return "__".join(parts)
 
 
@@ -165,6 +194,7 @@ def run_task(task, progress=False):
     Never raises for a failing trial: the traceback is returned under ``error`` so that a
     long benchmark keeps its other results.
     """
+    from ..engine.scene import Scene
     from ..engine.session import SessionParams
     from .trial import run_trial
 
@@ -175,7 +205,8 @@ def run_task(task, progress=False):
         result = run_trial(task_object(task), task_library(task),
                            task["strategy"], task["seed"], task["preset"], task["max_steps"],
                            progress=progress, params=params, finish=_finisher(task),
-                           sensor=task.get("sensor"))
+                           sensor=task.get("sensor"),
+                           scene=Scene.from_dict(task["scene"]) if task.get("scene") else None)
     except Exception:
         return {"object": task["object"], "seed": task["seed"], "strategy": task["strategy"],
                 "task": meta, "error": traceback.format_exc()}

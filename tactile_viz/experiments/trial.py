@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (add_output_arguments, add_preset_argument, add_sensor_arguments,
-                   add_set_argument, bundled_object, positive_int, seed_int, with_settings)
+from ..cli import (add_output_arguments, add_preset_argument, add_scene_arguments,
+                   add_sensor_arguments, add_set_argument, bundled_object, positive_int,
+                   scene_from_args, seed_int, with_settings)
 from ..engine.errors import ParameterError
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.bag_export import export_bag
@@ -27,7 +28,8 @@ from ..engine.shape.objects import load_bundled
 from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
 from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
-                     load_priors, mesh_file, say, scene_units, size_warnings)
+                     load_priors, mesh_file, say, scene_units, size_warnings,
+                     write_scene_line)
 
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
@@ -66,6 +68,7 @@ def add_trial_arguments(parser):
     add_set_argument(parser)
     add_unit_arguments(parser)
     add_sensor_arguments(parser)
+    add_scene_arguments(parser)
     add_output_arguments(parser, "write observations.csv, map_shape.ply, reconstruction.ply "
                                  "(when novel) and estimate.json of the last step to DIR")
 
@@ -177,11 +180,13 @@ def run_trial_command(args):
     for message in size_warnings(args, library, truth_model):
         say(args, "warning", message)
     learn_to = check_learning(args, library)
+    scene = scene_from_args(args)
 
     def finish(session):
         extra = {}
         if args.export:
             export_session(session, args.export, units)
+            write_scene_line(Path(args.export) / "observations.csv", scene)
         if args.export_bag:
             export_bag(session, args.export_bag, units)
         if learn_to:
@@ -191,7 +196,8 @@ def run_trial_command(args):
     result = run_trial(truth_model, library, args.strategy, args.seed, args.preset,
                        args.max_steps, progress=not args.no_progress, finish=finish,
                        sensor=sensor_settings(args),
-                       params=with_settings(session_preset(args.preset), args.set))
+                       params=with_settings(session_preset(args.preset), args.set),
+                       scene=scene)
     result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
     return 0
