@@ -95,12 +95,20 @@ def _loads(data, models):
     return _Unpickler(io.BytesIO(data), models).load()
 
 
+def _read_back(session):
+    """How many of the newest snapshots a step reads: the latest, and the last
+    ``final_candidates`` ones, whose MAP priors a stopping novel session fits again
+    (:meth:`~tactile_viz.engine.session.estimate.Estimation._recent_priors`)."""
+    return 1 + max(0, int(getattr(session.params, "final_candidates", 0) or 0))
+
+
 def _outgoing_state(session):
     """The session to send, as its class and pickled state, with the snapshots reduced to
-    what a step reads (their count and the latest)."""
+    what a step reads (their count and the newest :func:`_read_back`)."""
     state = session.__getstate__()
     count = len(session.snapshots)
-    state["snapshots"] = [None] * (count - 1) + [session.snapshots[-1]] if count else []
+    keep = min(count, _read_back(session))
+    state["snapshots"] = [None] * (count - keep) + list(session.snapshots[count - keep:])
     return type(session), state
 
 
@@ -168,6 +176,7 @@ class _Outbox:
 def _serve_run(outbox, session, count, stop, keys, faces):
     done, error = 0, None
     key_of = lambda model: keys.get(id(model))  # noqa: E731 (a model made here: by value)
+    keep = _read_back(session)
     while not stop.is_set() and not session.terminated and (count is None or done < count):
         try:
             snapshot = session.step()
@@ -176,8 +185,9 @@ def _serve_run(outbox, session, count, stop, keys, faces):
             break
         done += 1
         ended = time.perf_counter()  # the system's monotonic clock: the parent's too
-        if len(session.snapshots) > 1:
-            session.snapshots[-2] = None  # the parent keeps them; a step reads the latest
+        if len(session.snapshots) > keep:
+            # The parent keeps them; a step reads the newest ``keep``.
+            session.snapshots[-keep - 1] = None
         outbox.put(_dumps(("snapshot", snapshot, ended), key_of, faces))
     if error is not None:
         error = _portable(error)

@@ -132,3 +132,45 @@ def test_priors_no_session_uses_are_let_go(bundled, library, engine):
     _same(session.snapshots, local.snapshots)
     list(engine.steps(_session(bundled, library), 1))  # sent again when used again
     assert set(engine._models) == {model_key(model) for model in library} | {truth}
+
+
+def test_a_session_in_a_robot_scene_keeps_it_in_the_process(bundled, library, engine):
+    from tactile_viz.engine.scene import Scene as RobotScene
+
+    robot = RobotScene.on_table(-1.0, reach_angle_deg=60.0, tip_radius=0.2)
+
+    def session():
+        truth = make_truth(bundled["vase_2"], rng=3, scene=robot)
+        return Session(truth, library, "gpis-dhd", seed=3, scene=robot)
+
+    remote, local = session(), session()
+    list(engine.steps(remote, 3))
+    local.run(max_steps=3)
+    assert remote.scene is robot  # the parent's session keeps its own scene
+    _same(remote.snapshots, local.snapshots)  # the process stepped in the same scene
+
+
+def test_a_novel_session_stops_in_the_process(bundled, library, engine):
+    """The stop of a novel session reads the MAP priors of its last steps
+    (``final_candidates``): the process keeps those snapshots, not only the latest."""
+    from tactile_viz.engine.session import session_preset
+
+    params = session_preset("recommended", max_steps_known=3, max_steps_novel=3)
+    assert params.final_candidates > 0
+
+    def session():
+        return Session(make_truth(bundled["mug_2"], rng=[0, 0]), library, "gpis-dhd",
+                       params, seed=0)
+
+    remote, local = session(), session()
+    list(engine.steps(remote, 1))
+    list(engine.steps(remote, None))  # continued: the process holds the session
+    local.run()
+    assert remote.terminated and remote.latest.novel
+    _same(remote.snapshots, local.snapshots)
+    # Sent anew (stepped here since): the snapshots a step reads go with it.
+    again = session()
+    again.run(max_steps=2)
+    list(engine.steps(again, None))
+    assert again.terminated
+    _same(again.snapshots, local.snapshots)
