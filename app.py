@@ -7,6 +7,7 @@
     python app.py --object-file cup.stl --library known --prior-file cup.stl   # own meshes
     python app.py --object-file can.stl:mm --prior-file cup.stl:mm bowl.stl:m  # with units
     python app.py --observations touches.csv --library-dir my_library  # recorded touches
+    python app.py --table --reach-angle 60 --tip-radius 0.2   # on a table, a robot's reach
 """
 
 import argparse
@@ -15,7 +16,8 @@ import os
 import sys
 
 from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
-                             add_sensor_arguments, default_log_file, one_line, setup_logging)
+                             add_scene_arguments, add_sensor_arguments, default_log_file,
+                             one_line, scene_from_args, setup_logging)
 
 log = logging.getLogger("tactile_viz.app.launcher")
 PROG = "app.py"  # errors are one line, "app.py: error: MESSAGE", as the command line's
@@ -71,6 +73,7 @@ def parse_args(argv=None):
 
     add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)
+    add_scene_arguments(parser)
     add_bag_arguments(parser)
     add_logging_arguments(parser, log_file_default=str(default_log_file()))
     args = parser.parse_args(argv)
@@ -186,7 +189,7 @@ def build_scene(args):
                   library=library, strategy=args.strategy, preset=args.preset,
                   units=units,
                   sensor_noise=(args.position_noise, args.normal_noise),
-                  sensor_outliers=args.outliers)
+                  sensor_outliers=args.outliers, robot_scene=scene_from_args(args))
     if args.outlier_probability is not None:
         scene.set_parameter("outlier_probability", args.outlier_probability)
     if args.learn_first:

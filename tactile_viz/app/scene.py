@@ -26,6 +26,8 @@ from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import ObjectModel, bundled_names, load_bundled
 from ..engine.io.bags import read_recording, recording_file_warning
 from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
+from ..engine.scene import FREE
+from ..engine.scene import Scene as RobotScene
 from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
                               make_truth, session_preset)
 
@@ -118,11 +120,16 @@ class Scene:
         adds and the model assumes (see :class:`~tactile_viz.engine.session.Session`).
     sensor_outliers : float
         The simulated sensor's chance of a wrong contact.
+    robot_scene : tactile_viz.engine.scene.Scene, optional
+        The robot's world (a table, the reach cone, the tip's radius; default the paper's
+        free space, :data:`tactile_viz.engine.scene.FREE`): the truth rests on its table at
+        a random stable pose and every session is made in it. Not to be confused with this
+        class, the app's model, also called a scene.
     """
 
     def __init__(self, truth_name="mug_1", seed=0, library=None, strategy="gpis-dhd",
                  preset="recommended", truth_model=None, units=None, sensor_noise=(0.0, 0.0),
-                 sensor_outliers=0.0):
+                 sensor_outliers=0.0, robot_scene=None):
         self.truth_changed = Signal()
         self.library_changed = Signal()
         self.settings_changed = Signal()
@@ -138,7 +145,11 @@ class Scene:
         self.warnings = []  # why the last file read is likely in another unit (one line each)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
         self.sensor_outliers = float(sensor_outliers)
-        self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        if robot_scene is not None and not isinstance(robot_scene, RobotScene):
+            raise ValueError(f"robot_scene must be a tactile_viz.engine.scene.Scene, got "
+                             f"{type(robot_scene).__name__}")
+        self.robot_scene = FREE if robot_scene is None else robot_scene
+        self.truth = self._placed(self.truth_model)
         self.recording = None  # (source, recorded steps) while replaying a recording
         if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}")
@@ -289,7 +300,7 @@ class Scene:
     def _set_truth(self, model):
         self.truth_model = model
         self.recording = None
-        self.truth = make_truth(model, rng=[self.seed, 0])
+        self.truth = self._placed(model)
         log.info("ground truth %s at the pose of seed %d", model.name, self.seed)
         self.reset()
         self.truth_changed.emit(self.truth)
@@ -298,8 +309,27 @@ class Scene:
         """Place the truth at the random pose of ``seed`` (also the session's seed)."""
         self.seed = int(seed)
         self.recording = None
-        self.truth = make_truth(self.truth_model, rng=[self.seed, 0])
+        self.truth = self._placed(self.truth_model)
         log.info("ground truth %s at the pose of seed %d", self.truth_model.name, self.seed)
+        self.reset()
+        self.truth_changed.emit(self.truth)
+
+    def _placed(self, model):
+        """``model`` at the random pose of the seed: resting on the robot scene's table
+        when it has one."""
+        return make_truth(model, rng=[self.seed, 0], scene=self.robot_scene)
+
+    def set_robot_scene(self, robot_scene):
+        """Use another robot scene (:class:`tactile_viz.engine.scene.Scene`): the truth is
+        placed anew at the seed's pose in it (on its table) and the session reset; a
+        recording stays (its touches are where they were)."""
+        if not isinstance(robot_scene, RobotScene):
+            raise ValueError(f"robot_scene must be a tactile_viz.engine.scene.Scene, got "
+                             f"{type(robot_scene).__name__}")
+        self.robot_scene = robot_scene
+        log.info("robot scene %s", robot_scene.as_dict())
+        if self.recording is None:
+            self.truth = self._placed(self.truth_model)
         self.reset()
         self.truth_changed.emit(self.truth)
 
@@ -382,11 +412,13 @@ class Scene:
                 source, steps = self.recording
                 self.session = RecordedSession(steps, library, self.strategy, self.params,
                                                self.seed, source=source,
-                                               sensor_noise=self.sensor_noise)
+                                               sensor_noise=self.sensor_noise,
+                                               scene=self.robot_scene)
             else:
                 self.session = Session(self.truth, library, self.strategy, self.params,
                                        self.seed, self.sensor_noise,
-                                       sensor_outliers=self.sensor_outliers)
+                                       sensor_outliers=self.sensor_outliers,
+                                       scene=self.robot_scene)
         return self.session
 
     # ------------------------------------------------------------------ recordings
@@ -473,6 +505,7 @@ class Scene:
         self.library = session.library
         self.enabled = {name: True for name in self.library.names}
         self.strategy, self.seed = session.strategy, session.seed
+        self.robot_scene = getattr(session, "scene", None) or FREE
         self.preset, self.overrides = preset, overrides
         self.session = session
         self.generation += 1

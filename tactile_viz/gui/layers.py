@@ -13,6 +13,13 @@ Everything drawn in world units (contact and target spheres) is a share of the s
 scale, :attr:`ViewportLayers.scene_length` (the window sets it to the priors' reference size,
 :attr:`tactile_viz.app.scene.Scene.reference_size`), so a scene in metres, millimetres or
 the paper's 6 units looks the same; the legend, the colour bar and line widths are in pixels.
+
+The robot's scene (:mod:`tactile_viz.engine.scene`, given by :meth:`ViewportLayers.show_scene`)
+adds two layers: its table, a translucent square on the support plane under the object
+(:data:`TABLE_SIZE` times the object's longest side), drawn like the truth from the scene
+rather than from a step; and the fingertip, a translucent sphere of the tip's radius at the
+tip's centre of the latest contact (the contact plus the radius along its normal), drawn
+only when the radius is above 0. The table is left out of the camera's framing.
 """
 
 import numpy as np
@@ -27,12 +34,14 @@ from .display_mesh import (decimation, face_budget, faces_to_polydata,  # noqa: 
 # name -> (legend label, colour)
 LAYERS = {
     "truth": ("ground truth", "lightsteelblue"),
+    "table": ("table", "tan"),
     "map": ("MAP shape", "salmon"),
     "hypotheses": ("other hypotheses (opacity: weight)", "mediumpurple"),
     "gpis": ("GPIS (colour: variance)", "viridis"),
     "contacts": ("contacts", "red"),
     "noncontacts": ("non-contacts", "green"),
     "target": ("target", "gold"),
+    "tip": ("fingertip (latest contact)", "darkorange"),
     "path": ("sensor path", "dimgray"),
 }
 # Sphere radii as shares of the scene's length scale: 0.07 and 0.154 on the paper's 6 units.
@@ -50,7 +59,18 @@ LEGEND_MARKER_ASPECT = 2.0  # a marker's width over its height
 LEGEND_RAMP_STRIPS = 8  # colours of the GPIS layer's viridis marker
 SCALAR_BAR = "variance"
 HIDDEN_AT_START = ("hypotheses",)
-TRANSLUCENT_SURFACES = ("truth", "map", "hypotheses")
+TRANSLUCENT_SURFACES = ("truth", "map", "hypotheses", "tip")
+# Drawn from the scene (the object, the robot's table), not from a step: kept across steps
+# and session resets.
+SCENE_LAYERS = ("truth", "table")
+UNFRAMED = ("table",)  # left out of the camera's framing (it reaches far beyond the object)
+TABLE_SIZE = 3.0  # the table's side, times the object's longest side (else the scene's length)
+TABLE_OPACITY = 0.3
+# The table is drawn this share of its side below the plane: the object's face resting on
+# the plane then does not fight it for depth.
+TABLE_DROP = 1e-3
+TIP_OPACITY = 0.4
+TIP_RESOLUTION = 24  # of the fingertip's sphere (one sphere: smooth at any size)
 # Drawn over every other layer: the target is a point of the MAP surface, often on its far
 # side, where behind the translucent truth and MAP shape it did not show at all.
 ON_TOP = ("target",)
@@ -129,6 +149,8 @@ class ViewportLayers:
         self.present = {name: False for name in LAYERS}
         self.actors = {}
         self.latest = None
+        self.robot_scene = None  # tactile_viz.engine.scene.Scene, from show_scene
+        self._table_truth = None  # the truth the table was laid under
         self._legend_key = None
         self._variance_range = None
         self._overlay = None
@@ -138,7 +160,7 @@ class ViewportLayers:
     # ------------------------------------------------------------------ public
     def set_visible(self, name, visible):
         self.visible[name] = bool(visible)
-        if visible and self.latest is not None and name not in ("truth",):
+        if visible and self.latest is not None and name not in SCENE_LAYERS:
             self._update(name, self.latest)  # hidden layers are not kept up to date
         self._apply_visibility(name)
         self._sync_overlays()
@@ -154,6 +176,8 @@ class ViewportLayers:
         if length == self.scene_length:
             return
         self.scene_length = length
+        if self.present["table"] and self._table_truth is None:  # sized by the scene's length
+            self._draw_table()
         if self.latest is not None:
             for name in ("contacts", "noncontacts", "target"):
                 if self.visible[name]:
@@ -165,11 +189,18 @@ class ViewportLayers:
         """The radius of a contact, non-contact or target sphere, scene units."""
         return (TARGET_RADIUS if name == "target" else CONTACT_RADIUS) * self.scene_length
 
+    def framed(self):
+        """The layers the camera frames: the ground truth when it is shown, else what is
+        shown but the table."""
+        if self.shown("truth"):
+            return ["truth"]
+        return [name for name in LAYERS if self.shown(name) and name not in UNFRAMED]
+
     def bounds(self):
         """``(xmin, xmax, ymin, ymax, zmin, zmax)`` to frame, scene units: the ground truth's
-        when it is shown, else what is shown, else a cube as long as the scene's length
-        about the origin (a recording before its first step)."""
-        names = ["truth"] if self.shown("truth") else [n for n in LAYERS if self.shown(n)]
+        when it is shown, else what is shown (not the table), else a cube as long as the
+        scene's length about the origin (a recording before its first step)."""
+        names = self.framed()
         boxes = np.array([self.actors[n].GetBounds() for n in names if n in self.actors])
         if not len(boxes):
             half = self.scene_length / 2
@@ -203,13 +234,58 @@ class ViewportLayers:
         if render:
             self.plotter.render()
 
+    def show_scene(self, robot_scene, truth=None, render=True):
+        """The robot's scene (:class:`tactile_viz.engine.scene.Scene`, None: free space):
+        its table under ``truth`` (the ground truth, None for a recording: then under the
+        table's point) and the tip's radius for the fingertip layer."""
+        self.robot_scene = robot_scene
+        self._table_truth = truth
+        if robot_scene is not None and robot_scene.has_table:
+            self._draw_table()
+        else:
+            self.present["table"] = False
+            self._apply_visibility("table")
+        if self.latest is not None and self.visible["tip"]:
+            self._update("tip", self.latest)
+        else:
+            self._apply_visibility("tip")
+        self._sync_overlays()
+        if render:
+            self.plotter.render()
+
+    @property
+    def tip_radius(self):
+        """The robot scene's tip radius, scene units (0: a point sensor)."""
+        return 0.0 if self.robot_scene is None else float(self.robot_scene.tip_radius)
+
+    def table_mesh(self, robot_scene, truth=None):
+        """The table as drawn: a square on the support plane, :data:`TABLE_SIZE` times the
+        object's longest side (the scene's length without a truth), centred under the
+        object's box (under the table's point without a truth), a hair below the plane."""
+        up = np.asarray(robot_scene.up, dtype=float)
+        if truth is not None:
+            vertices = truth.to_world(truth.model.mesh.vertices)
+            centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+            size = TABLE_SIZE * float(truth.model.length)
+        else:
+            centre = np.asarray(robot_scene.table_point, dtype=float)
+            size = TABLE_SIZE * self.scene_length
+        on_plane = centre - float(robot_scene.height(centre[None])[0]) * up
+        return pv.Plane(center=on_plane - TABLE_DROP * size * up, direction=up, i_size=size,
+                        j_size=size, i_resolution=1, j_resolution=1)
+
+    def _draw_table(self):
+        self._put("table", self.table_mesh(self.robot_scene, self._table_truth),
+                  color=LAYERS["table"][1], opacity=TABLE_OPACITY)
+
     def show_snapshot(self, snapshot, render=True):
-        """MAP shape, GPIS, contacts, non-contacts, target and path of one step (one render)."""
+        """MAP shape, GPIS, contacts, non-contacts, target, fingertip and path of one step
+        (one render)."""
         self.latest = snapshot
         for name in LAYERS:
-            if name != "truth" and self.visible[name]:
+            if name not in SCENE_LAYERS and self.visible[name]:
                 self._update(name, snapshot)
-            elif name != "truth":
+            elif name not in SCENE_LAYERS:
                 self.present[name] = self._has(name, snapshot)
                 self._apply_visibility(name)
         self._sync_overlays()
@@ -218,10 +294,10 @@ class ViewportLayers:
             self.plotter.render()
 
     def clear_session(self, render=True):
-        """Hide everything but the ground truth."""
+        """Hide everything but the ground truth and the table."""
         self.latest = None
         for name in LAYERS:
-            if name != "truth":
+            if name not in SCENE_LAYERS:
                 self.present[name] = False
                 self._apply_visibility(name)
         self._sync_overlays()
@@ -259,6 +335,8 @@ class ViewportLayers:
             return snapshot.target is not None
         if name == "path":
             return bool(snapshot.paths)
+        if name == "tip":
+            return self.tip_radius > 0 and len(snapshot.contacts) > 0
         return True
 
     def _inputs(self, name, snapshot):
@@ -267,6 +345,9 @@ class ViewportLayers:
             return [snapshot.hypotheses]
         if name in ("contacts", "noncontacts", "target"):
             return [getattr(snapshot, name), self.radius(name)]
+        if name == "tip":
+            return [np.asarray(snapshot.contacts)[-1], np.asarray(snapshot.normals)[-1],
+                    self.tip_radius]
         if name == "gpis":
             return [snapshot.gpis_vertices, snapshot.gpis_faces, snapshot.gpis_variance,
                     self.budget]
@@ -324,7 +405,22 @@ class ViewportLayers:
             elif name == "path":
                 self._put("path", polylines(snapshot.paths), color=LAYERS["path"][1],
                           line_width=2)
+            elif name == "tip":
+                self._put("tip", self.tip_mesh(snapshot), color=LAYERS["tip"][1],
+                          opacity=TIP_OPACITY, smooth=True)
         self._apply_visibility(name)
+
+    def tip_centre(self, snapshot):
+        """The tip's centre at the latest contact of ``snapshot``: the touched point plus
+        the tip's radius along its outward normal, (3,) world frame."""
+        point = np.asarray(snapshot.contacts, dtype=float)[-1]
+        normal = np.asarray(snapshot.normals, dtype=float)[-1]
+        return point + self.tip_radius * normal
+
+    def tip_mesh(self, snapshot):
+        """The fingertip as drawn: a sphere of the tip's radius at :meth:`tip_centre`."""
+        return pv.Sphere(radius=self.tip_radius, center=tuple(self.tip_centre(snapshot)),
+                         theta_resolution=TIP_RESOLUTION, phi_resolution=TIP_RESOLUTION)
 
     def _ghosts(self, hypotheses):
         """The hypotheses' shapes as one mesh, each point coloured with an opacity that grows

@@ -106,6 +106,7 @@ class MainWindow(QMainWindow):
         scene.session_reset.connect(self._on_session_reset)
         scene.stepped.connect(self._on_stepped)
         self.layers.show_truth(scene.truth, render=False)
+        self.layers.show_scene(scene.robot_scene, scene.truth, render=False)
         self.plotter.view_isometric()
         self.frame_truth()
         self._sync_controls()
@@ -119,7 +120,7 @@ class MainWindow(QMainWindow):
         at everything shown when there is no truth (a recording), at a box as long as the
         scene's length scale when nothing is shown yet (then again at the first step). The
         clipping range holds everything drawn."""
-        self._framed_nothing = not any(self.layers.shown(name) for name in self.layers.present)
+        self._framed_nothing = not self.layers.framed()
         self.plotter.reset_camera(bounds=self.layers.bounds(), render=False)
         self.layers.fit_clipping_range()
         if render:
@@ -369,6 +370,7 @@ class MainWindow(QMainWindow):
 
     def _on_truth_changed(self, truth):
         self.layers.show_truth(truth, render=False)
+        self.layers.show_scene(self.scene.robot_scene, truth, render=False)
         self.frame_truth()
         self.scene_panel.sync(self.scene)
 

@@ -7,7 +7,8 @@ from ..layers import LAYERS
 from .base import MARGINS, blocked
 
 # Label colours readable on a light panel, where a layer's own colour is too light.
-SHOWN_COLORS = {"truth": "steelblue", "gpis": "teal", "target": "darkgoldenrod"}
+SHOWN_COLORS = {"truth": "steelblue", "table": "saddlebrown", "gpis": "teal",
+                "target": "darkgoldenrod", "tip": "chocolate"}
 
 
 class LayersPanel(QGroupBox):
