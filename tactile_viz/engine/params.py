@@ -127,6 +127,11 @@ class FilterParams:
         "plane.", valid=_POSITIVE, length=1, control=(1e-3, 10.0),
         notes="A pose prior: a hypothesis floating above or sinking through the table by d "
         "costs (d / s)^2 / 2 nats, s this in quadrature with twice the position noise.")
+    seed_stable_poses: bool = _filter(
+        True, "With a table (beyond the paper): the first touch also seeds hypotheses "
+        "resting in each prior's stable poses, turned about the vertical.", kind="bool",
+        notes="trimesh's stable poses of at least 2% probability; a feature point on the "
+        "contact fixes the turn and the translation.")
     merge_distance: float = _filter(
         0.0, "Particle merging (beyond the paper; 0 off): the translation cell size.",
         valid=_AT_LEAST_0, length=1, notes="After each step, particles of one class whose "

@@ -11,7 +11,8 @@ from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonConta
 from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.scene import FREE, Scene
-from tactile_viz.engine.shape.resting import hull_points, lowest_heights, stable_rotations
+from tactile_viz.engine.shape.resting import (hull_points, lowest_heights, seeds_on_table,
+                                              stable_rotations)
 
 
 def _box_model(tmp_path, extents=(6.0, 3.0, 2.0), name="box"):
@@ -187,3 +188,28 @@ def test_a_session_on_a_table_keeps_to_the_scene_and_stops_by_itself(bundled, na
         contacts = snapshot.contacts
         assert (scene.height(contacts) > -0.05).all()  # no table contact in the belief
     assert not last.novel and last.map_class == name
+
+
+def test_resting_seeds_hold_the_true_pose_and_rest_on_the_table(bundled):
+    model = bundled["mug_1"]
+    scene = Scene.on_table(0.3, 60.0, 0.0)
+    truth = make_truth(model, rng=5, scene=scene)
+    library = PriorLibrary([model])
+    session = Session(truth, library, scene=scene, seed=5)
+    bank = session.filter.bank
+    # A contact at a feature point of the truth, as the first touch would give it.
+    point, normal = bank.points[0][17], bank.normals[0][17]
+    position = truth.to_world(point[None])[0]
+    rotations, translations = seeds_on_table(
+        bank.points[0], bank.normals[0], hull_points(model), stable_rotations(model)[0],
+        position, truth.rotation @ normal, scene.up, scene.table_point, 0.25, 0.3, 8)
+    assert len(rotations) > 0
+    gaps = lowest_heights(hull_points(model), rotations, translations, scene.up,
+                          scene.table_point)
+    np.testing.assert_allclose(gaps, 0.0, atol=1e-9)
+    angle = np.degrees(np.arccos(np.clip(
+        (np.trace(np.einsum("ij,nkj->nik", truth.rotation, rotations), axis1=1, axis2=2) - 1)
+        / 2, -1, 1)))
+    offset = np.linalg.norm(translations - truth.translation, axis=1)
+    best = int(np.argmin(angle + offset))
+    assert angle[best] < 0.5 and offset[best] < 0.02

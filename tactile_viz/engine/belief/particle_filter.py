@@ -33,7 +33,7 @@ from .discrimination import discriminate
 from .pose_refinement import refine_poses
 from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
 from ..scene import FREE
-from ..shape.resting import hull_points, lowest_heights
+from ..shape.resting import hull_points, lowest_heights, seeds_on_table, stable_rotations
 from ..shape.sdf import ExactDistance
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 
@@ -44,6 +44,7 @@ NOISE_OFFSETS = np.array([0.0, -1.0, 1.0, -2.0, 2.0])  # position-noise stds alo
 FOLD_COSINE = 0.5
 EXACT_KEPT = 8  # classes whose exact distance (libigl trees, ~8 MB each) the filter keeps
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
+SEED_NORMAL_TOLERANCE = 0.25  # resting seeds: vertical parts of the normals this close
 _CHUNK = 400_000  # particle-point evaluations per batch, bounds memory
 
 
@@ -251,7 +252,26 @@ class ParticleFilter:
         particles = Particles(c, rotations, translations, np.full(len(c), -np.log(len(c))))
         if not self.scene.has_table:
             return particles
+        if self.params.seed_stable_poses:
+            particles = Particles.concatenate([particles, self._resting_seeds(position, normal)])
         return _with_log_weights(particles, self.log_support(particles))
+
+    def _resting_seeds(self, position, normal):
+        """The first touch's hypotheses that rest on the table in a stable pose of their
+        prior, turned about the vertical (:func:`~..shape.resting.seeds_on_table`)."""
+        bank, scene, params = self.bank, self.scene, self.params
+        sigma = float(np.hypot(params.support_sigma, 2 * params.position_noise))
+        classes, rotations, translations = [], [], []
+        for c, model in enumerate(self.models):
+            stable, _ = stable_rotations(model)
+            r, t = seeds_on_table(bank.points[c], bank.normals[c], hull_points(model), stable,
+                                  position, normal, scene.up, scene.table_point,
+                                  SEED_NORMAL_TOLERANCE, 3 * sigma, params.init_rotations)
+            classes.append(np.full(len(r), c))
+            rotations.append(r)
+            translations.append(t)
+        return Particles(np.concatenate(classes), np.concatenate(rotations),
+                         np.concatenate(translations), np.zeros(sum(map(len, classes))))
 
     def _resample(self, particles):
         weights = np.exp(particles.log_weights)

@@ -24,6 +24,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
+from dataclasses import replace
 from typing import Protocol, Union
 
 import numpy as np
@@ -164,7 +165,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                                      rng=np.random.default_rng([self.seed, 3]),
                                      scene=self.scene)
         self.snapshots = []
-        self._p, self._unit = scaled_lengths(self.params, self._filter_unit), self._filter_unit
+        self._p, self._unit = self._scene_lengths(self._filter_unit), self._filter_unit
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
         self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
 
@@ -468,8 +469,16 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         unit = self.params.length_unit or (model.size_unit if model is not None
                                            else self._filter_unit)
         if unit != self._unit:
-            self._p, self._unit = scaled_lengths(self.params, unit), unit
+            self._p, self._unit = self._scene_lengths(unit), unit
         return self._p
+
+    def _scene_lengths(self, unit):
+        """The parameters in scene units; a tip of radius r widens the carve of the
+        space its centre passed through by r (the object was at least r away)."""
+        p = scaled_lengths(self.params, unit)
+        if self.scene.tip_radius:
+            p = replace(p, gpis_carve_radius=p.gpis_carve_radius + self.scene.tip_radius)
+        return p
 
     def _generators(self):
         return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)

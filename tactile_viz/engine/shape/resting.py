@@ -6,6 +6,7 @@ chance of landing on each face of the convex hull when dropped).
 """
 
 import functools
+import warnings
 
 import numpy as np
 import trimesh
@@ -31,7 +32,10 @@ def stable_rotations(model):
     """
     mesh = bare_mesh(model.mesh)
     try:
-        transforms, probabilities = trimesh.poses.compute_stable_poses(mesh, n_samples=1)
+        # Degenerate hull faces divide by zero inside trimesh: they get no probability.
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            transforms, probabilities = trimesh.poses.compute_stable_poses(mesh, n_samples=1)
     except Exception:  # noqa: BLE001 -- a degenerate hull: no preferred pose
         transforms, probabilities = np.eye(4)[None], np.ones(1)
     probabilities = np.asarray(probabilities, float)
@@ -111,3 +115,67 @@ def _z_to(up):
         return np.eye(3)
     rotation, _ = Rotation.align_vectors(up[None], z[None])
     return rotation.as_matrix()
+
+
+def seeds_on_table(points, normals, hull, rotations, position, normal, up, floor_point,
+                   normal_tolerance, height_tolerance, turns=8):
+    """Poses of one prior that rest on the table in one of its stable poses and put one of
+    its feature points on a contact: the first touch's hypotheses where a table is known.
+
+    A stable pose fixes the feature's normal up to a turn about the vertical; the contact's
+    normal then fixes the turn (its vertical part must match within ``normal_tolerance``),
+    the contact fixes the translation, and the pose is kept when its lowest point lies
+    within ``height_tolerance`` of the plane. A feature whose normal is vertical leaves the
+    turn free: ``turns`` turns are spread over the circle.
+
+    Parameters
+    ----------
+    points, normals : (f, 3) float, object frame
+        The prior's feature points and their outward unit normals.
+    hull : (h, 3) float, object frame
+        Its convex hull's vertices (:func:`hull_points`).
+    rotations : (k, 3, 3) float
+        Its stable poses (:func:`stable_rotations`), object frame to a frame whose +z is up.
+    position, normal : (3,) float, world frame
+        The contact.
+    up, floor_point : (3,) float, world frame
+        The table's upward unit normal and a point of it.
+    normal_tolerance : float
+        Largest difference of the vertical components of the two unit normals.
+    height_tolerance : float
+        Scene units.
+    turns : int
+
+    Returns
+    -------
+    rotations : (m, 3, 3) float
+    translations : (m, 3) float
+        ``object_to_world`` poses.
+    """
+    to_world = _z_to(np.asarray(up, float))
+    local = to_world.T @ np.asarray(normal, float)  # the contact's normal, table frame
+    turned = np.einsum("kij,fj->kfi", rotations, normals)  # (k, f, 3), before the turn
+    pose, feature = np.nonzero(np.abs(turned[..., 2] - local[2]) <= normal_tolerance)
+    if len(pose) == 0:
+        return np.zeros((0, 3, 3)), np.zeros((0, 3))
+    q = turned[pose, feature]
+    if np.hypot(local[0], local[1]) < 1e-3:  # a level contact: its normal fixes no turn
+        free = np.ones(len(q), bool)
+    else:
+        free = np.hypot(q[:, 0], q[:, 1]) < 0.05
+    yaw = np.arctan2(local[1], local[0]) - np.arctan2(q[:, 1], q[:, 0])
+    spread = 2 * np.pi * np.arange(turns) / turns
+    pose = np.concatenate([pose[~free], np.repeat(pose[free], turns)])
+    feature = np.concatenate([feature[~free], np.repeat(feature[free], turns)])
+    yaw = np.concatenate([yaw[~free], np.tile(spread, int(free.sum()))])
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    turn = np.zeros((len(yaw), 3, 3))
+    turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1] = cos, -sin, sin, cos
+    turn[:, 2, 2] = 1.0
+    world = to_world @ turn @ rotations[pose]
+    translations = position - np.einsum("nij,nj->ni", world, points[feature])
+    gap = lowest_heights(hull, world, translations, np.asarray(up, float),
+                         np.asarray(floor_point, float))
+    keep = np.abs(gap) <= height_tolerance
+    # Onto the plane: the contact then moves by the gap along up, within the tolerance.
+    return world[keep], translations[keep] - gap[keep, None] * np.asarray(up, float)
