@@ -20,14 +20,14 @@ from ..shape.sdf import normalise_rows
 from .exploration import sweep_directions
 from .observations import Contact
 
-FIRST_SPREAD = 1.0  # size units: the first lines pass this far beside the table point
-FIRST_HEIGHT = 4.0  # size units: ... and at most this high above it
+FIRST_SPREAD = 1.5  # size units: the first lines land within this of the table point
 
 
 def first_moves(scene, centre, rng, radius=10.0, attempts=50, unit=1.0):
-    """The random first touch: lines from random directions of the cone, each through a
-    random point above the table near ``centre`` (the table point; without a table,
-    ``centre`` offset up to ``unit / 2``), down to the table.
+    """The random first touch: lines from random directions of the cone. On a table each
+    comes down onto a random point of the table within ``FIRST_SPREAD unit`` of
+    ``centre`` (the table point), so that it meets whatever rests there, however flat;
+    without a table each passes through ``centre`` offset up to ``unit / 2``.
 
     Returns ``(paths, observations)``: the misses, then the contact.
     """
@@ -35,19 +35,22 @@ def first_moves(scene, centre, rng, radius=10.0, attempts=50, unit=1.0):
     for _ in range(attempts):
         direction = scene.random_directions(1, rng)[0]
         if scene.has_table:
-            offset = rng.uniform(-FIRST_SPREAD, FIRST_SPREAD, size=3) * unit
-            offset -= (offset @ scene.up) * scene.up
-            through = centre + offset + rng.uniform(0.0, FIRST_HEIGHT) * unit * scene.up
+            across = rng.normal(size=3)
+            across -= (across @ scene.up) * scene.up
+            across /= max(float(np.linalg.norm(across)), 1e-300)
+            landing = (centre + FIRST_SPREAD * unit * np.sqrt(rng.uniform()) * across
+                       + scene.tip_radius * scene.up)
+            path = scene.clip(np.stack([landing - radius * direction, landing]))
         else:
             through = centre + rng.uniform(-0.5, 0.5, size=3) * unit
-        path = scene.line(through, direction, radius, radius)
+            path = scene.line(through, direction, radius, radius)
         observation = yield path
         paths.append(path)
         observations.append(observation)
         if isinstance(observation, Contact):
             return paths, observations
-    raise TactileVizError(f"no contact after {attempts} random lines from above the table: "
-                          "is the object on the table near its point?")
+    raise TactileVizError(f"no contact after {attempts} random lines onto the table: is the "
+                          "object on the table near its point?")
 
 
 def reach_moves(scene, target, normal, contacts, contact_normals, depth=1.0, clearance=0.5,
