@@ -128,7 +128,7 @@ class FilterParams:
         notes="A pose prior: a hypothesis floating above or sinking through the table by d "
         "costs (d / s)^2 / 2 nats, s this in quadrature with twice the position noise.")
     seed_stable_poses: bool = _filter(
-        True, "With a table (beyond the paper): the first touch also seeds hypotheses "
+        False, "With a table (beyond the paper): the first touch also seeds hypotheses "
         "resting in each prior's stable poses, turned about the vertical.", kind="bool",
         notes="trimesh's stable poses of at least 2% probability; a feature point on the "
         "contact fixes the turn and the translation.")

@@ -195,7 +195,7 @@ def test_resting_seeds_hold_the_true_pose_and_rest_on_the_table(bundled):
     scene = Scene.on_table(0.3, 60.0, 0.0)
     truth = make_truth(model, rng=5, scene=scene)
     library = PriorLibrary([model])
-    session = Session(truth, library, scene=scene, seed=5)
+    session = Session(truth, library, scene=scene, seed=5)  # the bank of the one prior
     bank = session.filter.bank
     # A contact at a feature point of the truth, as the first touch would give it.
     point, normal = bank.points[0][17], bank.normals[0][17]
