@@ -8,8 +8,9 @@ the exact signed distance out to the surface, which ends at the closest surface 
 
 With a :class:`~..scene.Scene` the sensor is a robot's: the path is the centre of a sphere
 of the tip's radius, which touches where the object's distance falls to that radius or the
-tip reaches the table (reported as a contact on the plane, normal up); a contact reports
-the touched surface point; a path below the table or outside the reach cone is an error.
+tip reaches the table (reported as a contact on the plane, normal up, without the
+object's contact noise); a contact reports the touched surface point; a path below the
+table or outside the reach cone is an error.
 """
 
 from dataclasses import dataclass
@@ -168,9 +169,9 @@ class ContactSimulator:
             centre = self._bisect(samples[hit - 1], samples[hit], before, self._gap)
         distance, closest, normal = self.truth.closest(centre[None])
         table = scene.height(centre[None])[0] if scene.has_table else np.inf
-        if table < distance[0]:  # the tip met the table first
-            point = centre - table * scene.up
-            return self._contact(point, scene.up.copy())
+        if table < distance[0]:  # the tip met the table first: a known, rigid plane, so
+            # the arm's own kinematics place it; the contact noise is the object's
+            return Contact(centre - table * scene.up, scene.up.copy())
         # The closest surface point: where the sphere touches (from a start inside the
         # object too, as without a scene).
         return self._contact(closest[0], normal[0])
