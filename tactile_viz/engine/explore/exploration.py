@@ -349,13 +349,16 @@ def follow_toward(simulator, contact, target, tree, step=0.1, spacing=0.3, max_f
                  simulator)
 
 
-def follow_toward_moves(contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
+def follow_toward_moves(contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0,
+                        path_at=None):
     """Slide along the surface from ``contact`` toward ``target`` in in-contact steps.
 
     Each step moves ``step`` along the tangent plane toward the target and probes across
     the surface there; off an edge the probe swings back under the last contact, which
     wraps it around the edge. Stops at ``spacing`` from every contact in ``tree``, at the
     target, after ``max_follow`` of path, or when the surface stops leading on.
+    ``path_at(moved, normal, position, step)`` gives each step's path instead (a robot's
+    scene comes down onto ``moved`` within its cone).
 
     Returns
     -------
@@ -372,9 +375,7 @@ def follow_toward_moves(contact, target, tree, step=0.1, spacing=0.3, max_follow
         if length < step / 2:
             break
         moved = position + min(step, length) * tangent / length
-        reach = 2 * step
-        path = np.stack([moved + reach * normal, moved - reach * normal,
-                         position - reach * normal])
+        path = (swing_path if path_at is None else path_at)(moved, normal, position, step)
         following = yield path
         paths.append(path)
         if not isinstance(following, Contact):
@@ -385,6 +386,13 @@ def follow_toward_moves(contact, target, tree, step=0.1, spacing=0.3, max_follow
         travelled += advance
         contact = following
     return paths, contact
+
+
+def swing_path(moved, normal, position, step):
+    """A following step's path: across the surface at ``moved``, then back under the last
+    contact ``position`` (which wraps it around an edge)."""
+    reach = 2 * step
+    return np.stack([moved + reach * normal, moved - reach * normal, position - reach * normal])
 
 
 def follow_surface(simulator, toward, contacts, contact_normals, step=0.3, depth=1.0,

@@ -11,13 +11,14 @@ the tip's radius along its normal. Table contacts never reach these procedures: 
 session turns them into misses first.
 """
 
+import functools
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import TactileVizError
 from ..session.fields import free_approach
-from ..shape.sdf import normalise_rows
-from .exploration import sweep_directions
+from .exploration import follow_toward_moves, sweep_directions
 from .observations import Contact
 
 FIRST_SPREAD = 1.5  # size units: the first lines land within this of the table point
@@ -96,36 +97,22 @@ def reach_moves(scene, target, normal, contacts, contact_normals, depth=1.0, cle
 
 
 def follow_moves(scene, contact, target, tree, step=0.1, spacing=0.3, max_follow=3.0):
-    """Follow the surface from ``contact`` toward ``target``: each step moves ``step``
-    along the tangent plane and comes down there from within the cone; a miss (off an
-    edge) ends the following. Stops as :func:`~.exploration.follow_toward_moves` does.
+    """Follow the surface from ``contact`` toward ``target`` as
+    :func:`~.exploration.follow_toward_moves` does, each step coming down from within the
+    cone onto the point ``step`` along the tangent plane; a miss (off an edge) ends it.
 
     Returns
     -------
     paths : list of (2, 3) arrays
     contact : Contact
     """
-    paths, travelled = [], 0.0
-    while travelled < max_follow and tree.query(contact.position)[0] < spacing:
-        position, normal = contact.position, normalise_rows(contact.normal[None])[0]
-        tangent = target - position
-        tangent -= (tangent @ normal) * normal
-        length = float(np.linalg.norm(tangent))
-        if length < step / 2:
-            break
-        moved = position + min(step, length) * tangent / length
-        path = scene.line(scene.centre_of(moved, normal), scene.approach(normal),
-                          2 * step, 2 * step)
-        following = yield path
-        paths.append(path)
-        if not isinstance(following, Contact):
-            break
-        advance = float(np.linalg.norm(following.position - position))
-        if advance < step / 10:
-            break
-        travelled += advance
-        contact = following
-    return paths, contact
+    return (yield from follow_toward_moves(contact, target, tree, step, spacing, max_follow,
+                                           functools.partial(_come_down, scene)))
+
+
+def _come_down(scene, moved, normal, position, step):
+    return scene.line(scene.centre_of(moved, normal), scene.approach(normal), 2 * step,
+                      2 * step)
 
 
 def cone_directions(scene, count=64):
