@@ -254,8 +254,9 @@ class Scene:
             narrower than the tip) and, with ``clear > 0``, where the way in along its
             approach (:meth:`approaches`) is free of the estimate for ``clear``.
         margin : float
-            Scene units: points lower than ``tip_radius + margin`` above the table are not
-            counted (the tip rests on the table before it reaches them).
+            Scene units: points where the tip's centre would be lower than
+            ``tip_radius + margin`` above the table are not counted (the tip rests on the
+            table before it reaches them: the underside, a side lower than the radius).
         clear : float
             Scene units: how far back along the approach the way must be free (0: not
             asked).
@@ -269,7 +270,10 @@ class Scene:
         vertices = np.atleast_2d(vertices)
         keep = np.ones(len(vertices), bool)
         if self.table_point is not None:
-            keep &= self.height(vertices) > self.tip_radius + margin
+            # The tip's centre must clear the table by its radius: a face turned up is
+            # reachable however low (a knife lying flat), a side only a radius up.
+            centre_height = self.height(vertices) + self.tip_radius * (normals @ self.up)
+            keep &= centre_height > self.tip_radius + margin
         if self.limited_reach:
             # A tip travelling within the cone touches a face only against its travel.
             limit = np.cos(np.radians(min(90.0 + self.reach_angle_deg - 5.0, 180.0)))

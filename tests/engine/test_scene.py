@@ -71,14 +71,18 @@ def test_a_path_below_the_table_or_outside_the_cone_is_refused():
 
 def test_reachable_leaves_out_the_bottom_the_undersides_and_narrow_gaps():
     scene = Scene.on_table(0.0, 60.0, 0.2)
-    vertices = np.array([[0, 0, 1.0], [0, 0, 0.05], [0, 0, 1.0], [0, 0, 1.0], [0, 0, 1.0]])
-    normals = np.array([[0, 0, 1.0], [1, 0, 0], [0, 0, -1.0], [1, 0, 0], [0, 0, 1.0]])
+    # A top, a side lower than the tip's radius, an underside, a side, a face turned up
+    # a hair above the table (a knife lying flat), and a top in a slot narrower than the tip.
+    vertices = np.array([[0, 0, 1.0], [0, 0, 0.05], [0, 0, 1.0], [0, 0, 1.0], [0, 0, 0.01],
+                         [0, 0, 1.0]])
+    normals = np.array([[0, 0, 1.0], [1, 0, 0], [0, 0, -1.0], [1, 0, 0], [0, 0, 1.0],
+                        [0, 0, 1.0]])
 
     def outside(points):  # the last point's tip would sit in a slot 0.2 wide
         return np.where(np.arange(len(points)) == len(points) - 1, 0.05, 1.0)
 
     keep = scene.reachable(vertices, normals, outside)
-    np.testing.assert_array_equal(keep, [True, False, False, True, False])
+    np.testing.assert_array_equal(keep, [True, False, False, True, True, False])
 
 
 def test_the_tip_stops_one_radius_off_the_surface_and_reports_the_surface(tmp_path):

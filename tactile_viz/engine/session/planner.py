@@ -49,7 +49,7 @@ from .state import Aim, Check
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
-SCENE_MARGIN = 0.1  # a scene's probe is not asked to reach this close above the table
+SCENE_MARGIN = 0.02  # a scene's tip centre is not asked to come this close to the table
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
