@@ -84,18 +84,28 @@ def first_contact_moves(centre, rng, radius=10.0, attempts=50, unit=1.0):
     Yields the lines; returns ``(paths, observations)``: non-contacts for lines that
     missed, then the contact.
     """
-    paths, observations = [], []
-    for _ in range(attempts):
+    def line():
         direction = normalise_rows(rng.normal(size=(1, 3)))[0]
         offset = rng.uniform(-0.5, 0.5, size=3) * unit
-        path = np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
+        return np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
+
+    return (yield from lines_until_contact(line, attempts, "random lines through the "
+                                           "workspace: is the object near the origin?"))
+
+
+def lines_until_contact(line, attempts, what):
+    """Yield ``line()`` paths until one touches (at most ``attempts``); returns
+    ``(paths, observations)``: the misses, then the contact. ``what`` ends the error's
+    sentence when none touches."""
+    paths, observations = [], []
+    for _ in range(attempts):
+        path = line()
         observation = yield path
         paths.append(path)
         observations.append(observation)
         if isinstance(observation, Contact):
             return paths, observations
-    raise TactileVizError(f"no contact after {attempts} random lines through the workspace: "
-                          "is the object near the origin?")
+    raise TactileVizError(f"no contact after {attempts} {what}")
 
 
 def first_contact(simulator, centre, rng, radius=10.0, attempts=50, unit=1.0):

@@ -16,9 +16,8 @@ import functools
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import TactileVizError
 from ..session.fields import free_approach
-from .exploration import follow_toward_moves, sweep_directions
+from .exploration import follow_toward_moves, lines_until_contact, sweep_directions
 from .observations import Contact
 
 FIRST_SPREAD = 1.5  # size units: the first lines land within this of the table point
@@ -32,26 +31,20 @@ def first_moves(scene, centre, rng, radius=10.0, attempts=50, unit=1.0):
 
     Returns ``(paths, observations)``: the misses, then the contact.
     """
-    paths, observations = [], []
-    for _ in range(attempts):
+    def line():
         direction = scene.random_directions(1, rng)[0]
-        if scene.has_table:
-            across = rng.normal(size=3)
-            across -= (across @ scene.up) * scene.up
-            across /= max(float(np.linalg.norm(across)), 1e-300)
-            landing = (centre + FIRST_SPREAD * unit * np.sqrt(rng.uniform()) * across
-                       + scene.tip_radius * scene.up)
-            path = scene.clip(np.stack([landing - radius * direction, landing]))
-        else:
-            through = centre + rng.uniform(-0.5, 0.5, size=3) * unit
-            path = scene.line(through, direction, radius, radius)
-        observation = yield path
-        paths.append(path)
-        observations.append(observation)
-        if isinstance(observation, Contact):
-            return paths, observations
-    raise TactileVizError(f"no contact after {attempts} random lines onto the table: is the "
-                          "object on the table near its point?")
+        if not scene.has_table:
+            return scene.line(centre + rng.uniform(-0.5, 0.5, size=3) * unit, direction,
+                              radius, radius)
+        across = rng.normal(size=3)
+        across -= (across @ scene.up) * scene.up
+        across /= max(float(np.linalg.norm(across)), 1e-300)
+        landing = (centre + FIRST_SPREAD * unit * np.sqrt(rng.uniform()) * across
+                   + scene.tip_radius * scene.up)
+        return scene.clip(np.stack([landing - radius * direction, landing]))
+
+    return (yield from lines_until_contact(line, attempts, "random lines onto the table: is "
+                                           "the object on the table near its point?"))
 
 
 def reach_moves(scene, target, normal, contacts, contact_normals, depth=1.0, clearance=0.5,

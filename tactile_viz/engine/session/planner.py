@@ -168,16 +168,15 @@ class Planner:
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
         reachable = self._reachable(surface)
-        map_reach = None
-        if not self.scene.is_free and model is not None:
+        in_scene = not self.scene.is_free and model is not None
+        map_reach = None  # the MAP's reachable vertices, only where they are asked for
+        if in_scene and (not reconstructed or self._p.cover_prior):
             map_reach = self._in_scene(map_vertices, vertex_normals(model) @ pose[0].T,
                                        ValueOf(self._prior(model, *pose)), contacts)
-            if reconstructed:
-                reachable = _both(reachable, self._in_scene(
-                    surface, mesh_vertex_normals(recon.vertices, recon.faces),
-                    recon.fit.mean_value, contacts))
-            else:
-                reachable = _both(reachable, map_reach)
+        if in_scene:
+            reachable = _both(reachable, map_reach if not reconstructed else self._in_scene(
+                surface, mesh_vertex_normals(recon.vertices, recon.faces),
+                recon.fit.mean_value, contacts))
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
         if recon is not None and self._p.cover_prior:
