@@ -54,6 +54,7 @@ from .discrimination import contenders, lookalikes
 from .oriented import oriented_evaluator, turned_cost
 from .mesh_fit import mesh_misfit, weighed_on_meshes
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
+from .support import table_support
 from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
@@ -211,7 +212,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, classes, rotations, translations, contacts,
             outside, pf.params.refine_iterations,
-            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented)
+            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
+            clearance=pf.scene.tip_radius, support=table_support(pf))
     except np.linalg.LinAlgError:
         return UNDECIDED
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
@@ -308,7 +310,7 @@ def _loosest(pf, hypothesis, scale2, confidence, tolerance):
     spread = np.hypot(group.roughness, surface_uncertainty(
         pf.bank.evaluate, c, hypothesis.rotation, hypothesis.translation,
         pf.contact_positions, pf.bank.points[c], pf.bank.normals[c], scale2,
-        free_turns=axes @ hypothesis.rotation.T,
+        free_turns=axes @ hypothesis.rotation.T, support=table_support(pf),
         pivot=transform_points(group.centre[None], hypothesis.rotation,
                                hypothesis.translation)[0]))
     worst = int(np.argmax(spread))

@@ -150,7 +150,8 @@ def _refined(pf, candidates, oriented, warm):
         return (*refine_poses(
             pf.bank.evaluate, candidates.classes, candidates.rotations, candidates.translations,
             pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
-            trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented), {})
+            trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
+            clearance=pf.scene.tip_radius), {})
     keys = [(int(c), r.tobytes(), t.tobytes()) for c, r, t in
             zip(candidates.classes, candidates.rotations, candidates.translations)]
     rotations, translations = candidates.rotations.copy(), candidates.translations.copy()
@@ -165,7 +166,7 @@ def _refined(pf, candidates, oriented, warm):
                 pf.bank.evaluate, candidates.classes[chosen], rotations[chosen],
                 translations[chosen], pf.contact_positions, pf.noncontact_positions,
                 iterations, trim=params.outlier_probability, normals=pf.contact_normals,
-                oriented=oriented)
+                oriented=oriented, clearance=pf.scene.tip_radius)
     refined = {key: (rotations[index], translations[index]) for index, key in enumerate(keys)}
     return rotations, translations, misfit, refined
 

@@ -9,6 +9,7 @@ hypotheses of a decision so.
 import numpy as np
 
 from .pose_refinement import POSE_PARAMETERS, refine_poses
+from .support import table_support
 
 MESH_NATS = 9.2  # hypotheses within this of the most probable are weighed on their meshes,
 MESH_HYPOTHESES = 4  # this many at most
@@ -28,7 +29,8 @@ def mesh_misfit(pf, class_index, rotation, translation, outside, oriented):
     *_, misfit = refine_poses(evaluate, [class_index], rotation[None], translation[None],
                               pf.contact_positions, outside, pf.params.refine_iterations,
                               trim=pf.params.outlier_probability, normals=pf.contact_normals,
-                              oriented=oriented)
+                              oriented=oriented, clearance=pf.scene.tip_radius,
+                              support=table_support(pf))
     return float(misfit[0])
 
 

@@ -426,7 +426,7 @@ class ParticleFilter:
                                                        @ rotation)[None])
             values, gradients = values[0], gradients[0]
             normal_error = gradients[:len(p)] - n @ rotation
-            outside = np.minimum(values[len(p):], 0.0)
+            outside = np.minimum(values[len(p):] - self.scene.tip_radius, 0.0)
             return np.concatenate([values[:len(p)] / sd, normal_error.ravel() / sn, outside / sd])
 
         try:
@@ -453,7 +453,8 @@ class ParticleFilter:
             rotations, translations, _ = refine_poses(
                 self.bank.evaluate, best.classes[:1].astype(np.int64), best.rotations[:1],
                 best.translations[:1], self.contact_positions, self.noncontact_positions,
-                self.params.refine_iterations, trim=self.params.outlier_probability)
+                self.params.refine_iterations, trim=self.params.outlier_probability,
+                clearance=self.scene.tip_radius)
         except np.linalg.LinAlgError:
             return best.rotations[0], best.translations[0]
         return rotations[0], translations[0]

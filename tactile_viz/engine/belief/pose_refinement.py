@@ -2,7 +2,8 @@
 
 Each pose ``(R, t)`` maps its class's object frame into the world. The residual of a
 contact ``p`` is the class's signed distance at ``x = R^T (p - t)``; a non-contact adds
-``min(s(x), 0)`` (it only counts inside the shape). A step turns the pose by a small
+``min(s(x) - r, 0)`` (it only counts inside the shape grown by the probe's radius ``r``, since
+a missed tip's centre stays ``r`` off the surface). A step turns the pose by a small
 rotation ``w`` about the contacts' centre ``c`` and shifts it by ``d``; with the world-frame
 gradient ``n = R grad s(x)`` and ``a = p - c`` the residual's derivative is
 ``-(a x n, n) . (w, d)``, so the step solves the damped normal equations
@@ -15,6 +16,7 @@ squares: a wrong reading cannot pull the pose).
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .support import support_residuals
 from ..transforms import inverse_transform_points_batch
 
 POSE_PARAMETERS = 6  # three of rotation, three of translation
@@ -23,7 +25,8 @@ _FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothi
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
-                 iterations=10, trim=0.0, normals=None, oriented=None):
+                 iterations=10, trim=0.0, normals=None, oriented=None, clearance=0.0,
+                 support=None):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -52,6 +55,12 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         the residual of a contact whose nearest surface on the grid faces away from its
         measured normal (noise pushed it past a thin wall's middle, or the hypothesis
         explains it with a wall's far side).
+    clearance : float, length units
+        How far every non-contact is known to stay off the surface: the probe tip's radius
+        (non-contacts are its centre).
+    support : Support, optional
+        A table the poses rest on: the heights of the hull vertices each rests on are
+        residuals too (:func:`~.support.support_residuals`).
 
     Returns
     -------
@@ -83,6 +92,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients[:, :m], facing) < 0)
             if len(k):
                 values[k, i], gradients[k, i] = oriented(classes[k], local[k, i], facing[k, i])
+        if clearance:
+            values[:, len(contacts):] -= clearance
         active = ~inside_only | (values < 0)
         if drop:
             farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]
@@ -90,6 +101,9 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         values = np.where(active, values, 0.0)
         normals = np.einsum("kij,kmj->kmi", rotations, gradients) * active[..., None]
         jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)
+        if support is not None:
+            heights, rows = support_residuals(support, classes, rotations, translations, centre)
+            values, jacobian = np.hstack([values, heights]), np.hstack([jacobian, rows])
         return values, jacobian
 
     values, jacobian = residuals(rotations, translations)
@@ -116,7 +130,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
 
 
 def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,
-                        normals, scale2, free_turns=(), pivot=None):
+                        normals, scale2, free_turns=(), pivot=None, support=None):
     """How far a refined pose may still be off: the standard deviation of each surface
     point's displacement along its normal (scene units).
 
@@ -145,6 +159,8 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
         2 mm noise, where its pose was within 2.4 mm.
     pivot : (3,) float, world frame
         The point the free turns' axes pass through.
+    support : Support, optional
+        A table the pose rests on: its resting vertices' heights pin it as contacts do.
 
     Returns
     -------
@@ -157,6 +173,10 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
     contact_normals = gradients[0] @ rotation.T
     jacobian = np.concatenate([np.cross(contacts - centre, contact_normals), contact_normals],
                               axis=1)
+    if support is not None:
+        _, rows = support_residuals(support, np.array([class_index]), rotation[None],
+                                    np.asarray(translation, float)[None], centre)
+        jacobian = np.vstack([jacobian, rows[0]])
     # A turn w about an axis through the pivot p is (w, w x (c - p)) in these parameters.
     free = np.reshape(free_turns, (-1, 3))
     pivot = centre if pivot is None else np.asarray(pivot, dtype=float)

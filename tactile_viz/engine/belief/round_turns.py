@@ -15,6 +15,7 @@ from ..shape.symmetry import symmetry_group
 from ..transforms import inverse_transform_points_batch
 from .oriented import turned_cost
 from .pose_refinement import refine_poses
+from .support import table_support
 
 ROUND_MOMENTS = 0.2  # an axis with its other two moments this close: turned in steps of
 ROUND_TURN_DEG = 15.0  # (a handle turned 45 degrees off lies 3 cm from one 20 degrees off)
@@ -209,7 +210,7 @@ def _cost(pf, oriented, classes, rotations, translations, outside, normal_noise_
     rotations, translations, misfit = refine_poses(
         pf.bank.evaluate, classes, rotations, translations, pf.contact_positions, outside,
         iterations, trim=pf.params.outlier_probability, normals=pf.contact_normals,
-        oriented=oriented)
+        oriented=oriented, clearance=pf.scene.tip_radius, support=table_support(pf))
     turned = turned_cost(oriented, classes, rotations, translations, pf.contact_positions,
                          pf.contact_normals, normal_noise_deg)
     cost = np.where(np.isfinite(misfit), misfit / (2 * scale2) + turned, np.inf)

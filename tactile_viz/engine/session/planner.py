@@ -50,6 +50,8 @@ from .state import Aim, Check
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
 MAX_RASTER_RADIUS = 1.0  # a check sweeps at most the cube inside this ball about its gap
 SCENE_MARGIN = 0.02  # a scene's tip centre is not asked to come this close to the table
+FIRST_CONTACTS = 3  # on a table, known targets stay near the contacts until this many
+FIRST_SEARCH = 0.5  # size units: how near
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 
@@ -349,6 +351,12 @@ class Planner:
             target = recon.vertices[index]
             _, gradient = recon.fit.mean(target[None])
             return Aim(target, normalise_rows(gradient)[0], recon.fit.mean_value)
+        if self.scene.has_table and 0 < len(contacts) < FIRST_CONTACTS:
+            # A probe aimed far from the few touches lands on the table beside an object
+            # lying flat (a fork: 300 misses after one touch): search around them first.
+            near = cKDTree(contacts).query(surface)[0] <= FIRST_SEARCH * self._unit
+            if (near & reachable).any():
+                reachable = near & reachable
         index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
         normal = vertex_normals(model)[index] @ rotation.T
         estimate = ValueOf(self._prior(model, rotation, translation))

@@ -1,0 +1,97 @@
+"""The table and the tip in the decision's pose fits: a missed tip's centre stays a radius
+off the surface (``clearance``), and a hypothesis rests on its stable face (support.py)."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from tactile_viz.engine import ObjectModel, PriorLibrary, Session
+from tactile_viz.engine.belief.pose_refinement import refine_poses, surface_uncertainty
+from tactile_viz.engine.belief.support import (Support, resting_faces, support_residuals,
+                                               table_support)
+from tactile_viz.engine.io.cache import ArrayCache
+from tactile_viz.engine.scene import Scene
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+@pytest.fixture
+def box(tmp_path):
+    mesh = trimesh.creation.box(extents=(6.0, 3.0, 2.0))
+    return ObjectModel.from_arrays(mesh.vertices, mesh.faces, "box",
+                                   cache=ArrayCache(tmp_path), longest_side=6.0)
+
+
+def _filter(box, scene):
+    return Session(None, PriorLibrary([box]), scene=scene).filter
+
+
+def _resting(box):
+    """The box flat on the table at z = 0: its 2-unit side up."""
+    return np.eye(3), np.array([0.0, 0.0, 1.0])
+
+
+def test_a_box_rests_on_its_faces_and_its_resting_vertices_lie_on_the_table(box):
+    hull, downs, faces = resting_faces(box)
+    assert len(downs) >= 2 and all(len(face) == 4 for face in faces)
+    support = Support(UP, np.zeros(3), (box,))
+    rotation, translation = _resting(box)
+    values, jacobian = support_residuals(support, np.array([0]), rotation[None],
+                                         translation[None], np.zeros(3))
+    np.testing.assert_allclose(values, 0.0, atol=1e-9)
+    # Raised by h, every resting vertex is h high, and d/dz of each is 1.
+    values, jacobian = support_residuals(support, np.array([0]), rotation[None],
+                                         (translation + [0, 0, 0.3])[None], np.zeros(3))
+    np.testing.assert_allclose(values[0], 0.3, atol=1e-9)
+    np.testing.assert_allclose(jacobian[0, :, 5], 1.0)
+
+
+def test_a_hypothesis_far_from_every_stable_pose_rests_on_its_lowest_vertex(box):
+    support = Support(UP, np.zeros(3), (box,))
+    tilted = Rotation.from_rotvec([0.6, 0.5, 0.0]).as_matrix()
+    points, mask = support.points(np.array([0]), tilted[None])
+    assert mask.sum() == 1
+    lowest = (box.mesh.vertices @ tilted.T)[:, 2].min()
+    assert (points[0, 0] @ tilted.T)[2] == pytest.approx(lowest)
+
+
+def test_the_table_pins_the_tilt_that_contacts_on_the_top_leave_loose(box):
+    """Two contacts on the top face leave the turn about the line through them loose;
+    resting on the table pins it, and the height."""
+    rotation, translation = _resting(box)
+    top = np.array([[-2.0, 0.0, 2.0], [2.0, 0.0, 2.0]])
+    pf = _filter(box, Scene.on_table(0.0))
+    off = Rotation.from_rotvec([0.05, 0.0, 0.0]).as_matrix()  # about the line, 2.9 deg
+    tilts = []
+    for support in (None, table_support(pf)):
+        refined, moved, _ = refine_poses(pf.bank.evaluate, np.array([0]), off[None],
+                                         (translation + [0, 0, 0.2])[None], top,
+                                         iterations=20, support=support)
+        tilts.append(np.degrees(np.arccos(np.clip(refined[0][2, 2], -1, 1))))
+    assert tilts[0] > 1.0 and tilts[1] < 0.05
+    assert moved[0, 2] == pytest.approx(1.0, abs=1e-3)
+    spread = [surface_uncertainty(pf.bank.evaluate, 0, rotation, translation, top,
+                                  pf.bank.points[0], pf.bank.normals[0], 0.01,
+                                  support=support).max()
+              for support in (None, table_support(pf))]
+    assert spread[1] < spread[0]
+
+
+def test_a_missed_tip_refutes_a_pose_that_leaves_it_less_than_a_radius_clear(box):
+    """A tip centre 0.05 above the top face missed: a box posed there fits with a point
+    probe, and misfits once the tip has a radius of 0.1."""
+    rotation, translation = _resting(box)
+    pf = _filter(box, Scene.on_table(0.0, tip_radius=0.1))
+    contacts = np.array([[2.0, 1.0, 2.0], [-2.0, 1.0, 2.0], [0.0, -1.0, 2.0],
+                         [3.0, 0.0, 1.0]])
+    missed = np.array([[0.0, 0.0, 2.05]])
+    cost = [refine_poses(pf.bank.evaluate, np.array([0]), rotation[None], translation[None],
+                         contacts, missed, iterations=0, clearance=clearance)[2][0]
+            for clearance in (0.0, 0.1)]
+    assert cost[0] == pytest.approx(0.0, abs=1e-6)
+    assert cost[1] == pytest.approx(0.05**2, rel=0.2)
+
+
+def test_without_a_table_there_is_no_support(box):
+    assert table_support(_filter(box, Scene())) is None
