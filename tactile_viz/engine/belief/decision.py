@@ -115,6 +115,10 @@ class Decision:
         normal; a touch there pins the pose most.
     scale : float, scene units
         The fit posterior's noise scale ``s`` (0 when not assessed).
+    modes : tuple of Hypothesis
+        Other pose modes of the MAP's class that fit within the noise as well, farther
+        from it than the pose tolerance: the pose is not decided while one is left, and
+        they are aimed at as rivals however improbable.
     """
 
     decided: bool
@@ -123,6 +127,7 @@ class Decision:
     fits: bool = False
     loosest: object = None
     scale: float = 0.0
+    modes: tuple = ()
 
     @property
     def rivals(self):
@@ -131,6 +136,7 @@ class Decision:
         as well, and carried from step to step the rivals grew past a hundred, each
         weighed against each other for every telling target."""
         plausible = [h for h in self.hypotheses[1:] if h.probability >= PLAUSIBLE]
+        plausible += [h for h in self.modes if h not in plausible]
         return tuple(sorted(plausible, key=lambda h: -h.probability)[:MAX_RIVALS])
 
     @property
@@ -270,14 +276,36 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         or mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
                        oriented) <= quantile * max(
             floor**2 + roughness**2, 1e-300))
-    loosest = None
+    loosest, modes = None, ()
     if fits and level >= confidence:
+        modes = _open_modes(pf.bank, hypotheses, lead,
+                            quantile * max(floor2 + roughness**2, 1e-300),
+                            pose_tolerance * pf.models[lead.class_index].length)
         loosest = _loosest(pf, lead, scale2, confidence, pose_tolerance)
-    decided = not belief.novel and fits and level >= confidence and loosest is None
+    decided = (not belief.novel and fits and level >= confidence and loosest is None
+               and not modes)
     if decided:  # the decided pose is the one reported and aimed from
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
-                    float(np.sqrt(scale2)))
+                    float(np.sqrt(scale2)), modes)
+
+
+def _open_modes(bank, hypotheses, lead, limit, tolerance):
+    """The other pose modes of the lead's class that fit within the noise too (squared
+    residuals within ``limit``) and whose surfaces lie farther from the lead's than the
+    pose ``tolerance`` forgives (scene units): while one is left the pose is not decided,
+    however the fit posterior leans (a can whose ends differ by a few mm of rim was
+    decided 178 degrees off)."""
+    if not np.isfinite(tolerance):
+        return ()
+    modes = [h for h in hypotheses if h is not lead and h.class_index == lead.class_index
+             and h.misfit <= limit]
+    if not modes:
+        return ()
+    apart = pose_disagreements(bank, lead.class_index, lead.rotation, lead.translation,
+                               np.array([h.rotation for h in modes]),
+                               np.array([h.translation for h in modes])) > tolerance
+    return tuple(h for h, far in zip(modes, apart) if far)
 
 
 def _lead(hypotheses, scale2, confidence):

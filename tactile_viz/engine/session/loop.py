@@ -47,7 +47,7 @@ from .estimate import Estimation
 from .bookkeeping import Bookkeeping
 from .fields import deepest_inside, free_approach
 from .learning import Learning
-from .planner import Planner
+from .planner import SWEEP_RADIUS, Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
 from .state import Checkpoint, ExplorationState
 from .truth import TruthMetrics, make_truth  # noqa: F401 (make_truth: public here too)
@@ -321,6 +321,10 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             return "check", _one_move(self.state.check.path)
         target, normal, estimate = self.state.target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
+        if scene.has_table:
+            # A guarded move goes on to the table: past a part the estimate holds but
+            # the object lacks (a GPIS's phantom handle), to what lies beyond it.
+            depth = max(depth, SWEEP_RADIUS * unit)
         back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
                 + 3 * self.sensor_noise[0])
         return "target", reach_moves(scene, target, normal, contacts, normals, depth,

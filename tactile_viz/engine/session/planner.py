@@ -372,6 +372,10 @@ class Planner:
         to its step cap.
         """
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
+        if not self.scene.is_free:
+            # A tip that came down through where the estimate has a surface (a lid a GPIS
+            # spans over a mug's opening) and touched deeper refutes it there too.
+            refuted = np.vstack([refuted, self.state.swept])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
