@@ -39,6 +39,11 @@ class Bookkeeping:
             start = paths[0][0]
             if missed:
                 free = free_space_points(free, paths[0], spacing)
+            elif self.scene.has_table and self.snapshots and self.snapshots[-1].novel:
+                # The way to the touch is free too (a guarded move on a table goes past
+                # a reconstruction's phantom part): its end a radius and a spacing short.
+                free = path_until(paths[0], observations[0].position, spacing,
+                                  self.scene.tip_radius + spacing)
         elif kind == "check" and missed:
             free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self._unit)
         self._keep_observations(observations, free, start, aimed=kind == "target")

@@ -16,11 +16,16 @@ from .meshes import bare_mesh
 
 MIN_PROBABILITY = 0.02  # stable poses rarer than this are left out
 MAX_POSES = 12
+HULL_VERTICES = 1000  # stable poses of a larger hull are found on this many of its vertices
 
 
 @functools.lru_cache(maxsize=64)
 def stable_rotations(model):
     """The stable poses of ``model`` on a plane whose normal is +z.
+
+    A hull of more than ``HULL_VERTICES`` vertices is thinned to that many (a fixed random
+    choice) first: trimesh took 94 s on a smooth ball's 10,002 and 4.5 s on a vase's 4,420.
+    The object's centre of mass is kept.
 
     Returns
     -------
@@ -35,7 +40,8 @@ def stable_rotations(model):
         # Degenerate hull faces divide by zero inside trimesh: they get no probability.
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            transforms, probabilities = trimesh.poses.compute_stable_poses(mesh, n_samples=1)
+            transforms, probabilities = trimesh.poses.compute_stable_poses(
+                _thinned_hull(mesh), center_mass=_centre_of_mass(mesh), n_samples=1)
     except Exception:  # noqa: BLE001 -- a degenerate hull: no preferred pose
         transforms, probabilities = np.eye(4)[None], np.ones(1)
     probabilities = np.asarray(probabilities, float)
@@ -47,6 +53,18 @@ def stable_rotations(model):
     rotations = np.asarray(transforms)[keep, :3, :3]
     probabilities = probabilities[keep] / probabilities[keep].sum()
     return rotations, probabilities
+
+
+def _thinned_hull(mesh):
+    hull = mesh.convex_hull
+    if len(hull.vertices) <= HULL_VERTICES:
+        return hull
+    keep = np.random.default_rng(0).choice(len(hull.vertices), HULL_VERTICES, replace=False)
+    return trimesh.convex.convex_hull(hull.vertices[keep])
+
+
+def _centre_of_mass(mesh):
+    return mesh.center_mass if mesh.is_volume else mesh.centroid
 
 
 @functools.lru_cache(maxsize=64)
