@@ -95,3 +95,41 @@ def test_a_missed_tip_refutes_a_pose_that_leaves_it_less_than_a_radius_clear(box
 
 def test_without_a_table_there_is_no_support(box):
     assert table_support(_filter(box, Scene())) is None
+
+
+def test_on_a_table_the_first_known_targets_stay_near_the_contacts(tmp_path):
+    """Aimed far from a first touch, a probe lands on the table beside an object lying
+    flat: until three contacts the known targets lie near them."""
+    from tactile_viz.engine import Contact
+    from tactile_viz.engine.session.planner import FIRST_SEARCH
+
+    mesh = trimesh.creation.box(extents=(6.0, 3.0, 2.0))
+    vertices, faces = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, 0.2)
+    box = ObjectModel.from_arrays(vertices, faces, "fine box", cache=ArrayCache(tmp_path),
+                                  longest_side=6.0)
+    session = Session(None, PriorLibrary([box]), seed=0, scene=Scene.on_table(0.0, 60.0, 0.05))
+    touch = np.array([1.0, 0.5, 2.0])
+    snapshot = session.observe([Contact(touch, [0.0, 0.0, 1.0])])
+    assert not snapshot.novel and session.state.target is not None
+    distance = np.linalg.norm(session.state.target.position - touch)
+    assert distance <= FIRST_SEARCH * session._unit + 1e-9
+    free = Session(None, PriorLibrary([box]), seed=0)
+    free.observe([Contact(touch, [0.0, 0.0, 1.0])])
+    assert np.linalg.norm(free.state.target.position - touch) > FIRST_SEARCH * free._unit
+
+
+def test_a_far_pose_mode_that_fits_too_holds_the_decision_and_is_aimed_at(box):
+    """`_open_modes`: another mode of the lead's class within the fit's limit and farther
+    than the tolerance is open; a near one, or one that misfits, is not."""
+    from tactile_viz.engine.belief.decision import Decision, Hypothesis, _open_modes
+
+    pf = _filter(box, Scene())
+    lead = Hypothesis(0, np.eye(3), np.zeros(3), 1.0, 0.999)
+    far = Hypothesis(0, np.eye(3), np.array([0.0, 0.0, 1.0]), 2.0, 1e-6)
+    near = Hypothesis(0, np.eye(3), np.array([0.0, 0.0, 0.01]), 2.0, 1e-6)
+    misfit = Hypothesis(0, np.eye(3), np.array([0.0, 0.0, 1.0]), 50.0, 1e-9)
+    modes = _open_modes(pf.bank, (lead, far, near, misfit), lead, limit=10.0, tolerance=0.3)
+    assert modes == (far,)
+    assert _open_modes(pf.bank, (lead, far), lead, 10.0, np.inf) == ()
+    decision = Decision(False, 0.999, (lead, far, near), True, None, 0.1, modes)
+    assert far in decision.rivals and near not in decision.rivals
