@@ -1,9 +1,12 @@
 """The command line: ``python -m tactile_viz COMMAND ...``."""
 
 import argparse
+import contextlib
 import json
 import logging
+import os
 import sys
+import warnings
 
 from .cli import ArgumentParser, add_logging_arguments, one_line, setup_logging
 from .engine.errors import TactileVizError
@@ -131,6 +134,24 @@ def _fail(prog, message, status, verbose, hint=""):
     return status
 
 
+@contextlib.contextmanager
+def one_line_warnings(prog):
+    """Show every Python warning raised while the command runs as one line on stderr,
+    ``PROG: warning: MESSAGE`` (the log file keeps it too), not as Python's two lines with
+    a source path."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        log.warning("%s: %s", category.__name__, message, extra={"file_only": True})
+        print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
+
+    before = warnings.showwarning
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = before
+
+
 def main(argv=None):
     """Run ``python -m tactile_viz`` with ``argv``; returns the exit status.
 
@@ -149,7 +170,13 @@ def main(argv=None):
         print(f"{prog}: error: {one_line(problem)}", file=sys.stderr)
         return 2
     try:
-        return args.run(args)
+        with one_line_warnings(prog):
+            status = args.run(args)
+            sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
+        return status
+    except BrokenPipeError:  # `... | head`: the reader has what it wanted
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except TactileVizError as error:
         return _fail(prog, str(error), 2, args.verbose)
     except SystemExit as stop:

@@ -417,6 +417,8 @@ def add_output_arguments(parser, export_help):
                              "Foxglove: touches, MAP pose, posterior, MAP shape and GPIS "
                              "markers (docs/robots.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no summary on stderr at the end (the JSON is unchanged)")
 
 
 def reach_angle(text):

@@ -25,7 +25,7 @@ from ..engine.session import RecordedSession, session_preset
 from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
                      check_learning, learn, load_priors, recorded_scene, recording_file, say,
                      scene_units, size_warnings, write_scene_line)
-from .trial import code_version, run_steps, with_outliers, write_output
+from .trial import code_version, run_steps, tell_summary, with_outliers, write_output
 
 
 def add_replay_arguments(parser):
@@ -115,4 +115,5 @@ def run_replay_command(args):
     if learn_to:
         result["learned"] = learn(session, library, args.learn, learn_to, units, args)
     write_output(json.dumps(result, indent=1), args.json)
+    tell_summary(args, result)
     return 0

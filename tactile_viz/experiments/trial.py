@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .summary import result_summary
 from ..cli import (add_output_arguments, add_preset_argument, add_scene_arguments,
                    add_sensor_arguments, add_set_argument, bundled_object, positive_int,
                    scene_from_args, seed_int, with_settings)
@@ -200,4 +201,16 @@ def run_trial_command(args):
                        scene=scene)
     result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
+    tell_summary(args, result)
     return 0
+
+
+def tell_summary(args, result):
+    """The result's summary on stderr (:func:`~.summary.result_summary`) unless
+    ``--quiet``: what was judged, the pose and where the files went."""
+    if getattr(args, "quiet", False):
+        return
+    files = [(what, str(path)) for what, path in (("JSON", args.json), ("export", args.export),
+                                                  ("bag", args.export_bag)) if path]
+    for line in result_summary(result, files):
+        print(line, file=sys.stderr)

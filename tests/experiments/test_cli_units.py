@@ -158,7 +158,7 @@ def test_learning_makes_the_library_folder_it_names(mm_meshes, capsys):
 def test_learning_an_object_judged_known_says_so(mm_meshes, capsys):
     block = str(mm_meshes / "block_mm.stl")
     _run(["trial", "--object-file", block, "--prior-file", block, str(mm_meshes / "ball_mm.stl"),
-          "--mesh-units", "mm", "--max-steps", "10", "--no-progress", "--json",
+          "--mesh-units", "mm", "--max-steps", "10", "--no-progress", "--quiet", "--json",
           str(mm_meshes / "t.json"), "--learn", "again", "--learn-to", str(mm_meshes / "lib")])
     result = json.loads((mm_meshes / "t.json").read_text())
     last, err = result["steps"][-1], capsys.readouterr().err
