@@ -25,7 +25,8 @@ from ..engine.session import RecordedSession, session_preset
 from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
                      check_learning, learn, load_priors, recorded_scene, recording_file, say,
                      scene_units, size_warnings, write_scene_line)
-from .trial import code_version, run_steps, tell_summary, with_outliers, write_output
+from .trial import (INTERRUPTED, code_version, run_steps, run_until_interrupted, tell_summary,
+                    with_outliers, write_output)
 
 
 def add_replay_arguments(parser):
@@ -93,27 +94,28 @@ def run_replay_command(args):
     learn_to = check_learning(args, library)
     scene = scene_from_args(args) or recorded_scene(args.observations, units)
     start = time.perf_counter()
-    session, records = replay(steps, library, args.preset, args.strategy, args.seed,
-                              progress=not args.no_progress,
-                              params=with_outliers(
-                                  with_settings(session_preset(args.preset), args.set),
-                                  args.outlier_probability),
-                              sensor_noise=(args.position_noise, args.normal_noise),
-                              scene=scene)
+    params = with_outliers(with_settings(session_preset(args.preset), args.set),
+                           args.outlier_probability)
+    session = RecordedSession(steps, library, args.strategy, params, args.seed,
+                              sensor_noise=(args.position_noise, args.normal_noise), scene=scene)
+    records = run_until_interrupted(session, not args.no_progress, len(steps), "replay")
     stop = next((r["t"] for r, s in zip(records, session.snapshots) if s.terminated), None)
     result = {"object": None, "observations": str(args.observations), "seed": args.seed,
               "strategy": args.strategy, "preset": args.preset,
               "params": session.params.to_dict(), "library": library.names,
               "truth_pose": None, "scene": None if scene is None else scene.as_dict(),
               "terminated_at": stop, "code_version": code_version(),
+              "interrupted": records.interrupted,
               "units": units, "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
         export_session(session, args.export, units)
         write_scene_line(Path(args.export) / "observations.csv", scene)
     if args.export_bag:
         export_bag(session, args.export_bag, units)
-    if learn_to:
+    if learn_to and records.interrupted:
+        say(args, "note", "not learned: the run was interrupted")
+    elif learn_to:
         result["learned"] = learn(session, library, args.learn, learn_to, units, args)
     write_output(json.dumps(result, indent=1), args.json)
     tell_summary(args, result)
-    return 0
+    return INTERRUPTED if records.interrupted else 0

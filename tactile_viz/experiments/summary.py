@@ -37,6 +37,8 @@ def result_summary(result, files=()):
     stop = result.get("terminated_at")
     ended = (f"stopped by itself at step {stop}" if stop is not None
              else f"ran to step {last['t']} without stopping")
+    if result.get("interrupted"):
+        ended = f"interrupted at step {last['t']}"
     lines = [f"{result.get('object') or 'the recorded object'}: {verdict}; {ended} "
              f"({touches}, {result.get('seconds', 0.0):.1f} s)"]
     if not last.get("novel") and last.get("map_rotation") is not None:

@@ -74,17 +74,19 @@ def add_trial_arguments(parser):
                                  "(when novel) and estimate.json of the last step to DIR")
 
 
-def run_steps(session, progress=False, total=None, label="steps", max_steps=None):
+def run_steps(session, progress=False, total=None, label="steps", max_steps=None,
+              records=None):
     """Step ``session`` until it terminates or has taken ``max_steps`` steps (None: no
     cap), with a progress bar on stderr when ``progress`` (``total`` steps expected, the
     bar named ``label``); the list of :meth:`~tactile_viz.engine.Snapshot.record` dicts,
-    one per step. The one run loop of the ``trial`` and ``replay`` commands."""
+    one per step, appended to ``records`` when given (so an interrupted caller keeps the
+    steps done). The one run loop of the ``trial`` and ``replay`` commands."""
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=total, desc=label, unit="step", file=sys.stderr, delay=2.0)
-    records = []
+    records = [] if records is None else records
     try:
         while not session.terminated and (max_steps is None or len(records) < max_steps):
             snapshot = session.step()
@@ -96,6 +98,26 @@ def run_steps(session, progress=False, total=None, label="steps", max_steps=None
     finally:
         if bar is not None:
             bar.close()
+    return records
+
+
+class Steps(list):
+    """The step records of a run, and whether Ctrl-C ended it (``interrupted``)."""
+
+    interrupted = False
+
+
+def run_until_interrupted(session, progress=False, total=None, label="steps",
+                          max_steps=None):
+    """:func:`run_steps`, but Ctrl-C after the first step ends the run there: the
+    :class:`Steps` done, ``interrupted`` set (before the first step it is raised)."""
+    records = Steps()
+    try:
+        run_steps(session, progress, total, label, max_steps, records=records)
+    except KeyboardInterrupt:
+        if not records:
+            raise
+        records.interrupted = True
     return records
 
 
@@ -134,7 +156,7 @@ def code_version():
 
 def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recommended",
               max_steps=None, progress=False, params=None, finish=None, sensor=None,
-              scene=None):
+              scene=None, keep_interrupted=False):
     """Run one trial and return its JSON-ready result dict.
 
     ``params`` (a ``SessionParams``) replaces the preset's parameters when given (``preset``
@@ -143,6 +165,8 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
     ``sensor`` holds the simulated sensor's noise and outliers (:func:`sensor_settings`).
     ``scene`` (a :class:`~tactile_viz.engine.scene.Scene`) puts the object at rest on its
     table, probed with its tip within its reach cone.
+    With ``keep_interrupted`` a Ctrl-C after the first step ends the run there: the result
+    says ``"interrupted": true`` and ``finish(session, True)`` is called.
     """
     sensor = {**NOISELESS, **(sensor or {})}
     if max_steps is not None and max_steps < 1:
@@ -153,8 +177,10 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
                       sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
                       sensor_outliers=sensor["outliers"], scene=scene)
     start = time.perf_counter()
-    steps = run_steps(session, progress, max_steps or params.max_steps_novel, truth_model.name,
-                      max_steps)
+    run = run_until_interrupted if keep_interrupted else run_steps
+    steps = run(session, progress, max_steps or params.max_steps_novel, truth_model.name,
+                max_steps)
+    interrupted = keep_interrupted and steps.interrupted
     last = session.latest
     truth_pose = np.eye(4)
     truth_pose[:3, :3], truth_pose[:3, 3] = truth.rotation, truth.translation
@@ -166,10 +192,10 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
             "sensor": sensor, "scene": None if scene is None else scene.as_dict(),
             "terminated_at": last.step if last.terminated else None,
             "decided_at": next((s["t"] for s in steps if s["decided"]), None),
-            "code_version": code_version(),
+            "code_version": code_version(), "interrupted": interrupted,
             "seconds": time.perf_counter() - start, "steps": steps}
     if finish is not None:
-        result.update(finish(session))
+        result.update(finish(session, interrupted) if keep_interrupted else finish(session))
     return result
 
 
@@ -183,14 +209,16 @@ def run_trial_command(args):
     learn_to = check_learning(args, library)
     scene = scene_from_args(args)
 
-    def finish(session):
+    def finish(session, interrupted=False):
         extra = {}
         if args.export:
             export_session(session, args.export, units)
             write_scene_line(Path(args.export) / "observations.csv", scene)
         if args.export_bag:
             export_bag(session, args.export_bag, units)
-        if learn_to:
+        if learn_to and interrupted:
+            say(args, "note", "not learned: the run was interrupted")
+        elif learn_to:
             extra["learned"] = learn(session, library, args.learn, learn_to, units, args)
         return extra
 
@@ -198,11 +226,14 @@ def run_trial_command(args):
                        args.max_steps, progress=not args.no_progress, finish=finish,
                        sensor=sensor_settings(args),
                        params=with_settings(session_preset(args.preset), args.set),
-                       scene=scene)
+                       scene=scene, keep_interrupted=True)
     result["units"] = units
     write_output(json.dumps(result, indent=1), args.json)
     tell_summary(args, result)
-    return 0
+    return INTERRUPTED if result["interrupted"] else 0
+
+
+INTERRUPTED = 130  # the exit status of a run stopped by Ctrl-C (what it did is written)
 
 
 def tell_summary(args, result):

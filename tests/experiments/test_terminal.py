@@ -59,3 +59,30 @@ def test_the_summary_says_what_was_judged_when_and_where_the_files_went():
     assert lines == ["mug_1: novel (none of the 2 priors); ran to step 14 without "
                      "stopping (12 contacts, 5 misses, 2.0 s)"]
     assert result_summary({"steps": []}) == ["no step was taken"]
+
+
+def test_ctrl_c_keeps_the_touches_done_and_says_interrupted(tmp_path, capsys, monkeypatch):
+    from tactile_viz.engine import Session
+
+    step, calls = Session.step, []
+
+    def interrupted_at_three(self):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return step(self)
+
+    monkeypatch.setattr(Session, "step", interrupted_at_three)
+    out, export = tmp_path / "out.json", tmp_path / "export"
+    status = main(["trial", "--object", "mug_1", "--library", "known", "--max-steps", "10",
+                   "--no-progress", "--json", str(out), "--export", str(export)])
+    assert status == 130
+    result = json.loads(out.read_text())
+    assert result["interrupted"] is True and len(result["steps"]) == 2
+    assert (export / "observations.csv").exists()
+    assert "interrupted at step 2" in capsys.readouterr().err
+    calls.clear()
+    monkeypatch.setattr(Session, "step", lambda self: (_ for _ in ()).throw(KeyboardInterrupt))
+    assert main(["trial", "--object", "mug_1", "--library", "known", "--no-progress",
+                 "--json", str(tmp_path / "none.json")]) == 130
+    assert not (tmp_path / "none.json").exists()  # nothing done, nothing written
