@@ -39,6 +39,10 @@ class ParameterError(TactileVizError, ValueError):
     """A parameter value is out of range or of the wrong type (named in the message)."""
 
 
+class BagWarning(UserWarning):
+    """A bag read with a guess the user should know of (a topic chosen for them)."""
+
+
 class MeshWarning(UserWarning):
     """A mesh was changed on loading in a way the user should know about (e.g. decimated)."""
 

@@ -332,3 +332,18 @@ def test_export_session_writes_the_bag_beside_the_files(trial, tmp_path):
     written = export_session(trial[1], tmp_path, bag=True)
     assert tmp_path / "session.mcap" in written
     assert len(read_bag(tmp_path / "session.mcap")) == len(trial[1].snapshots)
+
+
+def test_the_one_contacts_topic_of_a_bag_is_used_and_named(trial, tmp_path):
+    """A bag whose only ContactsState topic is not /contacts: nothing else it could mean."""
+    from tactile_viz.engine.errors import BagWarning
+
+    steps = trial[1].recorded_steps()
+    robot = Robot()
+    messages = [(("/tactile/contacts",) + m[1:]) if m[0] == "/contacts" else m
+                for m in gazebo_messages(robot, steps)]
+    bag = robot.write(tmp_path / "bag", messages)
+    with pytest.warns(BagWarning, match="using /tactile/contacts"):
+        read = read_recording(bag, "m", BagTopics(step_gap=0.5))
+    assert_same_steps(read, read_recording(robot.write(tmp_path / "plain", gazebo_messages(
+        robot, steps)), "m", BagTopics(step_gap=0.5)))

@@ -30,12 +30,13 @@ import bisect
 import functools
 import importlib.util
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ObservationError
+from ..errors import BagWarning, ObservationError
 from ..shape.meshes import UNITS
 from .observation_file import (SPAN_CONTACTS, ObservationFileError, RecordedStep,
                                read_observations, recording_span, recording_warning)
@@ -166,6 +167,13 @@ def _roles(path, types, topics):
     def pick(role, allowed, required=False):
         given = getattr(topics, role)
         name = given or DEFAULT_TOPICS[role]
+        alone = [topic for topic, kind in types.items() if kind == CONTACTS_STATE]
+        if name not in types and given is None and role == "contacts" and len(alone) == 1:
+            # Nothing else it could mean: the bag's one topic of a contact type.
+            warnings.warn(f"{Path(path).name}: no {role} topic {name}; using {alone[0]} "
+                          f"({types[alone[0]]}), the bag's one {role} topic "
+                          f"(--{role}-topic names another)", BagWarning, stacklevel=2)
+            name = alone[0]
         if name not in types:
             if given is None and not required:
                 return None
