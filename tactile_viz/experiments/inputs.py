@@ -283,8 +283,9 @@ def load_priors(args, units=None):
 
 def size_warnings(args, library, truth=None):
     """Why the meshes of ``args`` are likely not in the library's unit: one line per
-    suspicious file (:func:`tactile_viz.engine.shape.library.size_warning`). A file is checked
-    against the other priors unless both have their units."""
+    suspicious file (:func:`tactile_viz.engine.shape.library.size_warning`). Every file is
+    checked against the other priors, its unit declared or not (a millimetre file given as
+    ``:m`` is a 120 m can); only ``--normalise`` sets sizes on purpose."""
     units = scene_units(args, library)
     found = []
     priors = [(text, library[Path(split_units(text)[0]).stem])
@@ -293,7 +294,7 @@ def size_warnings(args, library, truth=None):
         priors.append((args.object_file, truth))
     for text, model in priors:
         others = [m for m in library if m is not model]
-        if _has_size(args, text) and library.units is not None or not others:
+        if getattr(args, "normalise", None) is not None or not others:
             continue
         message = size_warning(Path(split_units(text)[0]).name, model.length,
                                PriorLibrary(others).reference_size, units,

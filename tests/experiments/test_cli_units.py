@@ -170,3 +170,15 @@ def test_learning_an_object_judged_known_says_so(mm_meshes, capsys):
     else:
         assert "note: learned again" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_unit_declared_wrong_is_still_caught(mm_meshes, capsys):
+    """A millimetre file given as metres beside priors in metres: a 55 m block warns with
+    the likely unit, though its unit was declared."""
+    block, ball = str(mm_meshes / "block_mm.stl"), str(mm_meshes / "ball_mm.stl")
+    _run(["trial", "--object-file", f"{block}:m", "--prior-file", f"{ball}:mm",
+          f"{block}:mm", "--max-steps", "1", "--no-progress", "--quiet", "--json",
+          str(mm_meshes / "t.json")])
+    err = capsys.readouterr().err
+    assert "warning: block_mm.stl spans 55.4 m but the library's objects are" in err
+    assert "is the file in mm?" in err
