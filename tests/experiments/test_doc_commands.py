@@ -94,3 +94,22 @@ def test_every_documented_command_is_run_or_has_a_reason():
     texts = {" ".join(words) for words in commands}
     stale = [text for text in NOT_RUN if text not in texts]
     assert stale == []
+
+
+def python_blocks(document):
+    """The fenced ``python`` blocks of ``document``."""
+    text = (REPO / document).read_text()
+    return re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("number", range(len(python_blocks("README.md"))))
+def test_the_readme_python_runs_as_written(number, tmp_path):
+    """Each Python block of README.md is complete: run alone in an empty folder."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    (tmp_path / "snippet.py").write_text(python_blocks("README.md")[number])
+    done = subprocess.run([sys.executable, "snippet.py"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "Warning" not in done.stderr and "Traceback" not in done.stderr
