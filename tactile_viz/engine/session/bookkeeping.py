@@ -39,7 +39,7 @@ class Bookkeeping:
             start = paths[0][0]
             if missed:
                 free = free_space_points(free, paths[0], spacing)
-            elif self.scene.has_table and self.snapshots and self.snapshots[-1].novel:
+            elif self._novel_on_table():
                 # The way to the touch is free too (a guarded move on a table goes past
                 # a reconstruction's phantom part): its end a radius and a spacing short.
                 free = path_until(paths[0], observations[0].position, spacing,
@@ -48,6 +48,11 @@ class Bookkeeping:
             free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self._unit)
         self._keep_observations(observations, free, start, aimed=kind == "target")
         return paths, observations
+
+    def _novel_on_table(self):
+        """Whether the object stands on a table and the last step judged it novel: its
+        guarded moves then go on to the table, and their way to a touch is free space."""
+        return self.scene.has_table and bool(self.snapshots) and self.snapshots[-1].novel
 
     def _keep_observations(self, observations, free_space, start, aimed):
         """What a step's observations leave besides the belief, the same for a step taken

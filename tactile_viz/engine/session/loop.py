@@ -321,7 +321,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             return "check", _one_move(self.state.check.path)
         target, normal, estimate = self.state.target
         depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        if scene.has_table and self.snapshots and self.snapshots[-1].novel:
+        if self._novel_on_table():
             # A guarded move goes on to the table: past a part the reconstruction holds
             # but the object lacks (a GPIS's phantom handle), to what lies beyond it.
             depth = max(depth, SWEEP_RADIUS * unit)
