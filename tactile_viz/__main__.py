@@ -30,6 +30,12 @@ def _objects(args):
     return 0
 
 
+def _library(args):
+    from .experiments.library_cli import run_library_command
+
+    return run_library_command(args)
+
+
 def _trial(args):
     from .experiments.trial import run_trial_command
 
@@ -102,6 +108,14 @@ def build_parser():
                     "JSON (truth metrics null).")
     add_replay_arguments(replay)
     replay.set_defaults(run=_replay, prog=replay.prog, check=options_problem)
+
+    from .experiments.library_cli import add_library_arguments
+
+    library = commands.add_parser(
+        "library", help="build and keep a library folder: build, add, remove, list, show",
+        description="Make a library folder from mesh files and keep it (docs/cli.md).")
+    add_library_arguments(library)
+    library.set_defaults(run=_library, prog=library.prog)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
                                               "scaling, noise, sizes, decide, realmesh, gui)",
