@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ArgumentParser, output_dir
+from ..cli import ArgumentParser, ExtendList, output_dir
 from ..engine.errors import LibraryError
 from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
 from ..engine.shape.meshes import UNITS, split_units, unit_factor
@@ -48,7 +48,7 @@ def add_library_arguments(parser):
         sub.set_defaults(prog=sub.prog)
     remove = actions.add_parser("remove", help="remove priors from a library by name")
     remove.add_argument("folder", metavar="DIR")
-    remove.add_argument("names", metavar="NAME", nargs="+")
+    remove.add_argument("names", metavar="NAME", action=ExtendList)
     remove.set_defaults(prog=remove.prog)
     for action, text in (("list", "list a library's priors"),
                          ("show", "describe one prior of a library")):
