@@ -86,3 +86,16 @@ def test_ctrl_c_keeps_the_touches_done_and_says_interrupted(tmp_path, capsys, mo
     assert main(["trial", "--object", "mug_1", "--library", "known", "--no-progress",
                  "--json", str(tmp_path / "none.json")]) == 130
     assert not (tmp_path / "none.json").exists()  # nothing done, nothing written
+
+
+def test_an_object_far_smaller_than_the_priors_is_named_as_the_likely_cause(tmp_path, capsys):
+    """No first contact: the error says how near the origin the lines pass and asks about
+    the size, after the size warning."""
+    trimesh.creation.icosphere(radius=0.05).export(tmp_path / "tiny.stl")
+    assert main(["trial", "--object-file", str(tmp_path / "tiny.stl"), "--library", "known",
+                 "--no-progress", "--quiet", "--json", str(tmp_path / "t.json")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert "60 times smaller" in err[0]
+    assert err[-1].endswith("within 0.866 of the origin, as the priors' size sets it: is "
+                            "the object there, and of about the priors' size?")
+    assert not (tmp_path / "t.json").exists()

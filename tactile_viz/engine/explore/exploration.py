@@ -89,8 +89,12 @@ def first_contact_moves(centre, rng, radius=10.0, attempts=50, unit=1.0):
         offset = rng.uniform(-0.5, 0.5, size=3) * unit
         return np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
 
-    return (yield from lines_until_contact(line, attempts, "random lines through the "
-                                           "workspace: is the object near the origin?"))
+    near = float(np.linalg.norm(centre))
+    where = "the origin" if near == 0 else "the workspace's centre"
+    return (yield from lines_until_contact(
+        line, attempts, f"random lines through the workspace, each passing within "
+        f"{0.5 * np.sqrt(3) * unit:.3g} of {where}, as the priors' size sets it: is the "
+        "object there, and of about the priors' size?"))
 
 
 def lines_until_contact(line, attempts, what):
