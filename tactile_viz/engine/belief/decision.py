@@ -9,12 +9,15 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
    posterior (its broad likelihood cannot tell near twins apart, but it does say which
    classes matter),
 3. among the distinct hypotheses that could explain the contacts, the MAP holds at least
-   ``decision_confidence`` of their fit posterior, and
+   ``decision_confidence`` of their fit posterior,
 4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
    ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
    (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
    residuals beyond the noise); when its grid's residuals fail, those on its mesh are
-   tested without the grid's error.
+   tested without the grid's error, and
+5. no other pose mode of its class fits within the noise as well while lying farther from
+   it than the pose tolerance (:func:`_open_modes`; such a mode is aimed at however
+   improbable: a can whose ends differ by a few mm of rim was decided 178 degrees off).
 
 The hypotheses are the MAP particle, the heaviest particles of other pose modes and other
 classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the

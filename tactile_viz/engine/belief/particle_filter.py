@@ -459,18 +459,28 @@ class ParticleFilter:
             return best.rotations[0], best.translations[0]
         return rotations[0], translations[0]
 
-    def _noncontact_test(self, best):
+    def _tested_pose(self, best):
+        """The pose the novelty test takes for the MAP particle ``best``: its refined pose
+        (:meth:`_refined_map`) with a noisy sensor or on a table and three contacts or more,
+        else its own. Under noise the particle is off by more than the noise, and thin
+        walls need it closer to tell a noisy touch from a wrong shape; on a table, touched
+        from one side, it is off by more than the touches allow (a 30 cm dragon's sat 7%
+        off, every touch fitting its refined pose, and it was judged novel)."""
+        if (self.params.position_noise > 0 or self.scene.has_table) and len(
+                self.contact_positions) >= 3:
+            return self._refined_map(best)
+        return best.rotations[0], best.translations[0]
+
+    def _noncontact_test(self, best, pose):
         """The novelty test's non-contact part: the MAP's log-likelihood of the
-        non-contacts. On a table it is taken at the MAP's refined pose: the tip comes down
-        a radius beside the object there, where the particle's pose error alone puts the
-        surface inside the tip (a dragon posed 7% off was judged novel, every touch fitting
-        it)."""
-        if self.scene.has_table and len(self.contact_positions) >= 3:
-            rotation, translation = self._refined_map(best)
-            best = Particles(best.classes, rotation[None], translation[None], np.zeros(1))
+        non-contacts, on a table at its tested ``pose`` (the tip comes down a radius beside
+        the object, where the particle's pose error alone puts the surface inside the
+        tip), else at the particle's own."""
+        if self.scene.has_table:
+            best = Particles(best.classes, pose[0][None], pose[1][None], np.zeros(1))
         return self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
 
-    def _contact_test(self, best):
+    def _contact_test(self, best, pose):
         """The novelty test's contact part: ``(the MAP's log-likelihood of the contacts, its
         threshold)``, with a noisy sensor at the MAP's refined pose and each contact at its
         best offset within the position noise where that offset crosses a fold of the
@@ -483,13 +493,7 @@ class ParticleFilter:
         that point anywhere a few millimetres inside it, where noisy readings lie (a fork
         at 2 mm flipped between known and novel)."""
         params = self.params
-        rotation, translation = best.rotations[0], best.translations[0]
-        if (params.position_noise > 0 or self.scene.has_table) and len(
-                self.contact_positions) >= 3:
-            # The MAP particle's pose is off by more than the noise; thin walls need it
-            # closer to tell a noisy touch from a wrong shape. On a table, touched from
-            # one side, it is off by more than the touches allow (a dragon 7% off).
-            rotation, translation = self._refined_map(best)
+        rotation, translation = pose  # :meth:`_tested_pose`
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
         offsets = params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ()
@@ -541,11 +545,12 @@ class ParticleFilter:
             best = self.particles.take([index])
             on_contacts = self.log_likelihood(best, self.contact_positions,
                                               self.contact_normals)[0]
-            on_noncontacts = self._noncontact_test(best)
+            pose = self._tested_pose(best)  # refined once for both parts
+            on_noncontacts = self._noncontact_test(best, pose)
             tested, tested_threshold = on_contacts, contact_threshold
             if (params.outlier_probability > 0 or params.position_noise > 0
                     or self.scene.has_table) and n_pos:
-                tested, tested_threshold = self._contact_test(best)
+                tested, tested_threshold = self._contact_test(best, pose)
             # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood
             # ~1 > 0.5) must not buy slack for contacts that miss its surface.
             novel = bool(tested < tested_threshold or on_noncontacts < noncontact_threshold)

@@ -169,7 +169,7 @@ class Planner:
         robot's scene only what its probe can reach counts (:meth:`_in_scene`)."""
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
-        reachable = self._reachable(surface, swept=reconstructed)
+        reachable = self._reachable(surface)
         in_scene = not self.scene.is_free and model is not None
         map_reach = None  # the MAP's reachable vertices, only where they are asked for
         if in_scene and (not reconstructed or self._p.cover_prior):
@@ -362,21 +362,16 @@ class Planner:
         estimate = ValueOf(self._prior(model, rotation, translation))
         return Aim(surface[index], normalise_rows(normal[None])[0], estimate)
 
-    def _reachable(self, vertices, radius=None, swept=False):
+    def _reachable(self, vertices, radius=None):
         """Mask of the vertices that exploration may still have to visit: away from every
         target the sensor failed to reach and from the free space that missed probes
         passed through (within ``radius``, default ``contact_spacing``).
 
         The DHD and the next target leave the others out (all vertices count if none is
         left): probing there again cannot change the estimate, so the trial would only run
-        to its step cap. With ``swept`` in a robot's scene, also those near the paths the
-        tip swept before its touches.
+        to its step cap.
         """
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
-        if swept and not self.scene.is_free:
-            # A tip that came down through where the estimate has a surface (a GPIS's
-            # phantom handle) and touched beyond refutes it there too.
-            refuted = np.vstack([refuted, self.state.swept])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
