@@ -480,7 +480,7 @@ class ParticleFilter:
             best = Particles(best.classes, pose[0][None], pose[1][None], np.zeros(1))
         return self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
 
-    def _contact_test(self, best, pose):
+    def _contact_test(self, best, pose=None):
         """The novelty test's contact part: ``(the MAP's log-likelihood of the contacts, its
         threshold)``, with a noisy sensor at the MAP's refined pose and each contact at its
         best offset within the position noise where that offset crosses a fold of the
@@ -493,7 +493,7 @@ class ParticleFilter:
         that point anywhere a few millimetres inside it, where noisy readings lie (a fork
         at 2 mm flipped between known and novel)."""
         params = self.params
-        rotation, translation = pose  # :meth:`_tested_pose`
+        rotation, translation = self._tested_pose(best) if pose is None else pose
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
         offsets = params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ()
