@@ -57,7 +57,7 @@ def _bench(args):
         from .experiments.step_timing import main as step_timing
 
         return step_timing(args.rest)
-    if args.what in ("paper", "tradeoff", "scaling", "noise", "sizes", "decide"):
+    if args.what in ("paper", "tradeoff", "scaling", "noise", "sizes", "decide", "learn"):
         import importlib
 
         module = importlib.import_module(f".experiments.{args.what}", __package__)
@@ -118,10 +118,11 @@ def build_parser():
     library.set_defaults(run=_library, prog=library.prog)
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
-                                              "scaling, noise, sizes, decide, realmesh, gui)",
+                                              "scaling, noise, sizes, decide, learn, realmesh, "
+                                              "gui)",
                                 description="Benchmarks; each has its own --help.")
     bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise",
-                                        "sizes", "decide", "realmesh", "gui"],
+                                        "sizes", "decide", "learn", "realmesh", "gui"],
                        help="sdf: grid SDF vs exact queries per second; step: time of each "
                             "part of a step at 50/200/400 contacts, full vs incremental GPIS; "
                             "paper: the paper's protocol, tables and plots; tradeoff: time "
@@ -130,7 +131,9 @@ def build_parser():
                             "noise: recognition and pose error vs sensor noise; sizes: the "
                             "objects at real sizes in one metric library vs the paper's "
                             "scale; decide: right at the decision, steps to it, known "
-                            "judged novel, on real sizes and hard pairs under noise; realmesh: "
+                            "judged novel, on real sizes and hard pairs under noise; learn: "
+                            "novel objects at real sizes left out, learned and met again; "
+                            "realmesh: "
                             "known/novel trials on meshes pybullet ships (extra realmesh); "
                             "gui: does the desktop app keep up with the engine (under Xvfb)")
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")

@@ -16,7 +16,8 @@ A *task* is a plain dict (picklable, mostly JSON)::
 A task may also take its meshes from files (``bench realmesh``, ``bench decide``):
 ``object_file`` names the object's mesh, an extra prior may be ``{"name", "file"}`` (and its
 own ``"longest_side"``), and both are scaled to the task's ``longest_side`` (None keeps the
-file's size). Files are read where the task runs
+file's size); an extra prior ``{"name", "bundled", "longest_side"}`` is a bundled object at
+that size. Files are read where the task runs
 (a local disk), once per process. ``library`` may be ``none`` (no bundled priors).
 
 ``scene`` (optional) is a :meth:`~tactile_viz.engine.scene.Scene.as_dict` record: the
@@ -139,6 +140,9 @@ def task_library(task):
 
     library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
+        if "bundled" in prior:
+            library.add(_bundled_model(prior["bundled"], prior.get("longest_side")))
+            continue
         if "file" in prior:
             library.add(_file_model(prior["file"], prior["name"],
                                     prior.get("longest_side", task.get("longest_side"))))

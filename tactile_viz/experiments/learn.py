@@ -1,0 +1,250 @@
+"""Benchmark: novel objects at real sizes, learned, and met again (leave one out).
+
+``python -m tactile_viz bench learn [--objects NAME ...] [--libraries few many]
+[--noise 0:0 0.002:2] [--seeds 1] [--first-seed 0] [--max-steps N] [--workers 2]
+[--out DIR] [--no-progress]``
+
+The objects are the project's own at real sizes in metres: the bundled known objects at
+:data:`~.sizes.SIZES_M` (12 to 40 cm) and the hard objects of :mod:`.hard_objects` (a 2 cm
+block to a 33 cm plank, in families of look-alikes: two screwdrivers, two balls, two mugs,
+two nested cups, the utensils). Each object on test is left out of its library and
+explored with the ``recommended`` preset until the session stops (or ``--max-steps``); its
+reconstruction is learned as a prior, and the object is met again at another pose (seed +
+1000) with that prior added, with the ``recognise`` preset. Two libraries:
+
+- ``few``: three priors unlike the object (the first three of :data:`FEW` outside its
+  family): what a lab with a handful of scans has;
+- ``many``: every other object, look-alikes of its family included.
+
+Per trial: judged novel at the end, the reconstruction error (two-way Hausdorff distance)
+as a share of the object's longest side, touches, whether the session stopped by itself,
+seconds; met again: whether the learned prior was the MAP at the decision, the touch of
+the decision, the pose error there as a share of the size, seconds. Writes ``learn.md``
+(tables) and ``learn.json`` (every trial's summary) to ``--out`` and prints the tables.
+"""
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..cli import (ArgumentParser, ExtendList, count_int, nonnegative_int, output_dir,
+                   positive_int, workers_int)
+from ..engine.io.files import write_atomic
+from .decide import noise_level
+from .hard_objects import HARD_SIZES_M, hard_meshes
+from .runner import make_task, open_pool, run_tasks
+from .sizes import SIZES_M
+
+OBJECTS = ("block", "cup", "ball_bumpy", "mug_1", "elephant", "screwdriver_cross", "fork",
+           "bottle_1", "sofa_1", "guitar_1")
+FEW = ("mug_1", "screwdriver_flat", "knife", "elephant", "vase_1")
+FAMILIES = ({"screwdriver_flat", "screwdriver_cross"}, {"ball_smooth", "ball_bumpy"},
+            {"mug_1", "mug_1_large"}, {"cup", "cup_nested"},
+            {"knife", "fork", "spatula", "pencil"}, {"block", "plank"})
+DEFAULT_NOISE = ((0.0, 0.0), (0.002, 2.0))
+AGAIN_SEED = 1000  # the met-again trial's seed offset: another pose than the one learned
+
+
+def family(name):
+    """The names of ``name``'s look-alikes, itself included."""
+    return next((f for f in FAMILIES if name in f), {name})
+
+
+def sizes():
+    """Every object of the pool and its longest side, metres."""
+    return {**SIZES_M, **HARD_SIZES_M}
+
+
+def library_names(name, which):
+    """The priors of library ``which`` (``few`` or ``many``) for the object ``name``."""
+    if which == "few":
+        return [n for n in FEW if n not in family(name)][:3]
+    return [n for n in sizes() if n != name]
+
+
+def _prior(name, files):
+    size = sizes()[name]
+    if name in files:
+        return {"name": name, "file": str(files[name]), "longest_side": size, "learned": False}
+    return {"name": name, "bundled": name, "longest_side": size}
+
+
+def _object_task(name, files, **kwargs):
+    return make_task(name, library="none", object_file=files.get(name),
+                     longest_side=sizes()[name] if name in files else None,
+                     sizes={name: sizes()[name]} if name not in files else None, **kwargs)
+
+
+def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps):
+    """The leave-one-out trials that learn (their met-again trials follow each one)."""
+    out = []
+    for (position, degrees), which, name in (
+            (n, w, o) for n in noises for w in libraries for o in objects):
+        for seed in range(first_seed, first_seed + seeds):
+            task = _object_task(
+                name, files, seed=seed, preset="recommended", kind="learn",
+                extra_priors=[_prior(p, files) for p in library_names(name, which)],
+                max_steps=max_steps, learn_as=f"{name}_learned",
+                sensor={"position_noise": position, "normal_noise_deg": degrees})
+            task["tag"] = which
+            out.append(task)
+    return out
+
+
+def again_task(task, result, max_steps):
+    """The trial that meets the learned object again, or None (nothing learned)."""
+    learned = result.get("learned")
+    if "error" in result or not learned or "vertices" not in learned:
+        return None
+    again = dict(task, kind="again", seed=task["seed"] + AGAIN_SEED, preset="recognise",
+                 learn_as=None, max_steps=max_steps,
+                 extra_priors=task["extra_priors"] + [
+                     {"name": learned["name"], "vertices": learned["vertices"],
+                      "faces": learned["faces"], "learned": True}])
+    return again
+
+
+def learn_summary(result):
+    """What the tables need of a trial that learns."""
+    steps, size = result["steps"], result["object_size"]
+    last = steps[-1]
+    recon = last.get("recon_error")
+    return {"object": result["object"], "library": result["task"]["tag"], "seed": result["seed"],
+            "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
+            "size": size, "judged_novel": bool(last["novel"]),
+            "recon_share": None if recon is None or not last["novel"] else recon / size,
+            "touches": len(steps), "stopped": result["terminated_at"] is not None,
+            "seconds": result["seconds"],
+            "learned": "vertices" in (result.get("learned") or {})}
+
+
+def again_summary(result):
+    """What the tables need of a trial that meets a learned object again."""
+    steps, size = result["steps"], result["object_size"]
+    learned = f"{result['object']}_learned"
+    decided = next((s for s in steps if s.get("decided")), None)
+    at = decided or steps[-1]
+    return {"map_learned": at["map_class"] == learned,
+            "decided_at": None if decided is None else decided["t"],
+            "decided_learned": bool(decided is not None and decided["map_class"] == learned),
+            "pose_share": None if at["pose_error"] is None else at["pose_error"] / size,
+            "again_touches": len(steps), "again_seconds": result["seconds"]}
+
+
+def _mean(values):
+    values = [v for v in values if v is not None]
+    return float(np.mean(values)) if values else None
+
+
+def _median(values):
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
+def _fmt(value, spec=".1f", scale=1.0):
+    return "-" if value is None else format(value * scale, spec)
+
+
+def markdown(rows):
+    """A table per library and noise level, then one row per trial."""
+    lines = ["| library | noise (m, deg) | judged novel | recon. error, mean (max) % of "
+             "size | stopped by itself | learned, MAP met again | decided met again | "
+             "median touches to it | pose error at it, mean % of size | median s (learn, "
+             "again) |", "|" + "---|" * 10]
+    for which in sorted({r["library"] for r in rows}):
+        for noise in sorted({tuple(r["noise"]) for r in rows}):
+            mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
+            n = len(mine)
+            again = [r for r in mine if "decided_at" in r]
+            shares = [r["recon_share"] for r in mine]
+            lines.append(
+                f"| {which} | {noise[0]:g}, {noise[1]:g} | "
+                f"{sum(r['judged_novel'] for r in mine)}/{n} | "
+                f"{_fmt(_mean(shares), scale=100)} ({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
+                f"{sum(r['stopped'] for r in mine)}/{n} | "
+                f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
+                f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "
+                f"{_fmt(_median([r['decided_at'] for r in again]), '.0f')} | "
+                f"{_fmt(_mean([r['pose_share'] for r in again]), scale=100)} | "
+                f"{_fmt(_median([r['seconds'] for r in mine]), '.0f')}, "
+                f"{_fmt(_median([r['again_seconds'] for r in again]), '.0f')} |")
+    lines += ["", "| object | size (cm) | library | noise | novel | recon. % | touches | "
+              "stopped | MAP again | decided at | pose % |", "|" + "---|" * 11]
+    for r in rows:
+        lines.append(
+            f"| {r['object']} | {100 * r['size']:.0f} | {r['library']} | "
+            f"{r['noise'][0]:g}, {r['noise'][1]:g} | {'yes' if r['judged_novel'] else 'no'} | "
+            f"{_fmt(r['recon_share'], scale=100)} | {r['touches']} | "
+            f"{'yes' if r['stopped'] else 'cap'} | "
+            f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
+            f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} |")
+    return "\n".join(lines) + "\n"
+
+
+def run(tasks, workers, max_steps, progress=True):
+    """Run the learning trials and their met-again trials; returns the summary rows and the
+    failed trials' tracebacks."""
+    rows, failed = {}, []
+
+    def follow_up(task, result):
+        again = again_task(task, result, max_steps) if task["kind"] == "learn" else None
+        return [] if again is None else [again]
+
+    pool = open_pool(workers)
+    try:
+        for task, result in run_tasks(tasks, pool, follow_up, progress, "learn"):
+            if "error" in result:
+                failed.append(result)
+                continue
+            key = (task["object"], task["tag"], task["seed"] - (
+                AGAIN_SEED if task["kind"] == "again" else 0), json.dumps(result["sensor"]))
+            row = rows.setdefault(key, {})
+            row.update(learn_summary(result) if task["kind"] == "learn"
+                       else again_summary(result))
+    finally:
+        pool.close()
+    return [row for row in rows.values() if "object" in row], failed
+
+
+def main(argv=None):
+    parser = ArgumentParser(prog="python -m tactile_viz bench learn", description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--objects", action=ExtendList, default=None, metavar="NAME",
+                        choices=sorted(sizes()), help="objects to leave out in turn "
+                        f"(default: {' '.join(OBJECTS)})")
+    parser.add_argument("--libraries", action=ExtendList, default=None,
+                        choices=["few", "many"], help="libraries (default: few many)")
+    parser.add_argument("--noise", type=noise_level, action=ExtendList, default=None,
+                        metavar="M:DEG", help="sensor noise levels: position std in metres, "
+                        "normal std in degrees (default 0:0 0.002:2)")
+    parser.add_argument("--seeds", type=count_int, default=1, help="seeds per object")
+    parser.add_argument("--first-seed", type=nonnegative_int, default=0,
+                        help="the first seed (seeds run from it up)")
+    parser.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
+                        help="cap every trial at N touches (default: the presets' caps)")
+    parser.add_argument("--workers", type=workers_int, default=2, help="trials in parallel")
+    parser.add_argument("--out", type=output_dir, default="results/learn",
+                        help="folder for learn.md and learn.json")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = hard_meshes(out / "objects")
+    tasks = learn_tasks(args.objects or list(OBJECTS), args.libraries or ["few", "many"],
+                        args.noise or DEFAULT_NOISE, args.seeds, args.first_seed, files,
+                        args.max_steps)
+    rows, failed = run(tasks, args.workers, args.max_steps, not args.no_progress)
+    for result in failed:
+        print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
+    rows.sort(key=lambda r: (r["library"], r["noise"], r["object"], r["seed"]))
+    write_atomic(out / "learn.json", json.dumps(rows, indent=1).encode())
+    text = markdown(rows)
+    write_atomic(out / "learn.md", text.encode())
+    print(text, end="")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,89 @@
+"""bench learn: its libraries, its tasks, the met-again trial and the tables (no long runs)."""
+
+import numpy as np
+import pytest
+
+from tactile_viz.__main__ import main
+from tactile_viz.experiments import learn
+from tactile_viz.experiments.runner import task_library
+
+
+def test_few_unlike_priors_leave_out_the_objects_family_and_many_only_the_object():
+    assert learn.library_names("mug_1", "few") == ["screwdriver_flat", "knife", "elephant"]
+    assert learn.library_names("fork", "few") == ["mug_1", "screwdriver_flat", "elephant"]
+    many = learn.library_names("ball_bumpy", "many")
+    assert "ball_bumpy" not in many and "ball_smooth" in many
+    assert len(many) == len(learn.sizes()) - 1
+
+
+def test_tasks_leave_the_object_out_and_learn_it(tmp_path):
+    files = {"block": tmp_path / "block.ply", "knife": tmp_path / "knife.ply",
+             "screwdriver_flat": tmp_path / "s.ply"}
+    tasks = learn.learn_tasks(["block", "mug_1"], ["few", "many"], [(0.0, 0.0), (0.002, 2.0)],
+                              2, 5, files, None)
+    assert len(tasks) == 2 * 2 * 2 * 2
+    for task in tasks:
+        names = [p["name"] for p in task["extra_priors"]]
+        assert task["object"] not in names and task["library"] == "none"
+        assert task["learn_as"] == f"{task['object']}_learned" and task["kind"] == "learn"
+        assert task["seed"] in (5, 6) and task["preset"] == "recommended"
+    block = next(t for t in tasks if t["object"] == "block")
+    assert block["object_file"] == str(files["block"]) and block["longest_side"] == 0.02
+    mug = next(t for t in tasks if t["object"] == "mug_1")
+    assert mug["sizes"] == {"mug_1": learn.sizes()["mug_1"]}
+
+
+def test_a_bundled_prior_of_a_task_has_its_size():
+    task = {"library": "none", "extra_priors": [{"name": "elephant", "bundled": "elephant",
+                                                 "longest_side": 0.15}]}
+    library = task_library(task)
+    assert library.names == ["elephant"]
+    assert library["elephant"].length == pytest.approx(0.15, rel=1e-6)
+
+
+def _result(name, steps, novel=True, learned=True, terminated=True, kind="learn"):
+    records = [{"t": t, "novel": novel, "map_class": f"{name}_learned" if kind == "again"
+                else "knife", "recon_error": 0.005, "pose_error": 0.004,
+                "decided": kind == "again" and t >= 9} for t in range(1, steps + 1)]
+    result = {"object": name, "object_size": 0.1, "seed": 3, "seconds": 4.0, "steps": records,
+              "terminated_at": steps if terminated else None,
+              "sensor": {"position_noise": 0.0, "normal_noise_deg": 0.0},
+              "task": {"tag": "few"}}
+    if learned:
+        result["learned"] = {"name": f"{name}_learned", "vertices": [[0, 0, 0]], "faces": []}
+    return result
+
+
+def test_the_met_again_trial_adds_the_learned_prior_at_another_pose():
+    task = {"object": "cup", "seed": 3, "kind": "learn", "preset": "recommended",
+            "learn_as": "cup_learned", "extra_priors": [{"name": "knife"}], "tag": "few"}
+    assert learn.again_task(task, _result("cup", 10, learned=False), None) is None
+    again = learn.again_task(task, _result("cup", 10), 50)
+    assert again["seed"] == 3 + learn.AGAIN_SEED and again["preset"] == "recognise"
+    assert again["kind"] == "again" and again["learn_as"] is None and again["max_steps"] == 50
+    assert [p["name"] for p in again["extra_priors"]] == ["knife", "cup_learned"]
+    assert again["extra_priors"][1]["learned"] is True
+    assert task["extra_priors"] == [{"name": "knife"}]  # the learning task is unchanged
+
+
+def test_summaries_and_tables():
+    row = learn.learn_summary(_result("cup", 30))
+    assert row["judged_novel"] and row["stopped"] and row["learned"]
+    assert np.isclose(row["recon_share"], 0.05) and row["touches"] == 30
+    capped = learn.learn_summary(_result("cup", 30, novel=False, terminated=False))
+    assert capped["recon_share"] is None and not capped["stopped"]
+    row.update(learn.again_summary(_result("cup", 20, kind="again")))
+    assert row["decided_learned"] and row["decided_at"] == 9
+    assert np.isclose(row["pose_share"], 0.04)
+    text = learn.markdown([row, capped])
+    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 |" in text
+    assert "| cup | 10 | few | 0, 0 | no | - | 30 | cap | - | - | - |" in text
+
+
+@pytest.mark.parametrize("argv", [["--objects", "teapot"], ["--libraries", "all"],
+                                  ["--noise", "x"], ["--seeds", "0"]])
+def test_bad_arguments_are_one_line(argv, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "learn", *argv])
+    assert stop.value.code == 2
+    assert "error:" in capsys.readouterr().err
