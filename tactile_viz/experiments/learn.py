@@ -111,11 +111,13 @@ def learn_summary(result):
     steps, size = result["steps"], result["object_size"]
     last = steps[-1]
     recon = last.get("recon_error")
+    params, cap = result["params"], result["task"].get("max_steps")
+    cap = cap or (params["max_steps_novel"] if last["novel"] else params["max_steps_known"])
     return {"object": result["object"], "library": result["task"]["tag"], "seed": result["seed"],
             "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
             "size": size, "judged_novel": bool(last["novel"]),
             "recon_share": None if recon is None or not last["novel"] else recon / size,
-            "touches": len(steps), "stopped": result["terminated_at"] is not None,
+            "touches": len(steps), "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"],
             "learned": "vertices" in (result.get("learned") or {})}
 

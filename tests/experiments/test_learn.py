@@ -48,7 +48,8 @@ def _result(name, steps, novel=True, learned=True, terminated=True, kind="learn"
     result = {"object": name, "object_size": 0.1, "seed": 3, "seconds": 4.0, "steps": records,
               "terminated_at": steps if terminated else None,
               "sensor": {"position_noise": 0.0, "normal_noise_deg": 0.0},
-              "task": {"tag": "few"}}
+              "task": {"tag": "few", "max_steps": None},
+              "params": {"max_steps_novel": 40, "max_steps_known": 30}}
     if learned:
         result["learned"] = {"name": f"{name}_learned", "vertices": [[0, 0, 0]], "faces": []}
     return result
@@ -70,8 +71,9 @@ def test_summaries_and_tables():
     row = learn.learn_summary(_result("cup", 30))
     assert row["judged_novel"] and row["stopped"] and row["learned"]
     assert np.isclose(row["recon_share"], 0.05) and row["touches"] == 30
-    capped = learn.learn_summary(_result("cup", 30, novel=False, terminated=False))
-    assert capped["recon_share"] is None and not capped["stopped"]
+    capped = learn.learn_summary(_result("cup", 30, novel=False, terminated=True))
+    assert capped["recon_share"] is None and not capped["stopped"]  # the known cap, 30
+    assert not learn.learn_summary(_result("cup", 30, terminated=False))["stopped"]
     row.update(learn.again_summary(_result("cup", 20, kind="again")))
     assert row["decided_learned"] and row["decided_at"] == 9
     assert np.isclose(row["pose_share"], 0.04)
