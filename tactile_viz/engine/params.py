@@ -273,6 +273,13 @@ class SessionParams:
         notes="At most the distance to the nearest contact, around every non-contact and "
               "every sample of a missed probe's path, so a probe through a phantom part of a "
               "wrong prior removes it there.")
+    gpis_fill_radius: float = _gpis(
+        3.0, "Largest solid ball behind a contact added to the GPIS prior mean (beyond the "
+        "paper; 0 keeps the prior as it is).", valid=_AT_LEAST_0, length=1,
+        notes="The ball tangent at a contact, inside it, as large as no other contact and no "
+              "free-space point lies in it: where the prior is empty behind the contacts (a "
+              "mug's inside, as the prior of a ball) the space is solid up to where the "
+              "evidence says otherwise (docs/novel.md).")
     gpis_carve_outside: bool = _gpis(
         True, "Free-space points outside the prior's solid cut their balls out of it too "
         "(beyond the paper; False: only those a probe found inside it).", kind="bool",
@@ -280,6 +287,14 @@ class SessionParams:
               "refutes nothing of it, but its ball cuts the part away; off, sofa_2 under "
               "noise was better in 5 of 6 trials, but the dragon noiseless worse in 6 of 6 "
               "(0.398 -> 0.546), so it stays on (docs/gpis.md).")
+    gpis_fill_voids: bool = _gpis(
+        True, "Fill the GPIS estimate's voids, outside regions enclosed by its solid, before "
+        "its surface is extracted (beyond the paper): the surface is the one a probe can "
+        "reach.", kind="bool",
+        notes="A prior with a cavity (a mug's inside) left the cavity's wall 4 cm inside a "
+              "10 cm ball whose top the contacts closed: no contact could cover it, the "
+              "stop never came and the reconstruction error was 38% of the size "
+              "(docs/novel.md).")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "

@@ -16,10 +16,14 @@ from scipy.spatial import cKDTree
 from ..shape.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, cut_free_space,
                           fit_gpis, zero_level_surface)
 from ..shape.gpis_incremental import fit_gpis_incremental
+from ..shape.gpis_prior import contact_balls, filled_prior
 from ..shape.gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
+
+FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
+FILL_SLACK = 0.02  # its ball, and this share of a size unit (a contact's localisation)
 
 
 class Estimation:
@@ -50,7 +54,8 @@ class Estimation:
         low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
         prior = self._gpis_prior(model, rotation, translation, contacts,
-                                 self.filter.noncontact_positions, self.state.free_space)
+                                 self.filter.noncontact_positions, self.state.free_space,
+                                 normals)
         if p.gpis_incremental:
             fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
                                         self._noncontact_points(), prior)
@@ -123,12 +128,14 @@ class Estimation:
                 candidates = [cut(final.fit)]  # this step's own: its uncut fit is final's
             else:
                 prior_mean = self._gpis_prior(model, rotation, translation, contacts,
-                                              f.noncontact_positions, self.state.free_space)
+                                              f.noncontact_positions, self.state.free_space,
+                                              f.contact_normals)
                 fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
                                 self.state.gpis_scale, newton=False)
                 candidates = [fit, cut(fit)]
             for candidate in candidates:
-                vertices, faces = zero_level_surface(candidate, (low, high), p.final_resolution)
+                vertices, faces = zero_level_surface(candidate, (low, high), p.final_resolution,
+                                                     fill_voids=p.gpis_fill_voids)
                 candidate_support = support(vertices, tree) if len(faces) else np.inf
                 if candidate_support <= p.eps:
                     return self._surface(candidate, (low, high), p.final_resolution)
@@ -158,7 +165,7 @@ class Estimation:
         vertex."""
         low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
         vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
-                                             spacing=spacing)
+                                             spacing=spacing, fill_voids=self._p.gpis_fill_voids)
         subset, candidates, everywhere = None, np.zeros(0), None
         if len(vertices):
             count = min(self._p.variance_points, len(vertices))
@@ -243,12 +250,19 @@ class Estimation:
             return low, high, WendlandKernel(p.gpis_support)
         return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
 
-    def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space):
-        """The GPIS prior mean: the MAP shape with the refuted space cut out."""
-        return carved_prior(self._prior(model, rotation, translation),
-                            np.vstack([noncontacts, free_space]), contacts,
-                            self._p.gpis_carve_radius,
-                            inside_only=not self._p.gpis_carve_outside)
+    def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
+                    normals):
+        """The GPIS prior mean: the MAP shape with the solid behind the contacts added
+        (``gpis_fill_radius``) and the refuted space cut out."""
+        p = self._p
+        free = np.vstack([noncontacts, free_space])
+        prior = self._prior(model, rotation, translation)
+        if p.gpis_fill_radius > 0:
+            prior = filled_prior(prior, contact_balls(
+                contacts, normals, free, p.gpis_fill_radius,
+                FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit))
+        return carved_prior(prior, free, contacts, p.gpis_carve_radius,
+                            inside_only=not p.gpis_carve_outside)
 
     def _cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)

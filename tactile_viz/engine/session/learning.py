@@ -44,7 +44,8 @@ class Learning:
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
         self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
-                                 snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
+                                 snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
+                                 snapshot.normals)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
         if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
             kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
@@ -56,7 +57,8 @@ class Learning:
                           prior, snapshot.gpis_scale)
         fit = self._cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
                                  snapshot.free_space)
-        vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing)
+        vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing,
+                                             fill_voids=self._p.gpis_fill_voids)
         if len(faces) == 0:
             raise SessionError("the reconstruction has no surface at the learned resolution")
         return vertices, faces

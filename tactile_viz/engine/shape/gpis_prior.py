@@ -180,3 +180,85 @@ class FreeSpaceCut:
                 distance[chosen] = found[0].reshape(chosen.sum(), -1)
                 index[chosen] = found[1].reshape(chosen.sum(), -1)
         return distance, index
+
+
+def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
+    """The solid balls behind the contacts (:class:`ContactFill`; None: no ball).
+
+    A contact ``c`` with outward normal ``n`` is tangent to the ball of radius ``r`` centred
+    at ``c - r n``; the largest such ball up to ``radius`` that holds no other contact and no
+    free-space point deeper than ``tolerance`` is taken: a point ``p`` at depth
+    ``d = (c - p) . n - tolerance > 0`` behind the tangent plane lies on the ball of radius
+    ``|p - c|^2 / (2 d)`` (the shrinking ball of medial-axis estimation).
+
+    Parameters
+    ----------
+    contacts, normals : (n, 3) float, world frame
+        Contact positions and outward unit normals.
+    free_points : (q, 3) float
+        Points outside the object (non-contacts, missed probes' paths).
+    radius : float, scene units
+        The largest ball; 0 gives None.
+    tolerance : float, scene units
+        How deep a point may lie behind a tangent plane and still not bound its ball (the
+        position noise).
+
+    Returns
+    -------
+    ContactFill or None
+    """
+    contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    if radius <= 0 or len(contacts) == 0:
+        return None
+    others = np.vstack([contacts, np.asarray(free_points, dtype=float).reshape(-1, 3)])
+    tree = cKDTree(others)
+    radii = np.full(len(contacts), float(radius))
+    for i, near in enumerate(tree.query_ball_point(contacts, 2 * radius)):
+        offset = contacts[i] - others[near]
+        depth = offset @ normals[i] - tolerance
+        behind = depth > 0
+        if behind.any():
+            bound = np.einsum("ij,ij->i", offset[behind], offset[behind]) / (2 * depth[behind])
+            radii[i] = min(radii[i], float(bound.min()))
+    keep = radii > tolerance
+    if not keep.any():
+        return None
+    return ContactFill(contacts[keep] - radii[keep, None] * normals[keep], radii[keep])
+
+
+class ContactFill:
+    """Solid balls of ``radii`` about ``centres`` added to a field's solid:
+    ``f'(x) = min(f(x), |x - b_i| - r_i)`` over the ``neighbours`` nearest centres."""
+
+    def __init__(self, centres, radii, neighbours=8):
+        self.centres, self.radii = centres, radii
+        self.neighbours = int(min(neighbours, len(centres)))
+        self.tree = cKDTree(centres)
+
+    def __call__(self, points, values, gradients=None):
+        """The filled ``values`` (k,) and, when given, ``gradients`` (k, 3) at ``points``
+        (k, 3); the arrays are changed in place and returned."""
+        candidates = np.flatnonzero(values > -self.radii.max())  # a ball is at least -r
+        if len(candidates) == 0:
+            return values, gradients
+        distance, index = self.tree.query(points[candidates], k=self.neighbours)
+        distance, index = distance.reshape(len(candidates), -1), index.reshape(len(candidates), -1)
+        filled = distance - self.radii[index]
+        best = np.argmin(filled, axis=1)
+        rows = np.arange(len(candidates))
+        filled, centre = filled[rows, best], self.centres[index[rows, best]]
+        wins = filled < values[candidates]
+        changed = candidates[wins]
+        values[changed] = filled[wins]
+        if gradients is not None:
+            offset = points[changed] - centre[wins]
+            length = np.linalg.norm(offset, axis=1, keepdims=True)
+            gradients[changed] = offset / np.maximum(length, 1e-12)
+        return values, gradients
+
+
+def filled_prior(prior, fill):
+    """``prior`` with the :class:`ContactFill` ``fill`` added to its solid (``prior`` itself
+    when ``fill`` is None)."""
+    return prior if fill is None else CarvedPrior(prior, fill)
