@@ -1,9 +1,11 @@
 """The GPIS prior mean beyond the MAP shape itself: the shape carved where probes found free
-space, and the value observations of non-contacts (beyond the paper); the observations of
-a fit less the prior mean."""
+space, the solid behind the contacts added, and the value observations of non-contacts
+(beyond the paper); the observations of a fit less the prior mean."""
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+SHRINK_STEPS = 32  # shrinking-ball iterations (each a look-up of every ball still shrinking)
 
 
 def noncontact_observations(prior, noncontacts, value):
@@ -185,11 +187,13 @@ class FreeSpaceCut:
 def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
     """The solid balls behind the contacts (:class:`ContactFill`; None: no ball).
 
-    A contact ``c`` with outward normal ``n`` is tangent to the ball of radius ``r`` centred
-    at ``c - r n``; the largest such ball up to ``radius`` that holds no other contact and no
-    free-space point deeper than ``tolerance`` is taken: a point ``p`` at depth
-    ``d = (c - p) . n - tolerance > 0`` behind the tangent plane lies on the ball of radius
-    ``|p - c|^2 / (2 d)`` (the shrinking ball of medial-axis estimation).
+    Each contact ``c`` with outward normal ``n`` gets the largest ball up to ``radius`` that
+    touches ``c' = c - tolerance n`` from inside (centre ``c' - r n``) and holds no other
+    contact and no free-space point: the shrinking ball of medial-axis estimation (Ma,
+    Bae and Kim 2012). While the point nearest its centre lies inside, the ball shrinks to
+    the one through that point ``p``, of radius ``|p - c'|^2 / (2 (c' - p) . n)``. The
+    ``tolerance`` (the position noise) keeps a neighbour a little behind the tangent plane
+    from shrinking it.
 
     Parameters
     ----------
@@ -200,8 +204,6 @@ def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
     radius : float, scene units
         The largest ball; 0 gives None.
     tolerance : float, scene units
-        How deep a point may lie behind a tangent plane and still not bound its ball (the
-        position noise).
 
     Returns
     -------
@@ -213,18 +215,22 @@ def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
         return None
     others = np.vstack([contacts, np.asarray(free_points, dtype=float).reshape(-1, 3)])
     tree = cKDTree(others)
+    touching = contacts - tolerance * normals
     radii = np.full(len(contacts), float(radius))
-    for i, near in enumerate(tree.query_ball_point(contacts, 2 * radius)):
-        offset = contacts[i] - others[near]
-        depth = offset @ normals[i] - tolerance
-        behind = depth > 0
-        if behind.any():
-            bound = np.einsum("ij,ij->i", offset[behind], offset[behind]) / (2 * depth[behind])
-            radii[i] = min(radii[i], float(bound.min()))
+    active = np.arange(len(contacts))
+    for _ in range(SHRINK_STEPS):
+        distance, index = tree.query(touching[active] - radii[active, None] * normals[active])
+        inside = distance < radii[active] * (1 - 1e-9)
+        active = active[inside]
+        if len(active) == 0:
+            break
+        offset = touching[active] - others[index[inside]]
+        depth = np.einsum("ij,ij->i", offset, normals[active])
+        radii[active] = np.einsum("ij,ij->i", offset, offset) / (2 * np.maximum(depth, 1e-300))
     keep = radii > tolerance
     if not keep.any():
         return None
-    return ContactFill(contacts[keep] - radii[keep, None] * normals[keep], radii[keep])
+    return ContactFill(touching[keep] - radii[keep, None] * normals[keep], radii[keep])
 
 
 class ContactFill:
