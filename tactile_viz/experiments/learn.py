@@ -102,7 +102,8 @@ def again_task(task, result, max_steps):
                  learn_as=None, max_steps=max_steps,
                  extra_priors=task["extra_priors"] + [
                      {"name": learned["name"], "vertices": learned["vertices"],
-                      "faces": learned["faces"], "learned": True}])
+                      "faces": learned["faces"], "learned": True,
+                      "shape_error": learned.get("shape_error", 0.0)}])
     return again
 
 

@@ -149,7 +149,8 @@ def task_library(task):
             continue
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,
-                           learned=prior.get("learned", True))
+                           learned=prior.get("learned", True),
+                           shape_error=prior.get("shape_error", 0.0))
     return library
 
 
@@ -177,7 +178,8 @@ def _finisher(task):
             try:
                 model = session.learned_model(task["learn_as"])
                 extra["learned"] = {"name": model.name, "vertices": model.mesh.vertices.tolist(),
-                                    "faces": model.mesh.faces.tolist()}
+                                    "faces": model.mesh.faces.tolist(),
+                                    "shape_error": model.shape_error}
             except Exception as error:  # not novel, no surface, or a mesh the loader refuses
                 extra["learned"] = {"name": task["learn_as"], "error": str(error)}
         return extra

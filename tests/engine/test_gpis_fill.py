@@ -76,3 +76,28 @@ def test_the_paper_preset_keeps_the_prior_as_it_is():
     assert paper.gpis_fill_radius == 0 and not paper.gpis_fill_voids
     default = session_preset("recommended")
     assert default.gpis_fill_radius > 0 and default.gpis_fill_voids
+
+
+def test_held_out_errors_are_the_fits_without_each_contact():
+    from tactile_viz.engine.shape.gpis import ThinPlateKernel, fit_gpis, held_out_errors
+
+    contacts, normals = _sphere_contacts(25, 1.0, rng=3)
+    contacts = contacts * np.array([1.0, 1.0, 1.3])  # an ellipsoid the sphere prior misfits
+
+    def ball(points):
+        points = np.atleast_2d(points)
+        length = np.linalg.norm(points, axis=1)
+        return length - 1.0, points / length[:, None]
+
+    kernel = ThinPlateKernel(4.0)
+    fit = fit_gpis(contacts, normals, ball, kernel, scale=0.5, newton=False)
+    errors = held_out_errors(fit)
+    for j in (0, 7, 19):
+        rest = np.delete(np.arange(len(contacts)), j)
+        without = fit_gpis(contacts[rest], normals[rest], ball, kernel, scale=0.5, newton=False)
+        np.testing.assert_allclose(errors[j], abs(without.mean_value(contacts[j:j + 1])[0]),
+                                   rtol=1e-5, atol=1e-9)
+    assert errors.max() > 1e-3  # the ellipsoid's ends are not where the others predict
+    with_misses = fit_gpis(contacts, normals, ball, kernel, scale=0.5, newton=False,
+                           noncontacts=np.array([[0.0, 0.0, 0.5]]))
+    assert held_out_errors(with_misses).shape == (len(contacts),)  # a miss has no block

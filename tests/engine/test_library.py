@@ -34,11 +34,15 @@ def test_extend_from_file_and_arrays_then_save(small_library, tmp_path):
 def test_a_learned_prior_stays_learned_through_save_and_load(small_library, tmp_path):
     library, folder = small_library
     cone = trimesh.creation.cone(radius=1.0, height=3.0)
-    library.add_arrays(cone.vertices, cone.faces, "learned cone", learned=True)
+    library.add_arrays(cone.vertices, cone.faces, "learned cone", learned=True,
+                       shape_error=0.03)
     library.save(folder)
     loaded = PriorLibrary.load(folder)
     assert [loaded[name].learned for name in loaded.names] == [False, False, True]
     assert loaded["learned cone"].renamed("again").learned
+    # Its own error travels with it (in its units) and a given mesh has none.
+    assert loaded["learned cone"].renamed("again").shape_error == pytest.approx(0.03)
+    assert loaded["box"].shape_error == 0.0
 
 
 def test_names_are_unique(small_library):

@@ -819,7 +819,8 @@ def _recon_of(session, snapshot):
 
     model = session.filter.models[session.filter.class_names.index(snapshot.map_class)]
     prior = session._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
-                                snapshot.contacts, snapshot.noncontacts, snapshot.free_space)
+                                snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
+                                snapshot.normals)
     low, high, kernel = session._gpis_box(snapshot.map_vertices, snapshot.contacts)
     fit = session._refit(kernel, snapshot.contacts, snapshot.normals,
                          session._noncontact_points(snapshot.noncontacts, snapshot.free_space),

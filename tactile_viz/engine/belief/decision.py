@@ -163,8 +163,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     confidence : float
         ``decision_confidence``.
     floor : float, scene units
-        Least noise scale of the fit posterior besides the grid's own error: the sensor's
-        position noise and the contact's localisation, in quadrature.
+        Least noise scale of the fit posterior besides the grid's own error and a learned
+        MAP's ``shape_error``: the sensor's position noise and the contact's localisation,
+        in quadrature.
     same_mode : float, scene units
         Hypotheses of one class whose posed surfaces agree within this distance
         (:func:`surface_disagreement`) are one.
@@ -227,7 +228,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         return UNDECIDED
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     best = float(misfit.min())
-    floor2 = floor**2 + grid_error(pf.bank, classes[0]) ** 2  # the MAP's model error too
+    shape2 = pf.models[classes[0]].shape_error ** 2  # a learned shape's own error
+    floor2 = floor**2 + grid_error(pf.bank, classes[0]) ** 2 + shape2  # the MAP's model too
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
     turned = np.full(len(classes), np.inf)
     finite = np.flatnonzero(np.isfinite(misfit))
@@ -278,7 +280,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
         or mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
                        oriented) <= quantile * max(
-            floor**2 + roughness**2, 1e-300))
+            floor**2 + shape2 + roughness**2, 1e-300))
     loosest, modes = None, ()
     if fits and level >= confidence:
         modes = _open_modes(pf.bank, hypotheses, lead,

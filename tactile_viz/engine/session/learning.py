@@ -6,7 +6,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..errors import SessionError
-from ..shape.gpis import ThinPlateKernel, zero_level_surface
+from ..shape.gpis import ThinPlateKernel, held_out_errors, zero_level_surface
 from ..shape.gpis_variance import lattice_low
 from ..shape.objects import ObjectModel
 
@@ -21,26 +21,32 @@ class Learning:
         extracted at ``resolution`` (default ``params.learned_resolution``; a stopped
         session's last surface is already at ``params.final_resolution``); the
         largest connected piece of the zero level set is kept, and the model is checked and
-        normalised like any loaded mesh.
+        normalised like any loaded mesh. Its ``shape_error`` is the RMS of the fit's
+        held-out errors at the contacts (:func:`~..shape.gpis.held_out_errors`): how far a
+        touch it has not seen may miss it.
         """
         snapshot = snapshot or self.latest
         if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
             raise SessionError("no reconstructed surface to learn from: the object was not "
                                "judged novel in this step")
         resolution = resolution or self._p.learned_resolution
+        fit, box = self._snapshot_fit(snapshot, resolution)
         vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
         if resolution != snapshot.gpis_resolution:
-            vertices, faces = self._surface_at(snapshot, resolution)
-        return learned_model_from_surface(vertices, faces, name,
-                                          params=self.library[snapshot.map_class].params
-                                          if snapshot.map_class in self.library else None,
-                                          contacts=snapshot.contacts, reach=self._p.eps)
+            vertices, faces = self._level_set(fit, box, resolution)
+        errors = held_out_errors(fit)
+        model = learned_model_from_surface(vertices, faces, name,
+                                           params=self.library[snapshot.map_class].params
+                                           if snapshot.map_class in self.library else None,
+                                           contacts=snapshot.contacts, reach=self._p.eps)
+        model.shape_error = float(np.sqrt(np.mean(errors**2))) if len(errors) else 0.0
+        return model
 
-    def _surface_at(self, snapshot, resolution):
-        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells, fitted with
-        the snapshot's MAP prior (a stopped session may report the surface of a recent
-        prior instead, ``final_candidates``; it is learned as reported at
-        ``final_resolution``, the default ``learned_resolution``)."""
+    def _snapshot_fit(self, snapshot, resolution):
+        """The snapshot's GPIS fit again, with the snapshot's MAP prior (a stopped session
+        may report the surface of a recent prior instead, ``final_candidates``; it is
+        learned as reported at ``final_resolution``, the default ``learned_resolution``),
+        and the box ``(low, high, spacing)`` of its surface at ``resolution``."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
         self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
@@ -57,6 +63,16 @@ class Learning:
                           prior, snapshot.gpis_scale)
         fit = self._cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
                                  snapshot.free_space)
+        return fit, (low, high, spacing)
+
+    def _surface_at(self, snapshot, resolution):
+        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
+        return self._level_set(*self._snapshot_fit(snapshot, resolution), resolution)
+
+    def _level_set(self, fit, box, resolution):
+        """The zero level set of a snapshot's fit (:meth:`_snapshot_fit`) on a grid of
+        ``resolution`` cells (``box``: its low and high corners and cell)."""
+        low, high, spacing = box
         vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing,
                                              fill_voids=self._p.gpis_fill_voids)
         if len(faces) == 0:

@@ -144,8 +144,8 @@ class PriorLibrary:
         """Write the library to ``folder`` (created if needed) without risking the old one.
 
         Each entry of the manifest has the prior's ``name``, mesh ``file`` and its
-        ``sha256``, ``learned``, ``longest_side``, ``file_to_object`` (4x4) and ``units``
-        (None when unknown).
+        ``sha256``, ``learned``, ``longest_side``, ``file_to_object`` (4x4), ``shape_error``
+        (a learned shape's, in its units) and ``units`` (None when unknown).
         """
         folder = Path(folder)
         try:
@@ -203,7 +203,8 @@ class PriorLibrary:
             mesh.apply_scale(scale)
             model = ObjectModel(entry["name"], mesh, params, cache,
                                 learned=entry.get("learned") is True,
-                                file_to_object=np.diag([scale] * 3 + [1.0]) @ _matrix(entry, path))
+                                file_to_object=np.diag([scale] * 3 + [1.0]) @ _matrix(entry, path),
+                                shape_error=scale * float(entry.get("shape_error", 0.0)))
             library.add(model, units=units if saved is not None and units else saved)
         log.info("loaded %d priors from %s", len(library), folder)
         return library
@@ -220,7 +221,8 @@ def _save_mesh(folder, model):
     if not (folder / filename).is_file():
         write_atomic(folder / filename, data)
     return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned,
-            "longest_side": model.length, "file_to_object": model.file_to_object.tolist()}
+            "longest_side": model.length, "file_to_object": model.file_to_object.tolist(),
+            "shape_error": model.shape_error}
 
 
 def _matrix(entry, path):

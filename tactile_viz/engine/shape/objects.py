@@ -77,14 +77,21 @@ class ObjectModel:
         The similarity from the coordinates of the file the mesh came from to the object
         frame (centring, unit factor or normalisation); default ``mesh.metadata``'s, else
         the identity. ``object_to_world @ file_to_object`` places the user's file.
+    shape_error : float, scene units
+        How far a touch may lie off this surface although the object is this one: 0 for a
+        given mesh; for a learned shape the RMS of its held-out errors
+        (:func:`~tactile_viz.engine.shape.gpis.held_out_errors`), which the decision adds to
+        the sensor's noise.
     """
 
-    def __init__(self, name, mesh, params=None, cache=None, learned=False, file_to_object=None):
+    def __init__(self, name, mesh, params=None, cache=None, learned=False, file_to_object=None,
+                 shape_error=0.0):
         self.name = str(name)
         self.mesh = mesh
         self.params = params or ModelParams()
         self.cache = cache if cache is not None else ArrayCache()
         self.learned = bool(learned)
+        self.shape_error = float(shape_error)
         if file_to_object is None:
             file_to_object = mesh.metadata.get("file_to_object", np.eye(4))
         self.file_to_object = np.array(file_to_object, dtype=float).reshape(4, 4)
@@ -123,16 +130,16 @@ class ObjectModel:
 
     @classmethod
     def from_arrays(cls, vertices, faces, name, params=None, cache=None, longest_side=None,
-                    learned=False, scale=1.0):
+                    learned=False, scale=1.0, shape_error=0.0):
         """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and centred;
         ``longest_side`` normalises their size)."""
         mesh = prepare_mesh(vertices, faces, source=name, longest_side=longest_side,
                             scale=scale)
-        return cls(name, mesh, params, cache, learned)
+        return cls(name, mesh, params, cache, learned, shape_error=shape_error)
 
     def _like(self, name=None, params=None):
         return ObjectModel(name or self.name, self.mesh, params or self.params, self.cache,
-                           self.learned, self.file_to_object)
+                           self.learned, self.file_to_object, self.shape_error)
 
     def with_params(self, **changes):
         """The same mesh with other :class:`ModelParams` (shares the exact distance)."""
