@@ -150,12 +150,19 @@ def _fmt(value, spec=".1f", scale=1.0):
     return "-" if value is None else format(value * scale, spec)
 
 
+def _pose_within(row):
+    """Whether a met-again pose error is within the reconstruction error plus 10% of the
+    size (what a learned shape can be posed to)."""
+    return (row.get("pose_share") is not None and row.get("recon_share") is not None
+            and row["pose_share"] <= row["recon_share"] + 0.10)
+
+
 def markdown(rows):
     """A table per library and noise level, then one row per trial."""
     lines = ["| library | noise (m, deg) | judged novel | recon. error, mean (max) % of "
              "size | stopped by itself | learned, MAP met again | decided met again | "
-             "median touches to it | pose error at it, mean % of size | median s (learn, "
-             "again) |", "|" + "---|" * 10]
+             "median touches to it | pose error at it, mean % of size | pose within recon. "
+             "+ 10% | median s (learn, again) |", "|" + "---|" * 11]
     for which in sorted({r["library"] for r in rows}):
         for noise in sorted({tuple(r["noise"]) for r in rows}):
             mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
@@ -171,6 +178,7 @@ def markdown(rows):
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "
                 f"{_fmt(_median([r['decided_at'] for r in again]), '.0f')} | "
                 f"{_fmt(_mean([r['pose_share'] for r in again]), scale=100)} | "
+                f"{sum(_pose_within(r) for r in again)}/{len(again)} | "
                 f"{_fmt(_median([r['seconds'] for r in mine]), '.0f')}, "
                 f"{_fmt(_median([r['again_seconds'] for r in again]), '.0f')} |")
     lines += ["", "| object | size (cm) | library | noise | novel | recon. % | touches | "

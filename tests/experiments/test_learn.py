@@ -78,7 +78,7 @@ def test_summaries_and_tables():
     assert row["decided_learned"] and row["decided_at"] == 9
     assert np.isclose(row["pose_share"], 0.04)
     text = learn.markdown([row, capped])
-    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 |" in text
+    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 |" in text
     assert "| cup | 10 | few | 0, 0 | no | - | 30 | cap | - | - | - |" in text
 
 
