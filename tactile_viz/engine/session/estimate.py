@@ -252,15 +252,18 @@ class Estimation:
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
                     normals):
-        """The GPIS prior mean: the MAP shape with the solid behind the contacts added
-        (``gpis_fill_radius``) and the refuted space cut out."""
+        """The GPIS prior mean: the MAP shape with the solid behind the contacts it puts in
+        its empty space added (``gpis_fill_radius``) and the refuted space cut out."""
         p = self._p
         free = np.vstack([noncontacts, free_space])
         prior = self._prior(model, rotation, translation)
-        if p.gpis_fill_radius > 0:
+        if p.gpis_fill_radius > 0 and len(contacts):
+            slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit
+            # Only a contact the prior puts in its empty space is evidence against it.
+            refuting = np.asarray(prior(contacts)[0]) > slack
             prior = filled_prior(prior, contact_balls(
-                contacts, normals, free, p.gpis_fill_radius,
-                FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit))
+                contacts[refuting], normals[refuting], np.vstack([free, contacts]),
+                p.gpis_fill_radius, slack))
         return carved_prior(prior, free, contacts, p.gpis_carve_radius,
                             inside_only=not p.gpis_carve_outside)
 
