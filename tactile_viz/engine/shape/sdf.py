@@ -12,8 +12,6 @@ Two kinds, both with negative values inside:
   same for many grids stored one after another (the prior bank).
 """
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -25,8 +23,9 @@ from numba import njit
 _TINY = 1e-12
 CODE_MAX = 32767  # the largest 16-bit code of a node value
 GRADIENT_MAX = 127  # the 8-bit code of a gradient component of 1
-# libigl releases the GIL in its AABB queries, so large batches split across threads.
-_PARALLEL_BATCH = 20_000
+# Grid nodes per distance query of a grid build: the query's closest points (24 bytes a
+# node) are not kept, so a 2-million-node grid needs some 10 MB for them, not 50.
+_GRID_BATCH = 1 << 18
 # A grid is fine enough when at most this share of surface points sees its gradient more
 # than 60 degrees off the surface normal (the bundled objects: at most 0.5% at 64 voxels;
 # a fork's 2 mm tines on a 20 cm fork: 11%, and 0 at 128).
@@ -99,15 +98,16 @@ class ExactDistance:
         return np.where(inside, -distance, distance), closest, face
 
     def _closest(self, points):
-        # (os.cpu_count reads the system's CPU list: 13 us, as long as a small query)
-        workers = 1 if len(points) < _PARALLEL_BATCH else os.cpu_count() or 1
-        if workers == 1:
-            return self._tree.squared_distance(self.vertices, self.faces, points)
-        chunks = [np.ascontiguousarray(c) for c in np.array_split(points, workers)]
-        with ThreadPoolExecutor(workers) as pool:
-            parts = list(pool.map(
-                lambda chunk: self._tree.squared_distance(self.vertices, self.faces, chunk), chunks))
-        return tuple(np.concatenate(arrays) for arrays in zip(*parts))
+        # libigl splits the points over every core itself (IGL_NUM_THREADS); its Python
+        # binding holds the GIL meanwhile, so threads of ours would only wait for it.
+        return self._tree.squared_distance(self.vertices, self.faces, points)
+
+    def closest_points(self, points):
+        """:meth:`query`'s closest surface points and faces, ``(k, 3)`` and ``(k,)``, without
+        its inside test (a point on the surface costs the winding number the most)."""
+        points = np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
+        _, face, closest = self._closest(points)
+        return closest, face
 
     def signed_distance(self, points):
         """Signed distance only: (k,) float for (k, 3) points."""
@@ -181,9 +181,11 @@ class SDFGrid:
         values = np.asarray(values, dtype=float)
         step = max(float(np.abs(values).max()), _TINY) / CODE_MAX
         codes = np.clip(np.rint(values / step), -CODE_MAX, CODE_MAX).astype(np.int16)
-        gradients = np.stack(np.gradient(values, float(spacing)), axis=-1)
-        gradient_codes = np.clip(np.rint(gradients * GRADIENT_MAX), -GRADIENT_MAX,
-                                 GRADIENT_MAX).astype(np.int8)
+        gradient_codes = np.empty(values.shape + (values.ndim,), np.int8)
+        for axis in range(values.ndim):  # one float array at a time, not a stack of three
+            gradient = np.gradient(values, float(spacing), axis=axis)
+            gradient_codes[..., axis] = np.clip(np.rint(gradient * GRADIENT_MAX),
+                                                -GRADIENT_MAX, GRADIENT_MAX)
         return cls(np.asarray(origin, dtype=float), float(spacing), codes, step,
                    gradient_codes)
 
@@ -365,9 +367,13 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
     """
     origin, spacing, counts = grid_layout(bounds, resolution, padding)
     axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
-    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = exact.signed_distance(nodes).reshape(tuple(counts))
-    return SDFGrid.from_values(origin, spacing, values)
+    values = np.empty(int(np.prod(counts)))
+    for start in range(0, len(values), _GRID_BATCH):  # nodes in C order, a batch at a time
+        index = np.unravel_index(np.arange(start, min(start + _GRID_BATCH, len(values))),
+                                 tuple(counts))
+        nodes = np.column_stack([axis[i] for axis, i in zip(axes, index)])
+        values[start:start + len(nodes)] = exact.signed_distance(nodes)
+    return SDFGrid.from_values(origin, spacing, values.reshape(tuple(counts)))
 
 
 def missed_share(grid, points, normals):
