@@ -8,6 +8,7 @@ import trimesh
 from tactile_viz.engine import LibraryError, ModelParams, ObjectModel
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.belief.prior_bank import PriorBank
+from tactile_viz.engine.belief import prior_build
 from tactile_viz.engine.belief.prior_build import _reason, build_derived, build_in_child, missing
 
 PARAMS = ModelParams(sdf_resolution=24)
@@ -98,3 +99,15 @@ def test_a_disabled_disk_cache_builds_in_this_process():
     models = _models(False)
     assert missing(models, 0.1, 12.0) == []
     assert build_in_child(models, 0.1, 12.0, minimum=1) == 0
+
+
+def test_one_child_a_core_as_memory_allows(monkeypatch):
+    monkeypatch.setattr(prior_build.os, "cpu_count", lambda: 8)
+    monkeypatch.setattr(prior_build, "_available_bytes", lambda: 10 * prior_build.CHILD_BYTES)
+    assert [prior_build.default_workers(n) for n in (1, 5, 78)] == [1, 5, 8]
+    monkeypatch.setattr(prior_build, "_available_bytes", lambda: 2.5 * prior_build.CHILD_BYTES)
+    assert prior_build.default_workers(78) == 2
+    monkeypatch.setattr(prior_build, "_available_bytes", lambda: 0.0)
+    assert prior_build.default_workers(78) == 1
+    monkeypatch.setattr(prior_build, "_available_bytes", lambda: None)  # not Linux
+    assert prior_build.default_workers(78) == 8

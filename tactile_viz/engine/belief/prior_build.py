@@ -37,6 +37,9 @@ from ..io.cache import ArrayCache
 from ..errors import LibraryError
 
 CHILD_MIN = 4  # priors to build below which the build stays in this process
+# A child's peak: 230 MB of interpreter and libraries, 90 MB more for a refined 2-million-
+# node grid (the largest, sdf.MAX_REFINED_NODES); no more children than memory holds.
+CHILD_BYTES = 400e6
 # libigl's queries split each call over every core; with one child a core, one thread each.
 ONE_THREAD = "IGL_NUM_THREADS"
 
@@ -57,8 +60,26 @@ def missing(models, distance_step, angle_step_deg):
 
 
 def default_workers(count):
-    """How many child processes build ``count`` priors: one a core, at most one a prior."""
-    return max(1, min(count, os.cpu_count() or 1))
+    """How many child processes build ``count`` priors: one a core, at most one a prior, and
+    no more than the available memory holds (:data:`CHILD_BYTES` each)."""
+    workers = min(count, os.cpu_count() or 1)
+    available = _available_bytes()
+    if available is not None:
+        workers = min(workers, int(available // CHILD_BYTES))
+    return max(1, workers)
+
+
+def _available_bytes():
+    """Memory the system can give without swapping (Linux ``MemAvailable``; None
+    elsewhere)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as info:
+            for line in info:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
 
 
 def build_in_child(models, distance_step, angle_step_deg, progress=None, minimum=CHILD_MIN,
