@@ -127,6 +127,20 @@ def build_in_child(models, distance_step, angle_step_deg, progress=None, minimum
     return len(todo)
 
 
+def build_missing(models, distance_step, angle_step_deg, progress=None, minimum=CHILD_MIN):
+    """Build the derived data ``models`` lack in their disk cache without loading it here:
+    in child processes when at least ``minimum`` lack it (:func:`build_in_child`), else in
+    this process one after another. ``progress`` wraps the iteration over the priors built.
+    Returns how many were built."""
+    built = build_in_child(models, distance_step, angle_step_deg, progress, minimum)
+    if built:
+        return built
+    todo = missing(models, distance_step, angle_step_deg)
+    for model in progress(todo) if progress and todo else todo:
+        build_derived(model, distance_step, angle_step_deg)
+    return len(todo)
+
+
 def _child_environment(workers):
     package_root = str(Path(__file__).resolve().parents[3])
     path = os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))
