@@ -40,8 +40,10 @@ CHILD_MIN = 4  # priors to build below which the build stays in this process
 # A child's peak: 230 MB of interpreter and libraries, 90 MB more for a refined 2-million-
 # node grid (the largest, sdf.MAX_REFINED_NODES); no more children than memory holds.
 CHILD_BYTES = 400e6
-# libigl's queries split each call over every core; with one child a core, one thread each.
-ONE_THREAD = "IGL_NUM_THREADS"
+# libigl splits each query over this many threads (default: every core). With one child a
+# core each gets two: more would crowd the cores, one would leave a core idle while the
+# last child finishes a slow prior alone (16 scan-like priors: 31.6 s against 36.4 s).
+IGL_THREADS = "IGL_NUM_THREADS"
 
 
 def build_derived(model, distance_step, angle_step_deg):
@@ -146,7 +148,8 @@ def _child_environment(workers):
     path = os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))
     environment = {**os.environ, "PYTHONPATH": path}
     if workers > 1:
-        environment.setdefault(ONE_THREAD, "1")
+        cores = os.cpu_count() or 1
+        environment.setdefault(IGL_THREADS, str(max(2, -(-cores // workers))))
     return environment
 
 
