@@ -160,7 +160,8 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
                            max_steps=max_steps)
         rows.append(_trial_row(result))
     return {"priors": count, "models_seconds": models_seconds, "built": built,
-            "build_workers": workers, "bank_seconds": bank_seconds, "build_resident_megabytes": build_resident,
+            "build_workers": workers, "bank_seconds": bank_seconds,
+            "build_resident_megabytes": build_resident,
             "build_peak_megabytes": build_peak, "bank_cached_seconds": bank_cached_seconds,
             "bank_megabytes": bank.nbytes / 1e6,
             "resident_megabytes": _resident_megabytes(), "peak_megabytes": _peak_megabytes(),

@@ -394,7 +394,8 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
     shape = tuple(int(n) for n in counts)
 
     def nodes(index):  # (k, 3) positions of flat node indices (C order)
-        return np.column_stack([axis[i] for axis, i in zip(axes, np.unravel_index(index, shape))])
+        index = np.unravel_index(index, shape)
+        return np.column_stack([axis[i] for axis, i in zip(axes, index)])
 
     distance = np.empty(int(np.prod(shape)))
     for start in range(0, len(distance), _GRID_BATCH):  # a batch at a time
