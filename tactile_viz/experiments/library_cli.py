@@ -112,24 +112,30 @@ def _load(entries, library, progress, prog):
                 print(f"{prog}: warning: {message}", file=sys.stderr)
 
 
-def _bar(items, what, progress):
+def _bar(items, what, progress, unit="file"):
     if not progress:
         return items
     from tqdm import tqdm
 
-    return tqdm(items, desc=what, unit="file", file=sys.stderr, delay=1.0)
+    return tqdm(items, desc=what, unit=unit, file=sys.stderr, delay=1.0)
+
+
+def prior_bar(items):
+    """A progress bar on stderr over priors whose grids and tables are built (or read),
+    shown once it has taken a second."""
+    return _bar(items, "priors' grids and tables", True, unit="prior")
 
 
 def prepare(library, progress=False):
-    """Build (or read from the disk cache) the grids and tables a session over
-    ``library`` needs with the default preset: the first trial then starts at once."""
-    from ..engine.belief.prior_bank import bank_for
+    """Build the grids and tables a session over ``library`` needs with the default preset
+    into the disk cache (in child processes, one a core, when there are several): the first
+    trial then starts at once. Nothing is loaded here."""
+    from ..engine.belief.prior_build import build_missing
     from ..engine.session import Session
 
     pf = Session(None, library).filter
-    bank_for(pf.models, pf.params.distance_step, pf.params.angle_step_deg,
-             progress=(lambda models: _bar(models, "priors' grids and tables", True))
-             if progress else None)
+    build_missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg,
+                  progress=prior_bar if progress else None)
 
 
 def _build(args):

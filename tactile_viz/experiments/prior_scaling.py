@@ -13,10 +13,12 @@ threshold of the truth (a variant too close to tell apart) is counted on its own
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import multiprocessing
 import os
 import resource
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -108,8 +110,10 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     -------
     dict
         ``priors``, ``models_seconds`` (making the models), ``built`` (priors whose grids
-        the first build made from their meshes: a cold cache), ``bank_seconds`` (first
-        build), ``build_resident_megabytes`` and ``build_peak_megabytes`` (right after it),
+        the first build made from their meshes: a cold cache), ``build_workers`` (the child
+        processes that built them; 0: built in this process), ``bank_seconds`` (first
+        build: the bank ready, cold when ``built``), ``build_resident_megabytes`` and
+        ``build_peak_megabytes`` (right after it),
         ``bank_cached_seconds`` (again, from the disk cache), ``bank_megabytes``,
         ``resident_megabytes`` (after the trials), ``peak_megabytes``, and ``trials``: one
         row per trial.
@@ -117,7 +121,7 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     from ..engine.belief import prior_bank
     from ..engine.shape.objects import ObjectModel
     from ..engine.belief.particle_filter import ParticleFilter
-    from ..engine.belief.prior_build import missing
+    from ..engine.belief.prior_build import CHILD_MIN, default_workers, missing
     from .trial import run_trial
 
     bar = None
@@ -131,6 +135,7 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
     params = _filter_params(library, preset)
     models = ParticleFilter(library, params).models
     built = len(missing(models, params.distance_step, params.angle_step_deg))
+    workers = default_workers(built) if built >= CHILD_MIN else 0
     start = time.perf_counter()
     prior_bank.bank_for(models, params.distance_step, params.angle_step_deg,
                         progress=(lambda m: bar(m, f"{count} priors")) if bar else None)
@@ -155,7 +160,8 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
                            max_steps=max_steps)
         rows.append(_trial_row(result))
     return {"priors": count, "models_seconds": models_seconds, "built": built,
-            "bank_seconds": bank_seconds, "build_resident_megabytes": build_resident,
+            "build_workers": workers, "bank_seconds": bank_seconds,
+            "build_resident_megabytes": build_resident,
             "build_peak_megabytes": build_peak, "bank_cached_seconds": bank_cached_seconds,
             "bank_megabytes": bank.nbytes / 1e6,
             "resident_megabytes": _resident_megabytes(), "peak_megabytes": _peak_megabytes(),
@@ -176,19 +182,43 @@ def measure_load(count, seed=0, preset="paper"):
             "warm_peak_megabytes": _peak_megabytes()}
 
 
-def sweep(counts, trials=10, seed=0, preset="paper", max_steps=None, progress=False):
+def sweep(counts, trials=10, seed=0, preset="paper", max_steps=None, progress=False,
+          cold=False):
     """:func:`measure_size` for each library size, each in a fresh process, then
-    :func:`measure_load` in another."""
+    :func:`measure_load` in another. With ``cold`` each size has an empty disk cache of its
+    own (a temporary folder, removed after), so its first bank is built from the meshes."""
     results = []
     context = multiprocessing.get_context("spawn")
     for count in counts:
-        with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
-            result = pool.submit(measure_size, count, trials, seed, preset, max_steps,
-                                 progress).result()
-        with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
-            result.update(pool.submit(measure_load, count, seed, preset).result())
+        with _own_cache(cold):
+            with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
+                result = pool.submit(measure_size, count, trials, seed, preset, max_steps,
+                                     progress).result()
+            with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
+                result.update(pool.submit(measure_load, count, seed, preset).result())
         results.append(result)
     return results
+
+
+@contextlib.contextmanager
+def _own_cache(fresh):
+    """With ``fresh``, ``$TACTILE_VIZ_CACHE`` names an empty temporary folder meanwhile (the
+    processes started within read it); else nothing changes."""
+    from ..engine.io.cache import ENV_VAR
+
+    if not fresh:
+        yield
+        return
+    before = os.environ.get(ENV_VAR)
+    with tempfile.TemporaryDirectory(prefix="tactile_viz-cold-") as folder:
+        os.environ[ENV_VAR] = folder
+        try:
+            yield
+        finally:
+            if before is None:
+                os.environ.pop(ENV_VAR, None)
+            else:
+                os.environ[ENV_VAR] = before
 
 
 def summary_row(result):
@@ -208,11 +238,21 @@ def summary_row(result):
             "peak_megabytes": result["peak_megabytes"],
             "bank_cached_seconds": result["bank_cached_seconds"],
             "models_seconds": result["models_seconds"],
-            **{key: result.get(key) for key in MEMORY_KEYS}}
+            **{key: result.get(key) for key in MEMORY_KEYS},
+            "build_workers": result.get("build_workers")}
 
 
 MEMORY_KEYS = ["built", "bank_seconds", "build_resident_megabytes", "build_peak_megabytes",
                "warm_seconds", "warm_resident_megabytes", "warm_peak_megabytes"]
+START_KEYS = ["built", "build_workers", "bank_seconds", "built_seconds_each", "warm_seconds"]
+
+
+def start_row(row):
+    """Cold and warm start of one library size (a :func:`summary_row`): the priors built,
+    by how many children, the first bank's seconds, per prior built, and the warm load's."""
+    built = row.get("built") or 0
+    return {**{key: row.get(key) for key in START_KEYS},
+            "built_seconds_each": row["bank_seconds"] / built if built else None}
 
 
 def projection(rows, target=10_000):

@@ -32,9 +32,9 @@ def build_parser():
         description="Time per step against the number of contacts (filter, GPIS fit, "
                     "surface, Cholesky; fitted growth exponent of each) and against the "
                     "number of priors (prior bank memory and load time, filter update, "
-                    "class and pose over whole trials; a first run builds and caches the "
-                    "variants' SDFs, about 0.5-0.9 s each, in a child process; the memory "
-                    "right after the bank is given cold and warm).")
+                    "class and pose over whole trials; the first bank of a size is built "
+                    "from the meshes where the disk cache lacks them, in child processes, "
+                    "one a core; its time and memory are given cold and warm).")
     parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
     parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
@@ -49,6 +49,9 @@ def build_parser():
                         help="cap on the steps of those trials (default: the paper's 300)")
     parser.add_argument("--no-contacts", action="store_true",
                         help="skip the sweep against the number of contacts")
+    parser.add_argument("--cold", action="store_true",
+                        help="give each library size an empty disk cache of its own (a "
+                             "temporary folder), so its first bank is always built cold")
     add_preset_argument(parser, default="paper")
     parser.add_argument("--seed", type=seed_int, default=0)
     parser.add_argument("--out", default="bench_scaling", metavar="DIR", type=output_dir,
@@ -69,6 +72,9 @@ MEMORY_HEADER = ["priors", "built from meshes", "build s", "resident after the b
                  "peak by then MB", "warm load s", "warm load resident MB",
                  "warm load peak MB"]
 MEMORY_ROW = ["priors", *prior_scaling.MEMORY_KEYS]
+START_HEADER = ["priors", "built from meshes", "build workers", "first bank s (cold if built)",
+                "s a prior built", "warm load s"]
+START_ROW = ["priors", *prior_scaling.START_KEYS]
 
 
 def plot(contact_rows, exponents, prior_rows, path):
@@ -155,7 +161,7 @@ def contact_section(args):
 def prior_section(args):
     results = prior_scaling.sweep(sorted(args.priors), args.prior_trials, args.seed,
                                   args.preset, args.prior_max_steps,
-                                  progress=not args.no_progress)
+                                  progress=not args.no_progress, cold=args.cold)
     rows = [prior_scaling.summary_row(result) for result in results]
     lines = [f"## Against the number of priors ({args.preset} preset, {args.prior_trials} "
              "trials per size on objects drawn from the library)", "",
@@ -163,6 +169,13 @@ def prior_section(args):
              "", "Right: the touched prior is the MAP class, judged known, with the pose "
              "error under 10% of its size. Wrong but indistinct: another prior whose posed "
              "shape lies within that threshold of the truth. Memory in MB (10^6 bytes).", ""]
+    lines += [f"Cold and warm start{' (each size on an empty disk cache)' if args.cold else ''}"
+              ": the first bank of the trials' process, built from the meshes where the "
+              "disk cache lacked them (by child processes, 0: in the process) and then read, "
+              "and the same bank read from the warm cache in a fresh process.", "",
+              markdown_table(START_HEADER, [[{"priors": row["priors"],
+                                              **prior_scaling.start_row(row)}[key]
+                                             for key in START_ROW] for row in rows]), ""]
     lines += ["Memory right after building the prior bank: in the trials' process (from the "
               "meshes when the disk cache lacked their grids: \"built\" priors), and in a "
               "fresh process reading it from the warm cache.", "",

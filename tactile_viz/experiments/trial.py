@@ -24,10 +24,12 @@ from ..engine.errors import ParameterError
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.bag_export import export_bag
 from ..engine.io.export import export_session
+from ..engine.belief.prior_bank import bank_for
 from ..engine.io.files import write_atomic
 from ..engine.shape.objects import load_bundled
 from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
+from .library_cli import prior_bar
 from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
                      load_priors, mesh_file, say, scene_units, size_warnings,
                      write_scene_line)
@@ -176,6 +178,11 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
     session = Session(truth, library, strategy, params, seed=seed,
                       sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
                       sensor_outliers=sensor["outliers"], scene=scene)
+    # The priors' bank before the clock starts (built first if the disk cache lacks it),
+    # under a bar of its own: not inside the first step's filter update.
+    pf = session.filter
+    bank_for(pf.models, pf.params.distance_step, pf.params.angle_step_deg,
+             prior_bar if progress else None)
     start = time.perf_counter()
     run = run_until_interrupted if keep_interrupted else run_steps
     steps = run(session, progress, max_steps or params.max_steps_novel, truth_model.name,

@@ -178,3 +178,33 @@ def test_the_nearest_face_is_the_signed_querys_without_its_sign(bundled, rng):
     outside = signed > 1e-3
     along = np.einsum("ij,ij->i", points[outside] - closest[outside], normals[outside])
     assert np.median(along / signed[outside]) > 0.99
+
+
+def _cup(wall=0.5, sections=48):
+    """A closed cup: a revolved profile with a cavity (its nodes in several regions)."""
+    import trimesh
+
+    z = np.linspace(wall, 3.0, 12)
+    profile = np.vstack([[0, 0], [1.5, 0], np.column_stack([np.full(12, 1.5), z]),
+                         np.column_stack([np.full(12, 1.5 - wall), z[::-1]]), [0, wall]])
+    return trimesh.creation.revolve(profile, sections=sections)
+
+
+@pytest.mark.parametrize("open_surface", [False, True])
+def test_a_grid_asks_the_winding_number_where_it_must_and_gets_every_nodes_sign(open_surface):
+    from tactile_viz.engine.shape.sdf import ExactDistance, build_sdf_grid, grid_layout
+
+    mesh = _cup()
+    faces = mesh.faces[5:] if open_surface else mesh.faces  # a hole: nothing is skipped
+    exact = ExactDistance(mesh.vertices, faces)
+    assert exact.closed is not open_surface
+    grid = build_sdf_grid(exact, mesh.bounds, resolution=40, padding=0.5)
+    origin, spacing, counts = grid_layout(mesh.bounds, 40, 0.5)
+    axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    every = type(grid).from_values(origin, spacing,  # every node asked, as before
+                                   exact.signed_distance(nodes).reshape(tuple(counts)))
+    for name, array in grid.to_arrays().items():
+        np.testing.assert_array_equal(array, every.to_arrays()[name], err_msg=name)
+    far = np.abs(grid.values) > 1.5 * spacing  # regions inside the wall, the cavity, outside
+    assert (grid.values[far] < 0).any() and (grid.values[far] > 0).any()

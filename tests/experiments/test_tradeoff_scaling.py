@@ -1,5 +1,8 @@
 """Pareto front, configurations and growth exponents (no long runs)."""
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -120,6 +123,9 @@ def test_prior_sweep_measures_whole_trials_on_a_small_library():
     assert summary["trials"] == 4 and 0 < summary["bank_megabytes"] < 5
     assert summary["resident_megabytes"] > 0 and summary["peak_megabytes"] > 0
     assert 0 <= summary["built"] <= 3 and summary["build_resident_megabytes"] > 0
+    assert summary["build_workers"] == 0  # fewer than CHILD_MIN to build: in the process
+    start = prior_scaling.start_row({**summary, "built": 2, "bank_seconds": 3.0})
+    assert start["built_seconds_each"] == 1.5 and start["build_workers"] == 0
     warm = prior_scaling.measure_load(3)
     assert warm["warm_resident_megabytes"] > 0 and warm["warm_peak_megabytes"] > 0
     other = {**summary, "priors": 30, "resident_megabytes": summary["resident_megabytes"] + 27,
@@ -128,3 +134,16 @@ def test_prior_sweep_measures_whole_trials_on_a_small_library():
     projected = prior_scaling.projection([summary, other], target=300)
     assert projected["megabytes_per_prior"] == pytest.approx(1.0)
     assert projected["update_seconds"] > other["filter_mean"]
+
+
+def test_a_cold_sweep_gives_each_size_an_empty_cache_of_its_own(monkeypatch):
+    from tactile_viz.engine.io.cache import ENV_VAR
+    from tactile_viz.experiments.prior_scaling import _own_cache
+
+    monkeypatch.setenv(ENV_VAR, "/somewhere/warm")
+    with _own_cache(True):
+        folder = Path(os.environ[ENV_VAR])
+        assert folder.is_dir() and not any(folder.iterdir())
+    assert os.environ[ENV_VAR] == "/somewhere/warm" and not folder.exists()
+    with _own_cache(False):
+        assert os.environ[ENV_VAR] == "/somewhere/warm"

@@ -6,9 +6,9 @@ A :class:`PriorBank` holds all of them together: the SDF grids' codes (16-bit va
 gradients) one after another, interpolated for any mix of priors in one call; the feature
 points stacked; and one point-pair table over all priors. It is built once from the models' disk
 cache, so a library of a thousand priors loads in seconds and holds some 0.8 MB a prior.
-Priors the cache lacks are built first, in a child process when there are many
-(:mod:`~tactile_viz.engine.belief.prior_build`): a library built from meshes ends as small as one
-read from the cache.
+Priors the cache lacks are built first, in child processes (one a core) when there are
+several (:mod:`~tactile_viz.engine.belief.prior_build`): a library built from meshes ends as
+small as one read from the cache.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ class PriorBank:
         Point-pair distance key step, scene units.
     angle_step_deg : float
     progress : callable, optional
-        Wraps the iteration over the models, or over the priors a child process builds
-        when the disk cache lacks many (for example ``tqdm``).
+        Wraps the iteration over the models, or over the priors child processes build
+        when the disk cache lacks several (for example ``tqdm``).
 
     Attributes
     ----------
@@ -61,7 +61,7 @@ class PriorBank:
 
         models = list(models)
         if build_in_child(models, distance_step, angle_step_deg, progress):
-            progress = None  # the child's build was the long part
+            progress = None  # the children's build was the long part
         self._index = {id(model): c for c, model in enumerate(models)}
         self._models = models  # keeps the ids above theirs
         self.names = [model.name for model in models]

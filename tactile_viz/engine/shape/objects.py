@@ -236,7 +236,7 @@ class ObjectModel:
             # On a bare copy, whose triangles and normals do not stay on the mesh.
             surface = bare_mesh(self.mesh)
             points, _ = trimesh.sample.sample_surface(surface, SURFACE_CHECKS, seed=0)
-            _, closest, face = self.exact.query(points)
+            closest, face = self.exact.closest_points(points)
             # Face normals: a CAD box's vertex normals are its corners' averages.
             return {"resolution": np.array(fitted_resolution(
                 self._grid_at, self.mesh.bounds, self._padding, closest,
@@ -259,7 +259,7 @@ class ObjectModel:
         points, faces = poisson_disk_points(bare_mesh(self.mesh), self.params.n_features,
                                             rng=self.params.feature_seed)
         # Project onto the surface exactly so normals come from the same place the SDF does.
-        _, closest, face = self.exact.query(points)
+        closest, face = self.exact.closest_points(points)
         return {"points": closest, "normals": self.exact.surface_normal(closest, face)}
 
     def pair_table(self, distance_step=0.1, angle_step_deg=12.0, keep=True):
