@@ -34,7 +34,7 @@ PRESET_TABLE = {
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "sdf_max_resolution": 0,
               "final_candidates": 0, "variance_points": 1500, "way_back_anchors": 1,
-              "gpis_fill_voids": False, "gpis_fill_radius": 0.0},
+              "gpis_fill_voids": False},
     # A robot that only needs to know what and where the object is: the default, stopped
     # as soon as the object is decided.
     "recognise": {"stop_at_decision": True},

@@ -1,8 +1,8 @@
 """Benchmark: novel objects at real sizes, learned, and met again (leave one out).
 
 ``python -m tactile_viz bench learn [--objects NAME ...] [--libraries few many]
-[--noise 0:0 0.002:2] [--seeds 1] [--first-seed 0] [--max-steps N] [--workers 2]
-[--out DIR] [--no-progress]``
+[--noise 0:0 0.002:2] [--seeds 1] [--first-seed 0] [--set NAME=VALUE ...] [--max-steps N]
+[--workers 2] [--out DIR] [--no-progress]``
 
 The objects are the project's own at real sizes in metres: the bundled known objects at
 :data:`~.sizes.SIZES_M` (12 to 40 cm) and the hard objects of :mod:`.hard_objects` (a 2 cm
@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, count_int, nonnegative_int, output_dir,
-                   positive_int, workers_int)
+from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
+                   output_dir, positive_int, with_settings, workers_int)
+from ..engine.presets import session_preset
 from ..engine.io.files import write_atomic
 from .decide import noise_level
 from .hard_objects import HARD_SIZES_M, hard_meshes
@@ -77,8 +78,14 @@ def _object_task(name, files, **kwargs):
                      sizes={name: sizes()[name]} if name not in files else None, **kwargs)
 
 
-def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps):
-    """The leave-one-out trials that learn (their met-again trials follow each one)."""
+def phase_params(preset, settings):
+    """A phase's parameters (a dict) with ``--set``'s changes, or None without any."""
+    return with_settings(session_preset(preset), settings).to_dict() if settings else None
+
+
+def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps, settings=()):
+    """The leave-one-out trials that learn (their met-again trials follow each one), with
+    ``settings`` (``--set`` pairs) changed in both phases' presets."""
     out = []
     for (position, degrees), which, name in (
             (n, w, o) for n in noises for w in libraries for o in objects):
@@ -87,8 +94,9 @@ def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps)
                 name, files, seed=seed, preset="recommended", kind="learn",
                 extra_priors=[_prior(p, files) for p in library_names(name, which)],
                 max_steps=max_steps, learn_as=f"{name}_learned",
+                params=phase_params("recommended", settings),
                 sensor={"position_noise": position, "normal_noise_deg": degrees})
-            task["tag"] = which
+            task["tag"], task["settings"] = which, list(settings or ())
             out.append(task)
     return out
 
@@ -100,6 +108,7 @@ def again_task(task, result, max_steps):
         return None
     again = dict(task, kind="again", seed=task["seed"] + AGAIN_SEED, preset="recognise",
                  learn_as=None, max_steps=max_steps,
+                 params=phase_params("recognise", task.get("settings")),
                  extra_priors=task["extra_priors"] + [
                      {"name": learned["name"], "vertices": learned["vertices"],
                       "faces": learned["faces"], "learned": True,
@@ -231,6 +240,7 @@ def main(argv=None):
                         metavar="M:DEG", help="sensor noise levels: position std in metres, "
                         "normal std in degrees (default 0:0 0.002:2)")
     parser.add_argument("--seeds", type=count_int, default=1, help="seeds per object")
+    add_set_argument(parser)
     parser.add_argument("--first-seed", type=nonnegative_int, default=0,
                         help="the first seed (seeds run from it up)")
     parser.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
@@ -245,7 +255,7 @@ def main(argv=None):
     files = hard_meshes(out / "objects")
     tasks = learn_tasks(args.objects or list(OBJECTS), args.libraries or ["few", "many"],
                         args.noise or DEFAULT_NOISE, args.seeds, args.first_seed, files,
-                        args.max_steps)
+                        args.max_steps, args.set)
     rows, failed = run(tasks, args.workers, args.max_steps, not args.no_progress)
     for result in failed:
         print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")

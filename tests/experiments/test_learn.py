@@ -89,3 +89,13 @@ def test_bad_arguments_are_one_line(argv, capsys):
         main(["bench", "learn", *argv])
     assert stop.value.code == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_settings_change_both_phases_presets(tmp_path):
+    tasks = learn.learn_tasks(["mug_1"], ["few"], [(0.0, 0.0)], 1, 0, {}, None,
+                              [("gpis_fill_radius", 3.0)])
+    assert tasks[0]["params"]["gpis_fill_radius"] == 3.0
+    assert not tasks[0]["params"]["stop_at_decision"]  # the recommended preset's
+    again = learn.again_task(tasks[0], _result("mug_1", 10), None)
+    assert again["params"]["gpis_fill_radius"] == 3.0 and again["params"]["stop_at_decision"]
+    assert learn.learn_tasks(["mug_1"], ["few"], [(0.0, 0.0)], 1, 0, {}, None)[0]["params"] is None

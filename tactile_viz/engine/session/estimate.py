@@ -260,7 +260,7 @@ class Estimation:
         if p.gpis_fill_radius > 0 and len(contacts):
             slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit
             # Only a contact the prior puts in its empty space is evidence against it.
-            refuting = np.asarray(prior(contacts)[0]) > slack
+            refuting = np.asarray(prior(contacts)[0], dtype=float) > slack
             prior = filled_prior(prior, contact_balls(
                 contacts[refuting], normals[refuting], np.vstack([free, contacts]),
                 p.gpis_fill_radius, slack))

@@ -201,8 +201,8 @@ def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
         Contact positions and outward unit normals.
     free_points : (q, 3) float
         Points outside the object (non-contacts, missed probes' paths).
-    radius : float, scene units
-        The largest ball; 0 gives None.
+    radius : float or (n,) float, scene units
+        The largest ball (one for all or one a contact); 0 gives no ball.
     tolerance : float, scene units
 
     Returns
@@ -211,12 +211,12 @@ def contact_balls(contacts, normals, free_points, radius, tolerance=0.0):
     """
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
     normals = np.asarray(normals, dtype=float).reshape(-1, 3)
-    if radius <= 0 or len(contacts) == 0:
+    radii = np.broadcast_to(np.asarray(radius, dtype=float), (len(contacts),)).copy()
+    if len(contacts) == 0 or not (radii > 0).any():
         return None
     others = np.vstack([contacts, np.asarray(free_points, dtype=float).reshape(-1, 3)])
     tree = cKDTree(others)
     touching = contacts - tolerance * normals
-    radii = np.full(len(contacts), float(radius))
     active = np.arange(len(contacts))
     for _ in range(SHRINK_STEPS):
         distance, index = tree.query(touching[active] - radii[active, None] * normals[active])
