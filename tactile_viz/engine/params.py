@@ -290,13 +290,12 @@ class SessionParams:
               "noise was better in 5 of 6 trials, but the dragon noiseless worse in 6 of 6 "
               "(0.398 -> 0.546), so it stays on (docs/gpis.md).")
     gpis_fill_voids: bool = _gpis(
-        True, "Fill the GPIS estimate's voids, outside regions enclosed by its solid, before "
-        "its surface is extracted (beyond the paper): the surface is the one a probe can "
-        "reach.", kind="bool",
-        notes="A prior with a cavity (a mug's inside) left the cavity's wall 4 cm inside a "
-              "10 cm ball whose top the contacts closed: no contact could cover it, the "
-              "stop never came and the reconstruction error was 38% of the size "
-              "(docs/novel.md).")
+        False, "Fill the GPIS estimate's voids, outside regions enclosed by its solid, before "
+        "its surface is extracted (beyond the paper): the surface is the one a probe could "
+        "reach if the estimate were right.", kind="bool",
+        notes="A void of the estimate can be an opening it closed too early: on the bundled "
+              "protocol the dragon was worse in 6 of 6 trials with it (docs/novel.md), "
+              "and alone it did not help a ball against a mug prior: off by default.")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "
