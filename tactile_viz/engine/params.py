@@ -294,7 +294,7 @@ class SessionParams:
         "its surface is extracted (beyond the paper): the surface is the one a probe could "
         "reach if the estimate were right.", kind="bool",
         notes="A void of the estimate can be an opening it closed too early: on the bundled "
-              "protocol the dragon was worse in its 6 trials with it (2 with it alone), "
+              "protocol the dragon was worse in each of its 8 trials with it (2 with it alone), "
               "and alone it did not help a ball against a mug prior: off by default.")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
