@@ -117,6 +117,14 @@ def summary(result):
         "tip_radius": 0.0 if scene is None else scene["tip_radius"]}
 
 
+def write_tables(stem, rows, text):
+    """Write ``rows`` to ``STEM.json`` and the tables ``text`` to ``STEM.md`` (atomically)
+    and print the tables."""
+    write_atomic(stem.with_suffix(".json"), json.dumps(rows, indent=1).encode())
+    write_atomic(stem.with_suffix(".md"), text.encode())
+    print(text, end="")
+
+
 def _median(values):
     values = [v for v in values if v is not None]
     return float(np.median(values)) if values else None
@@ -276,10 +284,7 @@ def main(argv=None):
               scenes_from_args(args), args.max_steps),
         args.workers, progress=not args.no_progress, description="decide")
     summaries = [summary(r) for r in results]
-    write_atomic(out / "decide.json", json.dumps(summaries, indent=1).encode())
-    text = markdown(summaries)
-    write_atomic(out / "decide.md", text.encode())
-    print(text, end="")
+    write_tables(out / "decide", summaries, markdown(summaries))
     return 1 if failed else 0
 
 

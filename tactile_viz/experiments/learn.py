@@ -32,8 +32,7 @@ import numpy as np
 from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
                    output_dir, positive_int, with_settings, workers_int)
 from ..engine.presets import session_preset
-from ..engine.io.files import write_atomic
-from .decide import noise_level
+from .decide import _median, noise_level, write_tables
 from .hard_objects import HARD_SIZES_M, hard_meshes
 from .runner import make_task, open_pool, run_tasks
 from .sizes import SIZES_M
@@ -150,11 +149,6 @@ def _mean(values):
     return float(np.mean(values)) if values else None
 
 
-def _median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
 def _fmt(value, spec=".1f", scale=1.0):
     return "-" if value is None else format(value * scale, spec)
 
@@ -260,10 +254,7 @@ def main(argv=None):
     for result in failed:
         print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")
     rows.sort(key=lambda r: (r["library"], r["noise"], r["object"], r["seed"]))
-    write_atomic(out / "learn.json", json.dumps(rows, indent=1).encode())
-    text = markdown(rows)
-    write_atomic(out / "learn.md", text.encode())
-    print(text, end="")
+    write_tables(out / "learn", rows, markdown(rows))
     return 1 if failed else 0
 
 

@@ -171,7 +171,7 @@ def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monk
     assert len(last.gpis_vertices) > 2 * len(before.gpis_vertices)
     assert len(last.gpis_variance) == len(last.gpis_vertices)
     # Learning from it takes that surface as it is.
-    monkeypatch.setattr(session, "_surface_at", lambda *args: pytest.fail("extracted again"))
+    monkeypatch.setattr(session, "_level_set", lambda *args: pytest.fail("extracted again"))
     learned = session.learned_model("dino_learned", last)
     assert len(learned.mesh.vertices) <= len(last.gpis_vertices)
 

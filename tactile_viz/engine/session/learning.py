@@ -35,12 +35,11 @@ class Learning:
         if resolution != snapshot.gpis_resolution:
             vertices, faces = self._level_set(fit, box, resolution)
         errors = held_out_errors(fit)
-        model = learned_model_from_surface(vertices, faces, name,
-                                           params=self.library[snapshot.map_class].params
-                                           if snapshot.map_class in self.library else None,
-                                           contacts=snapshot.contacts, reach=self._p.eps)
-        model.shape_error = float(np.sqrt(np.mean(errors**2))) if len(errors) else 0.0
-        return model
+        return learned_model_from_surface(
+            vertices, faces, name, params=self.library[snapshot.map_class].params
+            if snapshot.map_class in self.library else None, contacts=snapshot.contacts,
+            reach=self._p.eps,
+            shape_error=float(np.sqrt(np.mean(errors**2))) if len(errors) else 0.0)
 
     def _snapshot_fit(self, snapshot, resolution):
         """The snapshot's GPIS fit again, with the snapshot's MAP prior (a stopped session
@@ -80,10 +79,11 @@ class Learning:
         return vertices, faces
 
 
-def learned_model_from_surface(vertices, faces, name, params=None, contacts=None, reach=0.0):
+def learned_model_from_surface(vertices, faces, name, params=None, contacts=None, reach=0.0,
+                               shape_error=0.0):
     """An :class:`ObjectModel` from a reconstructed surface: its largest connected piece and
     every other piece with a vertex within ``reach`` of one of ``contacts`` (world frame,
-    scene units).
+    scene units), with its ``shape_error`` (scene units).
 
     A GPIS parts a thin leg from a chair's seat, and the leg's piece carries its contacts;
     a piece no contact supports is a blob nothing touched. (The largest piece alone made a
@@ -103,4 +103,4 @@ def learned_model_from_surface(vertices, faces, name, params=None, contacts=None
             tree is not None and tree.query(piece.vertices)[0].min() <= reach)]
         mesh = trimesh.util.concatenate(kept)
     return ObjectModel.from_arrays(mesh.vertices, mesh.faces, name, params=params,
-                                   longest_side=None, learned=True)
+                                   longest_side=None, learned=True, shape_error=shape_error)
