@@ -1,6 +1,7 @@
 # tactile_viz: every target does its own set-up on a fresh Debian 12 machine.
 #
-#   make run     start the desktop app (needs a display; headless: xvfb-run -a make run)
+#   make run     start the desktop app, tactile-viz app (needs a display; headless:
+#                xvfb-run -a make run); its options in ARGS: make run ARGS="--object vase_2"
 #   make test    run the whole pytest suite (GUI tests on a virtual X server)
 #   make setup   system packages + .venv + pip install -e '.[gui,test,bench]'
 
@@ -38,8 +39,10 @@ $(STAMP): pyproject.toml | $(PY)
 
 venv: $(STAMP)
 
+# The installed command (pyproject.toml's [project.scripts]); app.py in the clone is the same.
+ARGS ?=
 run: setup
-	$(PY) app.py
+	$(VENV)/bin/tactile-viz app $(ARGS)
 
 # Display for the GUI tests: the pytest-xvfb plugin (in the `test` extra)
 # starts its own Xvfb on a free display for the pytest session and sets

@@ -1,4 +1,4 @@
-"""The command line: ``python -m tactile_viz COMMAND ...``."""
+"""The command line: ``python -m tactile_viz COMMAND ...``, installed as ``tactile-viz``."""
 
 import argparse
 import contextlib
@@ -46,6 +46,22 @@ def _replay(args):
     from .experiments.replay import run_replay_command
 
     return run_replay_command(args)
+
+
+def _app_prog():
+    """How the app command is named in its errors: as the user typed the program."""
+    program = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
+    return "tactile-viz app" if program == "tactile-viz" else "python -m tactile_viz app"
+
+
+def _app(args, options):
+    """Open the desktop app with ``options`` (app.py's); ``--verbose`` and ``--log-file``
+    given before ``app`` are passed on too."""
+    from .launcher import main as app_main
+
+    before = (["--verbose"] if args.verbose else []) + (
+        ["--log-file", args.log_file] if args.log_file is not None else [])
+    return app_main(before + list(options), prog=_app_prog())
 
 
 def _bench(args):
@@ -117,6 +133,11 @@ def build_parser():
     add_library_arguments(library)
     library.set_defaults(run=_library, prog=library.prog)
 
+    # Its options are the launcher's (app.py's), parsed there: --help lists them.
+    app = commands.add_parser("app", add_help=False,
+                              help="open the desktop app (options as app.py's; app --help "
+                                   "lists them; needs the gui extra)")
+
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
                                               "scaling, noise, sizes, decide, learn, realmesh, "
                                               "gui)",
@@ -170,13 +191,19 @@ def one_line_warnings(prog):
 
 
 def main(argv=None):
-    """Run ``python -m tactile_viz`` with ``argv``; returns the exit status.
+    """Run ``python -m tactile_viz`` (or ``tactile-viz``) with ``argv``; returns the exit
+    status. ``app`` hands its options to :func:`tactile_viz.launcher.main`.
 
     Bad arguments exit (status 2) with one line on stderr. A failing command is shown as one
     line on stderr, its traceback goes to the ``--log-file``: status 2 for the errors a
     user can cause (bad input files, ...), 1 for anything unexpected.
     """
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if args.command == "app":
+        return _app(args, unknown)
+    if unknown:
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     log_file = setup_logging(args.verbose, args.log_file)
     log.debug("command: %s", sys.argv if argv is None else argv)
     prog = getattr(args, "prog", "python -m tactile_viz")

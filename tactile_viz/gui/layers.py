@@ -28,6 +28,7 @@ import vtk
 
 from ..engine.params import PAPER_SIZE
 from ..engine.transforms import transform_points
+from .colour_bar import ColourBar
 from .display_mesh import (decimation, face_budget, faces_to_polydata,  # noqa: F401
                            polylines, spheres, vertex_normals)
 
@@ -154,6 +155,7 @@ class ViewportLayers:
         self._legend_key = None
         self._variance_range = None
         self._overlay = None
+        self.colour_bar = None  # a ColourBar once a GPIS surface is shown
         self._drawn = {}  # layer name -> the inputs it was last drawn from
         self.budget = face_budget(*self._viewport_pixels())
 
@@ -309,6 +311,8 @@ class ViewportLayers:
         (call on resize; the surface follows at the next step)."""
         self._legend_key = None
         self.budget = face_budget(*self._viewport_pixels())
+        if self.colour_bar is not None:
+            self.colour_bar.place(*self._viewport_pixels())
         self._sync_overlays()
 
     def gpis_surface(self, vertices, faces, variance):
@@ -500,25 +504,17 @@ class ViewportLayers:
         self._sync_legend()
 
     def _sync_scalar_bar(self):
-        bars = getattr(self.plotter, "scalar_bars", {})
-        if SCALAR_BAR in bars:
+        if self.colour_bar is not None:
             # Hidden, not removed, while a step has no GPIS surface: adding it again laid
             # out its text anew in the next render (a GPIS surface comes and goes).
-            bars[SCALAR_BAR].SetVisibility(self.shown("gpis"))
+            self.colour_bar.set_visible(self.shown("gpis"))
         elif self.shown("gpis"):
-            # Inside the viewport: the bar and its labels end before the right edge.
-            self.plotter.add_scalar_bar(title=SCALAR_BAR, mapper=self.actors["gpis"].mapper,
-                                        vertical=True, position_x=0.84, position_y=0.12,
-                                        width=0.06, height=0.5, n_labels=4, fmt="%.1e",
-                                        label_font_size=11, title_font_size=12,
-                                        render=False)
-            bar = self.plotter.scalar_bars[SCALAR_BAR]
-            # The title stands clear of the top label (they overlapped by default).
-            bar.SetVerticalTitleSeparation(12)
-            # Drawn over the layers like the legend: in the plotter's renderer the target
-            # (drawn over it) and a sensor path cut letters out of the title.
-            self.plotter.renderer.RemoveViewProp(bar)
-            self.overlay().AddViewProp(bar)
+            # Drawn over the layers like the legend, on a box of its own: in the plotter's
+            # renderer the target (drawn over it) and a sensor path cut letters out of it.
+            self.colour_bar = ColourBar(self.plotter, self.overlay(),
+                                        self.actors["gpis"].mapper, SCALAR_BAR,
+                                        LEGEND_BACKGROUND, LEGEND_OUTLINE, LEGEND_TEXT)
+            self.colour_bar.place(*self._viewport_pixels())
 
     def _viewport_pixels(self):
         try:

@@ -1,5 +1,8 @@
 """Plots beside the viewport: class posterior bars and errors over the steps.
 
+A novel step shows no class posterior and no pose error (both are of priors the object is
+none of): a note with its novelty evidence and the prior its reconstruction starts from.
+
 The artists are made once per session and updated in place (bar heights, line data); the
 layout is computed once and again only when the widget is resized. The axes' limits move in
 steps (the step axis by 50, the error axis by decades), so most updates change only the bars
@@ -25,18 +28,22 @@ from matplotlib.ticker import FuncFormatter, NullFormatter
 from ..app.scene import SCENE_UNITS
 from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.params import SessionParams
+from .step_text import novelty_note
 
 # The error axis of a run spans at least these decades (errors and the DHD of a run on
 # objects 6 units long stay within them), so that it does not change while the run is drawn;
 # scaled with the threshold for objects of other sizes.
 RUN_ERROR_RANGE = (0.01, 10.0)
+POSTERIOR_TITLE = "class posterior"
+NOVELTY_TITLE = "novelty (no class posterior)"
 ERROR_SERIES = (("pose_error", "pose error"), ("dhd", "DHD"),
                 ("recon_error", "reconstruction error"))
 
 
 class PlotsWidget(FigureCanvasQTAgg):
-    """Two axes: the class posterior (bars) and pose error, reconstruction error and DHD
-    against the step, with the error threshold and the DHD stop (eps) drawn."""
+    """Two axes: the class posterior (bars; for a novel step its novelty evidence instead)
+    and pose error (known steps), reconstruction error and DHD against the step, with the
+    error threshold and the DHD stop (eps) drawn."""
 
     def __init__(self, parent=None):
         self.figure = Figure(figsize=(4.2, 5.0))
@@ -87,9 +94,16 @@ class PlotsWidget(FigureCanvasQTAgg):
         axes.set_ylim(0.05, 10)
         axes.tick_params(labelsize=7)
         self._label_stop_lines()
-        self.posterior_axes.set_title("class posterior", fontsize=9)
-        self.posterior_axes.set_ylim(0, 1)
-        self.posterior_axes.tick_params(axis="y", labelsize=7)
+        posterior = self.posterior_axes
+        # Both change with the step (a novel step shows its novelty instead of the bars):
+        # drawn with the bars, over the saved background.
+        self._posterior_title = posterior.set_title(POSTERIOR_TITLE, fontsize=9, animated=True)
+        self._novelty_note = posterior.text(0.5, 0.55, "", transform=posterior.transAxes,
+                                            ha="center", va="center", fontsize=7,
+                                            animated=True, visible=False, linespacing=1.4,
+                                            bbox={"facecolor": "white", "edgecolor": "0.6"})
+        posterior.set_ylim(0, 1)
+        posterior.tick_params(axis="y", labelsize=7)
 
     def _label_stop_lines(self):
         """One line when eps is the error threshold (two would lie on top of each other and
@@ -148,8 +162,8 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.draw_log.append((began, self.last_draw_seconds))
 
     def _dynamic_artists(self):
-        return (list(self._bars or []) + list(self._lines.values())
-                + [self.error_axes.get_legend()])
+        return (list(self._bars or []) + [self._posterior_title, self._novelty_note]
+                + list(self._lines.values()) + [self.error_axes.get_legend()])
 
     def _draw_dynamic(self):
         for artist in self._dynamic_artists():
@@ -232,6 +246,12 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.draw_idle()
 
     def _show_posterior(self, snapshot):
+        novel = snapshot is not None and snapshot.novel
+        self._show_novelty(snapshot if novel else None)
+        if snapshot is not None:
+            self._set_names(list(snapshot.class_posterior))
+        for bar in self._bars or []:
+            bar.set_visible(not novel)
         if snapshot is None:  # no step yet: the classes' bars (if laid out) at 0
             self._map_class = None
             for bar in self._bars or []:
@@ -239,13 +259,21 @@ class PlotsWidget(FigureCanvasQTAgg):
                 bar.set_color("tab:blue")
             return
         names = list(snapshot.class_posterior)
-        self._set_names(names)
-        for bar, name in zip(self._bars, names):
+        for bar, name in zip(self._bars or [], names):
             bar.set_height(snapshot.class_posterior[name])
         if snapshot.map_class != self._map_class:
             self._map_class = snapshot.map_class
             for bar, name in zip(self._bars, names):
                 bar.set_color("tab:red" if name == snapshot.map_class else "tab:blue")
+
+    def _show_novelty(self, snapshot):
+        """A novel step (None: a known one or none) shows its novelty evidence and the prior
+        its reconstruction starts from instead of the priors' posterior, which is not the
+        object's."""
+        self._posterior_title.set_text(NOVELTY_TITLE if snapshot else POSTERIOR_TITLE)
+        self._novelty_note.set_visible(snapshot is not None)
+        if snapshot is not None:
+            self._novelty_note.set_text(novelty_note(snapshot))
 
     def _set_names(self, names):
         axes = self.posterior_axes
@@ -276,6 +304,8 @@ class PlotsWidget(FigureCanvasQTAgg):
             self._steps.append(snapshot.step)
             for key, _ in ERROR_SERIES:
                 value = getattr(snapshot, key)
+                if key == "pose_error" and snapshot.novel:
+                    value = None  # against a prior the object is not: not drawn
                 self._series[key].append(np.nan if value is None else float(value))
         values = []
         for key, _ in ERROR_SERIES:

@@ -158,3 +158,22 @@ def test_scene_from_a_mesh_file_and_from_recorded_touches(launcher, box_file, to
     assert scene.truth is None and scene.recording[0] == str(touches_file)
     assert len(scene.recording[1]) == 2 and "vase_2" in scene.library.names
     assert scene.step().step == 1  # the recording's first touch
+
+
+def test_the_app_command_runs_the_launcher_with_its_options(monkeypatch, capsys):
+    import tactile_viz.launcher
+    from tactile_viz.__main__ import main
+
+    monkeypatch.setattr(sys, "argv", ["/venv/bin/tactile-viz"])  # the installed command
+    with pytest.raises(SystemExit) as stop:
+        main(["app", "--log-file", "", "--seed", "-1"])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == "tactile-viz app: error: --seed must be 0 or more, not -1\n"
+    calls = []
+    monkeypatch.setattr(tactile_viz.launcher, "main",
+                        lambda argv, prog: calls.append((argv, prog)) or 0)
+    assert main(["--verbose", "app", "--object", "vase_2", "--table"]) == 0
+    assert calls == [(["--verbose", "--object", "vase_2", "--table"], "tactile-viz app")]
+    with pytest.raises(SystemExit):  # the other commands still refuse unknown options
+        main(["objects", "--table"])
+    assert "unrecognized arguments: --table" in capsys.readouterr().err

@@ -297,6 +297,50 @@ def test_legend_is_readable_at_1280_by_720(qtbot, window, settled_screenshot):
         darkest = strip.reshape(-1, 3)[np.argmin(luminance)]
         background = strip.reshape(-1, 3)[np.argmax(luminance)]
         assert contrast_ratio(darkest, background) >= 4.5, entries[row][0]
+    _colour_bar_is_boxed(window.layers.colour_bar, image)
+
+
+def _colour_bar_is_boxed(colour_bar, image):
+    """Inside the colour bar's box, as drawn, nothing in colour but the bar's ramp: its title
+    and labels stand on the box's white, never on a marker or surface behind them."""
+    height, width = image.shape[:2]
+    x0, y0, x1, y1 = (round(value) for value in colour_bar.box_pixels(width, height))
+    inside = image[height - y1 + 2:height - y0 - 2, x0 + 2:x1 - 2]
+    coloured = inside.max(axis=-1) - inside.min(axis=-1) > 0.15
+    bar = colour_bar.bar
+    ramp_end = (bar.GetPosition()[0] + bar.GetBarRatio() * bar.GetPosition2()[0]) * width
+    assert coloured.any() and not coloured[:, round(ramp_end) - x0:].any()
+
+
+def test_the_status_bar_is_not_cut_at_1280_by_720(qtbot, known_library, settings):
+    from types import SimpleNamespace
+
+    scene = Scene("mug_1", library=PriorLibrary(list(known_library)),
+                  sensor_noise=(0.02, 2.0), sensor_outliers=0.05)
+    window = MainWindow(scene, settings=settings, engine="thread")
+    qtbot.addWidget(window)
+    window.resize(1280, 720)
+    window.show()
+    qtbot.waitUntil(lambda: window.width() == 1280, timeout=5_000)
+    bar = window.statusBar()
+    assert bar.noise_label.text() == "noise 0.02 scene units, 2.0\u00b0, 5% outliers"
+    assert bar.preset_label.text() == "preset recommended"
+    longest = max(scene.library.names, key=len)  # as long a line as these priors give
+    known = dict(step=400, map_class=longest, novel=False, decided=True,
+                 decision_confidence=0.9993, pose_error=0.123, recon_error=None, dhd=12.34,
+                 timings={"filter": 12.34})
+    for snapshot in (known, dict(known, novel=True, recon_error=0.456)):
+        snapshot = SimpleNamespace(**snapshot)
+        bar.show_snapshot(snapshot, scene)
+        qtbot.wait(20)
+        for label in bar.labels():
+            assert label.fontMetrics().horizontalAdvance(label.text()) <= (
+                label.contentsRect().width()), label.text()
+        assert bar.summary_label.text() == bar.summary_label.full_text  # not elided
+        progress = bar.progress
+        assert progress.fontMetrics().horizontalAdvance(progress.text()) <= (
+            progress.contentsRect().width())
+    assert "last step 12.34 s" in bar.time_label.text() and "DHD 12.34" in bar.dhd_label.text()
 
 
 def pv_color(name):

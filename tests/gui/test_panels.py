@@ -1,6 +1,7 @@
 """The Controls panels: each fills its widgets from the scene without emitting its signals,
 and the dock keeps the loop in view at 1280x720."""
 
+import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, QSettings, Qt, Signal
 from PySide6.QtGui import QAction
@@ -118,31 +119,41 @@ def test_the_status_line_gives_errors_in_scene_units_and_shares_of_the_size():
                                recon_error=None, n_particles=464, timings={"filter": 0.03},
                                rotation_error_deg=3.5, translation_error=0.07)
     text = status_text(snapshot, 6.0)
-    assert ("DHD 1.18 | pose error 0.25 (4.2%) | rot 3.5\u00b0, shift 0.07 | recon error - "
+    assert ("MAP mug_1 | pose error 0.25 (4.2%) | rot 3.5\u00b0, shift 0.07 | recon error - "
             in text)
     small = SimpleNamespace(**dict(vars(snapshot), dhd=0.0236, pose_error=0.005,
                                    translation_error=0.0014))
     text = status_text(small, 0.12)  # a 12 cm mug in metres: not rounded to zeros
-    assert "DHD 0.0236 | pose error 0.0050 (4.2%) | rot 3.5\u00b0, shift 0.0014" in text
+    assert "pose error 0.0050 (4.2%) | rot 3.5\u00b0, shift 0.0014" in text
     other = SimpleNamespace(**dict(vars(snapshot), rotation_error_deg=None,
                                    translation_error=None, pose_error=None))
     assert "rot" not in status_text(other, 6.0) and "pose error - |" in status_text(other, 6.0)
     assert format_length(0.8) == "0.80" and format_length(0.012, 0.12) == "0.0120"
 
 
-def test_the_status_line_says_whether_a_known_object_is_decided():
+def test_the_status_line_says_whether_a_known_object_is_decided_or_why_novel():
     from types import SimpleNamespace
 
     from tactile_viz.gui.panels.loop_panel import status_text
+    from tactile_viz.gui.step_text import summary_text
 
     base = dict(map_class="mug_1", dhd=1.0, pose_error=None, recon_error=None, n_particles=9,
                 timings={}, rotation_error_deg=None, translation_error=None)
     deciding = SimpleNamespace(**base, novel=False, decided=False, decision_confidence=0.42)
     decided = SimpleNamespace(**base, novel=False, decided=True, decision_confidence=0.9993)
-    novel = SimpleNamespace(**base, novel=True, decided=False, decision_confidence=0.0)
     assert status_text(deciding).startswith("known, deciding (42%) | MAP mug_1")
     assert status_text(decided).startswith("known, decided (99.9%)")
-    assert status_text(novel).startswith("NOVEL | MAP mug_1")
+    # Novel: no pose error against the prior (not the object); the novelty test's numbers,
+    # the reconstruction's error and size beside the truth's.
+    novel = SimpleNamespace(**dict(base, pose_error=1.3, recon_error=0.6), novel=True,
+                            log_evidence=-195.43, log_threshold=-184.7,
+                            gpis_vertices=np.array([[0, 0, 0], [6.5, 1, 2]]))
+    assert status_text(novel, 6.0) == (
+        "NOVEL | prior used mug_1 | evidence -195.4, threshold -184.7 | recon error 0.60 "
+        "(10.0%) | size 6.50 (truth 6.00) | particles 9")
+    assert summary_text(novel, 6.0) == "NOVEL | prior used mug_1 | recon error 0.60 (10.0%)"
+    recorded = SimpleNamespace(**vars(novel) | dict(recon_error=None, gpis_vertices=None))
+    assert "recon error - | size - | particles" in status_text(recorded, 6.0)
 
 
 def test_layers_panel_syncs_silently(qtbot):

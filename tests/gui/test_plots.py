@@ -19,7 +19,7 @@ def _snapshots(count, rng):
         snapshots.append(SimpleNamespace(step=step, class_posterior=posterior,
                                          map_class=max(posterior, key=posterior.get),
                                          pose_error=1.0 / step + 0.3, dhd=2.0 / step ** 0.5,
-                                         recon_error=None))
+                                         recon_error=None, novel=False))
     return snapshots
 
 
@@ -48,6 +48,29 @@ def test_updates_blit_until_the_layout_changes(qtbot):
     plots.set_eps(0.8)  # the stop line moves: drawn in full again
     plots.update_plots(snapshots[:61])
     assert plots.blits == 27
+
+
+def test_a_novel_step_shows_its_novelty_instead_of_the_posterior(qtbot):
+    # The priors' posterior and a pose error against a prior are not the novel object's.
+    from tactile_viz.gui.plots import NOVELTY_TITLE, POSTERIOR_TITLE
+
+    plots = _shown_plots(qtbot)
+    known = _snapshots(3, np.random.default_rng(2))
+    novel = [SimpleNamespace(**vars(s) | dict(step=s.step + 3, novel=True, recon_error=0.5,
+                                              log_evidence=-195.4, log_threshold=-184.7))
+             for s in known]
+    plots.update_plots(known + novel)
+    note = plots._novelty_note
+    assert plots._posterior_title.get_text() == NOVELTY_TITLE and note.get_visible()
+    assert not any(bar.get_visible() for bar in plots._bars)
+    assert "judged NOVEL" in note.get_text() and "evidence -195.4, threshold -184.7" in (
+        note.get_text()) and note.get_text().endswith(f": {novel[-1].map_class}")
+    pose = np.asarray(plots._lines["pose_error"].get_ydata(), dtype=float)
+    assert np.isfinite(pose[:3]).all() and np.isnan(pose[3:]).all()
+    assert np.isfinite(plots._lines["recon_error"].get_ydata()[3:]).all()
+    plots.update_plots(known)  # a known step again
+    assert plots._posterior_title.get_text() == POSTERIOR_TITLE and not note.get_visible()
+    assert all(bar.get_visible() for bar in plots._bars)
 
 
 def test_a_run_is_drawn_without_full_draws(qtbot):

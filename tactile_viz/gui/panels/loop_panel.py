@@ -1,12 +1,10 @@
 """The Loop panel: Step, Run, Run to termination, Reset, the step reached and the history."""
 
-import math
-
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QSizePolicy, QSlider,
                                QToolButton, QVBoxLayout)
 
-from ...engine.params import PAPER_SIZE
+from ..step_text import format_length, status_text  # noqa: F401 (format_length: tests)
 from .base import MARGINS, blocked
 
 START_TEXT = "Press Step or Run to start touching."
@@ -17,52 +15,6 @@ def wrapped_between_fields(text):
     inside them), so that a narrow panel never splits "recon error" from its value. The word
     joiner keeps a field ending in "-" (no value) from breaking there, before the "|"."""
     return "\u2060\u00a0| ".join(field.replace(" ", "\u00a0") for field in text.split(" | "))
-
-
-def format_length(value, size=None):
-    """A length in scene units to a resolution of 1/600 of ``size`` (the object's longest
-    side; default the paper's 6, two decimals), so that a metric scene is not all zeros."""
-    size = PAPER_SIZE if size is None or not size > 0 else float(size)
-    decimals = max(0, 2 - math.floor(math.log10(size / PAPER_SIZE)))
-    return f"{value:.{decimals}f}"
-
-
-def status_text(snapshot, size=None):
-    """One line on a step: known (decided or not) or novel, MAP class, DHD, errors,
-    particles, time.
-
-    Lengths are in scene units; with ``size`` (the longest side the errors are judged
-    against, scene units) the pose and reconstruction errors also give their share of it,
-    e.g. "pose error 0.25 (4.2%)". The MAP's rotation error (degrees) and translation error
-    follow when the snapshot has them (a simulated truth of the MAP's shape)."""
-    def error(value):
-        if value is None:
-            return "-"
-        text = format_length(value, size)
-        return text + (f" ({100 * value / size:.1f}%)" if size else "")
-
-    seconds = sum(snapshot.timings.values())
-    fields = [_judgement(snapshot), f"MAP {snapshot.map_class}",
-              f"DHD {format_length(snapshot.dhd, size)}",
-              f"pose error {error(snapshot.pose_error)}"]
-    rotation = getattr(snapshot, "rotation_error_deg", None)
-    translation = getattr(snapshot, "translation_error", None)
-    if rotation is not None and translation is not None:
-        fields.append(f"rot {rotation:.1f}\u00b0, shift {format_length(translation, size)}")
-    fields += [f"recon error {error(snapshot.recon_error)}",
-               f"particles {snapshot.n_particles}", f"last step {seconds:.2f} s"]
-    return " | ".join(fields)
-
-
-def _judgement(snapshot):
-    """``NOVEL``, or ``known`` with the decision (beyond the paper): ``decided`` once no
-    other class or pose fits, else the share the MAP holds so far."""
-    if snapshot.novel:
-        return "NOVEL"
-    confidence = getattr(snapshot, "decision_confidence", 0.0)
-    if getattr(snapshot, "decided", False):
-        return f"known, decided ({100 * confidence:.1f}%)"
-    return f"known, deciding ({100 * confidence:.0f}%)"
 
 
 LOOP_ACTIONS = ("step", "run", "finish", "reset")  # the ids of the panel's buttons' actions
