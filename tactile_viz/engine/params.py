@@ -249,10 +249,10 @@ class SessionParams:
         "thin-plate", "The GPIS kernel: the paper's thin-plate, or the compact Wendland.",
         kind="choice", choices=GPIS_KERNELS,
         notes="thin-plate: the paper's kernel, whose correction reaches the whole box (the "
-              "default: with the carved prior and prior coverage it reconstructed 10 novel "
-              "trials to a mean TWD of 0.80 against the Wendland kernel's 1.08, in 33 s "
-              "against 55 s per trial, docs/benchmarks.md); wendland: compactly supported, a "
-              "contact corrects the prior only within gpis_support.")
+              "default: with the carved prior and prior coverage it reconstructs as well as "
+              "the Wendland kernel, fails less badly and takes half the time, "
+              "docs/bench-novel.md); wendland: compactly supported, a contact corrects the "
+              "prior only within gpis_support.")
     gpis_support: float = _gpis(
         4.0, "Support radius c of the Wendland kernel.", valid=_POSITIVE, length=1)
     gpis_radius_factor: float = _gpis(
@@ -278,43 +278,41 @@ class SessionParams:
         "puts in its empty space (beyond the paper; 0 keeps the prior as it is).",
         valid=_AT_LEAST_0, length=1, control=(0.0, 6.0),
         notes="The ball tangent at the contact, inside it, as large as no other contact and "
-              "no free-space point lies in it. At 3.0 a 10 cm ball against a mug prior went "
-              "from 38% to 6% of its size, but the bundled protocol's six novel objects from "
-              "0.390 to 0.445 (a thin wall's cavity filled before its inside is touched): "
-              "off by default (docs/novel.md).")
+              "no free-space point lies in it. It mends a prior unlike the object (a ball "
+              "against a mug's cavity) but fills a thin wall's cavity before its inside is "
+              "touched, which made the bundled protocol's novel objects worse: off by "
+              "default (docs/novel.md).")
     gpis_carve_outside: bool = _gpis(
         True, "Free-space points outside the prior's solid cut their balls out of it too "
         "(beyond the paper; False: only those a probe found inside it).", kind="bool",
         notes="A probe that passed 0.2 beside a real part the prior has (a sofa's foot) "
-              "refutes nothing of it, but its ball cuts the part away; off, sofa_2 under "
-              "noise was better in 5 of 6 trials, but the dragon noiseless worse in 6 of 6 "
-              "(0.398 -> 0.546), so it stays on (docs/gpis.md).")
+              "refutes nothing of it, but its ball cuts the part away; on by default, "
+              "because off, a novel object whose priors are of the wrong class (the dragon) "
+              "keeps their phantom surface and was worse noiseless (docs/gpis.md).")
     gpis_fill_voids: bool = _gpis(
         False, "Fill the GPIS estimate's voids, outside regions enclosed by its solid, before "
         "its surface is extracted (beyond the paper): the surface is the one a probe could "
         "reach if the estimate were right.", kind="bool",
-        notes="A void of the estimate can be an opening it closed too early: on the bundled "
-              "protocol the dragon was worse in each of its 8 trials with it (2 with it alone), "
-              "and alone it did not help a ball against a mug prior: off by default.")
+        notes="A void of the estimate can be an opening it closed too early (the bundled "
+              "dragon was worse with it), and alone it does not mend a ball against a mug "
+              "prior: off by default (docs/novel.md).")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "
         "sensor, or always.", kind="choice", choices=CARVE_ESTIMATE,
         notes="Under sensor noise the thin-plate correction puts surface far from every "
               "contact, which a miss does not remove (the carved prior is already outside "
-              "there), so the exploration aims at it again and again. The cut removes it "
-              "(same data: dragon 2.48 -> 1.15), but with fewer phantom targets the stop "
-              "comes sooner, and the protocol's final errors under noise were worse at seeds "
-              "12200-12201, 0.418 -> 0.502 (docs/novel.md): off by default.")
+              "there), so the exploration aims at it again and again. The cut removes it, "
+              "but with fewer phantom targets the stop comes sooner, and the protocol's "
+              "final errors under noise were worse with it (docs/novel.md): off by "
+              "default.")
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
-        notes="On in the fast preset: the GPIS fit 5-11x and its surface 3-5x faster, but "
-              "4 of 6 novel reconstructions worse at seed 9100, and the dragon stopped "
-              "before its thin parts were touched at seeds 12500-12502 (0.376 -> 0.752; "
-              "docs/gpis.md). Since the full fit's Newton step every few fits and 400 "
-              "variance points it is no faster (78.7 against 70.2 ms a novel step, seeds "
-              "13300-13302).")
+        notes="On in the fast preset. Off by default: the kept factor, radius and grid "
+              "change the trajectories (a dragon stopped before its thin parts were "
+              "touched), and beside the full fit's Newton step every few fits and 400 "
+              "variance points it is no faster (docs/gpis.md).")
     gpis_refit_every: int = _gpis(
         10, "The kernel scale's Newton step every this many fits (1: all, the paper's).",
         kind="int", valid="[1, 100]",
@@ -347,9 +345,9 @@ class SessionParams:
               "before the session stops; a check that does restarts the count (part of the "
               "object was never predicted) and grows a frontier from the contact: targets "
               "eps along four tangents, each contact on new ground growing it again, and the "
-              "session does not stop while one is queued. 48 (24 before): five novel objects "
-              "x 8 fresh seeds, TWD 0.487 -> 0.380, trials over 0.6 from 4 to 1 of 39, "
-              "steps +16% (docs/bench-novel.md).")
+              "session does not stop while one is queued. 48: a part beside the touched "
+              "body that nothing predicted is the commonest error left, and more checks "
+              "reach it, at some 16% more steps (docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,
@@ -375,8 +373,8 @@ class SessionParams:
         "a novel session stops.", kind="int", valid="[8, inf)",
         notes="The same posterior mean as the steps' surfaces, sampled finer (at 32 cells a "
               "sofa's foot or a chair's rung thinner than a cell can fall between the "
-              "samples and vanish; the protocol's home_chair error fell from 0.591 to 0.507, "
-              "docs/benchmarks.md). Exploration keeps gpis_resolution.")
+              "samples and vanish, docs/bench-novel.md). Exploration keeps "
+              "gpis_resolution.")
     final_candidates: int = _gpis(
         10, "When a novel session stops with part of its reconstruction farther than eps "
         "from every contact, the reported surface is the newest one the contacts cover of "
