@@ -460,6 +460,11 @@ class SessionParams:
     decision_patience: int = _session(
         30, "Steps of a session aimed at rival hypotheses at most (then the paper's targets "
         "and stop).", kind="int", valid=_AT_LEAST_0, control=(0, 300))
+    decision_hold: bool = _session(
+        True, "Once decided, each touch only refits the decided pose and keeps the decision "
+        "while the contacts fit it within the noise (False: decide afresh every touch).",
+        kind="bool", notes="A misfit, another MAP class or a class posterior below "
+        "decision_confidence makes the decision afresh (engine/belief/held.py).")
     decision_candidates: int = _session(
         2000, "Surface points of each hypothesis a telling target is chosen from (0: its "
         "feature points).", kind="int", valid=_AT_LEAST_0, control=(0, 20000),

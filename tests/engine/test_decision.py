@@ -648,3 +648,26 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     angle = np.degrees(Rotation.from_matrix(rotation).magnitude())
     assert min(angle, 180 - angle) <= 5.0 + 1e-6
     assert after < before
+
+
+def test_a_held_decision_is_refitted_and_reopened_by_a_misfit(shapes):
+    """Once decided, the lead alone is refitted to the contacts: touches of the same
+    surface keep it decided, near where it was; touches a unit off it reopen it (None)."""
+    from tactile_viz.engine.belief.held import held_decision
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    assert decision.decided
+    lead = decision.hypotheses[0]
+    more = _touches(shapes["cylinder"], 60, seed=7)[:10]
+    for touch in more:
+        state = pf.update(touch)
+    held = held_decision(pf, state, lead, 0.99, floor=0.02)
+    assert held is not None and held.decided and held.fits and held.loosest is None
+    kept = held.hypotheses[0]
+    assert kept.class_index == lead.class_index and len(held.hypotheses) == 1
+    np.testing.assert_allclose(kept.translation, lead.translation, atol=0.05)
+    off = np.array([t.position + t.normal for t in more[:6]])
+    pf.contact_positions = np.vstack([pf.contact_positions, off])
+    pf.contact_normals = np.vstack([pf.contact_normals, [t.normal for t in more[:6]]])
+    assert held_decision(pf, state, lead, 0.99, floor=0.02) is None

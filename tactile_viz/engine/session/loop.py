@@ -503,7 +503,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                         # beyond the paper
             decision = self._decide(belief)
-        self.state.hypotheses = decision.carried
+        self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):
             coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35

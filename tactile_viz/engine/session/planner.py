@@ -37,6 +37,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..belief.decision import UNDECIDED, decide, disagreement_target
+from ..belief.held import held_decision
 from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                                    raster_path, variance_target, widest_gap)
 from ..explore.scene_moves import check_line
@@ -154,11 +155,17 @@ class Planner:
         if belief.novel:
             return UNDECIDED
         p, noise = self._p, self.sensor_noise[0]
-        return decide(self.filter, belief, p.decision_confidence,
-                      floor=float(np.hypot(p.decision_floor, noise)),
+        floor = float(np.hypot(p.decision_floor, noise))
+        free_space = segment_points(self.state.missed, MISSED_SPACING * self._unit)
+        if p.decision_hold and self.state.decided and self.state.hypotheses:
+            held = held_decision(self.filter, belief, self.state.hypotheses[0],
+                                 p.decision_confidence, floor, free_space,
+                                 self.sensor_noise[1])
+            if held is not None:
+                return held
+        return decide(self.filter, belief, p.decision_confidence, floor=floor,
                       same_mode=max(p.decision_same_mode, 2 * noise),
-                      carried=self.state.hypotheses,
-                      free_space=segment_points(self.state.missed, MISSED_SPACING * self._unit),
+                      carried=self.state.hypotheses, free_space=free_space,
                       pose_tolerance=p.decision_pose_error,
                       normal_noise_deg=self.sensor_noise[1])
 

@@ -80,6 +80,9 @@ class ExplorationState:
     hypotheses : tuple of Hypothesis
         The plausible hypotheses of the last decision, weighed again at the next
         (:func:`~tactile_viz.engine.belief.decision.decide`).
+    decided : bool
+        Whether the last decision was decided (its MAP, ``hypotheses[0]``, is then only
+        refitted while it holds: :func:`~tactile_viz.engine.belief.held.held_decision`).
     decision_checks : int
         Checks in a row around a MAP ready to be decided that touched nothing it does not
         predict.
@@ -119,6 +122,7 @@ class ExplorationState:
     check_directions: list = field(default_factory=list)
     checks_passed: int = 0
     hypotheses: tuple = ()
+    decided: bool = False
     decision_checks: int = 0
     confirming: bool = False
     telling_steps: int = 0
