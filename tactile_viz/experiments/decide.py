@@ -26,7 +26,8 @@ contacts to it, rotation error, seconds). Without the scene options the paper's 
 Per trial: the step of the decision (the first step the session reports ``decided``),
 whether the class was right and the pose within 10% of the object's size (two-way
 Hausdorff distance) there, the rotation error up to the shape's symmetries, whether the
-final state judged a known object novel, and seconds. Writes ``decide.md`` (tables),
+final state judged a known object novel, seconds, and the median milliseconds a touch
+spent deciding and in the filter. Writes ``decide.md`` (tables),
 ``decide.json`` (every trial's summary) to ``--out`` and prints the tables.
 """
 
@@ -114,7 +115,20 @@ def summary(result):
         "final_class": last["map_class"], "final_novel": bool(last["novel"]),
         "steps": len(steps), "seconds": result["seconds"],
         "twin": COUNTERPARTS.get(truth), "scene": scene,
+        "decision_ms": _step_ms(steps, "decision"), "filter_ms": _step_ms(steps, "filter"),
         "tip_radius": 0.0 if scene is None else scene["tip_radius"]}
+
+
+def _step_ms(steps, part):
+    """The median milliseconds a step spent in ``part`` of its timings (None: not timed)."""
+    return _median([1000 * s["timings"][part] for s in steps
+                    if part in (s.get("timings") or {})])
+
+
+def _touch_ms(rows):
+    """``decision / filter`` ms a touch, the medians of the trials' medians."""
+    return (f"{_fmt(_median([s.get('decision_ms') for s in rows]), '.0f')} / "
+            f"{_fmt(_median([s.get('filter_ms') for s in rows]), '.0f')}")
 
 
 def write_tables(stem, rows, text):
@@ -147,7 +161,8 @@ def markdown(summaries):
              f"right, {100 * BAND_M[0]:g}-{100 * BAND_M[1]:g} cm objects | undecided | "
              "steps to the decision (median) | rotation error (median, deg) | "
              "known judged novel (final) | novel judged novel | novel decided | "
-             "s/trial (median) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "s/trial (median) | decision / filter ms a touch (median) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for noise in sorted({tuple(s["noise"]) for s in summaries}):
         mine = [s for s in summaries if tuple(s["noise"]) == noise]
         known = [s for s in mine if s["known_object"]]
@@ -164,7 +179,7 @@ def markdown(summaries):
             f"{sum(s['final_novel'] for s in known)} | "
             f"{sum(s['final_novel'] for s in novel)}/{len(novel)} | "
             f"{sum(s['decided_at'] is not None for s in novel)} | "
-            f"{_fmt(_median([s['seconds'] for s in mine]))} |")
+            f"{_fmt(_median([s['seconds'] for s in mine]))} | {_touch_ms(known)} |")
     misses = [s for s in summaries if s["known_object"] and not s["right"]]
     if misses:
         lines += ["", "Known trials not right at the decision:", "",
@@ -205,7 +220,8 @@ def scene_markdown(summaries):
              "wrong at the decision | undecided | steps to the decision (median) | "
              "contacts to the decision (median) | rotation error (median, deg) | "
              "known judged novel (final) | novel judged novel | novel decided | "
-             "s/trial (median) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "s/trial (median) | decision / filter ms a touch (median) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     groups = sorted({(s["tip_radius"], tuple(s["noise"])) for s in summaries})
     for radius, noise in groups:
         mine = [s for s in summaries
@@ -225,7 +241,7 @@ def scene_markdown(summaries):
             f"{sum(s['final_novel'] for s in known)} | "
             f"{sum(s['final_novel'] for s in novel)}/{len(novel)} | "
             f"{sum(s['decided_at'] is not None for s in novel)} | "
-            f"{_fmt(_median([s['seconds'] for s in mine]))} |")
+            f"{_fmt(_median([s['seconds'] for s in mine]))} | {_touch_ms(known)} |")
     misses = [s for s in summaries if s["known_object"] and not s["right"]]
     if misses:
         lines += ["", "Known trials not right at the decision:", "",

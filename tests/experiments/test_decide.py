@@ -12,7 +12,8 @@ from tactile_viz.experiments import decide, hard_objects
 def _result(name, decided_at, map_class=None, novel=False, tag="known", noise=(0.0, 0.0),
             pose=0.001, size=0.1):
     steps = [{"t": t, "map_class": map_class or name, "pose_error": pose, "novel": novel,
-              "decided": decided_at is not None and t >= decided_at, "rotation_error_deg": 1.5}
+              "decided": decided_at is not None and t >= decided_at, "rotation_error_deg": 1.5,
+              "timings": {"decision": 0.001 * t, "filter": 0.002}}
              for t in range(1, 21)]
     return {"object": name, "seed": 0, "object_size": size, "seconds": 2.0, "steps": steps,
             "sensor": {"position_noise": noise[0], "normal_noise_deg": noise[1]},
@@ -53,6 +54,7 @@ def test_the_table_counts_per_noise_level_and_lists_the_misses():
     assert "| 0, 0 | 3 | 2 (66.7%) | 1/2 (50.0%) | 1 | 6.0 |" in text  # the block: 2 cm
     assert "| 0.002, 2 | 1 | 1 (100.0%) | 1/1 (100.0%) | 0 | 9.0 |" in text
     assert "| knife | 0 | 0, 0 | - |" in text
+    assert "| 2.0 | 10 / 2 |" in text  # seconds a trial; decision / filter ms a touch
     assert "1/1" in text  # the novel object judged novel
 
 
