@@ -229,7 +229,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     best = float(misfit.min())
     shape2 = pf.models[classes[0]].shape_error ** 2  # a learned shape's own error
-    floor2 = floor**2 + grid_error(pf.bank, classes[0]) ** 2 + shape2  # the MAP's model too
+    floor2 = model_floor2(pf, classes[0], floor)  # the MAP's model too
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
     turned = np.full(len(classes), np.inf)
     finite = np.flatnonzero(np.isfinite(misfit))
@@ -276,15 +276,15 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # The grid errs most inside thin parts, where noisy readings lie, and more than its
     # error at the surface says: where the grid's residuals fail, the mesh is asked, with
     # no grid error.
+    limit = fit_limit(pf, classes[0], floor, confidence, dof)
     fits = dof > 0 and (
-        lead.misfit <= quantile * max(floor2 + roughness**2, 1e-300)
+        lead.misfit <= limit
         or mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
                        oriented) <= quantile * max(
             floor**2 + shape2 + roughness**2, 1e-300))
     loosest, modes = None, ()
     if fits and level >= confidence:
-        modes = _open_modes(pf.bank, hypotheses, lead,
-                            quantile * max(floor2 + roughness**2, 1e-300),
+        modes = _open_modes(pf.bank, hypotheses, lead, limit,
                             pose_tolerance * pf.models[lead.class_index].length)
         loosest = _loosest(pf, lead, scale2, confidence, pose_tolerance)
     decided = (not belief.novel and fits and level >= confidence and loosest is None
@@ -293,6 +293,25 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes)
+
+
+def model_floor2(pf, class_index, floor):
+    """The squared noise scale a right hypothesis of a class leaves at least (squared
+    scene units): the sensor's ``floor``, the grid's own error and a learned shape's
+    ``shape_error``, in quadrature."""
+    return (floor**2 + grid_error(pf.bank, class_index) ** 2
+            + pf.models[class_index].shape_error ** 2)
+
+
+def fit_limit(pf, class_index, floor, confidence, dof):
+    """The largest sum of squared residuals a right hypothesis of a class passes at
+    ``confidence`` (chi-squared with ``dof`` degrees of freedom; 0 without any): its
+    :func:`model_floor2` and its shape's roughness (a bumpy ball posed by its bumps)."""
+    if dof <= 0:
+        return 0.0
+    roughness = symmetry_group(pf.models[class_index]).roughness
+    return chi2.ppf(confidence, dof) * max(model_floor2(pf, class_index, floor)
+                                           + roughness**2, 1e-300)
 
 
 def _open_modes(bank, hypotheses, lead, limit, tolerance):

@@ -11,13 +11,11 @@ chi-squared test of its residuals at ``confidence``, and the filter still puts t
 """
 
 import numpy as np
-from scipy.stats import chi2
 
-from .decision import Decision, Hypothesis, grid_error
+from .decision import Decision, Hypothesis, fit_limit, model_floor2
 from .oriented import oriented_evaluator
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .support import table_support
-from ..shape.symmetry import symmetry_group
 
 
 def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
@@ -63,10 +61,8 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     except np.linalg.LinAlgError:
         return None
     misfit = float(misfit[0])
-    floor2 = floor**2 + grid_error(pf.bank, c) ** 2 + pf.models[c].shape_error ** 2
-    roughness = symmetry_group(pf.models[c]).roughness
-    if not misfit <= chi2.ppf(confidence, dof) * max(floor2 + roughness**2, 1e-300):
+    if not misfit <= fit_limit(pf, c, floor, confidence, dof):
         return None  # a misfit (or NaN) reopens the decision
     kept = Hypothesis(c, rotations[0], translations[0], misfit, 1.0)
-    scale = float(np.sqrt(max(misfit / dof, floor2, 1e-300)))
+    scale = float(np.sqrt(max(misfit / dof, model_floor2(pf, c, floor), 1e-300)))
     return Decision(True, share, (kept,), True, None, scale, ())
