@@ -4,13 +4,13 @@ Every fenced block of those documents (not docs/journal/, a dated log) is one of
 ```` ```python ```` block (run by ``test_doc_snippets.py``), a block that is not code (a
 layout, a diagram, output, a file's format: listed in :data:`NOT_RUN_BLOCKS` by its document
 and first line), or shell commands. A command is a line that starts at the left margin with
-its ``\\`` continuations (and the lines of a quoted string it opens); indented lines carry
-a usage synopsis on or comments. Every ``python ...`` command is either run (the commands
-of one block in order, in one empty folder, each expected to exit 0; those in :data:`CAPPED`
-with fewer steps) or listed in :data:`NOT_RUN` with the reason; a usage synopsis (``[--seed
-N]``, ``NAME``), a benchmark and the desktop app are recognised as such. Any other command
-(``make ...``) needs its reason in :data:`NOT_RUN`. A new command or block in the documents
-is run unless it is added to a table: documented commands keep working.
+its ``\\`` continuations (and the lines of a quoted string it opens); an indented line
+goes on with a usage synopsis or a comment. Every ``python ...`` command is either run (the
+commands of one block in order, in one empty folder, each expected to exit 0; those in
+:data:`CAPPED` with fewer steps) or listed in :data:`NOT_RUN` with the reason; a usage
+synopsis (``[--seed N]``, ``NAME``), a benchmark and the desktop app are recognised as such.
+Any other command (``make ...``) needs its reason in :data:`NOT_RUN`. A new command or block
+in the documents is run unless it is added to a table: documented commands keep working.
 """
 
 import os
