@@ -182,6 +182,7 @@ def one_line_warnings(prog):
         log.warning("%s: %s", category.__name__, message, extra={"file_only": True})
         print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
 
+    show.prog = prog  # a process pool's workers show theirs the same way
     before = warnings.showwarning
     warnings.showwarning = show
     try:

@@ -35,8 +35,11 @@ import multiprocessing
 import os
 import sys
 import traceback
+import warnings
 
 import numpy as np
+
+from ..cli import one_line
 
 TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
@@ -260,13 +263,27 @@ def _limit_threads():
         os.environ.setdefault(name, "1")
 
 
+def one_line_warnings_in_worker(prog):
+    """Show a worker process's Python warnings as one line on stderr, ``PROG: warning:
+    MESSAGE``, as the command that started it does."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
+
+    warnings.showwarning = show
+
+
 class ProcessPool:
     """A local pool of ``workers`` processes (spawned, one BLAS thread each)."""
 
     def __init__(self, workers):
         _limit_threads()  # inherited by the spawned workers before they import numpy
+        # A command's one-line warnings (``python -m tactile_viz``) hold in its workers too.
+        prog = getattr(warnings.showwarning, "prog", None)
         self.executor = cf.ProcessPoolExecutor(
-            max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+            max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+            initializer=None if prog is None else one_line_warnings_in_worker,
+            initargs=() if prog is None else (prog,))
 
     def submit(self, task):
         return self.executor.submit(run_task, task)

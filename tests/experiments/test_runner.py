@@ -85,3 +85,23 @@ def test_trial_files_are_compressed_and_older_plain_ones_still_read(tmp_path):
     assert read_trials(tmp_path) == [result, rounded(result)]
     write_trial(tmp_path, "a", result)  # rewriting an old trial replaces its plain file
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json.gz", "b.json.gz"]
+
+
+def test_a_commands_workers_show_warnings_as_one_line(capfd, monkeypatch):
+    # Under a command's one-line warnings (``python -m tactile_viz``), a worker's warning
+    # is one line with the command's prefix, not Python's two lines with a source path.
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        raise AssertionError("the parent's own function is not for the workers")
+
+    show.prog = "tactile-viz bench learn"
+    monkeypatch.setattr(warnings, "showwarning", show)
+    pool = ProcessPool(1)
+    try:
+        pool.executor.submit(warnings.warn, "cup.ply: repaired on loading\n1 hole closed").result()
+    finally:
+        pool.executor.shutdown()
+    err = capfd.readouterr().err
+    assert "tactile-viz bench learn: warning: cup.ply: repaired on loading 1 hole closed" in err
+    assert "UserWarning" not in err and ".py:" not in err
