@@ -484,39 +484,6 @@ def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     assert any(np.allclose(target, queued[0]) for target in targets if target is not None)
 
 
-def test_the_frontier_follows_only_off_the_surprised_estimate(sphere_model):
-    # A frontier target's touch grows the frontier only off every contact and off the
-    # estimate the surprising check was planned on: where that estimate held the surface
-    # the part nothing predicted has ended.
-    session, _ = _sphere_against_a_box(sphere_model, 4)
-    session.run(max_steps=3)
-    normal = np.array([0.0, 0.0, 1.0])
-    session.state.frontier_reference = np.c_[np.linspace(-1.0, 1.0, 21), np.zeros(21),
-                                             np.full(21, 5.0)]
-    session.state.frontier, session.state.frontier_target = [], True
-    session._follow_frontier(Contact(np.array([0.0, 0.05, 5.0]), normal))  # predicted
-    assert session.state.frontier == []
-    session._follow_frontier(Contact(np.array([0.0, 0.0, 8.0]), normal))   # unpredicted
-    assert len(session.state.frontier) == 4
-
-
-def test_only_the_prior_surface_recent_priors_agree_on_is_left_to_cover():
-    # A prior that stayed in place keeps its open part; one that moved keeps only where
-    # the earlier pose had surface too (within the tolerance); no earlier prior: as is.
-    from tactile_viz.engine.session.planner import on_every_surface
-
-    def plane(height):
-        return lambda points: (points[:, 2] - height, np.tile([0.0, 0.0, 1.0], (len(points), 1)))
-
-    vertices = np.c_[np.zeros(5), np.zeros(5), [0.0, 0.1, 0.3, 1.0, 2.0]]
-    mask = np.array([True, True, True, True, False])
-    np.testing.assert_array_equal(on_every_surface(vertices, mask, [], 0.2), mask)
-    np.testing.assert_array_equal(on_every_surface(vertices, mask, [plane(0.0)], 0.2),
-                                  [True, True, False, False, False])
-    np.testing.assert_array_equal(
-        on_every_surface(vertices, mask, [plane(0.0), plane(1.0)], 0.2), np.zeros(5, bool))
-
-
 @pytest.mark.slow
 def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
     # A sphere against a box prior is novel; with a loose eps its estimate is covered early.

@@ -111,7 +111,6 @@ class Bookkeeping:
             return
         if surprise:
             self.state.checks_passed = 0
-            self.state.frontier_reference = self.state.check.estimate
             self._grow_frontier(touched)
         elif self._check_kind(len(self.state.check_directions) - 1) != "weakest":
             # A sweep about the weakest support adds to the gap checks, never replaces one.
@@ -139,16 +138,10 @@ class Bookkeeping:
                                             SWEPT_SPACING * self._unit)
 
     def _follow_frontier(self, touched):
-        """After a frontier target: a contact on new ground grows the frontier from it.
-        New ground is off every contact and off the estimate the surprising check was
-        planned on: where that estimate already held the surface, the part nothing
-        predicted has ended (a frontier grown on predicted ground tiles the whole surface
-        ``eps`` at a time: a 40 cm guitar, 255 touches to the cap)."""
+        """After a frontier target: a contact on new ground grows the frontier from it."""
         contacts = self.filter.contact_positions
-        if not (self.state.frontier_target and isinstance(touched, Contact) and len(contacts)):
-            return
-        known = [points for points in (contacts, self.state.frontier_reference) if len(points)]
-        if min(cKDTree(points).query(touched.position)[0] for points in known) > self._new_ground():
+        if (self.state.frontier_target and isinstance(touched, Contact) and len(contacts)
+                and cKDTree(contacts).query(touched.position)[0] > self._new_ground()):
             self._grow_frontier(touched)
 
     def _new_ground(self):

@@ -65,9 +65,6 @@ EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)
               ("confirm checks", ("decision_targets", False)))
 
 
-PRIOR_MEMORY = 5  # novel steps whose MAP priors must agree on a prior part to cover
-
-
 class Coverage(NamedTuple):
     """How well the contacts cover the estimate (l.8).
 
@@ -197,21 +194,8 @@ class Planner:
                                                            self._p.gpis_carve_radius))
             if map_reach is not None:
                 prior_open = _both(prior_open, map_reach)
-            if model is not None:
-                prior_open = self._held_by_recent_priors(prior_open, map_vertices,
-                                                         (model.name, *pose))
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
-
-    def _held_by_recent_priors(self, open_, vertices, current):
-        """The open MAP prior vertices (``open_`` of ``vertices``) where every distinct MAP
-        prior of the last :data:`PRIOR_MEMORY` novel steps has surface too
-        (:func:`on_every_surface`)."""
-        models = dict(zip(self.filter.class_names, self.filter.models))
-        recent = self._recent_priors(PRIOR_MEMORY, current)[1:]
-        fields = [self._prior(models[name], rotation, translation)
-                  for name, rotation, translation in recent]
-        return on_every_surface(vertices, open_, fields, self._p.eps)
 
     def _in_scene(self, vertices, normals, outside, contacts):
         """Mask of the estimate's vertices the scene's probe can reach
@@ -489,35 +473,6 @@ class Planner:
         kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
         return kinds[index % len(kinds)]
 
-
-
-def on_every_surface(vertices, mask, fields, tolerance):
-    """``mask`` kept only at the vertices within ``tolerance`` of every field's zero level.
-
-    A prior that fits a novel object stays in place from step to step and keeps all its
-    untouched part to cover; one that fits no better than others (a mug judged by an
-    elephant) turns and moves, and each new pose brought untouched surface that held the
-    stop to the step cap. Only the part the recent priors agree on is left to cover.
-
-    Parameters
-    ----------
-    vertices : (v, 3) float
-    mask : (v,) bool
-    fields : sequence of callable
-        Each ``(k, 3) -> (values (k,), gradients (k, 3))``: a signed distance (scene units).
-    tolerance : float
-
-    Returns
-    -------
-    (v,) bool
-    """
-    keep = np.array(mask, bool)
-    for field in fields:
-        index = np.flatnonzero(keep)
-        if len(index) == 0:
-            break
-        keep[index[np.abs(field(vertices[index])[0]) > tolerance]] = False
-    return keep
 
 
 @functools.lru_cache(maxsize=8)

@@ -69,9 +69,6 @@ class ExplorationState:
         Targets beside contacts on parts nothing predicted, still to visit.
     frontier_target : bool
         Whether ``target`` came from the frontier.
-    frontier_reference : (k, 3) float
-        The estimate's vertices when a check last touched a part nothing predicted: the
-        frontier follows that part while its touches stay off this estimate.
     telling_apart : bool
         Whether ``target`` is where rival hypotheses disagree (beyond the paper).
     check : Check or None
@@ -120,7 +117,6 @@ class ExplorationState:
     missed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     frontier: list = field(default_factory=list)
     frontier_target: bool = False
-    frontier_reference: np.ndarray = field(default_factory=_points)
     telling_apart: bool = False
     check: Any = None
     check_directions: list = field(default_factory=list)
