@@ -8,7 +8,8 @@ import os
 import sys
 import warnings
 
-from .cli import ArgumentParser, add_logging_arguments, one_line, setup_logging
+from .cli import (ArgumentParser, add_logging_arguments, one_line, one_line_warning,
+                  setup_logging)
 from .engine.errors import TactileVizError
 
 # Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
@@ -177,14 +178,8 @@ def one_line_warnings(prog):
     """Show every Python warning raised while the command runs as one line on stderr,
     ``PROG: warning: MESSAGE`` (the log file keeps it too), not as Python's two lines with
     a source path."""
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        log.warning("%s: %s", category.__name__, message, extra={"file_only": True})
-        print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
-
-    show.prog = prog  # a process pool's workers show theirs the same way
     before = warnings.showwarning
-    warnings.showwarning = show
+    warnings.showwarning = one_line_warning(prog, log)
     try:
         yield
     finally:

@@ -24,6 +24,21 @@ def one_line(text):
     return " ".join(line.strip() for line in str(text).splitlines() if line.strip())
 
 
+def one_line_warning(prog, log=None):
+    """A ``warnings.showwarning`` that shows a warning as one line on stderr,
+    ``PROG: warning: MESSAGE`` (and to ``log``'s file when given), not as Python's two
+    lines with a source path. Its ``prog`` attribute names the command (a process pool
+    gives its workers the same)."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if log is not None:
+            log.warning("%s: %s", category.__name__, message, extra={"file_only": True})
+        print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
+
+    show.prog = prog
+    return show
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse's parser, but an error is one line on stderr, ``PROG: error: MESSAGE``, and
     exit status 2 (argparse's usage line is left out; ``--help`` shows it).

@@ -39,7 +39,7 @@ import warnings
 
 import numpy as np
 
-from ..cli import one_line
+from ..cli import one_line_warning
 
 TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
@@ -264,13 +264,9 @@ def _limit_threads():
 
 
 def one_line_warnings_in_worker(prog):
-    """Show a worker process's Python warnings as one line on stderr, ``PROG: warning:
-    MESSAGE``, as the command that started it does."""
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        print(f"{prog}: warning: {one_line(str(message))}", file=sys.stderr)
-
-    warnings.showwarning = show
+    """Show a worker process's Python warnings as one line, as the command that started it
+    does (:func:`~tactile_viz.cli.one_line_warning`)."""
+    warnings.showwarning = one_line_warning(prog)
 
 
 class ProcessPool:

@@ -10,8 +10,9 @@ from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
 from tactile_viz.engine.belief.particles import Particles
-from tactile_viz.engine.belief.decision import (Decision, Hypothesis, decide, disagreement_target,
+from tactile_viz.engine.belief.decision import (Decision, Hypothesis, decide,
                                          surface_disagreement)
+from tactile_viz.engine.belief.telling import disagreement_target
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths

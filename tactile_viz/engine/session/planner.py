@@ -36,8 +36,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..belief.decision import UNDECIDED, decide, disagreement_target
+from ..belief.decision import UNDECIDED, decide
 from ..belief.held import held_decision
+from ..belief.telling import disagreement_target
 from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
                                    raster_path, variance_target, widest_gap)
 from ..explore.scene_moves import check_line
