@@ -69,6 +69,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         self._background = None  # the figure without the bars and lines, after a full draw
         self._layout_key = None
         self._legend_series = None  # the error series the legend names (those with data)
+        self._pixels = {}  # (artist, its text) -> its rendered pixels, for a blit (see below)
         self._setup_errors()
         self.update_plots([])
         self._relayout()
@@ -140,8 +141,11 @@ class PlotsWidget(FigureCanvasQTAgg):
                 handles.append(Line2D([], [], color=line.get_color(),
                                       linewidth=line.get_linewidth()))
                 labels.append(label)
-        legend = self.error_axes.legend(handles, labels, fontsize=7, loc="upper right")
+        # Opaque: its pixels are kept and put back at each blit, not drawn again.
+        legend = self.error_axes.legend(handles, labels, fontsize=7, loc="upper right",
+                                        framealpha=1.0)
         legend.set_animated(True)
+        self._pixels.clear()
 
     def _relayout(self):
         try:
@@ -154,6 +158,7 @@ class PlotsWidget(FigureCanvasQTAgg):
         began = time.perf_counter()
         super().draw()
         self._background = self.copy_from_bbox(self.figure.bbox)
+        self._pixels.clear()
         self._layout_key = self._current_layout()
         self._draw_dynamic()
         self._log(began)
@@ -163,12 +168,25 @@ class PlotsWidget(FigureCanvasQTAgg):
         self.draw_log.append((began, self.last_draw_seconds))
 
     def _dynamic_artists(self):
-        return (list(self._bars or []) + [self._posterior_title, self._novelty_note]
-                + list(self._lines.values()) + [self.error_axes.get_legend()])
+        return (list(self._bars or []) + [self._novelty_note] + list(self._lines.values()))
 
     def _draw_dynamic(self):
         for artist in self._dynamic_artists():
             self.figure.draw_artist(artist)
+        for artist in (self._posterior_title, self.error_axes.get_legend()):
+            self._draw_kept(artist)
+
+    def _draw_kept(self, artist):
+        """Draw ``artist`` (the title, or the legend, opaque and over the lines) from its
+        kept pixels: rendering its text took 7 and 19 ms of a 50 ms blit. They are kept
+        per text until the layout changes (a full draw) or the legend is made again."""
+        key = (id(artist), artist.get_text() if hasattr(artist, "get_text") else None)
+        kept = self._pixels.get(key)
+        if kept is not None:
+            self.restore_region(kept)
+            return
+        self.figure.draw_artist(artist)
+        self._pixels[key] = self.copy_from_bbox(artist.get_window_extent())
 
     def _current_layout(self):
         return (self.error_axes.get_xlim(), self.error_axes.get_ylim(), self._names, self.eps,

@@ -147,6 +147,32 @@ def test_the_legend_names_only_the_series_with_data(qtbot):
     assert legend() == ["0.6: threshold and DHD stop (eps)"]
 
 
+def test_a_blit_draws_the_legend_and_title_once_then_puts_their_pixels_back(qtbot,
+                                                                           monkeypatch):
+    plots = _shown_plots(qtbot)
+    plots.set_classes(NAMES)
+    plots.set_run_steps(300, now=True)
+    snapshots = _snapshots(8, np.random.default_rng(4))
+    plots.update_plots(snapshots[:1])  # the legend gains its series: made again
+    drawn = []
+    original = plots.figure.draw_artist
+    monkeypatch.setattr(plots.figure, "draw_artist",
+                        lambda artist: (drawn.append(artist), original(artist)))
+    blits = plots.blits
+    for count in range(2, 9):
+        plots.update_plots(snapshots[:count])
+    assert plots.blits == blits + 7
+    legend, title = plots.error_axes.get_legend(), plots._posterior_title
+    assert drawn.count(legend) == 0 and drawn.count(title) == 0  # kept from the first
+    assert drawn.count(plots._lines["dhd"]) == 7  # the lines are drawn at every blit
+    image = np.asarray(plots.buffer_rgba())
+    box = legend.get_window_extent()
+    height = image.shape[0]
+    inside = image[int(height - box.y1) + 2:int(height - box.y0) - 2,
+                   int(box.x0) + 2:int(box.x1) - 2, :3]
+    assert (inside < 128).any()  # its text is on the canvas
+
+
 def test_stop_lines_and_axis_in_scene_units(qtbot):
     # A 12 cm object in metres: threshold 10% of it, the paper's eps 0.6 size units is the
     # same length (one line), the axis names the unit and spans the object's scale.
