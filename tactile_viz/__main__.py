@@ -8,8 +8,7 @@ import os
 import sys
 import warnings
 
-from .cli import (ArgumentParser, add_logging_arguments, one_line, one_line_warning,
-                  setup_logging)
+from .cli import ArgumentParser, add_logging_arguments, one_line, one_line_warning, setup_logging
 from .engine.errors import TactileVizError
 
 # Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.

@@ -7,24 +7,44 @@ Everything a script needs is importable from here::
 Nothing here imports Qt, pyvista or vtk; a test enforces it.
 """
 
-from .errors import (LibraryError, MeshError, MeshWarning, ObservationError, ParameterError,
-                     TactileVizError)
+from .belief.particle_filter import ParticleFilter
+from .errors import (
+    LibraryError,
+    MeshError,
+    MeshWarning,
+    ObservationError,
+    ParameterError,
+    TactileVizError,
+)
 from .explore.exploration import STRATEGIES
+from .explore.observations import Contact, NonContact
+from .explore.simulator import ContactSimulator, GroundTruth
+from .io.export import export_session
+from .io.observation_file import (
+    ObservationFileError,
+    RecordedStep,
+    read_observations,
+    write_observations,
+)
+from .params import FilterParams
+from .presets import preset
+from .session import (
+    SESSION_PRESETS,
+    Move,
+    Reconstruction,
+    RecordedSession,
+    Session,
+    SessionError,
+    SessionParams,
+    Snapshot,
+    make_truth,
+    session_preset,
+)
+from .session.loop import Sensor
 from .shape.library import PriorLibrary
 from .shape.meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .shape.objects import ModelParams, ObjectModel, bundled_names, load_bundled
-from .explore.observations import Contact, NonContact
-from .params import FilterParams
-from .presets import preset
-from .belief.particle_filter import ParticleFilter
 from .shape.sdf import ExactDistance, SDFGrid, build_sdf_grid
-from .io.export import export_session
-from .io.observation_file import (ObservationFileError, RecordedStep, read_observations,
-                               write_observations)
-from .session import (SESSION_PRESETS, Move, Reconstruction, RecordedSession, Session,
-                      SessionError, SessionParams, Snapshot, make_truth, session_preset)
-from .session.loop import Sensor
-from .explore.simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [

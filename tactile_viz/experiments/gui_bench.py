@@ -35,8 +35,16 @@ import tempfile
 import time
 
 from ..app.engine_process import ENGINES
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
-                  int_range, seed_int, writable_output)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    bundled_object,
+    count_int,
+    int_range,
+    seed_int,
+    writable_output,
+)
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.files import write_atomic
 

@@ -29,8 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
-                   output_dir, positive_int, with_settings, workers_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_set_argument,
+    count_int,
+    nonnegative_int,
+    output_dir,
+    positive_int,
+    with_settings,
+    workers_int,
+)
 from ..engine.presets import session_preset
 from .decide import _median, noise_level, write_tables
 from .hard_objects import HARD_SIZES_M, hard_meshes

@@ -17,13 +17,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
-                   output_dir, seed_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    bundled_object,
+    count_int,
+    output_dir,
+    seed_int,
+)
 from ..engine.io.files import write_atomic
 from . import prior_scaling
-from .prior_scaling import growth_exponent
 from .aggregate import markdown_table
 from .paper import machine_description
+from .prior_scaling import growth_exponent
 
 
 def build_parser():

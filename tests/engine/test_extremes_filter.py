@@ -12,17 +12,30 @@ import pytest
 import trimesh
 from scipy.special import logsumexp
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
-                                ObjectModel, ObservationError, ParameterError, PriorLibrary,
-                                TactileVizError, random_pose)
-from tactile_viz.engine.belief.likelihood import (log_contact_likelihood, log_noncontact_likelihood,
-                                           log_normaliser, normalise_log_weights)
-from tactile_viz.engine.shape.metrics import pose_error
-from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.presets import noise_matched, preset
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    NonContact,
+    ObjectModel,
+    ObservationError,
+    ParameterError,
+    PriorLibrary,
+    TactileVizError,
+    random_pose,
+)
+from tactile_viz.engine.belief.likelihood import (
+    log_contact_likelihood,
+    log_noncontact_likelihood,
+    log_normaliser,
+    normalise_log_weights,
+)
 from tactile_viz.engine.belief.particle_filter import ParticleFilter, Particles
 from tactile_viz.engine.belief.ppf import align_pairs, is_degenerate, local_frames, pair_features
 from tactile_viz.engine.explore.simulator import random_touch
+from tactile_viz.engine.params import FilterParams
+from tactile_viz.engine.presets import noise_matched, preset
+from tactile_viz.engine.shape.metrics import pose_error
 
 WIDTHS = [1e-6, 1e-3, 1.0, 1e3, 1e6]
 

@@ -11,12 +11,22 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, MeshError, MeshWarning,
-                                ModelParams, ObjectModel, PriorLibrary, load_mesh, prepare_mesh)
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    MeshError,
+    MeshWarning,
+    ModelParams,
+    ObjectModel,
+    PriorLibrary,
+    load_mesh,
+    prepare_mesh,
+)
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.shape.meshes import DECIMATED_FACES, MAX_FACES
 from tactile_viz.engine.shape.metrics import surface_samples
-from tactile_viz.engine.belief.particle_filter import ParticleFilter
 
 
 def _ellipsoid():

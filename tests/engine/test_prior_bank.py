@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.explore.observations import Contact
-from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.prior_bank import PriorBank, bank_for
+from tactile_viz.engine.explore.observations import Contact
+from tactile_viz.engine.params import FilterParams
 
 NAMES = ("mug_1", "bottle_1", "guitar_1")
 
@@ -85,8 +85,10 @@ def test_compiled_likelihood_is_the_numpy_one(models, rng, outliers):
     beyond the grids."""
     from scipy.spatial.transform import Rotation
 
-    from tactile_viz.engine.belief.likelihood import (log_contact_likelihood,
-                                               log_noncontact_likelihood)
+    from tactile_viz.engine.belief.likelihood import (
+        log_contact_likelihood,
+        log_noncontact_likelihood,
+    )
     from tactile_viz.engine.belief.particle_filter import Particles
 
     params = FilterParams(outlier_probability=outliers)

@@ -35,9 +35,9 @@ other modes, a mug's handle on the wrong side among them. With one class holding
 import numpy as np
 
 from . import kernels
-from .particles import Particles
 from .likelihood import normalise_log_weights
 from .oriented import MIN_NORMAL_NOISE_DEG, oriented_evaluator, turned_cost
+from .particles import Particles
 from .pose_refinement import refine_poses
 
 

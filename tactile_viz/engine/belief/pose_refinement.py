@@ -16,8 +16,8 @@ squares: a wrong reading cannot pull the pose).
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .support import support_residuals
 from ..transforms import inverse_transform_points_batch
+from .support import support_residuals
 
 POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J

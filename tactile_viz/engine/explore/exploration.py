@@ -19,8 +19,8 @@ import numpy as np
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import TactileVizError
-from .observations import Contact
 from ..shape.sdf import normalise_rows
+from .observations import Contact
 from .simulator import sample_path
 
 STRATEGIES = ("gpis-dhd", "rrt")

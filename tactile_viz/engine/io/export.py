@@ -28,12 +28,11 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import trimesh
 
-import numpy as np
-
-from .files import write_atomic
 from ..shape.objects import mark_learned
+from .files import write_atomic
 from .observation_file import format_observations
 
 FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json",

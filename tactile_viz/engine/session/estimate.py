@@ -13,8 +13,14 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..shape.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, cut_free_space,
-                          fit_gpis, zero_level_surface)
+from ..shape.gpis import (
+    ThinPlateKernel,
+    WendlandKernel,
+    carved_prior,
+    cut_free_space,
+    fit_gpis,
+    zero_level_surface,
+)
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import contact_balls, filled_prior
 from ..shape.gpis_variance import lattice_low, lattice_variance

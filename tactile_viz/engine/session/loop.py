@@ -29,22 +29,22 @@ from typing import Protocol, Union
 
 import numpy as np
 
+from ..belief.particle_filter import ParticleFilter
 from ..errors import SessionError
 from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
+from ..explore.observations import Contact, NonContact
 from ..explore.scene_moves import first_moves, reach_moves, rrt_scene_moves
+from ..explore.simulator import ContactSimulator, GroundTruth
+from ..io.observation_file import RecordedStep
+from ..io.persistence import load_session, save_session
+from ..params import PAPER_SIZE, SessionParams, scaled_lengths
+from ..presets import noise_matched
 from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
 from ..shape.metrics import surface_samples
-from ..io.observation_file import RecordedStep
-from ..explore.observations import Contact, NonContact
-from ..params import PAPER_SIZE, SessionParams, scaled_lengths
-from ..presets import noise_matched
-from ..belief.particle_filter import ParticleFilter
-from ..io.persistence import load_session, save_session
-from ..explore.simulator import ContactSimulator, GroundTruth
 from ..transforms import transform_points
-from .estimate import Estimation
 from .bookkeeping import Bookkeeping
+from .estimate import Estimation
 from .fields import deepest_inside, free_approach
 from .learning import Learning
 from .planner import SWEEP_RADIUS, Planner
