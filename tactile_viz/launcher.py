@@ -48,8 +48,8 @@ def parse_args(argv=None, prog=PROG):
     from tactile_viz.app.engine_process import ENGINES
     from tactile_viz.engine import STRATEGIES
 
-    parser = Parser(prog=prog, description="tactile_viz desktop app: watch and steer active tactile "
-                                "recognition and shape learning")
+    parser = Parser(prog=prog, description="tactile_viz desktop app: watch and steer active "
+                                           "tactile recognition and shape learning")
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--object", metavar="NAME",
                       help="bundled ground-truth object (default mug_1)")

@@ -195,7 +195,7 @@ class Scene:
         overrides = dict(self.overrides, **{name: value})
         previous, self.overrides = self.overrides, overrides
         try:
-            self.params  # validates through the dataclasses
+            self.params  # noqa: B018 (reading it validates through the dataclasses)
         except ValueError:
             self.overrides = previous
             raise

@@ -49,11 +49,11 @@ from .transforms import random_pose
 
 __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
-    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "Move", "NonContact",
-    "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
-    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep", "SDFGrid",
-    "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError", "SessionParams",
-    "Snapshot",
+    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "Move",
+    "NonContact", "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
+    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep",
+    "SDFGrid", "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError",
+    "SessionParams", "Snapshot",
     "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
     "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",
     "read_observations", "session_preset", "write_observations",

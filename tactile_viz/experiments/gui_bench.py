@@ -355,8 +355,8 @@ def main(argv=None):
         import PySide6  # noqa: F401
         import pyvistaqt  # noqa: F401
     except ImportError as error:
-        print(f"python -m tactile_viz bench gui: error: {error}; it needs the gui extra: pip install -e '.[gui]'",
-              file=sys.stderr)
+        print(f"python -m tactile_viz bench gui: error: {error}; it needs the gui extra: "
+              "pip install -e '.[gui]'", file=sys.stderr)
         return 2
     rows = run(args)
     print(format_table(rows))

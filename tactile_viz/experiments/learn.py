@@ -135,7 +135,8 @@ def learn_summary(result):
             "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
             "size": size, "judged_novel": bool(last["novel"]),
             "recon_share": None if recon is None or not last["novel"] else recon / size,
-            "touches": len(steps), "stopped": result["terminated_at"] is not None and len(steps) < cap,
+            "touches": len(steps),
+            "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"],
             "learned": "vertices" in (result.get("learned") or {})}
 
@@ -184,7 +185,8 @@ def markdown(rows):
             lines.append(
                 f"| {which} | {noise[0]:g}, {noise[1]:g} | "
                 f"{sum(r['judged_novel'] for r in mine)}/{n} | "
-                f"{_fmt(_mean(shares), scale=100)} ({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
+                f"{_fmt(_mean(shares), scale=100)} "
+                f"({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
                 f"{sum(r['stopped'] for r in mine)}/{n} | "
                 f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "

@@ -230,7 +230,8 @@ def run(args):
     objects = split_names(args.objects) if args.objects else list(sets)
     unknown = [name for name in objects if name not in sets]
     if unknown:
-        raise SystemExit(f"unknown object(s): {', '.join(unknown)}; see `python -m tactile_viz objects`")
+        raise SystemExit(f"unknown object(s): {', '.join(unknown)}; "
+                         "see `python -m tactile_viz objects`")
     strategies = split_names(args.strategies)
     if set(strategies) - set(STRATEGIES):
         raise SystemExit(f"unknown strategy in {args.strategies!r}; choose from "

@@ -44,7 +44,8 @@ def build_parser():
                     "one a core; its time and memory are given cold and warm).")
     parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
-    parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
+    parser.add_argument("--sizes", type=count_int, action=ExtendList,
+                        default=[25, 50, 100, 200, 400],
                         help="contact counts (default 25 50 100 200 400)")
     parser.add_argument("--repeats", type=count_int, default=3, help="timings per part (median)")
     parser.add_argument("--priors", type=count_int, action=ExtendList, default=[10, 100, 1000],

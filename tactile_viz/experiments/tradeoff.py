@@ -141,7 +141,8 @@ def build_parser():
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
                         type=bundled_objects,
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
-    parser.add_argument("--seeds", type=count_int, default=2, help="trials (seeds 0..N-1) per object")
+    parser.add_argument("--seeds", type=count_int, default=2,
+                        help="trials (seeds 0..N-1) per object")
     parser.add_argument("--configs", action=ExtendList, default=list(CONFIGS), metavar="NAME",
                         type=name_list(list(CONFIGS), "a configuration"),
                         help="configurations, comma lists work too; repeats add up "

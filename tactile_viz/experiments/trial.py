@@ -209,7 +209,8 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
     last = session.latest
     truth_pose = np.eye(4)
     truth_pose[:3, :3], truth_pose[:3, 3] = truth.rotation, truth.translation
-    result = {"object": truth_model.name, "object_size": truth_model.length, "seed": seed, "strategy": strategy, "preset": preset,
+    result = {"object": truth_model.name, "object_size": truth_model.length, "seed": seed,
+            "strategy": strategy, "preset": preset,
             "params": params.to_dict(), "library": library.names,
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist(),

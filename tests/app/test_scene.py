@@ -1,4 +1,5 @@
-"""The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes nothing."""
+"""The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes
+nothing."""
 
 import numpy as np
 import pytest

@@ -338,7 +338,8 @@ def test_contact_from_another_object_first_makes_it_novel(library):
     (dict(n_s=0), "n_s"), (dict(n_s=2.5), "n_s"), (dict(n_s=True), "n_s"),
     (dict(lam=0.0), "lam"), (dict(known_fraction=-0.1), "known_fraction"),
     (dict(distance_step=0.0), "distance_step"), (dict(angle_step_deg=-12), "angle_step_deg"),
-    (dict(max_particles=0), "max_particles"), (dict(refine_map="yes"), "refine_map"), (dict(refine_learned=-1), "refine_learned"),
+    (dict(max_particles=0), "max_particles"), (dict(refine_map="yes"), "refine_map"),
+    (dict(refine_learned=-1), "refine_learned"),
     (dict(sdf_resolution=4), "sdf_resolution"), (dict(n_features=2), "n_features"),
 ])
 def test_out_of_range_filter_parameters_name_the_parameter(changes, field):

@@ -2,7 +2,8 @@
 
 Files at scales 1e-3 and 1e3 give the same object model as at scale 1; thin parts (the
 legs of the bundled chairs, a needle thinner than a voxel) keep usable distances and are
-found by the simulator; a 2-million-face mesh is decimated with a warning; the SDF grid far outside its box stays finite and positive.
+found by the simulator; a 2-million-face mesh is decimated with a warning; the SDF grid far
+outside its box stays finite and positive.
 """
 
 import warnings

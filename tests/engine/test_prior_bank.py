@@ -145,6 +145,6 @@ def test_building_a_bank_does_not_keep_the_exact_distances(tmp_path):
     model = ObjectModel.from_arrays(box.vertices, box.faces, "box", cache=ArrayCache(tmp_path))
     PriorBank([model], 0.1, 12.0)
     assert "exact" not in model.__dict__
-    model.exact  # a model that had them keeps them
+    model.exact  # noqa: B018 (a model that had them keeps them)
     PriorBank([model], 0.2, 12.0)
     assert "exact" in model.__dict__

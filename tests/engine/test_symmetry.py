@@ -43,7 +43,7 @@ SHAPES = {
 }
 
 
-def model_of(mesh, tmp_path, turn=np.eye(3), size=1.0, name="shape"):
+def model_of(mesh, tmp_path, turn=np.eye(3), size=1.0, name="shape"):  # noqa: B008 (read only)
     """An ObjectModel of ``mesh`` turned by ``turn`` with its longest side scaled to ``size``
     times the mesh's."""
     vertices = mesh.vertices @ turn.T * size

@@ -209,7 +209,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                     [h.class_index for h in kept]].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
                                 np.repeat(particles.rotations[chosen][None], len(others), 0),
-                                flipped_rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
+                                flipped_rotations,
+                                np.reshape([h.rotation for h in kept], (-1, 3, 3))])
     translations = np.concatenate([particles.translations[candidates],
                                    np.repeat(particles.translations[chosen][None], len(others), 0),
                                    flipped_translations,

@@ -444,7 +444,8 @@ class ParticleFilter:
         evidence = self.log_evidence_of(refined)[0]
         if not evidence > evidence_before:
             return
-        rotations, translations = self.particles.rotations.copy(), self.particles.translations.copy()
+        rotations = self.particles.rotations.copy()
+        translations = self.particles.translations.copy()
         log_weights = self.particles.log_weights.copy()
         rotations[index], translations[index] = rotation, translation
         log_weights[index] += evidence - evidence_before
@@ -591,7 +592,8 @@ def _split(observations):
     try:
         observations = list(observations)
     except TypeError:
-        raise ObservationError(f"expected observations, got {type(observations).__name__}") from None
+        raise ObservationError(
+            f"expected observations, got {type(observations).__name__}") from None
     contacts, normals, noncontacts = [], [], []
     for item in observations:
         if isinstance(item, Contact):

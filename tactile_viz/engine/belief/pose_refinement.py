@@ -21,7 +21,8 @@ from .support import support_residuals
 
 POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
-_FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothing constrains stays put
+# Of the largest diagonal entry, added to all: a direction nothing constrains stays put.
+_FLOOR = 1e-12
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,

@@ -87,7 +87,8 @@ def first_contact_moves(centre, rng, radius=10.0, attempts=50, unit=1.0):
     def line():
         direction = normalise_rows(rng.normal(size=(1, 3)))[0]
         offset = rng.uniform(-0.5, 0.5, size=3) * unit
-        return np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
+        return np.stack([centre + offset + radius * direction,
+                         centre + offset - radius * direction])
 
     near = float(np.linalg.norm(centre))
     where = "the origin" if near == 0 else "the workspace's centre"

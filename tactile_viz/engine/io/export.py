@@ -45,7 +45,8 @@ def estimate_record(session, snapshot=None, units=None):
     snapshot = snapshot or session.latest
     model = session.library[snapshot.map_class]
     object_to_world = np.eye(4)
-    object_to_world[:3, :3], object_to_world[:3, 3] = snapshot.map_rotation, snapshot.map_translation
+    object_to_world[:3, :3] = snapshot.map_rotation
+    object_to_world[:3, 3] = snapshot.map_translation
     return {"units": units, "step": snapshot.step, "map_class": snapshot.map_class,
             "rotation": snapshot.map_rotation.tolist(),
             "translation": snapshot.map_translation.tolist(),
