@@ -283,6 +283,24 @@ def sweep_line(simulator, through, direction, radius=10.0):
     return [path], [simulator.probe(path)]
 
 
+def free_approach(estimate, target, normal, longest, unit=1.0, samples=32):
+    """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
+    less where the estimate predicts the object on the way (the approach then starts a
+    sample short of it), but at least ``shortest = 0.5 unit``.
+
+    A long approach meets parts of the object that the estimate does not predict; the
+    ones it predicts are not passed through.
+    """
+    shortest = 0.5 * unit
+    if longest <= shortest:
+        return float(longest)
+    distances = np.linspace(shortest, longest, samples)
+    inside = np.flatnonzero(estimate(target + distances[:, None] * normal) < 0)
+    if len(inside) == 0:
+        return float(longest)
+    return float(max(shortest, distances[max(inside[0] - 1, 0)]))
+
+
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,
                     clearance=0.5, follow_step=0.1, spacing=0.3, max_follow=3.0, anchors=1):
     """:func:`enforce_contact_moves` carried out by ``simulator`` (the way back ends two of
