@@ -2,7 +2,8 @@
 #
 #   make run     start the desktop app, tactile-viz app (needs a display; headless:
 #                xvfb-run -a make run); its options in ARGS: make run ARGS="--object vase_2"
-#   make test    run the whole pytest suite (GUI tests on a virtual X server)
+#   make test    ruff check, then the whole pytest suite (GUI tests on a virtual X server)
+#   make lint    ruff check alone (pyproject.toml's [tool.ruff])
 #   make setup   system packages + .venv + pip install -e '.[gui,test,bench]'
 
 SHELL := /bin/bash
@@ -20,7 +21,7 @@ PYTHON ?= $(shell for p in python3.11 python3; do \
 	  command -v $$p >/dev/null 2>&1 && $$p -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null \
 	  && { echo $$p; break; }; done)
 
-.PHONY: setup system-deps venv run test screenshots
+.PHONY: setup system-deps venv run lint test screenshots
 
 setup: system-deps $(STAMP)
 
@@ -44,6 +45,12 @@ ARGS ?=
 run: setup
 	$(VENV)/bin/tactile-viz app $(ARGS)
 
+# The linter (ruff, in the `test` extra; its rules in pyproject.toml): a finding fails
+# `make lint` and so `make test`, before any test runs. `ruff check --fix` fixes the import
+# order and other safe findings. `ruff format` is not enforced: it would rewrite most files.
+lint: setup
+	$(PY) -m ruff check .
+
 # Display for the GUI tests: the pytest-xvfb plugin (in the `test` extra)
 # starts its own Xvfb on a free display for the pytest session and sets
 # DISPLAY, also when the caller already has a DISPLAY, so the tests never
@@ -63,7 +70,7 @@ run: setup
 # test owns its files (tmp_path), so the workers share nothing. TEST_WORKERS=0: one.
 TEST_WORKERS ?= 2
 PYTEST := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 $(PY) -m pytest
-test: setup
+test: setup lint
 ifeq ($(strip $(PYTEST_ARGS)),)
 	$(PYTEST) -n $(TEST_WORKERS) --ignore=tests/gui
 	$(PYTEST) -n $(TEST_WORKERS) tests/gui

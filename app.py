@@ -5,8 +5,14 @@ options)."""
 
 import sys
 
-from tactile_viz.launcher import (build_scene, load_priors, log_errors_shown,  # noqa: F401
-                                  main, parse_args, scene_from_args)
+from tactile_viz.launcher import (  # noqa: F401
+    build_scene,
+    load_priors,
+    log_errors_shown,
+    main,
+    parse_args,
+    scene_from_args,
+)
 
 if __name__ == "__main__":
     sys.exit(main())

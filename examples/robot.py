@@ -37,8 +37,7 @@ from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.explore.simulator import GroundTruth
 from tactile_viz.engine.scene import FREE, Scene
 from tactile_viz.engine.session import Session
-from tactile_viz.engine.shape.metrics import (error_threshold, pose_difference,
-                                              two_way_hausdorff)
+from tactile_viz.engine.shape.metrics import error_threshold, pose_difference, two_way_hausdorff
 from tactile_viz.engine.shape.objects import bundled_names, load_bundled
 from tactile_viz.engine.shape.resting import resting_pose
 from tactile_viz.engine.transforms import random_pose

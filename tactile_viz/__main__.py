@@ -8,8 +8,7 @@ import os
 import sys
 import warnings
 
-from .cli import (ArgumentParser, add_logging_arguments, one_line, one_line_warning,
-                  setup_logging)
+from .cli import ArgumentParser, add_logging_arguments, one_line, one_line_warning, setup_logging
 from .engine.errors import TactileVizError
 
 # Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
@@ -135,9 +134,9 @@ def build_parser():
     library.set_defaults(run=_library, prog=library.prog)
 
     # Its options are the launcher's (app.py's), parsed there: --help lists them.
-    app = commands.add_parser("app", add_help=False,
-                              help="open the desktop app (options as app.py's; app --help "
-                                   "lists them; needs the gui extra)")
+    commands.add_parser("app", add_help=False,
+                        help="open the desktop app (options as app.py's; app --help "
+                             "lists them; needs the gui extra)")
 
     bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
                                               "scaling, noise, sizes, decide, learn, realmesh, "

@@ -18,9 +18,17 @@ import logging
 import os
 import sys
 
-from tactile_viz.cli import (ExtendList, add_logging_arguments, add_preset_argument,
-                             add_scene_arguments, add_sensor_arguments, default_log_file,
-                             one_line, scene_from_args, setup_logging)
+from tactile_viz.cli import (
+    ExtendList,
+    add_logging_arguments,
+    add_preset_argument,
+    add_scene_arguments,
+    add_sensor_arguments,
+    default_log_file,
+    one_line,
+    scene_from_args,
+    setup_logging,
+)
 
 log = logging.getLogger("tactile_viz.app.launcher")
 PROG = "app.py"  # errors are one line, "PROG: error: MESSAGE", as the command line's
@@ -40,8 +48,8 @@ def parse_args(argv=None, prog=PROG):
     from tactile_viz.app.engine_process import ENGINES
     from tactile_viz.engine import STRATEGIES
 
-    parser = Parser(prog=prog, description="tactile_viz desktop app: watch and steer active tactile "
-                                "recognition and shape learning")
+    parser = Parser(prog=prog, description="tactile_viz desktop app: watch and steer active "
+                                           "tactile recognition and shape learning")
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--object", metavar="NAME",
                       help="bundled ground-truth object (default mug_1)")
@@ -125,10 +133,9 @@ def argument_problem(args):
         return f"--steps must be 0 or more, not {args.steps}"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
+    from tactile_viz.engine.io.bags import is_bag
     from tactile_viz.engine.shape.meshes import split_units
     from tactile_viz.experiments.inputs import mesh_units, options_problem
-
-    from tactile_viz.engine.io.bags import is_bag
 
     if args.observations and not (os.path.isdir(args.observations) and is_bag(
             args.observations)) and (problem := _path_problem("--observations",

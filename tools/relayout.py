@@ -99,7 +99,8 @@ EXTRA_EDITS = [
      'Path(__file__).resolve().parents[3] / "assets"'),
     ("tactile_viz/engine/belief/prior_build.py", "str(Path(__file__).resolve().parents[2])",
      "str(Path(__file__).resolve().parents[3])"),
-    ("tests/engine/test_import_graph.py", 'f"{PACKAGE}.persistence"', 'f"{PACKAGE}.io.persistence"'),
+    ("tests/engine/test_import_graph.py", 'f"{PACKAGE}.persistence"',
+     'f"{PACKAGE}.io.persistence"'),
 ]
 
 PY_ROOTS = ["tactile_viz", "tests", "examples", "scripts", "app.py"]
@@ -171,7 +172,8 @@ def rewrite_from(node, old_here, new_here, old_is_package, new_is_package):
         if is_moved_module(full):
             target = new_name(full)
             parent, name = target.rsplit(".", 1)
-            text = f"{name} as {alias.asname or alias.name}" if name != alias.name else _alias(alias)
+            text = (f"{name} as {alias.asname or alias.name}" if name != alias.name
+                    else _alias(alias))
         else:
             parent, text = new_name(base), _alias(alias)
         if node.level:
@@ -319,7 +321,8 @@ def main(argv=None):
                   for old, new in MOVES.items()}
     if args.dry_run:
         for old, new in MOVES.items():
-            print(f"git mv tactile_viz/engine/{old}.py tactile_viz/engine/{new.replace('.', '/')}.py")
+            print(f"git mv tactile_viz/engine/{old}.py "
+                  f"tactile_viz/engine/{new.replace('.', '/')}.py")
     else:
         for package, doc in PACKAGES.items():
             folder = engine_dir / package

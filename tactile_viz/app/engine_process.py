@@ -14,8 +14,9 @@ the session's :class:`~tactile_viz.engine.session.state.Checkpoint` comes back, 
 changes (also after a failed step: then as before that step, which the session
 restored). A session the process already holds (the one it ran last, not stepped elsewhere
 since) is not sent again, and priors are sent once (by name, content, parameters and
-learned flag; those the session sent last does not use are let go), so a run of a known session costs a few bytes to start. Snapshots
-refer to their MAP shape's faces rather than copy them.
+learned flag; those the session sent last does not use are let go), so a run of a known
+session costs a few bytes to start. Snapshots refer to their MAP shape's faces rather than
+copy them.
 
 Protocol, parent to child: ``("models", [(key, bytes), ...])``, ``("forget", [key, ...])``,
 ``("run", (class, state) bytes or None, count)``, ``("quit",)``; child to parent:

@@ -19,17 +19,22 @@ from typing import NamedTuple
 
 from ..engine.errors import LibraryError
 from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.bags import read_recording, recording_file_warning
 from ..engine.io.export import export_session
+from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
+from ..engine.scene import FREE, Scene as RobotScene
+from ..engine.session import (
+    SESSION_PRESETS,
+    RecordedSession,
+    Session,
+    SessionError,
+    make_truth,
+    session_preset,
+)
 from ..engine.shape.library import PriorLibrary, size_warning
 from ..engine.shape.meshes import UNITS
 from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import ObjectModel, bundled_names, load_bundled
-from ..engine.io.bags import read_recording, recording_file_warning
-from ..engine.params import PAPER_SIZE, declaration, declarations, with_changes
-from ..engine.scene import FREE
-from ..engine.scene import Scene as RobotScene
-from ..engine.session import (SESSION_PRESETS, RecordedSession, Session, SessionError,
-                              make_truth, session_preset)
 
 log = logging.getLogger(__name__)
 
@@ -190,7 +195,7 @@ class Scene:
         overrides = dict(self.overrides, **{name: value})
         previous, self.overrides = self.overrides, overrides
         try:
-            self.params  # validates through the dataclasses
+            self.params  # noqa: B018 (reading it validates through the dataclasses)
         except ValueError:
             self.overrides = previous
             raise

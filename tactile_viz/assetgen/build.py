@@ -266,7 +266,8 @@ def build(out=DEFAULT_OUT, only=None, log=print):
         write_atomic(out / f"{spec.name}.ply", data)
         if log:
             log(f"{spec.name:14s} {len(mesh.faces):6d} faces  {time.perf_counter() - t0:5.1f} s")
-    entries = [manifest_entry(s, out / f"{s.name}.ply") for s in CATALOG if (out / f"{s.name}.ply").exists()]
+    entries = [manifest_entry(s, out / f"{s.name}.ply") for s in CATALOG
+               if (out / f"{s.name}.ply").exists()]
     manifest = {"generator": GENERATOR, "units": "longest side 6", "objects": entries}
     write_atomic(out / "manifest.json", (json.dumps(manifest, indent=1) + "\n").encode())
     return manifest

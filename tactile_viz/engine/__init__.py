@@ -7,33 +7,53 @@ Everything a script needs is importable from here::
 Nothing here imports Qt, pyvista or vtk; a test enforces it.
 """
 
-from .errors import (LibraryError, MeshError, MeshWarning, ObservationError, ParameterError,
-                     TactileVizError)
+from .belief.particle_filter import ParticleFilter
+from .errors import (
+    LibraryError,
+    MeshError,
+    MeshWarning,
+    ObservationError,
+    ParameterError,
+    TactileVizError,
+)
 from .explore.exploration import STRATEGIES
+from .explore.observations import Contact, NonContact
+from .explore.simulator import ContactSimulator, GroundTruth
+from .io.export import export_session
+from .io.observation_file import (
+    ObservationFileError,
+    RecordedStep,
+    read_observations,
+    write_observations,
+)
+from .params import FilterParams
+from .presets import preset
+from .session import (
+    SESSION_PRESETS,
+    Move,
+    Reconstruction,
+    RecordedSession,
+    Session,
+    SessionError,
+    SessionParams,
+    Snapshot,
+    make_truth,
+    session_preset,
+)
+from .session.loop import Sensor
 from .shape.library import PriorLibrary
 from .shape.meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .shape.objects import ModelParams, ObjectModel, bundled_names, load_bundled
-from .explore.observations import Contact, NonContact
-from .params import FilterParams
-from .presets import preset
-from .belief.particle_filter import ParticleFilter
 from .shape.sdf import ExactDistance, SDFGrid, build_sdf_grid
-from .io.export import export_session
-from .io.observation_file import (ObservationFileError, RecordedStep, read_observations,
-                               write_observations)
-from .session import (SESSION_PRESETS, Move, Reconstruction, RecordedSession, Session,
-                      SessionError, SessionParams, Snapshot, make_truth, session_preset)
-from .session.loop import Sensor
-from .explore.simulator import ContactSimulator, GroundTruth
 from .transforms import random_pose
 
 __all__ = [
     "Contact", "ContactSimulator", "ExactDistance", "FilterParams", "GroundTruth",
-    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "Move", "NonContact",
-    "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
-    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep", "SDFGrid",
-    "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError", "SessionParams",
-    "Snapshot",
+    "LONGEST_SIDE", "LibraryError", "MeshError", "MeshWarning", "ModelParams", "Move",
+    "NonContact", "ObjectModel", "ObservationError", "ObservationFileError", "ParameterError",
+    "ParticleFilter", "PriorLibrary", "Reconstruction", "RecordedSession", "RecordedStep",
+    "SDFGrid", "SESSION_PRESETS", "STRATEGIES", "Sensor", "Session", "SessionError",
+    "SessionParams", "Snapshot",
     "TactileVizError", "build_sdf_grid", "bundled_names", "export_session",
     "load_bundled", "load_mesh", "make_truth", "prepare_mesh", "preset", "random_pose",
     "read_observations", "session_preset", "write_observations",

@@ -28,8 +28,14 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 
 from .errors import ParameterError
-from .param_schema import (Declaration, check_fields, declarations_of, documented,
-                           length_fields, param)
+from .param_schema import (
+    Declaration,
+    check_fields,
+    declarations_of,
+    documented,
+    length_fields,
+    param,
+)
 
 PAPER_SIZE = 6.0  # longest side of the paper's normalised objects: one size unit is 1/6 of it
 GPIS_KERNELS = ("wendland", "thin-plate")

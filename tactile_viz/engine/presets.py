@@ -17,7 +17,6 @@ from .errors import ParameterError
 from .param_schema import check_real
 from .params import FilterParams, SessionParams, declaration, with_changes
 
-
 # Every preset, once: name -> the declared parameters it changes from the defaults.
 PRESET_TABLE = {
     # The project's configuration, the default: the paper's values plus shape transfer that

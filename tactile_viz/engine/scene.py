@@ -237,7 +237,8 @@ class Scene:
         if self.table_point is None:
             return False
         height = float(self.height(np.asarray(position, float)[None])[0])
-        return abs(height) <= tolerance and float(np.asarray(normal) @ self.up) >= TABLE_NORMAL_COSINE
+        return (abs(height) <= tolerance
+                and float(np.asarray(normal) @ self.up) >= TABLE_NORMAL_COSINE)
 
     def reachable(self, vertices, normals, outside=None, margin=0.0, fit=0.7, clear=0.0,
                   samples=6):
@@ -288,7 +289,8 @@ class Scene:
             centres = vertices[index] + self.tip_radius * normals[index]
         if clear > 0 and len(index):
             back = np.linspace(clear / samples, clear, samples)
-            way = centres[:, None, :] - back[None, :, None] * self.approaches(normals[index])[:, None, :]
+            way = (centres[:, None, :]
+                   - back[None, :, None] * self.approaches(normals[index])[:, None, :])
             free = outside(way.reshape(-1, 3)).reshape(len(index), samples)
             keep[index] = free.min(axis=1) > fit * self.tip_radius
         return keep

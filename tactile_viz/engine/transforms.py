@@ -25,7 +25,8 @@ def transform_points(points, rotation, translation):
 
 
 def inverse_transform_points(points, rotation, translation):
-    """Apply the inverse of ``(R, t)``: world frame to object frame for a pose ``object_to_world``."""
+    """Apply the inverse of ``(R, t)``: world frame to object frame for a pose
+    ``object_to_world``."""
     return (np.asarray(points, dtype=float) - translation) @ np.asarray(rotation)
 
 

@@ -59,7 +59,8 @@ def summarise_trial(result):
         pose error < 0.6), steps_to_recon (same with the estimate's error), max_particles,
         decided_at (the first step judged decided, beyond the paper; None if never),
         seconds, truth_coverage (distance from the farthest point of the true surface to its
-        nearest contact at the end; None in trials made before it was recorded). ``error`` is set for a failed trial.
+        nearest contact at the end; None in trials made before it was recorded). ``error`` is
+        set for a failed trial.
     """
     task = result.get("task", {})
     summary = {"object": result["object"], "strategy": result["strategy"],
@@ -278,17 +279,21 @@ def learned_rows(before, after):
     is counted separately).
     """
     rows = []
-    learned_map = lambda s: s["map_class"].endswith("_learned")
+
+    def learned_map(s):
+        return s["map_class"].endswith("_learned")
+
     for label, items, recognised in (
             ("before (known priors)", before, lambda s: s["correct"]),
             ("after (+ learned prior)", after,
              lambda s: not s["novel"] and learned_map(s))):
         ok = [s for s in items if "error" not in s]
         n = len(ok)
+        posed = sum(s["steps_to_pose"] is not None and s["steps_to_pose"] <= 50 for s in ok)
         rows.append([label, n, f"{sum(learned_map(s) for s in ok)}/{n}",
                      f"{sum(recognised(s) for s in ok)}/{n}",
                      f"{sum(s['novel'] for s in ok)}/{n}",
-                     f"{sum(s['steps_to_pose'] is not None and s['steps_to_pose'] <= 50 for s in ok)}/{n}",
+                     f"{posed}/{n}",
                      mean_std([_steps(s, "steps_to_pose") for s in ok])[0],
                      mean_std([s["pose_error"] for s in ok])[0],
                      mean_std([s["steps"] for s in ok])[0]])

@@ -37,13 +37,24 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_scene_arguments, add_set_argument, count_int,
-                   fraction, nonnegative_int, output_dir, positive_int, scenes_from_args,
-                   with_settings, workers_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_scene_arguments,
+    add_set_argument,
+    count_int,
+    fraction,
+    nonnegative_int,
+    output_dir,
+    positive_int,
+    scenes_from_args,
+    with_settings,
+    workers_int,
+)
 from ..engine.io.files import write_atomic
+from ..engine.presets import session_preset
 from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import bundled_names
-from ..engine.presets import session_preset
 from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from .runner import make_task, run_all
 from .sizes import SIZES_M

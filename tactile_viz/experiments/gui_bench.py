@@ -35,8 +35,16 @@ import tempfile
 import time
 
 from ..app.engine_process import ENGINES
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
-                  int_range, seed_int, writable_output)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    bundled_object,
+    count_int,
+    int_range,
+    seed_int,
+    writable_output,
+)
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.files import write_atomic
 
@@ -347,8 +355,8 @@ def main(argv=None):
         import PySide6  # noqa: F401
         import pyvistaqt  # noqa: F401
     except ImportError as error:
-        print(f"python -m tactile_viz bench gui: error: {error}; it needs the gui extra: pip install -e '.[gui]'",
-              file=sys.stderr)
+        print(f"python -m tactile_viz bench gui: error: {error}; it needs the gui extra: "
+              "pip install -e '.[gui]'", file=sys.stderr)
         return 2
     rows = run(args)
     print(format_table(rows))

@@ -102,8 +102,9 @@ HARD_SPECS = (
     ObjectSpec("plank", "known", None, _plank, WIDE),
 )
 
-# Longest sides in metres, 2 cm (a die-sized block) to 33 cm. mug_1_large is the bundled mug_1 4% larger than its 10 cm copy
-# in the known set (a scaled twin); cup_nested the cup 6% smaller, as nested cups are. The
+# Longest sides in metres, 2 cm (a die-sized block) to 33 cm. mug_1_large is the bundled
+# mug_1 4% larger than its 10 cm copy in the known set (a scaled twin); cup_nested the cup 6%
+# smaller, as nested cups are. The
 # fork's tines (2.3 mm) are thinner than two voxels of a 64-voxel grid.
 HARD_SIZES_M = {
     "screwdriver_flat": 0.20, "screwdriver_cross": 0.20, "ball_smooth": 0.10,

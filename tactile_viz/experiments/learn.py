@@ -29,8 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_set_argument, count_int, nonnegative_int,
-                   output_dir, positive_int, with_settings, workers_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_set_argument,
+    count_int,
+    nonnegative_int,
+    output_dir,
+    positive_int,
+    with_settings,
+    workers_int,
+)
 from ..engine.presets import session_preset
 from .decide import _median, noise_level, write_tables
 from .hard_objects import HARD_SIZES_M, hard_meshes
@@ -126,7 +135,8 @@ def learn_summary(result):
             "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
             "size": size, "judged_novel": bool(last["novel"]),
             "recon_share": None if recon is None or not last["novel"] else recon / size,
-            "touches": len(steps), "stopped": result["terminated_at"] is not None and len(steps) < cap,
+            "touches": len(steps),
+            "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"],
             "learned": "vertices" in (result.get("learned") or {})}
 
@@ -175,7 +185,8 @@ def markdown(rows):
             lines.append(
                 f"| {which} | {noise[0]:g}, {noise[1]:g} | "
                 f"{sum(r['judged_novel'] for r in mine)}/{n} | "
-                f"{_fmt(_mean(shares), scale=100)} ({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
+                f"{_fmt(_mean(shares), scale=100)} "
+                f"({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
                 f"{sum(r['stopped'] for r in mine)}/{n} | "
                 f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "

@@ -20,7 +20,6 @@ from ..engine.errors import LibraryError
 from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
 from ..engine.shape.meshes import UNITS, split_units, unit_factor
 from ..engine.shape.objects import ObjectModel
-from .inputs import say
 
 NAME_FROM = {"file": 0, "parent": 1, "grandparent": 2}
 

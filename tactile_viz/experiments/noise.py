@@ -27,14 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, bundled_object, count_int, finite_float,
-                   output_dir)
-from ..engine.io.files import write_atomic
-from ..engine.shape.library import PriorLibrary
-from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
-from ..engine.presets import noise_matched, preset
+from ..cli import ArgumentParser, ExtendList, bundled_object, count_int, finite_float, output_dir
 from ..engine.belief.particle_filter import ParticleFilter
 from ..engine.explore.simulator import ContactSimulator, GroundTruth, random_touch
+from ..engine.io.files import write_atomic
+from ..engine.presets import noise_matched, preset
+from ..engine.shape.library import PriorLibrary
+from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD, pose_error
 from ..engine.transforms import random_pose
 
 DEFAULT_LEVELS = ((0.0, 0.0), (0.01, 5.0), (0.025, 10.0), (0.05, 15.0))

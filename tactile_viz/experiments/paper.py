@@ -27,13 +27,26 @@ from pathlib import Path
 
 import numpy as np
 
-from . import aggregate
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, add_scene_arguments,
-                  add_sensor_arguments, bundled_objects, count_int, existing_file, name_list,
-                  output_dir, positive_int, scene_from_args, seed_int, workers_int)
-from ..engine.io.files import write_atomic
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    add_scene_arguments,
+    add_sensor_arguments,
+    bundled_objects,
+    count_int,
+    existing_file,
+    name_list,
+    output_dir,
+    positive_int,
+    scene_from_args,
+    seed_int,
+    workers_int,
+)
 from ..engine.explore.exploration import STRATEGIES
+from ..engine.io.files import write_atomic
 from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
+from . import aggregate
 from .runner import make_task, open_pool, run_tasks, scene_label, task_key, with_scene
 from .trial import sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
@@ -217,7 +230,8 @@ def run(args):
     objects = split_names(args.objects) if args.objects else list(sets)
     unknown = [name for name in objects if name not in sets]
     if unknown:
-        raise SystemExit(f"unknown object(s): {', '.join(unknown)}; see `python -m tactile_viz objects`")
+        raise SystemExit(f"unknown object(s): {', '.join(unknown)}; "
+                         "see `python -m tactile_viz objects`")
     strategies = split_names(args.strategies)
     if set(strategies) - set(STRATEGIES):
         raise SystemExit(f"unknown strategy in {args.strategies!r}; choose from "

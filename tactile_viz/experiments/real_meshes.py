@@ -35,8 +35,18 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, count_int, existing_dir,
-                  name_list, output_dir, positive_int, seed_int, workers_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    count_int,
+    existing_dir,
+    name_list,
+    output_dir,
+    positive_int,
+    seed_int,
+    workers_int,
+)
 from ..engine.errors import MeshError, TactileVizError
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.shape.meshes import LONGEST_SIDE

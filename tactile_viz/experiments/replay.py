@@ -14,19 +14,45 @@ import json
 import time
 from pathlib import Path
 
-from ..cli import (add_output_arguments, add_preset_argument, add_scene_arguments,
-                   add_sensor_arguments, add_set_argument, scene_from_args, seed_int,
-                   with_settings)
+from ..cli import (
+    add_output_arguments,
+    add_preset_argument,
+    add_scene_arguments,
+    add_sensor_arguments,
+    add_set_argument,
+    scene_from_args,
+    seed_int,
+    with_settings,
+)
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.bag_export import export_bag
 from ..engine.io.bags import read_recording as read_recording_file, recording_file_warning
 from ..engine.io.export import export_session
 from ..engine.session import RecordedSession, session_preset
-from .inputs import (add_bag_arguments, add_prior_arguments, add_unit_arguments, bag_topics,
-                     check_learning, learn, load_priors, recorded_scene, recording_file, say,
-                     scene_units, size_warnings, write_scene_line)
-from .trial import (INTERRUPTED, code_version, run_steps, run_until_interrupted, tell_summary,
-                    with_outliers, write_output)
+from .inputs import (
+    add_bag_arguments,
+    add_prior_arguments,
+    add_unit_arguments,
+    bag_topics,
+    check_learning,
+    learn,
+    load_priors,
+    recorded_scene,
+    recording_file,
+    say,
+    scene_units,
+    size_warnings,
+    write_scene_line,
+)
+from .trial import (
+    INTERRUPTED,
+    code_version,
+    run_steps,
+    run_until_interrupted,
+    tell_summary,
+    with_outliers,
+    write_output,
+)
 
 
 def add_replay_arguments(parser):

@@ -17,13 +17,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, add_preset_argument, bundled_object, count_int,
-                   output_dir, seed_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    add_preset_argument,
+    bundled_object,
+    count_int,
+    output_dir,
+    seed_int,
+)
 from ..engine.io.files import write_atomic
 from . import prior_scaling
-from .prior_scaling import growth_exponent
 from .aggregate import markdown_table
 from .paper import machine_description
+from .prior_scaling import growth_exponent
 
 
 def build_parser():
@@ -37,7 +44,8 @@ def build_parser():
                     "one a core; its time and memory are given cold and warm).")
     parser.add_argument("--object", default="mug_2", type=bundled_object(),
                         help="object touched for the contact sweep (default mug_2, novel)")
-    parser.add_argument("--sizes", type=count_int, action=ExtendList, default=[25, 50, 100, 200, 400],
+    parser.add_argument("--sizes", type=count_int, action=ExtendList,
+                        default=[25, 50, 100, 200, 400],
                         help="contact counts (default 25 50 100 200 400)")
     parser.add_argument("--repeats", type=count_int, default=3, help="timings per part (median)")
     parser.add_argument("--priors", type=count_int, action=ExtendList, default=[10, 100, 1000],

@@ -97,7 +97,7 @@ def main(argv=None):
         model = load_bundled(name).with_params(sdf_resolution=args.resolution)
         rng = np.random.default_rng(args.seed)
         points = near_surface_points(model, args.points, rng, band=model.size_unit)
-        model.sdf  # built (or read from the cache) outside the timing
+        model.sdf  # noqa: B018 (built, or read from the cache, outside the timing)
         grid = _rate(model.sdf.evaluate, points)
         exact = _rate(model.exact.signed_distance, points)
         if args.skip_trimesh:
@@ -110,7 +110,7 @@ def main(argv=None):
                     lambda c: trimesh.proximity.signed_distance(model.mesh, c), p), points)
             except ImportError as error:
                 raise SystemExit(f"trimesh's signed_distance needs rtree: "
-                                 f"pip install -e '.[bench]' ({error})")
+                                 f"pip install -e '.[bench]' ({error})") from error
         print(f"{name:<14} {len(model.mesh.faces):>6} {grid:>12.0f} {exact:>12.0f} "
               f"{trimesh_rate:>12.0f} {grid / trimesh_rate:>12.1f}x {grid / exact:>11.1f}x")
         errors.append((name, model.sdf.shape, accuracy(model, points)))

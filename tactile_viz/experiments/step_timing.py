@@ -18,16 +18,22 @@ import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
 from ..cli import ArgumentParser, ExtendList, bundled_object, count_int, seed_int
+from ..engine.belief.particle_filter import ParticleFilter
 from ..engine.explore.exploration import enforce_contact
-from ..engine.shape.gpis import (ThinPlateKernel, WendlandKernel, fit_gpis, kernel_blocks,
-                           stable_cholesky, zero_level_surface)
+from ..engine.explore.simulator import ContactSimulator, random_touch
+from ..engine.session import make_truth, session_preset
+from ..engine.shape.gpis import (
+    ThinPlateKernel,
+    WendlandKernel,
+    fit_gpis,
+    kernel_blocks,
+    stable_cholesky,
+    zero_level_surface,
+)
 from ..engine.shape.gpis_incremental import fit_gpis_incremental
 from ..engine.shape.gpis_variance import lattice_low, lattice_variance
 from ..engine.shape.library import PriorLibrary
 from ..engine.shape.objects import load_bundled
-from ..engine.belief.particle_filter import ParticleFilter
-from ..engine.session import make_truth, session_preset
-from ..engine.explore.simulator import ContactSimulator, random_touch
 
 
 def _median_time(function, repeats):

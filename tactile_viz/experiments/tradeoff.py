@@ -17,14 +17,29 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import (ArgumentParser, ExtendList, bundled_objects, count_int, existing_dir,
-                   name_list, output_dir, positive_int, workers_int)
+from ..cli import (
+    ArgumentParser,
+    ExtendList,
+    bundled_objects,
+    count_int,
+    existing_dir,
+    name_list,
+    output_dir,
+    positive_int,
+    workers_int,
+)
 from ..engine.io.files import write_atomic
 from ..engine.params import with_changes
 from ..engine.session import SESSION_PRESETS, session_preset
 from . import aggregate
-from .paper import (machine_description, object_sets, recorded_command, require_trials,
-                    split_names, write_json)
+from .paper import (
+    machine_description,
+    object_sets,
+    recorded_command,
+    require_trials,
+    split_names,
+    write_json,
+)
 from .runner import make_task, open_pool, run_tasks, task_key
 from .trial_files import read_trials, rounded, trial_path, write_trial
 
@@ -126,7 +141,8 @@ def build_parser():
     parser.add_argument("--objects", action=ExtendList, default=["mug_1", "elephant", "vase_2"],
                         type=bundled_objects,
                         metavar="NAME", help="bundled objects (default mug_1 elephant vase_2)")
-    parser.add_argument("--seeds", type=count_int, default=2, help="trials (seeds 0..N-1) per object")
+    parser.add_argument("--seeds", type=count_int, default=2,
+                        help="trials (seeds 0..N-1) per object")
     parser.add_argument("--configs", action=ExtendList, default=list(CONFIGS), metavar="NAME",
                         type=name_list(list(CONFIGS), "a configuration"),
                         help="configurations, comma lists work too; repeats add up "

@@ -16,24 +16,42 @@ from pathlib import Path
 
 import numpy as np
 
-from .summary import result_summary
-from ..cli import (add_output_arguments, add_preset_argument, add_scene_arguments,
-                   add_sensor_arguments, add_set_argument, bundled_object, positive_int,
-                   scene_from_args, seed_int, with_settings)
+from ..cli import (
+    add_output_arguments,
+    add_preset_argument,
+    add_scene_arguments,
+    add_sensor_arguments,
+    add_set_argument,
+    bundled_object,
+    positive_int,
+    scene_from_args,
+    seed_int,
+    with_settings,
+)
+from ..engine.belief.prior_bank import bank_for
 from ..engine.errors import ParameterError
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.bag_export import export_bag
 from ..engine.io.export import export_session
-from ..engine.belief.prior_bank import bank_for
 from ..engine.io.files import write_atomic
-from ..engine.shape.objects import load_bundled
 from ..engine.params import with_changes
 from ..engine.session import Session, make_truth, session_preset
+from ..engine.shape.objects import load_bundled
+from .inputs import (
+    add_prior_arguments,
+    add_unit_arguments,
+    check_learning,
+    learn,
+    load_mesh,
+    load_priors,
+    mesh_file,
+    say,
+    scene_units,
+    size_warnings,
+    write_scene_line,
+)
 from .library_cli import prior_bar
-from .inputs import (add_prior_arguments, add_unit_arguments, check_learning, learn, load_mesh,
-                     load_priors, mesh_file, say, scene_units, size_warnings,
-                     write_scene_line)
-
+from .summary import result_summary
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,
              "outlier_probability": None}
@@ -191,7 +209,8 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
     last = session.latest
     truth_pose = np.eye(4)
     truth_pose[:3, :3], truth_pose[:3, 3] = truth.rotation, truth.translation
-    result = {"object": truth_model.name, "object_size": truth_model.length, "seed": seed, "strategy": strategy, "preset": preset,
+    result = {"object": truth_model.name, "object_size": truth_model.length, "seed": seed,
+            "strategy": strategy, "preset": preset,
             "params": params.to_dict(), "library": library.names,
             "truth_pose": {"rotation": truth.rotation.tolist(),
                            "translation": truth.translation.tolist(),

@@ -29,8 +29,14 @@ import vtk
 from ..engine.params import PAPER_SIZE
 from ..engine.transforms import transform_points
 from .colour_bar import ColourBar
-from .display_mesh import (decimation, face_budget, faces_to_polydata,  # noqa: F401
-                           polylines, spheres, vertex_normals)
+from .display_mesh import (  # noqa: F401
+    decimation,
+    face_budget,
+    faces_to_polydata,
+    polylines,
+    spheres,
+    vertex_normals,
+)
 
 # name -> (legend label, colour)
 LAYERS = {

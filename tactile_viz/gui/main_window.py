@@ -19,8 +19,7 @@ from PySide6.QtWidgets import QDockWidget, QMainWindow, QMessageBox, QVBoxLayout
 
 from ..app.engine_process import ENGINES, shared_engine
 from ..engine.errors import TactileVizError
-from . import actions as commands
-from . import recording
+from . import actions as commands, recording
 from .layers import ViewportLayers
 from .panels import ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel, ScenePanel
 from .panels.base import blocked, scrolled

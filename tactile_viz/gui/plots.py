@@ -26,8 +26,8 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from ..app.scene import SCENE_UNITS
-from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from ..engine.params import SessionParams
+from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from .step_text import novelty_note
 
 # The error axis of a run spans at least these decades (errors and the DHD of a run on

@@ -18,7 +18,6 @@ import time
 from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 from superqt.utils import thread_worker
 
-
 # Largest fraction of a run's wall time spent drawing. The window's drawing takes the cores
 # from the engine process, so a run's overhead follows it. 0.07 since a run's renders are lit
 # by one light (a draw about 75 ms instead of 100 ms for a novel object): about as many steps

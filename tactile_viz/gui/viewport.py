@@ -6,9 +6,9 @@ import time
 from collections import deque
 
 import pyvista as pv
-from pyvistaqt import QtInteractor
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import QWidget
+from pyvistaqt import QtInteractor
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 OBSERVATION_SUFFIXES = (".csv", ".mcap", ".db3")  # recorded touches: CSV, ROS 2 bags

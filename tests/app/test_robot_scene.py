@@ -9,8 +9,7 @@ import pytest
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.scene import FREE
-from tactile_viz.engine.scene import Scene as RobotScene
+from tactile_viz.engine.scene import FREE, Scene as RobotScene
 from tactile_viz.engine.session import RecordedSession, Session, make_truth
 
 REPO_ROOT = Path(__file__).resolve().parents[2]

@@ -1,10 +1,11 @@
-"""The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes nothing."""
+"""The app's Qt-free model (tactile_viz.app): settings, signals, and bad input that changes
+nothing."""
 
 import numpy as np
 import pytest
 
-from tactile_viz.engine import LibraryError, MeshError, ObservationFileError, PriorLibrary
 from tactile_viz.app.scene import Scene
+from tactile_viz.engine import LibraryError, MeshError, ObservationFileError, PriorLibrary
 from tactile_viz.engine.session import SessionError
 
 
@@ -186,10 +187,10 @@ def test_lengths_in_scene_units_follow_the_object_size(bundled):
 def metric_recording(tmp_path_factory):
     """A library in metres (mug_1 at 10 and 20 cm, a 25 cm bottle) and 12 touches of the
     20 cm mug written in millimetres: with a ``# units: mm`` line and without one."""
-    from tactile_viz.engine.shape.objects import load_bundled
+    from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
     from tactile_viz.engine.io.observation_file import format_observations, read_observations
     from tactile_viz.engine.session import make_truth
-    from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
+    from tactile_viz.engine.shape.objects import load_bundled
 
     library = PriorLibrary()
     for name, size in [("mug_1", 0.10), ("mug_1", 0.20), ("bottle_1", 0.25)]:

@@ -18,10 +18,15 @@ from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
 from tactile_viz.engine import Contact, ObjectModel, PriorLibrary  # noqa: E402
 from tactile_viz.engine.io.bag_export import MAP_FRAME, TOPICS, export_bag  # noqa: E402
-from tactile_viz.engine.io.bags import (BagError, BagTopics, is_bag, read_bag,  # noqa: E402
-                                     read_recording, typestore)
-from tactile_viz.engine.io.observation_file import (read_observations,  # noqa: E402
-                                                 write_observations)
+from tactile_viz.engine.io.bags import (  # noqa: E402
+    BagError,
+    BagTopics,
+    is_bag,
+    read_bag,
+    read_recording,
+    typestore,
+)
+from tactile_viz.engine.io.observation_file import read_observations, write_observations  # noqa: E402
 from tactile_viz.engine.session import Session, make_truth  # noqa: E402
 from tactile_viz.experiments.replay import replay  # noqa: E402
 

@@ -105,7 +105,8 @@ def test_comma_list_options_add_up_too():
 
     args = paper.build_parser().parse_args(["--strategies", "gpis-dhd", "--strategies", "rrt"])
     assert split_names(args.strategies) == ["gpis-dhd", "rrt"]
-    args = tradeoff.build_parser().parse_args(["--configs", "recommended,fast", "--configs", "paper"])
+    args = tradeoff.build_parser().parse_args(["--configs", "recommended,fast",
+                                               "--configs", "paper"])
     assert split_names(args.configs) == ["recommended", "fast", "paper"]
     assert split_names(tradeoff.build_parser().parse_args([]).configs) == list(tradeoff.CONFIGS)
 

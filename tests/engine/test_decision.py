@@ -9,17 +9,15 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide, surface_disagreement
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.particles import Particles
-from tactile_viz.engine.belief.decision import (Decision, Hypothesis, decide,
-                                         surface_disagreement)
 from tactile_viz.engine.belief.telling import disagreement_target
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
-from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.session import Session, make_truth, session_preset
 from tactile_viz.engine.transforms import transform_points
-
 
 pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
 
@@ -391,8 +389,8 @@ def test_a_fit_is_charged_for_the_pose_parameters_it_uses(tmp_path):
     """A smooth ball's turns move nothing (three parameters used), a cylinder's about its
     axis neither (five); bumps count fully under small noise and not at all under noise
     far above them."""
-    from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.belief.decision import used_pose_parameters
+    from tactile_viz.engine.io.cache import ArrayCache
 
     cache = ArrayCache(tmp_path)
     sphere = trimesh.creation.icosphere(subdivisions=4)
@@ -579,8 +577,8 @@ def _turned_back(library, turn_hypotheses, rotvec_of, noise, count):
 def test_a_bumpy_ball_is_turned_to_where_its_bumps_fit(tmp_path):
     """A ball with six knobs of different sizes, posed 90 degrees off: its turns are
     searched all round its centre, and the hypothesis comes back near the truth."""
-    from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.belief import round_turns as module
+    from tactile_viz.engine.io.cache import ArrayCache
 
     parts = [trimesh.creation.icosphere(subdivisions=3, radius=3.0)]
     for k, direction in enumerate(Rotation.random(6, random_state=1).apply([0.0, 0.0, 1.0])):
@@ -629,8 +627,8 @@ def test_a_round_shape_is_turned_about_its_axis_by_its_normals(tmp_path):
     """A rod with a flat blade at one end, posed 20 degrees off about its axis: noisy
     positions barely tell, the blade's normals do; the hypothesis is turned back within
     the fan's step (up to the blade's half turn)."""
-    from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.belief import round_turns as module
+    from tactile_viz.engine.io.cache import ArrayCache
 
     rod = trimesh.creation.cylinder(radius=0.5, height=5.0, sections=64)
     blade = trimesh.creation.box(extents=(0.15, 0.9, 1.0))

@@ -12,8 +12,14 @@ import pytest
 
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.param_schema import Interval
-from tactile_viz.engine.params import (FilterParams, SessionParams, declaration, declarations,
-                                       length_fields, with_changes)
+from tactile_viz.engine.params import (
+    FilterParams,
+    SessionParams,
+    declaration,
+    declarations,
+    length_fields,
+    with_changes,
+)
 from tactile_viz.engine.presets import PRESET_TABLE, PRESETS, SESSION_PRESETS
 
 

@@ -6,12 +6,12 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
-from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.belief.discrimination import contenders, discriminate
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.particles import Particles
+from tactile_viz.engine.belief.pose_refinement import refine_poses
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.belief.particle_filter import ParticleFilter
-from tactile_viz.engine.belief.pose_refinement import refine_poses
 from tactile_viz.engine.presets import preset
 
 HALF = np.array([1.0, 2.0, 3.0])  # half-extents of the test box

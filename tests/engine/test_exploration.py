@@ -4,11 +4,20 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
-from tactile_viz.engine.explore.exploration import (clearest_direction, enforce_contact,
-                                            farthest_vertex, first_contact, follow_surface,
-                                            next_sweep_direction, path_until, raster_path,
-                                            rrt_step, sweep_directions, sweep_line,
-                                            widest_gap)
+from tactile_viz.engine.explore.exploration import (
+    clearest_direction,
+    enforce_contact,
+    farthest_vertex,
+    first_contact,
+    follow_surface,
+    next_sweep_direction,
+    path_until,
+    raster_path,
+    rrt_step,
+    sweep_directions,
+    sweep_line,
+    widest_gap,
+)
 from tactile_viz.engine.session import deepest_inside, free_approach
 
 

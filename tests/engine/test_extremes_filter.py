@@ -12,17 +12,30 @@ import pytest
 import trimesh
 from scipy.special import logsumexp
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
-                                ObjectModel, ObservationError, ParameterError, PriorLibrary,
-                                TactileVizError, random_pose)
-from tactile_viz.engine.belief.likelihood import (log_contact_likelihood, log_noncontact_likelihood,
-                                           log_normaliser, normalise_log_weights)
-from tactile_viz.engine.shape.metrics import pose_error
-from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.presets import noise_matched, preset
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    NonContact,
+    ObjectModel,
+    ObservationError,
+    ParameterError,
+    PriorLibrary,
+    TactileVizError,
+    random_pose,
+)
+from tactile_viz.engine.belief.likelihood import (
+    log_contact_likelihood,
+    log_noncontact_likelihood,
+    log_normaliser,
+    normalise_log_weights,
+)
 from tactile_viz.engine.belief.particle_filter import ParticleFilter, Particles
 from tactile_viz.engine.belief.ppf import align_pairs, is_degenerate, local_frames, pair_features
 from tactile_viz.engine.explore.simulator import random_touch
+from tactile_viz.engine.params import FilterParams
+from tactile_viz.engine.presets import noise_matched, preset
+from tactile_viz.engine.shape.metrics import pose_error
 
 WIDTHS = [1e-6, 1e-3, 1.0, 1e3, 1e6]
 
@@ -325,7 +338,8 @@ def test_contact_from_another_object_first_makes_it_novel(library):
     (dict(n_s=0), "n_s"), (dict(n_s=2.5), "n_s"), (dict(n_s=True), "n_s"),
     (dict(lam=0.0), "lam"), (dict(known_fraction=-0.1), "known_fraction"),
     (dict(distance_step=0.0), "distance_step"), (dict(angle_step_deg=-12), "angle_step_deg"),
-    (dict(max_particles=0), "max_particles"), (dict(refine_map="yes"), "refine_map"), (dict(refine_learned=-1), "refine_learned"),
+    (dict(max_particles=0), "max_particles"), (dict(refine_map="yes"), "refine_map"),
+    (dict(refine_learned=-1), "refine_learned"),
     (dict(sdf_resolution=4), "sdf_resolution"), (dict(n_features=2), "n_features"),
 ])
 def test_out_of_range_filter_parameters_name_the_parameter(changes, field):

@@ -19,8 +19,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import (LibraryError, ObjectModel, ParameterError, PriorLibrary,
-                                TactileVizError)
+from tactile_viz.engine import (
+    LibraryError,
+    ObjectModel,
+    ParameterError,
+    PriorLibrary,
+    TactileVizError,
+)
 from tactile_viz.engine.session import Session, SessionError, SessionParams, make_truth
 
 from .conftest import snapshot

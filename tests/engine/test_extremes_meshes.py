@@ -2,7 +2,8 @@
 
 Files at scales 1e-3 and 1e3 give the same object model as at scale 1; thin parts (the
 legs of the bundled chairs, a needle thinner than a voxel) keep usable distances and are
-found by the simulator; a 2-million-face mesh is decimated with a warning; the SDF grid far outside its box stays finite and positive.
+found by the simulator; a 2-million-face mesh is decimated with a warning; the SDF grid far
+outside its box stays finite and positive.
 """
 
 import warnings
@@ -11,12 +12,22 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, MeshError, MeshWarning,
-                                ModelParams, ObjectModel, PriorLibrary, load_mesh, prepare_mesh)
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    MeshError,
+    MeshWarning,
+    ModelParams,
+    ObjectModel,
+    PriorLibrary,
+    load_mesh,
+    prepare_mesh,
+)
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.shape.meshes import DECIMATED_FACES, MAX_FACES
 from tactile_viz.engine.shape.metrics import surface_samples
-from tactile_viz.engine.belief.particle_filter import ParticleFilter
 
 
 def _ellipsoid():

@@ -13,11 +13,17 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
-from tactile_viz.engine import (LibraryError, MeshError, ObjectModel, PriorLibrary,
-                                TactileVizError, load_mesh, prepare_mesh)
+from tactile_viz.engine import (
+    LibraryError,
+    MeshError,
+    ObjectModel,
+    PriorLibrary,
+    TactileVizError,
+    load_mesh,
+    prepare_mesh,
+)
 from tactile_viz.engine.session import Session, SessionError, make_truth
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,

@@ -1,14 +1,24 @@
 import numpy as np
 import pytest
-
 from scipy.linalg import cho_solve
 from scipy.spatial.distance import pdist
 
-from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, _inverse_from_cholesky,
-                                     _pair_terms,
-                                     carved_prior, cut_free_space, fit_gpis, gradient_rows,
-                                     kernel_blocks, indefinite_nugget, stable_cholesky,
-                                     value_correction, value_rows, zero_level_surface)
+from tactile_viz.engine.shape.gpis import (
+    ThinPlateKernel,
+    WendlandKernel,
+    _inverse_from_cholesky,
+    _pair_terms,
+    carved_prior,
+    cut_free_space,
+    fit_gpis,
+    gradient_rows,
+    indefinite_nugget,
+    kernel_blocks,
+    stable_cholesky,
+    value_correction,
+    value_rows,
+    zero_level_surface,
+)
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 

@@ -8,15 +8,26 @@ import pytest
 from scipy.linalg import LinAlgError, cholesky
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.shape.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, fit_gpis,
-                                     kernel_blocks, value_correction, zero_level_surface)
-from tactile_viz.engine.shape.gpis_incremental import (cached_factor, extend_cholesky,
-                                                 fit_gpis_incremental, inverse_row_norms,
-                                                 scale_score, corrections)
+from tactile_viz.engine.session import Session, estimate, make_truth, session_preset
+from tactile_viz.engine.shape.gpis import (
+    ThinPlateKernel,
+    WendlandKernel,
+    carved_prior,
+    fit_gpis,
+    kernel_blocks,
+    value_correction,
+    zero_level_surface,
+)
+from tactile_viz.engine.shape.gpis_incremental import (
+    cached_factor,
+    corrections,
+    extend_cholesky,
+    fit_gpis_incremental,
+    inverse_row_norms,
+    scale_score,
+)
 from tactile_viz.engine.shape.gpis_variance import lattice_low, lattice_variance
 from tactile_viz.engine.shape.metrics import surface_samples
-from tactile_viz.engine.session import Session, make_truth, session_preset
-from tactile_viz.engine.session import estimate
 
 
 @pytest.fixture(scope="module")

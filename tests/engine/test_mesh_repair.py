@@ -22,9 +22,18 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import (ContactSimulator, GroundTruth, MeshError, MeshWarning,
-                                ModelParams, ObjectModel, ParticleFilter, PriorLibrary,
-                                load_bundled, load_mesh)
+from tactile_viz.engine import (
+    ContactSimulator,
+    GroundTruth,
+    MeshError,
+    MeshWarning,
+    ModelParams,
+    ObjectModel,
+    ParticleFilter,
+    PriorLibrary,
+    load_bundled,
+    load_mesh,
+)
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.shape.sdf import ExactDistance
 

@@ -2,7 +2,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import MeshError, MeshWarning, ObjectModel, PriorLibrary, load_mesh, prepare_mesh
+from tactile_viz.engine import (
+    MeshError,
+    MeshWarning,
+    ObjectModel,
+    PriorLibrary,
+    load_mesh,
+    prepare_mesh,
+)
 from tactile_viz.engine.shape.meshes import content_hash
 
 from .conftest import snapshot

@@ -6,11 +6,11 @@ import trimesh
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, ObjectModel, PriorLibrary
 from tactile_viz.engine.belief import particle_filter as particle_filter_module
-from tactile_viz.engine.belief.particles import Particles
-from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
-from tactile_viz.engine.presets import noise_matched
+from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.explore.simulator import random_touch
+from tactile_viz.engine.params import FilterParams
+from tactile_viz.engine.presets import noise_matched
 
 NOISE = (0.06, 2.0)  # 1 mm / 2 degrees on the 6-unit objects
 

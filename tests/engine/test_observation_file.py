@@ -2,10 +2,15 @@ import numpy as np
 import pytest
 
 from tactile_viz.__main__ import main
-from tactile_viz.engine.io.observation_file import (ObservationFileError, RecordedStep,
-                                                 format_observations, parse_observations,
-                                                 read_observations, write_observations)
 from tactile_viz.engine.explore.observations import Contact, NonContact
+from tactile_viz.engine.io.observation_file import (
+    ObservationFileError,
+    RecordedStep,
+    format_observations,
+    parse_observations,
+    read_observations,
+    write_observations,
+)
 
 GOOD = """step,kind,x,y,z,nx,ny,nz
 1,contact,0.5,-0.2,1.3,0,0.6,0.8

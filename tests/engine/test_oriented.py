@@ -193,8 +193,7 @@ def _touches_of_the_rod(rng, count, noise, normal_noise_deg):
 def test_normals_cost_the_blade_and_not_the_rod(rod_and_blade):
     """Exact touches all round the rod: their normals fit the rod's surface and cost the
     blade's (which faces only four ways) up to the cap, never beyond it."""
-    from tactile_viz.engine.belief.oriented import (NORMAL_CAP, OrientedEvaluator,
-                                                    turned_cost)
+    from tactile_viz.engine.belief.oriented import NORMAL_CAP, OrientedEvaluator, turned_cost
 
     points, normals = _touches_of_the_rod(np.random.default_rng(0), 30, 0.0, 0.0)
     evaluate = OrientedEvaluator(list(rod_and_blade), normal_weight(0.002, 2.0))
@@ -296,8 +295,10 @@ def test_points_in_several_poses_frames_agree_with_one_pose_at_a_time():
     the single-pose one, pose by pose; without translations it only turns."""
     from scipy.spatial.transform import Rotation
 
-    from tactile_viz.engine.transforms import (inverse_transform_points,
-                                               inverse_transform_points_batch)
+    from tactile_viz.engine.transforms import (
+        inverse_transform_points,
+        inverse_transform_points_batch,
+    )
 
     rng = np.random.default_rng(5)
     rotations = Rotation.random(4, random_state=5).as_matrix()

@@ -1,17 +1,25 @@
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from scipy.special import logsumexp
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
-                                ObservationError, PriorLibrary, random_pose)
-from tactile_viz.engine.shape.metrics import pose_error
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    NonContact,
+    ObservationError,
+    PriorLibrary,
+    random_pose,
+)
+from tactile_viz.engine.belief.particle_filter import (
+    ParticleFilter,
+    stochastic_universal_resampling,
+)
+from tactile_viz.engine.explore.simulator import random_touch
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.presets import PRESETS, noise_matched, preset
-from tactile_viz.engine.belief.particle_filter import (ParticleFilter,
-                                                stochastic_universal_resampling)
-from tactile_viz.engine.explore.simulator import random_touch
+from tactile_viz.engine.shape.metrics import pose_error
 
 HOUSEHOLD = ["bottle_1", "mug_1", "ice_cream_1", "guitar_1", "vase_1", "office_chair", "sofa_1"]
 
@@ -175,8 +183,8 @@ def test_weights_stay_finite_for_arbitrary_observations(bundled, steps, seed):
 def test_particle_budget_keeps_the_heaviest_new_particles(small_library):
     from tactile_viz.engine import ContactSimulator, GroundTruth, ParticleFilter
     from tactile_viz.engine.errors import ParameterError
-    from tactile_viz.engine.params import FilterParams
     from tactile_viz.engine.explore.simulator import random_touch
+    from tactile_viz.engine.params import FilterParams
 
     library, _ = small_library
     truth = GroundTruth(library["box"], np.eye(3), np.zeros(3))

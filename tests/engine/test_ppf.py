@@ -1,11 +1,17 @@
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
-from tactile_viz.engine.belief.ppf import (PairTable, align_pairs, is_degenerate, neighbour_bins,
-                                           pair_features, quantise, rotation_to_x)
+from tactile_viz.engine.belief.ppf import (
+    PairTable,
+    align_pairs,
+    is_degenerate,
+    neighbour_bins,
+    pair_features,
+    quantise,
+    rotation_to_x,
+)
 from tactile_viz.engine.transforms import transform_points
 
 SETTINGS = settings(max_examples=60, deadline=None,

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.explore.observations import Contact
-from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.prior_bank import PriorBank, bank_for
+from tactile_viz.engine.explore.observations import Contact
+from tactile_viz.engine.params import FilterParams
 
 NAMES = ("mug_1", "bottle_1", "guitar_1")
 
@@ -85,8 +85,10 @@ def test_compiled_likelihood_is_the_numpy_one(models, rng, outliers):
     beyond the grids."""
     from scipy.spatial.transform import Rotation
 
-    from tactile_viz.engine.belief.likelihood import (log_contact_likelihood,
-                                               log_noncontact_likelihood)
+    from tactile_viz.engine.belief.likelihood import (
+        log_contact_likelihood,
+        log_noncontact_likelihood,
+    )
     from tactile_viz.engine.belief.particle_filter import Particles
 
     params = FilterParams(outlier_probability=outliers)
@@ -143,6 +145,6 @@ def test_building_a_bank_does_not_keep_the_exact_distances(tmp_path):
     model = ObjectModel.from_arrays(box.vertices, box.faces, "box", cache=ArrayCache(tmp_path))
     PriorBank([model], 0.1, 12.0)
     assert "exact" not in model.__dict__
-    model.exact  # a model that had them keeps them
+    model.exact  # noqa: B018 (a model that had them keeps them)
     PriorBank([model], 0.2, 12.0)
     assert "exact" in model.__dict__

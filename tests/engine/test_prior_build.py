@@ -6,11 +6,10 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import LibraryError, ModelParams, ObjectModel
-from tactile_viz.engine.io.cache import ArrayCache
-from tactile_viz.engine.belief.prior_bank import PriorBank
 from tactile_viz.engine.belief import prior_build
-from tactile_viz.engine.belief.prior_build import (_reason, build_derived, build_in_child,
-                                                   missing)
+from tactile_viz.engine.belief.prior_bank import PriorBank
+from tactile_viz.engine.belief.prior_build import _reason, build_derived, build_in_child, missing
+from tactile_viz.engine.io.cache import ArrayCache
 
 PARAMS = ModelParams(sdf_resolution=24)
 BANK_ARRAYS = ("codes", "gradient_codes", "offsets", "shapes", "origins", "spacings",

@@ -4,8 +4,15 @@ import tactile_viz.engine as engine
 
 
 def test_engine_exports_the_session_api():
-    from tactile_viz.engine import (FilterParams, ParticleFilter, Session, SessionParams,
-                                    Snapshot, preset, session_preset)
+    from tactile_viz.engine import (
+        FilterParams,
+        ParticleFilter,
+        Session,
+        SessionParams,
+        Snapshot,
+        preset,
+        session_preset,
+    )
     from tactile_viz.engine.params import FilterParams as FilterParamsAgain
     from tactile_viz.engine.session import Session as SessionAgain
 
@@ -24,8 +31,14 @@ def test_all_names_exist():
 def test_the_public_api_is_typed():
     import typing
 
-    from tactile_viz.engine import (ObjectModel, PriorLibrary, Session, load_bundled,
-                                    read_observations, session_preset)
+    from tactile_viz.engine import (
+        ObjectModel,
+        PriorLibrary,
+        Session,
+        load_bundled,
+        read_observations,
+        session_preset,
+    )
 
     for function in (Session.__init__, Session.step, Session.propose, Session.observe,
                      Session.run, PriorLibrary.save, PriorLibrary.load, ObjectModel.from_file,

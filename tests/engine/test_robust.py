@@ -5,11 +5,15 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import ContactSimulator, ParticleFilter, PriorLibrary
-from tactile_viz.engine.belief.likelihood import OUTLIER_NATS, log_contact_likelihood, log_normaliser
+from tactile_viz.engine.belief.likelihood import (
+    OUTLIER_NATS,
+    log_contact_likelihood,
+    log_normaliser,
+)
 from tactile_viz.engine.explore.observations import Contact
+from tactile_viz.engine.explore.simulator import random_touch
 from tactile_viz.engine.params import FilterParams
 from tactile_viz.engine.session import Session, make_truth
-from tactile_viz.engine.explore.simulator import random_touch
 
 
 @pytest.fixture(scope="module")

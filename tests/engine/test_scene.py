@@ -5,14 +5,27 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import (Contact, ContactSimulator, GroundTruth, NonContact,
-                                ObjectModel, ParameterError, PriorLibrary, Session,
-                                make_truth, session_preset)
+from tactile_viz.engine import (
+    Contact,
+    ContactSimulator,
+    GroundTruth,
+    NonContact,
+    ObjectModel,
+    ParameterError,
+    PriorLibrary,
+    Session,
+    make_truth,
+    session_preset,
+)
 from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.scene import FREE, Scene
-from tactile_viz.engine.shape.resting import (hull_points, lowest_heights, seeds_on_table,
-                                              stable_rotations)
+from tactile_viz.engine.shape.resting import (
+    hull_points,
+    lowest_heights,
+    seeds_on_table,
+    stable_rotations,
+)
 
 
 def _box_model(tmp_path, extents=(6.0, 3.0, 2.0), name="box"):

@@ -9,13 +9,19 @@ from scipy.spatial import cKDTree
 
 from tactile_viz.__main__ import main
 from tactile_viz.engine import ContactSimulator, PriorLibrary
-from tactile_viz.engine.explore.observations import Contact, NonContact
 from tactile_viz.engine.errors import ParameterError
-from tactile_viz.engine.shape.objects import ObjectModel
+from tactile_viz.engine.explore.observations import Contact, NonContact
 from tactile_viz.engine.params import FilterParams
-from tactile_viz.engine.session import (Session, SessionError, SessionParams,
-                                        free_space_points, learned_model_from_surface,
-                                        make_truth, session_preset)
+from tactile_viz.engine.session import (
+    Session,
+    SessionError,
+    SessionParams,
+    free_space_points,
+    learned_model_from_surface,
+    make_truth,
+    session_preset,
+)
+from tactile_viz.engine.shape.objects import ObjectModel
 
 
 @pytest.fixture(scope="module")

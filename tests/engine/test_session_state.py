@@ -9,8 +9,14 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine import PriorLibrary
-from tactile_viz.engine.session import (Aim, BelowTangentPlane, ExplorationState,
-                                        RecordedSession, Session, make_truth)
+from tactile_viz.engine.session import (
+    Aim,
+    BelowTangentPlane,
+    ExplorationState,
+    RecordedSession,
+    Session,
+    make_truth,
+)
 from tactile_viz.engine.session.state import Checkpoint
 
 

@@ -8,8 +8,12 @@ from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary, Session
 from tactile_viz.engine.belief.pose_refinement import refine_poses, surface_uncertainty
-from tactile_viz.engine.belief.support import (Support, resting_faces, support_residuals,
-                                               table_support)
+from tactile_viz.engine.belief.support import (
+    Support,
+    resting_faces,
+    support_residuals,
+    table_support,
+)
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.scene import Scene
 

@@ -9,8 +9,12 @@ from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, load_bundled
 from tactile_viz.engine.io.cache import ArrayCache
-from tactile_viz.engine.shape.metrics import (rotation_error_deg, same_pose_mode,
-                                        symmetric_pose_difference, symmetry_group)
+from tactile_viz.engine.shape.metrics import (
+    rotation_error_deg,
+    same_pose_mode,
+    symmetric_pose_difference,
+    symmetry_group,
+)
 from tactile_viz.engine.shape.symmetry import find_symmetry_group, rotation
 
 TURN = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()  # turns the meshes off the axes
@@ -39,7 +43,7 @@ SHAPES = {
 }
 
 
-def model_of(mesh, tmp_path, turn=np.eye(3), size=1.0, name="shape"):
+def model_of(mesh, tmp_path, turn=np.eye(3), size=1.0, name="shape"):  # noqa: B008 (read only)
     """An ObjectModel of ``mesh`` turned by ``turn`` with its longest side scaled to ``size``
     times the mesh's."""
     vertices = mesh.vertices @ turn.T * size

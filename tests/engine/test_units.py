@@ -9,15 +9,14 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
 from tactile_viz.engine.io.cache import ArrayCache
 from tactile_viz.engine.io.export import estimate_record, export_session
+from tactile_viz.engine.io.observation_file import format_observations, read_observations
+from tactile_viz.engine.params import FilterParams, SessionParams, length_fields, scaled_lengths
+from tactile_viz.engine.session import RecordedSession, Session, make_truth, session_preset
 from tactile_viz.engine.shape.metrics import error_threshold
 from tactile_viz.engine.shape.objects import is_learned_file, load_bundled
-from tactile_viz.engine.io.observation_file import format_observations, read_observations
-from tactile_viz.engine.params import (FilterParams, SessionParams, length_fields,
-                                       scaled_lengths)
-from tactile_viz.engine.session import RecordedSession, Session, make_truth, session_preset
-from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,8 @@ def test_tiny_run_writes_trials_table_and_plots(tmp_path):
     assert result["object"] == "mug_1" and len(result["steps"]) == 3
     summary = (out / "summary.md").read_text()
     assert "## Known objects" in summary and "| mug_1 | gpis-dhd | 1 |" in summary
-    assert f"Code version(s) of the trials (number of trials): {result['code_version']} (1)" in summary
+    assert (f"Code version(s) of the trials (number of trials): {result['code_version']} (1)"
+            in summary)
     assert (out / "overview.png").stat().st_size > 1000
     stamp = files[0].stat().st_mtime_ns
     assert cli(argv + ["--resume"]) == 0  # nothing to rerun

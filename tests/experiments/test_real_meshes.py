@@ -8,13 +8,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.__main__ import build_parser as cli_parser
-from tactile_viz.__main__ import main as cli_main
+from tactile_viz.__main__ import build_parser as cli_parser, main as cli_main
 from tactile_viz.engine.errors import TactileVizError
 from tactile_viz.experiments import real_meshes as rm
+from tactile_viz.experiments.real_meshes import RealMesh, RealMeshError
 from tactile_viz.experiments.runner import run_task
 from tactile_viz.experiments.trial_files import read_trial
-from tactile_viz.experiments.real_meshes import RealMesh, RealMeshError
 
 
 # ------------------------------------------------------------------------ missing pybullet

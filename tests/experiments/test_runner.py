@@ -4,8 +4,15 @@ import json
 
 import pytest
 
-from tactile_viz.experiments.runner import (ProcessPool, SerialPool, make_task, run_task,
-                                            run_tasks, strip_timings, task_key)
+from tactile_viz.experiments.runner import (
+    ProcessPool,
+    SerialPool,
+    make_task,
+    run_task,
+    run_tasks,
+    strip_timings,
+    task_key,
+)
 
 TASKS = [make_task("mug_1", "gpis-dhd", seed=3, max_steps=5),
          make_task("vase_2", "rrt", seed=4, max_steps=5, poisson=True, poisson_depth=6)]
@@ -68,8 +75,7 @@ def test_trial_files_are_compressed_and_older_plain_ones_still_read(tmp_path):
     import gzip
     import json
 
-    from tactile_viz.experiments.trial_files import (read_trials, rounded, trial_path,
-                                                     write_trial)
+    from tactile_viz.experiments.trial_files import read_trials, rounded, trial_path, write_trial
 
     result = {"object": "mug_1", "steps": [{"t": t, "dhd": 1.0 / (t + 1), "novel": t > 9,
                                             "recon_error": None} for t in range(400)]}

@@ -13,7 +13,6 @@ from tactile_viz.engine.session import Session, make_truth  # noqa: E402
 from tactile_viz.gui.display_mesh import decimation, face_budget  # noqa: E402
 from tactile_viz.gui.layers import ViewportLayers  # noqa: E402
 
-
 pytestmark = pytest.mark.usefixtures("off_screen")
 
 

@@ -550,7 +550,8 @@ LOOP_AND_VIEW_KEYS = {"step": "F6", "run": "F5", "finish": "Shift+F5", "reset": 
 
 def _cap_steps(scene, steps):
     """A preset like the paper's whose sessions stop after ``steps`` steps."""
-    scene.presets["tiny"] = session_preset("recommended", max_steps_known=steps, max_steps_novel=steps)
+    scene.presets["tiny"] = session_preset("recommended", max_steps_known=steps,
+                                           max_steps_novel=steps)
     scene.set_preset("tiny")
 
 

@@ -12,8 +12,7 @@ from tactile_viz.engine import PriorLibrary
 from tactile_viz.gui.actions import ACTIONS
 from tactile_viz.gui.layers import LAYERS
 from tactile_viz.gui.main_window import MainWindow
-from tactile_viz.gui.panels import (ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel,
-                                    ScenePanel)
+from tactile_viz.gui.panels import ExplorationPanel, LayersPanel, LoopPanel, PriorsPanel, ScenePanel
 from tactile_viz.gui.panels.loop_panel import LOOP_ACTIONS
 
 pytestmark = pytest.mark.gui

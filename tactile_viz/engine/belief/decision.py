@@ -52,14 +52,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2, norm
 
-from .discrimination import contenders, lookalikes
-from .oriented import oriented_evaluator, turned_cost
-from .mesh_fit import mesh_misfit, weighed_on_meshes
-from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
-from .support import table_support
-from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
+from .discrimination import contenders, lookalikes
+from .mesh_fit import mesh_misfit, weighed_on_meshes
+from .oriented import oriented_evaluator, turned_cost
+from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
+from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
+from .support import table_support
 
 TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
@@ -209,7 +209,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                     [h.class_index for h in kept]].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
                                 np.repeat(particles.rotations[chosen][None], len(others), 0),
-                                flipped_rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
+                                flipped_rotations,
+                                np.reshape([h.rotation for h in kept], (-1, 3, 3))])
     translations = np.concatenate([particles.translations[candidates],
                                    np.repeat(particles.translations[chosen][None], len(others), 0),
                                    flipped_translations,

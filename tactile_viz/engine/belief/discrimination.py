@@ -29,15 +29,16 @@ class's refined RMS distance to the contacts was about 0.01 size units, its twin
 
 The contenders' particles are left as they are: moving the heaviest particle of a class to
 its refined pose (and its weight by the gain) made that pose's mode win over the class's
-other modes, a mug's handle on the wrong side among them. With one class holding the belief and no lookalike close enough nothing changes.
+other modes, a mug's handle on the wrong side among them. With one class holding the belief
+and no lookalike close enough nothing changes.
 """
 
 import numpy as np
 
 from . import kernels
-from .particles import Particles
 from .likelihood import normalise_log_weights
 from .oriented import MIN_NORMAL_NOISE_DEG, oriented_evaluator, turned_cost
+from .particles import Particles
 from .pose_refinement import refine_poses
 
 

@@ -5,8 +5,8 @@ step. In numpy every operation of the trilinear look-up makes a temporary array 
 ``hypotheses x observations`` elements; these loops move each observation into each
 hypothesis's object frame, interpolate its class's grid and add up its log-likelihood in
 one pass, with nothing but the result allocated. They compute exactly what
-:func:`~tactile_viz.engine.shape.sdf.interpolate` and :mod:`~tactile_viz.engine.belief.likelihood` do
-(a test holds them to it).
+:func:`~tactile_viz.engine.shape.sdf.interpolate` and
+:mod:`~tactile_viz.engine.belief.likelihood` do (a test holds them to it).
 """
 
 import math

@@ -33,8 +33,8 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..shape.meshes import bare_mesh
-from .prior_bank import kept_recent
 from ..transforms import inverse_transform_points_batch
+from .prior_bank import kept_recent
 
 SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
 MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough

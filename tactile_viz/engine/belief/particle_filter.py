@@ -21,21 +21,26 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from . import kernels
-from .particles import FilterState, Particles
 from ..errors import ObservationError, ParameterError
-from .likelihood import (OUTLIER_NATS, log_contact_likelihood, log_noncontact_likelihood,
-                         log_normaliser, normalise_log_weights)
 from ..explore.observations import Contact, NonContact
 from ..params import FilterParams
-from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
-from .discrimination import discriminate
-from .pose_refinement import refine_poses
-from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
 from ..scene import FREE
 from ..shape.resting import hull_points, lowest_heights, seeds_on_table, stable_rotations
 from ..shape.sdf import ExactDistance
+from . import kernels
+from .discrimination import discriminate
+from .likelihood import (
+    OUTLIER_NATS,
+    log_contact_likelihood,
+    log_noncontact_likelihood,
+    log_normaliser,
+    normalise_log_weights,
+)
+from .particles import FilterState, Particles
+from .pose_refinement import refine_poses
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
+from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
+from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 
 NOISE_OFFSETS = np.array([0.0, -1.0, 1.0, -2.0, 2.0])  # position-noise stds along a normal
 # A noise offset counts where the nearest face's normal turns by more than 60 degrees
@@ -439,7 +444,8 @@ class ParticleFilter:
         evidence = self.log_evidence_of(refined)[0]
         if not evidence > evidence_before:
             return
-        rotations, translations = self.particles.rotations.copy(), self.particles.translations.copy()
+        rotations = self.particles.rotations.copy()
+        translations = self.particles.translations.copy()
         log_weights = self.particles.log_weights.copy()
         rotations[index], translations[index] = rotation, translation
         log_weights[index] += evidence - evidence_before
@@ -586,7 +592,8 @@ def _split(observations):
     try:
         observations = list(observations)
     except TypeError:
-        raise ObservationError(f"expected observations, got {type(observations).__name__}") from None
+        raise ObservationError(
+            f"expected observations, got {type(observations).__name__}") from None
     contacts, normals, noncontacts = [], [], []
     for item in observations:
         if isinstance(item, Contact):

@@ -16,12 +16,13 @@ squares: a wrong reading cannot pull the pose).
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .support import support_residuals
 from ..transforms import inverse_transform_points_batch
+from .support import support_residuals
 
 POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
-_FLOOR = 1e-12  # of the largest diagonal entry, added to all: a direction nothing constrains stays put
+# Of the largest diagonal entry, added to all: a direction nothing constrains stays put.
+_FLOOR = 1e-12
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,

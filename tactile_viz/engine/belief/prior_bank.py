@@ -18,8 +18,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .ppf import PairTable, rotation_to_x
 from ..shape.sdf import SDFGrid, grid_layout, interpolate
+from .ppf import PairTable, rotation_to_x
 
 
 class PriorBank:

@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..io.cache import ArrayCache
 from ..errors import LibraryError
+from ..io.cache import ArrayCache
 
 CHILD_MIN = 4  # priors to build below which the build stays in this process
 # A child's peak: 230 MB of interpreter and libraries, 90 MB more for a refined 2-million-

@@ -84,7 +84,7 @@ def disagreement_target(bank, hypotheses, scale, avoid=(), crowd=(), candidates=
     # Weight of the hypotheses after each one: what a candidate's spread can still gain.
     after = np.r_[np.cumsum(weights[::-1])[::-1][1:], 0.0]
     factor = weights[owner] * 0.5 ** halvings  # a candidate's score per unit of spread
-    for j, h in enumerate(hypotheses):
+    for j in range(len(hypotheses)):
         spread[live] += weights[j] * _refuted(bank, hypotheses, j, points, owner, live, scale)
         live = _still_possible(live, spread, factor, weights, owner, after[j], j)
     score = weights[owner] * spread

@@ -19,8 +19,8 @@ import numpy as np
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import TactileVizError
-from .observations import Contact
 from ..shape.sdf import normalise_rows
+from .observations import Contact
 from .simulator import sample_path
 
 STRATEGIES = ("gpis-dhd", "rrt")
@@ -87,7 +87,8 @@ def first_contact_moves(centre, rng, radius=10.0, attempts=50, unit=1.0):
     def line():
         direction = normalise_rows(rng.normal(size=(1, 3)))[0]
         offset = rng.uniform(-0.5, 0.5, size=3) * unit
-        return np.stack([centre + offset + radius * direction, centre + offset - radius * direction])
+        return np.stack([centre + offset + radius * direction,
+                         centre + offset - radius * direction])
 
     near = float(np.linalg.norm(centre))
     where = "the origin" if near == 0 else "the workspace's centre"
@@ -280,6 +281,24 @@ def sweep_line(simulator, through, direction, radius=10.0):
     """
     path = np.stack([through + radius * direction, through - radius * direction])
     return [path], [simulator.probe(path)]
+
+
+def free_approach(estimate, target, normal, longest, unit=1.0, samples=32):
+    """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
+    less where the estimate predicts the object on the way (the approach then starts a
+    sample short of it), but at least ``shortest = 0.5 unit``.
+
+    A long approach meets parts of the object that the estimate does not predict; the
+    ones it predicts are not passed through.
+    """
+    shortest = 0.5 * unit
+    if longest <= shortest:
+        return float(longest)
+    distances = np.linspace(shortest, longest, samples)
+    inside = np.flatnonzero(estimate(target + distances[:, None] * normal) < 0)
+    if len(inside) == 0:
+        return float(longest)
+    return float(max(shortest, distances[max(inside[0] - 1, 0)]))
 
 
 def enforce_contact(simulator, target, normal, contacts, contact_normals, depth=1.0,

@@ -16,8 +16,12 @@ import functools
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..session.fields import free_approach
-from .exploration import follow_toward_moves, lines_until_contact, sweep_directions
+from .exploration import (
+    follow_toward_moves,
+    free_approach,
+    lines_until_contact,
+    sweep_directions,
+)
 from .observations import Contact
 
 FIRST_SPREAD = 1.5  # size units: the first lines land within this of the table point

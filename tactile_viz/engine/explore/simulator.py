@@ -22,9 +22,9 @@ from scipy.spatial.transform import Rotation
 from ..errors import ParameterError
 from ..scene import FREE
 from ..shape.meshes import bare_mesh
-from .observations import Contact, NonContact
 from ..shape.sdf import normalise_rows
 from ..transforms import inverse_transform_points, transform_points
+from .observations import Contact, NonContact
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..explore.observations import Contact
+from ..shape.meshes import UNITS
 from .bags import POINT, VECTOR, BagError, _rosbags, typestore
 from .files import write_atomic
-from ..shape.meshes import UNITS
-from ..explore.observations import Contact
 
 WORLD, MAP_FRAME = "world", "tactile_map"
 SECOND, OUTPUTS = 10**9, 5 * 10**8  # a step's span; its outputs' offset, ns

@@ -37,10 +37,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BagWarning, ObservationError
-from ..shape.meshes import UNITS
-from .observation_file import (SPAN_CONTACTS, ObservationFileError, RecordedStep,
-                               read_observations, recording_span, recording_warning)
 from ..explore.observations import Contact, NonContact
+from ..shape.meshes import UNITS
+from .observation_file import (
+    SPAN_CONTACTS,
+    ObservationFileError,
+    RecordedStep,
+    read_observations,
+    recording_span,
+    recording_warning,
+)
 
 BAG_UNITS = "m"  # REP 103
 BAG_SUFFIXES = (".mcap", ".db3")

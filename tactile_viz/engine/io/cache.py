@@ -21,7 +21,8 @@ log = logging.getLogger(__name__)
 
 
 def default_cache_dir():
-    """``$TACTILE_VIZ_CACHE``, else ``$XDG_CACHE_HOME/tactile_viz``, else ``~/.cache/tactile_viz``."""
+    """``$TACTILE_VIZ_CACHE``, else ``$XDG_CACHE_HOME/tactile_viz``, else
+    ``~/.cache/tactile_viz``."""
     if os.environ.get(ENV_VAR):
         return Path(os.environ[ENV_VAR])
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"

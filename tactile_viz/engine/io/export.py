@@ -28,12 +28,11 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import trimesh
 
-import numpy as np
-
-from .files import write_atomic
 from ..shape.objects import mark_learned
+from .files import write_atomic
 from .observation_file import format_observations
 
 FILES = ("observations.csv", "map_shape.ply", "reconstruction.ply", "estimate.json",
@@ -46,7 +45,8 @@ def estimate_record(session, snapshot=None, units=None):
     snapshot = snapshot or session.latest
     model = session.library[snapshot.map_class]
     object_to_world = np.eye(4)
-    object_to_world[:3, :3], object_to_world[:3, 3] = snapshot.map_rotation, snapshot.map_translation
+    object_to_world[:3, :3] = snapshot.map_rotation
+    object_to_world[:3, 3] = snapshot.map_translation
     return {"units": units, "step": snapshot.step, "map_class": snapshot.map_class,
             "rotation": snapshot.map_rotation.tolist(),
             "translation": snapshot.map_translation.tolist(),

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ObservationError
+from ..explore.observations import Contact, NonContact
 from ..shape.meshes import UNITS
 from .files import write_atomic
-from ..explore.observations import Contact, NonContact
 
 HEADER = ("kind", "x", "y", "z", "nx", "ny", "nz")
 KINDS = ("contact", "noncontact", "free")

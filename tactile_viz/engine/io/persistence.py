@@ -18,15 +18,15 @@ import numpy as np
 import trimesh
 
 from ..errors import SessionError, TactileVizError
-from .files import write_atomic
-from ..shape.library import PriorLibrary
-from ..shape.meshes import check_arrays
-from ..shape.objects import ObjectModel
-from .observation_file import ObservationFileError, format_observations, parse_observations
+from ..explore.simulator import GroundTruth
 from ..param_schema import check_integer
 from ..params import SessionParams
 from ..scene import Scene
-from ..explore.simulator import GroundTruth
+from ..shape.library import PriorLibrary
+from ..shape.meshes import check_arrays
+from ..shape.objects import ObjectModel
+from .files import write_atomic
+from .observation_file import ObservationFileError, format_observations, parse_observations
 
 FORMAT = "tactile_viz-session"
 

@@ -4,8 +4,15 @@ estimate, learning and state in modules of their own."""
 from ..errors import SessionError
 from ..params import SessionParams
 from ..presets import SESSION_PRESETS, session_preset
-from .fields import (BelowTangentPlane, PosedSDF, ValueOf, deepest_inside, free_approach,
-                     free_space_points, thin_points)
+from .fields import (
+    BelowTangentPlane,
+    PosedSDF,
+    ValueOf,
+    deepest_inside,
+    free_approach,
+    free_space_points,
+    thin_points,
+)
 from .learning import learned_model_from_surface
 from .loop import Session, make_truth
 from .recorded import RecordedSession

@@ -131,11 +131,13 @@ class Bookkeeping:
         Checks need not visit that space again."""
         if self.state.check is not None:
             spacing = SWEPT_SPACING * self._unit
-            samples = path_until(self.state.check.path, touched.position, spacing, 0.05 * self._unit)
+            samples = path_until(self.state.check.path, touched.position, spacing,
+                                 0.05 * self._unit)
             self.state.swept = thin_points(np.vstack([self.state.swept, samples]), spacing)
         elif start is not None:
-            self.state.swept = free_space_points(self.state.swept, np.stack([start, touched.position]),
-                                            SWEPT_SPACING * self._unit)
+            self.state.swept = free_space_points(self.state.swept,
+                                                 np.stack([start, touched.position]),
+                                                 SWEPT_SPACING * self._unit)
 
     def _follow_frontier(self, touched):
         """After a frontier target: a contact on new ground grows the frontier from it."""

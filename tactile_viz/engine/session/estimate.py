@@ -14,8 +14,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..belief.particles import Particles
-from ..shape.gpis import (ThinPlateKernel, WendlandKernel, carved_prior, cut_free_space,
-                          fit_gpis, zero_level_surface)
+from ..shape.gpis import (
+    ThinPlateKernel,
+    WendlandKernel,
+    carved_prior,
+    cut_free_space,
+    fit_gpis,
+    zero_level_surface,
+)
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import contact_balls, filled_prior
 from ..shape.gpis_variance import lattice_low, lattice_variance
@@ -314,7 +320,7 @@ def held_prior(belief_filter, held, candidate, margin):
     Parameters
     ----------
     belief_filter : ParticleFilter
-        Weighs both over its observations (:meth:`~..belief.particle_filter.ParticleFilter.log_evidence_of`).
+        Weighs both over its observations (its ``log_evidence_of``).
     held, candidate : tuple or None
         ``(class index, (3, 3) rotation, (3,) translation)``, object to world; ``held``
         None: nothing held yet.

@@ -1,11 +1,13 @@
 """Callables and point sets a session builds: a model's SDF at a pose, the values of a
-field, the space below a tangent plane, thinned free-space samples, and how deep and from
-how far a probe goes. The callables are classes, not closures, so that a session pickles
-(the app steps it in another process)."""
+field, the space below a tangent plane, thinned free-space samples, and how deep a probe
+goes (how far out it starts, :func:`free_approach`, is exploration's, re-exported here).
+The callables are classes, not closures, so that a session pickles (the app steps it in
+another process)."""
 
 import numpy as np
 
 from ..belief.prior_bank import grid_of
+from ..explore.exploration import free_approach  # noqa: F401 (re-exported: the session's)
 
 
 class PosedSDF:
@@ -72,21 +74,3 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     depths = np.linspace(0.0, max_depth, samples)
     values = estimate(target - depths[:, None] * normal)
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
-
-
-def free_approach(estimate, target, normal, longest, unit=1.0, samples=32):
-    """How far outside ``target`` to start the approach along ``normal``: ``longest``, or
-    less where the estimate predicts the object on the way (the approach then starts a
-    sample short of it), but at least ``shortest = 0.5 unit``.
-
-    A long approach meets parts of the object that the estimate does not predict; the
-    ones it predicts are not passed through.
-    """
-    shortest = 0.5 * unit
-    if longest <= shortest:
-        return float(longest)
-    distances = np.linspace(shortest, longest, samples)
-    inside = np.flatnonzero(estimate(target + distances[:, None] * normal) < 0)
-    if len(inside) == 0:
-        return float(longest)
-    return float(max(shortest, distances[max(inside[0] - 1, 0)]))

@@ -29,22 +29,22 @@ from typing import Protocol, Union
 
 import numpy as np
 
+from ..belief.particle_filter import ParticleFilter
 from ..errors import SessionError
 from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
+from ..explore.observations import Contact, NonContact
 from ..explore.scene_moves import first_moves, reach_moves, rrt_scene_moves
+from ..explore.simulator import ContactSimulator, GroundTruth
+from ..io.observation_file import RecordedStep
+from ..io.persistence import load_session, save_session
+from ..params import PAPER_SIZE, SessionParams, scaled_lengths
+from ..presets import noise_matched
 from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
 from ..shape.metrics import surface_samples
-from ..io.observation_file import RecordedStep
-from ..explore.observations import Contact, NonContact
-from ..params import PAPER_SIZE, SessionParams, scaled_lengths
-from ..presets import noise_matched
-from ..belief.particle_filter import ParticleFilter
-from ..io.persistence import load_session, save_session
-from ..explore.simulator import ContactSimulator, GroundTruth
 from ..transforms import transform_points
-from .estimate import Estimation
 from .bookkeeping import Bookkeeping
+from .estimate import Estimation
 from .fields import deepest_inside, free_approach
 from .learning import Learning
 from .planner import SWEEP_RADIUS, Planner
@@ -131,7 +131,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                  sensor: Sensor | None = None, sensor_outliers: float = 0.0,
                  scene: Scene | None = None) -> None:
         if strategy not in STRATEGIES:
-            raise SessionError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+            raise SessionError(f"unknown strategy {strategy!r}; "
+                               f"choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
             raise SessionError("the prior library is empty")
         self.truth = truth
@@ -286,7 +287,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                 np.zeros(3), rng, radius=FIRST_LINE_REACH * self._filter_unit,
                 unit=self._filter_unit)
         if self.strategy == "rrt":
-            low, high = contacts.min(axis=0) - RRT_MARGIN * unit, contacts.max(axis=0) + RRT_MARGIN * unit
+            low = contacts.min(axis=0) - RRT_MARGIN * unit
+            high = contacts.max(axis=0) + RRT_MARGIN * unit
             return "rrt", rrt_moves(contacts, normals, (low, high), rng, p.rrt_step,
                                     p.probe_depth, 0.5 * unit, unit)
         if self.state.check is not None:
@@ -314,7 +316,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             return "first", first_moves(scene, centre, rng, FIRST_LINE_REACH * self._filter_unit,
                                         unit=self._filter_unit)
         if self.strategy == "rrt":
-            low, high = contacts.min(axis=0) - RRT_MARGIN * unit, contacts.max(axis=0) + RRT_MARGIN * unit
+            low = contacts.min(axis=0) - RRT_MARGIN * unit
+            high = contacts.max(axis=0) + RRT_MARGIN * unit
             return "rrt", rrt_scene_moves(scene, contacts, normals, (low, high), rng,
                                           p.rrt_step, p.probe_depth, p.approach_clearance, unit)
         if self.state.check is not None:

@@ -39,8 +39,14 @@ from scipy.spatial import cKDTree
 from ..belief.decision import UNDECIDED, decide
 from ..belief.held import held_decision
 from ..belief.telling import disagreement_target
-from ..explore.exploration import (clearest_direction, farthest_vertex, next_sweep_direction,
-                                   raster_path, variance_target, widest_gap)
+from ..explore.exploration import (
+    clearest_direction,
+    farthest_vertex,
+    next_sweep_direction,
+    raster_path,
+    variance_target,
+    widest_gap,
+)
 from ..explore.scene_moves import check_line
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples

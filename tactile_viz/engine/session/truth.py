@@ -5,10 +5,9 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..shape.metrics import directed_hausdorff, pose_difference
-from ..shape.metrics import pose_error as metric_pose_error
-from ..shape.objects import ObjectModel
 from ..explore.simulator import GroundTruth
+from ..shape.metrics import directed_hausdorff, pose_difference, pose_error as metric_pose_error
+from ..shape.objects import ObjectModel
 from ..shape.resting import resting_pose
 from ..transforms import random_pose
 

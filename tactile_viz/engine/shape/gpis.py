@@ -27,13 +27,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
 from scipy.linalg.lapack import dpotri
-from scipy.spatial.distance import cdist
 from scipy.ndimage import binary_fill_holes, map_coordinates, maximum_filter, minimum_filter
+from scipy.spatial.distance import cdist
 from skimage.measure import marching_cubes
 
 from .gpis_compiled import compiled_corrections, compiled_kernel_blocks, compiled_value_rows
-from .gpis_prior import (CarvedPrior, carved_prior, free_space_cut,  # noqa: F401
-                         noncontact_observations, observations)
+from .gpis_prior import (  # noqa: F401
+    CarvedPrior,
+    carved_prior,
+    free_space_cut,
+    noncontact_observations,
+    observations,
+)
 
 _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)

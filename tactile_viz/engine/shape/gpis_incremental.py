@@ -17,8 +17,17 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
 
-from .gpis import (_LOG_2PI, GPISFit, WendlandKernel, as_kernel, indefinite_nugget,
-                   kernel_blocks, newton_step_log_scale, observations, stable_cholesky)
+from .gpis import (
+    _LOG_2PI,
+    GPISFit,
+    WendlandKernel,
+    as_kernel,
+    indefinite_nugget,
+    kernel_blocks,
+    newton_step_log_scale,
+    observations,
+    stable_cholesky,
+)
 from .gpis_compiled import compiled_corrections
 
 

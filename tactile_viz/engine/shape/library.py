@@ -266,7 +266,8 @@ def _read_manifest(folder):
         raise LibraryError(f"{path} is corrupt ({error})") from error
     try:
         if manifest["format"] != FORMAT:
-            raise LibraryError(f"{path} is not a tactile_viz library (format {manifest['format']!r})")
+            raise LibraryError(f"{path} is not a tactile_viz library "
+                               f"(format {manifest['format']!r})")
         entries = list(manifest["objects"])
         for entry in entries:
             if not all(isinstance(entry[key], str) for key in ("name", "file", "sha256")):

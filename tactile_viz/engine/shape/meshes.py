@@ -408,7 +408,8 @@ def _checked_arrays(vertices, faces, source):
         raise MeshError(source, "faces index vertices that do not exist")
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
-        raise MeshError(source, f"{int(bad.sum())} of {len(vertices)} vertices are not finite (NaN or inf)")
+        raise MeshError(source, f"{int(bad.sum())} of {len(vertices)} vertices are not finite "
+                                "(NaN or inf)")
     return vertices, faces.astype(np.int64)
 
 

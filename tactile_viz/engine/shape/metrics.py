@@ -8,10 +8,16 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import directed_hausdorff as scipy_directed_hausdorff
 from scipy.spatial.transform import Rotation
 
-from .meshes import bare_mesh
-from .symmetry import (SYMMETRY_TOLERANCE, SymmetryGroup, closure as _closure,  # noqa: F401
-                       rotation as _rotation, rotation_angles, symmetry_group)
 from ..transforms import transform_points
+from .meshes import bare_mesh
+from .symmetry import (  # noqa: F401
+    SYMMETRY_TOLERANCE,
+    SymmetryGroup,
+    closure as _closure,
+    rotation as _rotation,
+    rotation_angles,
+    symmetry_group,
+)
 
 # The paper's success threshold for the pose and reconstruction errors (TWD, for objects
 # whose longest side is 6): an estimate within 0.6, 10% of the object's size, counts as right.

@@ -18,14 +18,21 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..io.cache import ArrayCache
-from ..errors import MeshError
 from ..belief.features import poisson_disk_points
-from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
-from ..params import PAPER_SIZE
 from ..belief.ppf import PairTable
-from .sdf import (MAX_REFINED_NODES, MISS_COSINE, THIN_MISSES, ExactDistance, SDFGrid,
-                  build_sdf_grid, fitted_resolution)
+from ..errors import MeshError
+from ..io.cache import ArrayCache
+from ..params import PAPER_SIZE
+from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
+from .sdf import (
+    MAX_REFINED_NODES,
+    MISS_COSINE,
+    THIN_MISSES,
+    ExactDistance,
+    SDFGrid,
+    build_sdf_grid,
+    fitted_resolution,
+)
 
 ASSETS_ENV_VAR = "TACTILE_VIZ_ASSETS"
 SURFACE_CHECKS = 2000  # surface samples on which a grid is checked for thin parts

@@ -6,8 +6,7 @@ metadata (:func:`tactile_viz.app.scene.knob_length_power`).
 """
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel,
-                               QSpinBox)
+from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QGridLayout, QGroupBox, QLabel, QSpinBox
 
 from ...app.scene import KNOBS, LOADED_PRESET, knob_length_power, knob_size_reference
 from ...engine.explore.exploration import STRATEGIES

@@ -1,8 +1,15 @@
 """The Loop panel: Step, Run, Run to termination, Reset, the step reached and the history."""
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QLabel, QSizePolicy, QSlider,
-                               QToolButton, QVBoxLayout)
+from PySide6.QtWidgets import (
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QSizePolicy,
+    QSlider,
+    QToolButton,
+    QVBoxLayout,
+)
 
 from ..step_text import format_length, status_text  # noqa: F401 (format_length: tests)
 from .base import MARGINS, blocked

@@ -1,8 +1,15 @@
 """The Priors panel: which prior classes the filter considers, and the library's files."""
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QGroupBox, QHBoxLayout, QListWidget, QListWidgetItem,
-                               QPushButton, QSizePolicy, QVBoxLayout)
+from PySide6.QtWidgets import (
+    QGroupBox,
+    QHBoxLayout,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QSizePolicy,
+    QVBoxLayout,
+)
 
 from .base import MARGINS, blocked
 
