@@ -10,7 +10,7 @@ Four in turn, as a scanned object set mixes solid and thin-walled objects: two b
 scanner noise), a cup (a revolved profile, 15,552 faces, 2-4 mm walls) and a thin cup
 (walls of 0.8-1.2 mm, which refine its SDF grid to 128 voxels). Nothing is downloaded; the
 files are what ``python -m tactile_viz library build DIR OUT/*.ply --mesh-units m`` reads
-(docs/benchmarks.md times a cold build of them).
+(docs/journal/benchmarks.md, "A cold start", times a cold build of them).
 """
 
 import argparse

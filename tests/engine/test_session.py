@@ -46,7 +46,7 @@ def novel_session(bundled, known):
 @pytest.fixture(scope="module")
 def creature_session(bundled, known):
     """noisy_dino (no known creature is close) explored for 150 steps (with prior coverage
-    its phantom prior parts keep it going to the 400-step cap, docs/benchmarks.md)."""
+    its phantom prior parts keep it going to the 400-step cap, docs/journal/bench-novel.md)."""
     session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", seed=0)
     session.run(max_steps=150)
     return session
