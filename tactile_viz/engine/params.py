@@ -338,14 +338,6 @@ class SessionParams:
         notes="Within eps of a contact, or refuted by a missed probe, so that a "
               "reconstruction that shrank away from the untouched prior cannot pass the "
               "stop.")
-    cover_prior_hold: float = _session(
-        0.0, "The prior a novel object's exploration covers and aims from (class and pose) "
-        "stays the one it has until the filter's MAP explains every observation better "
-        "by more than this many nats (beyond the paper; 0: the MAP of each step).",
-        valid=_AT_LEAST_0, control=(0.0, 50.0),
-        notes="A novel object's MAP is the least bad prior and its pose moves from touch to "
-              "touch; each move brings untouched prior surface into the targets, and the "
-              "stop never comes (docs/novel.md).")
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
         "farther than eps from every contact (beyond the paper).", kind="bool",

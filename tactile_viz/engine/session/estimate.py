@@ -13,7 +13,6 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..belief.particles import Particles
 from ..shape.gpis import (
     ThinPlateKernel,
     WendlandKernel,
@@ -46,23 +45,6 @@ class Estimation:
         pose = belief.map_rotation, belief.map_translation
         self._use_lengths(model)
         return model, pose, transform_points(model.mesh.vertices, *pose)
-
-    def _held_prior(self, belief, model, pose, map_vertices):
-        """The prior a novel object's exploration covers (``cover_prior``) and aims from:
-        the MAP shape ``model`` at ``pose``, or the prior held from earlier steps while
-        the MAP does not explain the observations better by ``cover_prior_hold`` nats
-        (:func:`held_prior`; beyond the paper). Writes ``state.covered_prior``."""
-        if not belief.novel or self._p.cover_prior_hold <= 0:
-            self.state.covered_prior = None
-            return model, pose, map_vertices
-        f = self.filter
-        candidate = (f.class_names.index(model.name), *pose)
-        held = held_prior(f, self.state.covered_prior, candidate, self._p.cover_prior_hold)
-        self.state.covered_prior = held
-        if held is candidate:
-            return model, pose, map_vertices
-        model = f.models[held[0]]
-        return model, held[1:], transform_points(model.mesh.vertices, *held[1:])
 
     def _aimed_pose(self, decision, model, pose, map_vertices):
         """The pose and vertices that targets are aimed from and snapshots report: with
@@ -311,34 +293,6 @@ class Estimation:
         free_space = self.state.free_space if free_space is None else free_space
         reach = self._p.gpis_support if self._p.gpis_kernel == "wendland" else self._unit
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
-
-
-def held_prior(belief_filter, held, candidate, margin):
-    """The prior a novel estimate keeps: ``held`` unless ``candidate`` explains every
-    observation so far better by more than ``margin`` nats.
-
-    Parameters
-    ----------
-    belief_filter : ParticleFilter
-        Weighs both over its observations (its ``log_evidence_of``).
-    held, candidate : tuple or None
-        ``(class index, (3, 3) rotation, (3,) translation)``, object to world; ``held``
-        None: nothing held yet.
-    margin : float
-        Nats, the log Bayes factor the candidate must reach.
-
-    Returns
-    -------
-    tuple
-        ``held`` or ``candidate`` itself.
-    """
-    if held is None or (held[0] == candidate[0] and np.array_equal(held[1], candidate[1])
-                        and np.array_equal(held[2], candidate[2])):
-        return candidate
-    both = Particles(np.array([held[0], candidate[0]]), np.stack([held[1], candidate[1]]),
-                     np.stack([held[2], candidate[2]]), np.zeros(2))
-    evidence = belief_filter.log_evidence_of(both)
-    return candidate if evidence[1] - evidence[0] > margin else held
 
 
 def support(vertices, contacts_tree):

@@ -508,13 +508,12 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             decision = self._decide(belief)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
-        covered = self._held_prior(belief, model, pose, map_vertices)  # beyond the paper
         with _timed(timings, "target"):
-            coverage = self._coverage(recon, covered[2], contacts,  # l.8: d_H, eq. 35
-                                      covered[0], covered[1])
+            coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
+                                      model, pose)
             stop = self._stop_test(coverage, belief, decision)        # l.1: d_H <= eps
-            plan = self._choose_target(stop, coverage, covered[0], *covered[1],  # l.4: 32,
-                                       covered[2], recon, contacts, decision)  # l.6: 36
+            plan = self._choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
+                                       map_vertices, recon, contacts, decision)  # l.6: 36
         self.state.adopt(plan)
         if plan.terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings,

@@ -99,9 +99,6 @@ class ExplorationState:
         The results of the step's guarded moves so far.
     held : tuple or None
         ``(observations, free space)`` given before the first contact ever, kept for its step.
-    covered_prior : tuple or None
-        ``(class index, rotation, translation)`` of the GPIS prior held while the object
-        is novel (``cover_prior_hold``; None while it is known).
     replayed : int
         Recorded steps given to a :class:`~.recorded.RecordedSession` (misses before the
         first contact are held, so it can run ahead of the snapshots).
@@ -133,7 +130,6 @@ class ExplorationState:
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None
-    covered_prior: Any = None
     replayed: int = 0
 
     def adopt(self, plan):
