@@ -670,3 +670,45 @@ def test_a_held_decision_is_refitted_and_reopened_by_a_misfit(shapes):
     pf.contact_positions = np.vstack([pf.contact_positions, off])
     pf.contact_normals = np.vstack([pf.contact_normals, [t.normal for t in more[:6]]])
     assert held_decision(pf, state, lead, 0.99, floor=0.02) is None
+
+
+def test_a_look_alike_that_misfits_everywhere_has_a_tiny_fit_p(shapes):
+    """The knobbed box against a library without it: the box fits all but the knob's
+    touches, far beyond the noise (the paper's test, sigma_d 8% of the size, may pass it);
+    the cylinder's own touches fit."""
+    library = PriorLibrary([shapes["box"], shapes["cylinder"]])
+    pf, state = _filter(library, _touches(shapes["knobbed"], 60, seed=3))
+    misfit = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    assert not misfit.fits and misfit.fit_p < 1e-6 and not misfit.decided
+    pf, state = _filter(library, _touches(shapes["cylinder"], 40, seed=1))
+    right = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    assert right.fits and right.fit_p == 1.0
+
+
+@pytest.mark.parametrize("fit_p, novel_from", [(1e-9, 5), (0.5, None)])
+def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkeypatch,
+                                                                   fit_p, novel_from):
+    """``misfit_novelty``: five assessed steps in a row whose MAP fails the fit test at
+    the p-value, with contacts all around it, judge a known object novel; it stays novel
+    while the misfit goes on."""
+    from tactile_viz.engine.session import planner
+
+    def misfitting(pf, belief, *args, **kwargs):
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        return Decision(False, 1.0, (first,), False, fit_p=fit_p)
+
+    monkeypatch.setattr(planner, "decide", misfitting)
+    params = session_preset("recommended", decision_cover=12.0, misfit_novelty=1e-6,
+                            max_steps_known=14)
+    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    session.run(max_steps=14)
+    assessed = [s for s in session.snapshots if len(s.contacts) >= 3]
+    novel = [s.step for s in assessed if s.novel]
+    if novel_from is None:
+        assert not novel
+    else:
+        known = [s for s in assessed if not s.novel]
+        assert novel and novel == list(range(novel[0], session.latest.step + 1))
+        assert len(known) >= novel_from
+        assert all(s.gpis_vertices is not None for s in session.snapshots if s.novel)

@@ -121,6 +121,10 @@ class Decision:
         Other pose modes of the MAP's class that fit within the noise as well, farther
         from it than the pose tolerance: the pose is not decided while one is left, and
         they are aimed at as rivals however improbable.
+    fit_p : float
+        The chi-squared test's p-value of the MAP's residuals, the better of its grid's
+        and its mesh's (1 when it fits at the confidence, or when not assessed): how
+        unlikely a right hypothesis leaves them.
     """
 
     decided: bool
@@ -130,6 +134,7 @@ class Decision:
     loosest: object = None
     scale: float = 0.0
     modes: tuple = ()
+    fit_p: float = 1.0
 
     @property
     def rivals(self):
@@ -277,11 +282,15 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # error at the surface says: where the grid's residuals fail, the mesh is asked, with
     # no grid error.
     limit = fit_limit(pf, classes[0], floor, confidence, dof)
-    fits = dof > 0 and (
-        lead.misfit <= limit
-        or mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
-                       oriented) <= quantile * max(
-            floor**2 + shape2 + roughness**2, 1e-300))
+    fits, fit_p = dof > 0 and lead.misfit <= limit, 1.0
+    if dof > 0 and not fits:
+        mesh2 = max(floor**2 + shape2 + roughness**2, 1e-300)
+        on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
+                              oriented)
+        fits = on_mesh <= quantile * mesh2
+        if not fits:
+            grid2 = limit / max(chi2.ppf(confidence, dof), 1e-300)
+            fit_p = float(max(chi2.sf(lead.misfit / grid2, dof), chi2.sf(on_mesh / mesh2, dof)))
     loosest, modes = None, ()
     if fits and level >= confidence:
         modes = _open_modes(pf.bank, hypotheses, lead, limit,
@@ -292,7 +301,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     if decided:  # the decided pose is the one reported and aimed from
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
-                    float(np.sqrt(scale2)), modes)
+                    float(np.sqrt(scale2)), modes, fit_p)
 
 
 def model_floor2(pf, class_index, floor):

@@ -29,6 +29,7 @@ from typing import Protocol, Union
 
 import numpy as np
 
+from ..belief.decision import UNDECIDED
 from ..belief.particle_filter import ParticleFilter
 from ..errors import SessionError
 from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
@@ -506,6 +507,9 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                         # beyond the paper
             decision = self._decide(belief)
+        if self._misfits(belief, decision):                       # beyond the paper
+            belief, decision = replace(belief, novel=True), UNDECIDED
+            recon = self._reconstruct(model, *pose, map_vertices, timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):

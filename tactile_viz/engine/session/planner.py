@@ -62,6 +62,7 @@ FIRST_CONTACTS = 3  # on a table, known targets stay near the contacts until thi
 FIRST_SEARCH = 0.5  # size units: how near
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
+MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is novel
 
 # (extension, the parameter and value that switch it off; None: always on)
 EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
@@ -175,6 +176,26 @@ class Planner:
                       carried=self.state.hypotheses, free_space=free_space,
                       pose_tolerance=p.decision_pose_error,
                       normal_noise_deg=self.sensor_noise[1])
+
+    def _misfits(self, belief, decision):
+        """Whether an object the filter judges known is novel after all (beyond the paper):
+        its MAP's refined residuals fail the chi-squared test (``decision.fit_p`` below
+        ``misfit_novelty``) for ``MISFIT_STEPS`` steps in a row with contacts all around
+        it (the last DHD within ``decision_cover``) and the same MAP class, and go on
+        failing it. The paper's test passes a look-alike of equal size that misfits by a
+        few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
+        decision's test asks for the sensor's noise. Counts in ``state.misfit_steps``."""
+        p, state = self._p, self.state
+        if p.misfit_novelty <= 0 or belief.novel or not decision.hypotheses:
+            state.misfit_steps = 0
+            return False
+        last = self.latest if self.snapshots else None
+        around = (last is not None and last.dhd <= p.decision_cover
+                  and last.map_class == belief.map_class)
+        held = state.misfit_steps >= MISFIT_STEPS
+        misfit = decision.fit_p < p.misfit_novelty
+        state.misfit_steps = state.misfit_steps + 1 if misfit and (around or held) else 0
+        return state.misfit_steps >= MISFIT_STEPS
 
     def _coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP

@@ -99,6 +99,8 @@ class ExplorationState:
         The results of the step's guarded moves so far.
     held : tuple or None
         ``(observations, free space)`` given before the first contact ever, kept for its step.
+    misfit_steps : int
+        Steps in a row whose known MAP misfitted (``misfit_novelty``).
     replayed : int
         Recorded steps given to a :class:`~.recorded.RecordedSession` (misses before the
         first contact are held, so it can run ahead of the snapshots).
@@ -130,6 +132,7 @@ class ExplorationState:
     moves_rng: Any = None
     results: list = field(default_factory=list)
     held: Any = None
+    misfit_steps: int = 0
     replayed: int = 0
 
     def adopt(self, plan):
