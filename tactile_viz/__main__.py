@@ -33,19 +33,19 @@ def _objects(args):
 
 
 def _library(args):
-    from .experiments.library_cli import run_library_command
+    from .commands.library import run_library_command
 
     return run_library_command(args)
 
 
 def _trial(args):
-    from .experiments.trial import run_trial_command
+    from .commands.trial import run_trial_command
 
     return run_trial_command(args)
 
 
 def _replay(args):
-    from .experiments.replay import run_replay_command
+    from .commands.replay import run_replay_command
 
     return run_replay_command(args)
 
@@ -86,18 +86,18 @@ def build_parser():
                               '"variant_of": NAME or null}')
     objects.set_defaults(run=_objects, prog=objects.prog)
 
-    from .experiments.trial import add_trial_arguments
+    from .commands.trial import add_trial_arguments
 
     trial = commands.add_parser(
         "trial", help="run one active-exploration trial headless and write its JSON",
         description="Run one trial of Algorithm 2 on a bundled object or a mesh file at a "
                     "random pose (from --seed) and write one JSON record per step.")
     add_trial_arguments(trial)
-    from .experiments.inputs import options_problem
+    from .commands.inputs import options_problem
 
     trial.set_defaults(run=_trial, prog=trial.prog, check=options_problem)
 
-    from .experiments.replay import add_replay_arguments
+    from .commands.replay import add_replay_arguments
 
     replay = commands.add_parser(
         "replay", help="replay recorded touches (CSV or ROS 2 bag) through the filter and "
@@ -109,7 +109,7 @@ def build_parser():
     add_replay_arguments(replay)
     replay.set_defaults(run=_replay, prog=replay.prog, check=options_problem)
 
-    from .experiments.library_cli import add_library_arguments
+    from .commands.library import add_library_arguments
 
     library = commands.add_parser(
         "library", help="build and keep a library folder: build, add, remove, list, show",
