@@ -23,11 +23,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from robot import RayCastingRobot, metric_library, place  # noqa: E402
 
+from tactile_viz.commands.replay import replay  # noqa: E402
 from tactile_viz.engine import Contact  # noqa: E402
 from tactile_viz.engine.io.bag_export import export_bag  # noqa: E402
 from tactile_viz.engine.io.bags import read_bag, typestore  # noqa: E402
 from tactile_viz.engine.session import Session  # noqa: E402
-from tactile_viz.experiments.replay import replay  # noqa: E402
 
 MS = 10**6  # nanoseconds
 

@@ -2,6 +2,7 @@
 
 import argparse
 import contextlib
+import importlib
 import json
 import logging
 import os
@@ -10,6 +11,7 @@ import warnings
 
 from .cli import ArgumentParser, add_logging_arguments, one_line, one_line_warning, setup_logging
 from .engine.errors import TactileVizError
+from .experiments import BENCHMARKS
 
 # Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
 log = logging.getLogger("tactile_viz.__main__")
@@ -31,19 +33,19 @@ def _objects(args):
 
 
 def _library(args):
-    from .experiments.library_cli import run_library_command
+    from .commands.library import run_library_command
 
     return run_library_command(args)
 
 
 def _trial(args):
-    from .experiments.trial import run_trial_command
+    from .commands.trial import run_trial_command
 
     return run_trial_command(args)
 
 
 def _replay(args):
-    from .experiments.replay import run_replay_command
+    from .commands.replay import run_replay_command
 
     return run_replay_command(args)
 
@@ -65,28 +67,10 @@ def _app(args, options):
 
 
 def _bench(args):
-    if args.what == "sdf":
-        from .experiments.sdf_speed import main as sdf_speed
-
-        return sdf_speed(args.rest)
-    if args.what == "step":
-        from .experiments.step_timing import main as step_timing
-
-        return step_timing(args.rest)
-    if args.what in ("paper", "tradeoff", "scaling", "noise", "sizes", "decide", "learn"):
-        import importlib
-
-        module = importlib.import_module(f".experiments.{args.what}", __package__)
-        return module.main(args.rest)
-    if args.what == "gui":
-        from .experiments.gui_bench import main as gui_bench
-
-        return gui_bench(args.rest)
-    if args.what == "realmesh":
-        from .experiments.real_meshes import main as real_meshes
-
-        return real_meshes(args.rest)
-    raise SystemExit(f"unknown benchmark {args.what!r}")
+    """Run the benchmark ``args.what`` (:data:`~tactile_viz.experiments.BENCHMARKS`) with
+    the options after its name; its module is imported only now."""
+    module, _ = BENCHMARKS[args.what]
+    return importlib.import_module(module).main(args.rest)
 
 
 def build_parser():
@@ -102,18 +86,18 @@ def build_parser():
                               '"variant_of": NAME or null}')
     objects.set_defaults(run=_objects, prog=objects.prog)
 
-    from .experiments.trial import add_trial_arguments
+    from .commands.trial import add_trial_arguments
 
     trial = commands.add_parser(
         "trial", help="run one active-exploration trial headless and write its JSON",
         description="Run one trial of Algorithm 2 on a bundled object or a mesh file at a "
                     "random pose (from --seed) and write one JSON record per step.")
     add_trial_arguments(trial)
-    from .experiments.inputs import options_problem
+    from .commands.inputs import options_problem
 
     trial.set_defaults(run=_trial, prog=trial.prog, check=options_problem)
 
-    from .experiments.replay import add_replay_arguments
+    from .commands.replay import add_replay_arguments
 
     replay = commands.add_parser(
         "replay", help="replay recorded touches (CSV or ROS 2 bag) through the filter and "
@@ -125,7 +109,7 @@ def build_parser():
     add_replay_arguments(replay)
     replay.set_defaults(run=_replay, prog=replay.prog, check=options_problem)
 
-    from .experiments.library_cli import add_library_arguments
+    from .commands.library import add_library_arguments
 
     library = commands.add_parser(
         "library", help="build and keep a library folder: build, add, remove, list, show",
@@ -138,25 +122,11 @@ def build_parser():
                         help="open the desktop app (options as app.py's; app --help "
                              "lists them; needs the gui extra)")
 
-    bench = commands.add_parser("bench", help="run a benchmark (sdf, step, paper, tradeoff, "
-                                              "scaling, noise, sizes, decide, learn, realmesh, "
-                                              "gui)",
+    bench = commands.add_parser("bench", help=f"run a benchmark ({', '.join(BENCHMARKS)})",
                                 description="Benchmarks; each has its own --help.")
-    bench.add_argument("what", choices=["sdf", "step", "paper", "tradeoff", "scaling", "noise",
-                                        "sizes", "decide", "learn", "realmesh", "gui"],
-                       help="sdf: grid SDF vs exact queries per second; step: time of each "
-                            "part of a step at 50/200/400 contacts, full vs incremental GPIS; "
-                            "paper: the paper's protocol, tables and plots; tradeoff: time "
-                            "per trial vs errors over presets and knobs, Pareto front; "
-                            "scaling: time per step vs contacts and vs number of priors; "
-                            "noise: recognition and pose error vs sensor noise; sizes: the "
-                            "objects at real sizes in one metric library vs the paper's "
-                            "scale; decide: right at the decision, steps to it, known "
-                            "judged novel, on real sizes and hard pairs under noise; learn: "
-                            "novel objects at real sizes left out, learned and met again; "
-                            "realmesh: "
-                            "known/novel trials on meshes pybullet ships (extra realmesh); "
-                            "gui: does the desktop app keep up with the engine (under Xvfb)")
+    bench.add_argument("what", choices=list(BENCHMARKS),
+                       help="; ".join(f"{name}: {what}" for name, (_, what) in
+                                      BENCHMARKS.items()))
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark")
     bench.set_defaults(run=_bench, prog=bench.prog)
     return parser

@@ -82,7 +82,7 @@ def parse_args(argv=None, prog=PROG):
                              "as a prior, then place it at the next seed's pose")
     parser.add_argument("--screenshot", metavar="FILE",
                         help="render, save a PNG of the window and exit (no event loop)")
-    from tactile_viz.experiments.inputs import add_bag_arguments, add_unit_arguments
+    from tactile_viz.commands.inputs import add_bag_arguments, add_unit_arguments
 
     add_unit_arguments(parser, learning=False)  # the same --units, --mesh-units, --normalise
     add_sensor_arguments(parser)
@@ -133,9 +133,9 @@ def argument_problem(args):
         return f"--steps must be 0 or more, not {args.steps}"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
+    from tactile_viz.commands.inputs import mesh_units, options_problem
     from tactile_viz.engine.io.bags import is_bag
     from tactile_viz.engine.shape.meshes import split_units
-    from tactile_viz.experiments.inputs import mesh_units, options_problem
 
     if args.observations and not (os.path.isdir(args.observations) and is_bag(
             args.observations)) and (problem := _path_problem("--observations",
@@ -180,7 +180,7 @@ def load_priors(args):
     """The priors of the options, read as ``trial`` and ``replay`` read them: the bundled
     set or the saved library (known when neither is given and no --prior-file is), plus
     every --prior-file, in the scene's unit."""
-    from tactile_viz.experiments.inputs import load_priors as load
+    from tactile_viz.commands.inputs import load_priors as load
 
     return load(args)
 
@@ -190,7 +190,7 @@ def build_scene(args):
     recording's ``# units:`` line, warnings about files likely in another unit); a bad mesh,
     library or recording raises the project's error (before any window opens)."""
     from tactile_viz.app.scene import Scene
-    from tactile_viz.experiments.inputs import load_mesh, scene_units, size_warnings
+    from tactile_viz.commands.inputs import load_mesh, scene_units, size_warnings
 
     library = load_priors(args)
     units = scene_units(args, library)
@@ -209,7 +209,7 @@ def build_scene(args):
         scene.add_learned_shape()
         scene.randomize_pose(args.seed + 1)
     if args.observations:
-        from tactile_viz.experiments.inputs import bag_topics
+        from tactile_viz.commands.inputs import bag_topics
 
         scene.open_observations(args.observations, bag_topics(args))
     return scene

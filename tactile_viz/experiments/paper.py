@@ -43,12 +43,12 @@ from ..cli import (
     seed_int,
     workers_int,
 )
+from ..commands.trial import sensor_settings
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.files import write_atomic
 from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from . import aggregate
 from .runner import make_task, open_pool, run_tasks, scene_label, task_key, with_scene
-from .trial import sensor_settings
 from .trial_files import read_trial, read_trials, trial_files, trial_path, write_trial
 
 LEARN_OBJECT = "home_chair"

@@ -118,11 +118,11 @@ def measure_size(count, trials=10, seed=0, preset="paper", max_steps=None, progr
         ``resident_megabytes`` (after the trials), ``peak_megabytes``, and ``trials``: one
         row per trial.
     """
+    from ..commands.trial import run_trial
     from ..engine.belief import prior_bank
     from ..engine.belief.particle_filter import ParticleFilter
     from ..engine.belief.prior_build import CHILD_MIN, default_workers, missing
     from ..engine.shape.objects import ObjectModel
-    from .trial import run_trial
 
     bar = None
     if progress:

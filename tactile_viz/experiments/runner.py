@@ -23,7 +23,7 @@ that size. Files are read where the task runs
 ``scene`` (optional) is a :meth:`~tactile_viz.engine.scene.Scene.as_dict` record: the
 object rests on its table and is probed with its tip within its reach cone.
 
-:func:`run_task` runs one task through :func:`~tactile_viz.experiments.trial.run_trial` and
+:func:`run_task` runs one task through :func:`~tactile_viz.commands.trial.run_trial` and
 adds what the benchmarks need (final contacts and normals, the Screened Poisson baseline,
 the learned surface). Every random choice comes from the task's seed, so where a task runs
 does not change its result (only the timing fields differ).
@@ -203,9 +203,9 @@ def run_task(task, progress=False):
     Never raises for a failing trial: the traceback is returned under ``error`` so that a
     long benchmark keeps its other results.
     """
+    from ..commands.trial import run_trial
     from ..engine.scene import Scene
     from ..engine.session import SessionParams
-    from .trial import run_trial
 
     meta = {key: value for key, value in task.items() if key != "extra_priors"}
     meta["library_label"] = library_label(task)

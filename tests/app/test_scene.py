@@ -207,8 +207,8 @@ def metric_recording(tmp_path_factory):
 
 
 def test_the_app_and_replay_give_one_estimate_of_a_millimetre_recording(metric_recording):
+    from tactile_viz.commands.replay import replay
     from tactile_viz.engine.io.observation_file import read_observations
-    from tactile_viz.experiments.replay import replay
 
     library, folder = metric_recording
     path = folder / "touches_mm.csv"

@@ -16,6 +16,7 @@ pytest.importorskip("rosbags")
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
+from tactile_viz.commands.replay import replay  # noqa: E402
 from tactile_viz.engine import Contact, ObjectModel, PriorLibrary  # noqa: E402
 from tactile_viz.engine.io.bag_export import MAP_FRAME, TOPICS, export_bag  # noqa: E402
 from tactile_viz.engine.io.bags import (  # noqa: E402
@@ -28,7 +29,6 @@ from tactile_viz.engine.io.bags import (  # noqa: E402
 )
 from tactile_viz.engine.io.observation_file import read_observations, write_observations  # noqa: E402
 from tactile_viz.engine.session import Session, make_truth  # noqa: E402
-from tactile_viz.experiments.replay import replay  # noqa: E402
 
 MS = 10**6  # nanoseconds
 

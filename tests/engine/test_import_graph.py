@@ -161,7 +161,8 @@ def test_the_engine_imports_only_downward():
 
 
 def test_the_engine_imports_nothing_else_of_tactile_viz():
-    """Not the app, the GUI, the CLI or the experiments: they import the engine."""
+    """Not the app, the GUI, the CLI, the commands or the experiments: they import the
+    engine."""
     outside = []
     for path in ROOT.rglob("*.py"):
         module = _module_name(path, ROOT, PACKAGE)

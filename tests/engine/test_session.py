@@ -511,9 +511,9 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
 # ------------------------------------------------------------- recorded touches (issue 16)
 @pytest.mark.slow
 def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
+    from tactile_viz.commands.replay import replay
     from tactile_viz.engine.io.export import export_session
     from tactile_viz.engine.io.observation_file import read_observations
-    from tactile_viz.experiments.replay import replay
 
     # dragon is judged novel from step 5 on at this seed (missed probes give free rows).
     # The replay's random stream has not drawn the live session's first touches, so its
@@ -627,8 +627,8 @@ def test_ask_tell_and_callback_give_the_same_trajectory(bundled, known):
 
 
 def test_a_first_miss_is_held_until_the_first_contact(bundled, known, tmp_path):
+    from tactile_viz.commands.replay import replay
     from tactile_viz.engine.io.observation_file import read_observations, write_observations
-    from tactile_viz.experiments.replay import replay
 
     session = Session(None, known, seed=1)
     assert session.observe([NonContact([0.0, 0.0, 9.0])]) is None  # a whole step: held
@@ -682,9 +682,9 @@ def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model
 
 @pytest.mark.slow
 def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path):
+    from tactile_viz.commands.replay import replay
     from tactile_viz.engine.io.export import export_session
     from tactile_viz.engine.io.observation_file import read_observations
-    from tactile_viz.experiments.replay import replay
 
     simulated, library = _sphere_against_a_box(sphere_model, 4)
     simulated.run(max_steps=60)

@@ -78,7 +78,7 @@ def _parse(argv):
 
 
 def test_each_file_may_name_its_own_unit(mm_meshes):
-    from tactile_viz.experiments.inputs import load_mesh, load_priors, scene_units
+    from tactile_viz.commands.inputs import load_mesh, load_priors, scene_units
 
     trimesh.creation.icosphere(subdivisions=3, radius=0.02).export(mm_meshes / "ball_m.stl")
     args = _parse(["trial", "--object-file", f"{mm_meshes / 'ball_mm.stl'}:mm",

@@ -50,7 +50,7 @@ from .inputs import (
     size_warnings,
     write_scene_line,
 )
-from .library_cli import prior_bar
+from .library import prior_bar
 from .summary import result_summary
 
 NOISELESS = {"position_noise": 0.0, "normal_noise_deg": 0.0, "outliers": 0.0,

@@ -138,9 +138,9 @@ def test_the_app_steps_through_a_bag_as_replay_does(bags, priors, tmp_path, caps
     import importlib.util
 
     from tactile_viz.app.scene import Scene
+    from tactile_viz.commands.inputs import bag_topics
     from tactile_viz.engine import PriorLibrary
     from tactile_viz.engine.shape.objects import ObjectModel
-    from tactile_viz.experiments.inputs import bag_topics
 
     spec = importlib.util.spec_from_file_location(
         "app_launcher", Path(__file__).resolve().parents[2] / "app.py")

@@ -146,7 +146,7 @@ def test_a_replay_takes_the_options_before_the_files_scene(tmp_path, touches):
 
 
 def test_a_recordings_scene_line_is_in_its_unit(tmp_path):
-    from tactile_viz.experiments.inputs import recorded_scene
+    from tactile_viz.commands.inputs import recorded_scene
 
     path = tmp_path / "touches.csv"
     path.write_text('# units: mm\n# scene: {"table_point": [0, 0, -20], "reach_angle_deg": 60, '
@@ -172,7 +172,7 @@ def test_a_bad_scene_line_is_one_line_naming_the_file(tmp_path, capsys, line):
 
 
 def test_the_scene_line_is_written_once_after_the_units(tmp_path):
-    from tactile_viz.experiments.inputs import recorded_scene, write_scene_line
+    from tactile_viz.commands.inputs import recorded_scene, write_scene_line
 
     path = tmp_path / "observations.csv"
     path.write_text("# units: m\nstep,kind,x,y,z,nx,ny,nz\n1,contact,0,0,1,0,0,1\n")

@@ -8,7 +8,7 @@ import sys
 import trimesh
 
 from tactile_viz.__main__ import main
-from tactile_viz.experiments.summary import result_summary
+from tactile_viz.commands.summary import result_summary
 
 
 def test_a_closed_pipe_ends_quietly_with_status_0():

@@ -202,8 +202,8 @@ def test_report_only_without_trials_is_one_line(what, tmp_path, capsys):
 
 
 def test_run_trial_refuses_no_steps():
+    from tactile_viz.commands.trial import run_trial
     from tactile_viz.engine.errors import ParameterError
-    from tactile_viz.experiments.trial import run_trial
 
     with pytest.raises(ParameterError, match="max_steps"):
         run_trial(None, None, max_steps=0)
@@ -240,7 +240,7 @@ def _box_file(folder, name, size=(6, 3, 2)):
 def _priors(**given):
     import argparse
 
-    from tactile_viz.experiments.trial import load_priors
+    from tactile_viz.commands.trial import load_priors
 
     args = argparse.Namespace(library=None, library_dir=None, prior_file=None)
     vars(args).update(given)
