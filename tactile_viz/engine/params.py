@@ -479,13 +479,14 @@ class SessionParams:
               "them up. Cost: the hypotheses' distances at every candidate, each step a "
               "rival is aimed at.")
     misfit_novelty: float = _session(
-        0.0, "An object the paper's test judges known is novel once its MAP's refined "
+        1e-6, "An object the paper's test judges known is novel once its MAP's refined "
         "residuals have a chi-squared p-value below this for 5 steps in a row with contacts "
         "all around it (beyond the paper; 0: the paper's test alone).", valid="[0, 0.5]",
         control=(0.0, 0.01),
         notes="The paper's sigma_d is 8% of the size: a look-alike of equal size that misfits "
               "by a few percent everywhere passes its test. The decision's fit test asks "
-              "for the sensor's noise, the grid's error and a learned shape's own error.")
+              "for the sensor's noise, the grid's error and a learned shape's own error "
+              "(docs/novel.md).")
     stop_at_decision: bool = _session(
         False, "Stop as soon as the object is decided (a robot that only needs to "
         "recognise).", kind="bool", notes="False: go on to the DHD stop for shape.")

@@ -705,6 +705,7 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
     session.run(max_steps=14)
     assessed = [s for s in session.snapshots if len(s.contacts) >= 3]
     novel = [s.step for s in assessed if s.novel]
+    assert session_preset("paper").misfit_novelty == 0  # the paper's test alone
     if novel_from is None:
         assert not novel
     else:
