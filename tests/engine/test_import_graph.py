@@ -72,13 +72,21 @@ def test_the_graph_sees_every_import():
     assert len(graph) > 40 and sum(map(len, graph.values())) > 100
 
 
-def test_a_cycle_through_an_import_inside_a_function_is_found(tmp_path):
+def _package(tmp_path, top, sub, module):
+    """A package ``pkg`` of a module ``top`` and a subpackage ``sub`` holding ``module``,
+    which imports ``top`` inside a function; ``top`` imports ``module``."""
     package = tmp_path / "pkg"
-    (package / "sub").mkdir(parents=True)
+    (package / sub).mkdir(parents=True)
     (package / "__init__.py").write_text("")
-    (package / "a.py").write_text("from .sub.b import f\n")
-    (package / "sub" / "__init__.py").write_text("")
-    (package / "sub" / "b.py").write_text("def f():\n    from ..a import g\n    return g\n")
+    (package / f"{top}.py").write_text(f"from .{sub}.{module} import f\n")
+    (package / sub / "__init__.py").write_text("")
+    (package / sub / f"{module}.py").write_text(
+        f"def f():\n    from ..{top} import g\n    return g\n")
+    return package
+
+
+def test_a_cycle_through_an_import_inside_a_function_is_found(tmp_path):
+    package = _package(tmp_path, "a", "sub", "b")
     cycle = import_cycle(import_graph(package, "pkg"))
     assert cycle is not None and set(cycle) == {"pkg.a", "pkg.sub.b"}
 
@@ -142,12 +150,7 @@ def test_every_layer_names_modules_that_exist():
 
 
 def test_an_upward_import_is_found(tmp_path):
-    package = tmp_path / "pkg"
-    (package / "low").mkdir(parents=True)
-    (package / "__init__.py").write_text("")
-    (package / "top.py").write_text("from .low import a\n")
-    (package / "low" / "__init__.py").write_text("")
-    (package / "low" / "a.py").write_text("def f():\n    from ..top import g\n    return g\n")
+    package = _package(tmp_path, "top", "low", "a")
     layers = [("low",), ("top",), ("",)]
     assert upward_imports(import_graph(package, "pkg"), layers, "pkg") == {("low.a", "top")}
 

@@ -21,8 +21,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..errors import ObservationError, ParameterError
-from ..explore.observations import Contact, NonContact
+from ..errors import ParameterError
+from ..explore.observations import observation_arrays
 from ..params import FilterParams
 from ..scene import FREE
 from ..shape.resting import hull_points, lowest_heights, seeds_on_table, stable_rotations
@@ -197,7 +197,7 @@ class ParticleFilter:
         ObservationError
             For anything that is not a valid observation; the filter is left unchanged.
         """
-        contacts, normals, noncontacts = _split(observations)
+        contacts, normals, noncontacts = observation_arrays(observations)
         self.step_count += 1
         new_contacts, new_normals = contacts, normals
         self.contact_positions = np.vstack([self.contact_positions, contacts])
@@ -583,25 +583,3 @@ def _trimmed(terms, fraction):
 def _with_log_weights(particles, log_weights):
     return Particles(particles.classes, particles.rotations, particles.translations,
                      normalise_log_weights(log_weights))
-
-
-def _split(observations):
-    """Validated arrays (contacts, normals, non-contacts) from observations."""
-    if isinstance(observations, (Contact, NonContact)):
-        observations = [observations]
-    try:
-        observations = list(observations)
-    except TypeError:
-        raise ObservationError(
-            f"expected observations, got {type(observations).__name__}") from None
-    contacts, normals, noncontacts = [], [], []
-    for item in observations:
-        if isinstance(item, Contact):
-            contacts.append(item.position)
-            normals.append(item.normal)
-        elif isinstance(item, NonContact):
-            noncontacts.append(item.position)
-        else:
-            raise ObservationError(f"expected Contact or NonContact, got {type(item).__name__}")
-    as_array = lambda rows: np.array(rows, dtype=float).reshape(-1, 3)  # noqa: E731
-    return as_array(contacts), as_array(normals), as_array(noncontacts)

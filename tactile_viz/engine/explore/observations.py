@@ -84,3 +84,32 @@ class NonContact:
 
     def __post_init__(self):
         object.__setattr__(self, "position", _position(self.position, "non-contact position"))
+
+
+def observation_arrays(observations):
+    """Validated arrays from observations: contacts, their normals and non-contacts,
+    ``(k, 3)`` float each, world frame.
+
+    Raises
+    ------
+    ObservationError
+        For anything that is not a Contact or NonContact (or a sequence of them).
+    """
+    if isinstance(observations, (Contact, NonContact)):
+        observations = [observations]
+    try:
+        observations = list(observations)
+    except TypeError:
+        raise ObservationError(
+            f"expected observations, got {type(observations).__name__}") from None
+    contacts, normals, noncontacts = [], [], []
+    for item in observations:
+        if isinstance(item, Contact):
+            contacts.append(item.position)
+            normals.append(item.normal)
+        elif isinstance(item, NonContact):
+            noncontacts.append(item.position)
+        else:
+            raise ObservationError(f"expected Contact or NonContact, got {type(item).__name__}")
+    return tuple(np.array(rows, dtype=float).reshape(-1, 3)
+                 for rows in (contacts, normals, noncontacts))
