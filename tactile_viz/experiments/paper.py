@@ -33,6 +33,7 @@ from ..cli import (
     add_preset_argument,
     add_scene_arguments,
     add_sensor_arguments,
+    add_set_argument,
     bundled_objects,
     count_int,
     existing_file,
@@ -41,11 +42,13 @@ from ..cli import (
     positive_int,
     scene_from_args,
     seed_int,
+    with_settings,
     workers_int,
 )
 from ..commands.trial import sensor_settings
 from ..engine.explore.exploration import STRATEGIES
 from ..engine.io.files import write_atomic
+from ..engine.presets import session_preset
 from ..engine.shape.metrics import ERROR_THRESHOLD as THRESHOLD
 from . import aggregate
 from .runner import make_task, open_pool, run_tasks, scene_label, task_key, with_scene
@@ -84,6 +87,7 @@ def build_parser():
                         help="run the trials on a Dask distributed cluster at this address "
                              "(e.g. tcp://10.0.0.5:8786) instead of locally")
     add_preset_argument(parser)
+    add_set_argument(parser)
     parser.add_argument("--seed", type=seed_int, default=0,
                         help="first seed; trial i uses seed + i (learned-prior trials seed + "
                              "1000 + i, so at other poses than the one learned from)")
@@ -193,15 +197,18 @@ def write_json(path, value):
     write_atomic(path, json.dumps(value, indent=1).encode())
 
 
-def with_setting(tasks, sensor, scene=None):
-    """Give every task the sensor settings (:func:`with_sensor`) and the robot's ``scene``
-    (None: the paper's free space); returns a function that does the same to later
-    tasks."""
+def with_setting(tasks, sensor, scene=None, settings=()):
+    """Give every task the sensor settings (:func:`with_sensor`), the robot's ``scene``
+    (None: the paper's free space) and ``settings`` (``--set`` pairs) changed in its
+    preset; returns a function that does the same to later tasks."""
     noisy = with_sensor(tasks, sensor)
 
     def placed(more):
         for task in noisy(more):
             with_scene(task, scene)
+            if settings:
+                task["params"] = with_settings(session_preset(task["preset"]),
+                                               settings).to_dict()
         return more
 
     placed(tasks)
@@ -248,7 +255,7 @@ def run(args):
                                args.preset, args.max_steps)
     elif not args.no_learned:
         tasks = learn_task(tasks, args.seed, args.preset, args.max_steps, poisson)
-    noisy = with_setting(tasks, sensor_settings(args), scene_from_args(args))
+    noisy = with_setting(tasks, sensor_settings(args), scene_from_args(args), args.set)
 
     def follow_up(task, result):
         if not task["learn_as"]:

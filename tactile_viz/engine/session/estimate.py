@@ -21,6 +21,7 @@ from ..shape.gpis import (
     fit_gpis,
     zero_level_surface,
 )
+from ..shape.gpis_evidence import contact_evidence, fit_ellipsoid
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import contact_balls, filled_prior
 from ..shape.gpis_variance import lattice_low, lattice_variance
@@ -30,6 +31,7 @@ from .snapshot import Reconstruction
 
 FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
 FILL_SLACK = 0.02  # its ball, and this share of a size unit (a contact's localisation)
+AGNOSTIC_MARGIN = 10.0  # nats the other GPIS prior mean must gain to take over (hysteresis)
 
 
 class Estimation:
@@ -59,18 +61,21 @@ class Estimation:
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
-        prior = self._gpis_prior(model, rotation, translation, contacts,
-                                 self.filter.noncontact_positions, self.state.free_space,
-                                 normals)
-        if p.gpis_incremental:
-            fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
-                                        self._noncontact_points(), prior)
-        else:
-            newton = self._newton_due(len(contacts))
-            fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
-                            self.state.gpis_scale, newton=newton)
-            self.state.gpis_fits = 0 if newton else self.state.gpis_fits + 1
-        self.state.gpis_scale = fit.scale
+        free = self.filter.noncontact_positions, self.state.free_space
+        prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
+        shape = fit_ellipsoid(contacts, normals, p.eps / 2) if p.gpis_agnostic else None
+        agnostic = None if shape is None else self._gpis_prior(
+            model, rotation, translation, contacts, *free, normals, shape=shape)
+        in_force = agnostic is not None and self.state.gpis_shape is not None
+        fit = self._step_fit(kernel, contacts, normals, agnostic if in_force else prior)
+        if agnostic is not None:
+            other = prior if in_force else agnostic
+            gain = (contact_evidence(fit, other, contacts, normals)
+                    - contact_evidence(fit, fit.prior, contacts, normals))
+            if gain > AGNOSTIC_MARGIN:  # the other prior explains the contacts better
+                in_force = not in_force
+                fit = self._step_fit(kernel, contacts, normals, other)
+        self.state.gpis_shape = shape if in_force else None
         fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
@@ -83,6 +88,20 @@ class Estimation:
         recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
         timings["surface"] = time.perf_counter() - clock
         return recon
+
+    def _step_fit(self, kernel, contacts, normals, prior):
+        """A step's GPIS fit from ``prior``: extending the kept factor
+        (``gpis_incremental``) or in full, with the scale's Newton step when due."""
+        if self._p.gpis_incremental:
+            fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
+                                        self._noncontact_points(), prior)
+        else:
+            newton = self._newton_due(len(contacts))
+            fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+                            self.state.gpis_scale, newton=newton)
+            self.state.gpis_fits = 0 if newton else self.state.gpis_fits + 1
+        self.state.gpis_scale = fit.scale
+        return fit
 
     def _final_surface(self, recon, map_vertices, contacts, timings, prior):
         """The reconstruction a stopping session reports: the same fit at
@@ -257,13 +276,14 @@ class Estimation:
         return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
-                    normals):
+                    normals, shape=None):
         """The GPIS prior mean: the MAP shape with the solid behind the contacts it puts in
-        its empty space added (``gpis_fill_radius``) and the refuted space cut out."""
+        its empty space added (``gpis_fill_radius``), or the object-agnostic ``shape``
+        (an :class:`Ellipsoid`), with the refuted space cut out."""
         p = self._p
         free = np.vstack([noncontacts, free_space])
-        prior = self._prior(model, rotation, translation)
-        if p.gpis_fill_radius > 0 and len(contacts):
+        prior = self._prior(model, rotation, translation) if shape is None else shape
+        if p.gpis_fill_radius > 0 and len(contacts) and shape is None:
             slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit
             # Only a contact the prior puts in its empty space is evidence against it.
             refuting = np.asarray(prior(contacts)[0], dtype=float) > slack

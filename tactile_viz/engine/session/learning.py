@@ -50,7 +50,7 @@ class Learning:
         self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
-                                 snapshot.normals)
+                                 snapshot.normals, shape=snapshot.gpis_shape)
         low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
         if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
             kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept

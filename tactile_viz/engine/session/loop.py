@@ -553,6 +553,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             gpis_resolution=None if recon is None else recon.resolution,
             gpis_radius=None if recon is None else float(recon.fit.radius),
             gpis_spacing=None if recon is None else recon.spacing,
+            gpis_shape=None if recon is None else self.state.gpis_shape,
             decided=bool(plan.decided), decision_confidence=decision.confidence,
             **self._pose_difference(model, rotation, translation))
         self.snapshots.append(snapshot)

@@ -200,8 +200,9 @@ class Planner:
     def _coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
         surface) by the contacts: l.8, eq. 35, over the vertices still to visit; with
-        ``cover_prior`` a novel object's MAP prior counts too (beyond the paper). In a
-        robot's scene only what its probe can reach counts (:meth:`_in_scene`)."""
+        ``cover_prior`` a novel object's MAP prior counts too, unless the GPIS started from
+        an object-agnostic prior (beyond the paper). In a robot's scene only what its probe
+        can reach counts (:meth:`_in_scene`)."""
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
         reachable = self._reachable(surface)
@@ -216,7 +217,7 @@ class Planner:
                 recon.fit.mean_value, contacts))
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if recon is not None and self._p.cover_prior:
+        if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
                                                            self._p.gpis_carve_radius))

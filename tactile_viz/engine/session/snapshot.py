@@ -44,7 +44,8 @@ class Snapshot:
     ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
     stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
-    its grid's cell when kept from step to step (else None). ``decided`` (beyond the
+    its grid's cell when kept from step to step (else None); ``gpis_shape`` the
+    object-agnostic prior mean its fit started from (None: the MAP shape's). ``decided`` (beyond the
     paper): the object is judged known and no other class or pose mode fits the contacts
     comparably
     (:mod:`~tactile_viz.engine.belief.decision`); ``decision_confidence`` the share the MAP holds.
@@ -82,6 +83,7 @@ class Snapshot:
     gpis_resolution: object = None
     gpis_radius: object = None
     gpis_spacing: object = None
+    gpis_shape: object = None
     rotation_error_deg: object = None
     translation_error: object = None
     decided: bool = False

@@ -49,6 +49,9 @@ class ExplorationState:
         The surface grid's cell kept from step to step (``gpis_box_tolerance``).
     gpis_fits : int
         Fits since the scale's last Newton step (``gpis_refit_every``).
+    gpis_shape : Ellipsoid or None
+        The object-agnostic prior mean the last fit started from (``gpis_agnostic``;
+        None: the MAP shape's).
     gpis_cache : GramCache or None
         The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.shape.gpis_incremental`;
         immutable, keyed by content: a fit extends it only where the content agrees).
@@ -110,6 +113,7 @@ class ExplorationState:
     gpis_radius: Any = None
     gpis_spacing: Any = None
     gpis_fits: int = 0
+    gpis_shape: Any = None
     gpis_cache: Any = None
     variance_cache: Any = None
     target: Any = None
