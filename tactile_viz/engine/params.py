@@ -303,14 +303,15 @@ class SessionParams:
               "dragon was worse with it), and alone it does not mend a ball against a mug "
               "prior: off by default (docs/novel.md).")
     gpis_agnostic: bool = _gpis(
-        False, "The GPIS prior mean is an ellipsoid fitted to the contacts while their GP "
-        "evidence favours it over the MAP shape's (beyond the paper).", kind="bool",
+        False, "The GPIS prior mean is a superquadric fitted to the contacts (an ellipsoid, a "
+        "rounded or a sharp box) while their GP evidence favours it over the MAP shape's "
+        "(beyond the paper).", kind="bool",
         notes="The contacts' log marginal likelihood under each prior mean, at one fit's "
-              "kernel and scale; the prior in force changes when the other is ahead by "
+              "kernel and scale; the prior in force changes when another is ahead by "
               "AGNOSTIC_MARGIN nats. A library of a few unlike priors leaves parts of the MAP "
-              "shape that nothing supports (a mug's cavity inside a ball); with the "
-              "ellipsoid in force the MAP prior's surface need not be covered "
-              "(cover_prior). docs/novel.md.")
+              "shape that nothing supports (a mug's cavity inside a ball); with a "
+              "superquadric in force the MAP prior's surface must be covered "
+              "(cover_prior) only where it lies outside the estimate. docs/novel.md.")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "

@@ -8,7 +8,12 @@ import trimesh
 from tactile_viz.engine import PriorLibrary
 from tactile_viz.engine.session import Session, make_truth, session_preset
 from tactile_viz.engine.shape.gpis import ThinPlateKernel, fit_gpis
-from tactile_viz.engine.shape.gpis_evidence import Ellipsoid, contact_evidence, fit_ellipsoid
+from tactile_viz.engine.shape.gpis_evidence import (
+    Superquadric,
+    contact_evidence,
+    fit_ellipsoid,
+    fit_superquadrics,
+)
 
 
 def _surface_samples(mesh, count, seed=1):
@@ -48,6 +53,19 @@ def test_a_long_box_gives_its_axes_and_few_contacts_give_none():
     assert np.isfinite(flat.radii).all() and (flat.radii >= 0.05).all()  # one face only
 
 
+def test_a_boxs_contacts_fit_the_sharp_superquadric_best():
+    mesh = trimesh.creation.box((2.0, 3.0, 4.0))
+    points, normals = _surface_samples(mesh, 150)
+    shapes = fit_superquadrics(points, normals, 0.05)
+    assert [shape.roundness for shape in shapes] == [1.0, 0.5, 0.2]
+    misfit = [np.abs(shape(points)[0]).mean() for shape in shapes]
+    assert misfit[2] < misfit[1] < misfit[0]
+    np.testing.assert_allclose(np.sort(shapes[2].radii), [1.0, 1.5, 2.0], rtol=0.1)
+    corner, _ = shapes[2](np.array([[0.9, 1.35, 1.8]]))
+    assert corner[0] < 0  # inside, where the ellipsoid leaves the corner out
+    assert shapes[0](np.array([[0.9, 1.35, 1.8]]))[0][0] > 0
+
+
 def _ball(points, radius=1.0):
     points = np.atleast_2d(points)
     length = np.linalg.norm(points, axis=1)
@@ -62,7 +80,7 @@ def test_the_evidence_is_the_fits_own_term_and_prefers_the_prior_that_fits():
     np.testing.assert_allclose(own, -0.5 * fit.alpha[fit.kept] @ (
         np.column_stack([np.zeros(len(points)), normals])
         - np.column_stack(_ball(points))).ravel()[fit.kept], rtol=1e-8)
-    shifted = Ellipsoid(np.array([0.3, 0.0, 0.0]), np.eye(3), np.ones(3))
+    shifted = Superquadric(np.array([0.3, 0.0, 0.0]), np.eye(3), np.ones(3))
     fitted = fit_ellipsoid(points, normals, 0.01)
     assert contact_evidence(fit, fitted, points, normals) > contact_evidence(
         fit, shifted, points, normals)

@@ -21,7 +21,7 @@ from ..shape.gpis import (
     fit_gpis,
     zero_level_surface,
 )
-from ..shape.gpis_evidence import contact_evidence, fit_ellipsoid
+from ..shape.gpis_evidence import contact_evidence, fit_superquadrics
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import contact_balls, filled_prior
 from ..shape.gpis_variance import lattice_low, lattice_variance
@@ -61,21 +61,7 @@ class Estimation:
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
-        free = self.filter.noncontact_positions, self.state.free_space
-        prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
-        shape = fit_ellipsoid(contacts, normals, p.eps / 2) if p.gpis_agnostic else None
-        agnostic = None if shape is None else self._gpis_prior(
-            model, rotation, translation, contacts, *free, normals, shape=shape)
-        in_force = agnostic is not None and self.state.gpis_shape is not None
-        fit = self._step_fit(kernel, contacts, normals, agnostic if in_force else prior)
-        if agnostic is not None:
-            other = prior if in_force else agnostic
-            gain = (contact_evidence(fit, other, contacts, normals)
-                    - contact_evidence(fit, fit.prior, contacts, normals))
-            if gain > AGNOSTIC_MARGIN:  # the other prior explains the contacts better
-                in_force = not in_force
-                fit = self._step_fit(kernel, contacts, normals, other)
-        self.state.gpis_shape = shape if in_force else None
+        fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
         fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
@@ -88,6 +74,30 @@ class Estimation:
         recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
         timings["surface"] = time.perf_counter() - clock
         return recon
+
+    def _prior_fit(self, kernel, model, rotation, translation, contacts, normals):
+        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's or,
+        with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
+        (``state.gpis_shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN``
+        nats (beyond the paper)."""
+        p = self._p
+        free = self.filter.noncontact_positions, self.state.free_space
+        prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
+        shapes = fit_superquadrics(contacts, normals, p.eps / 2) if p.gpis_agnostic else []
+        candidates = [prior] + [self._gpis_prior(model, rotation, translation, contacts, *free,
+                                                 normals, shape=shape) for shape in shapes]
+        kept = self.state.gpis_shape
+        index = next((i + 1 for i, shape in enumerate(shapes)
+                      if kept is not None and shape.roundness == kept.roundness), 0)
+        fit = self._step_fit(kernel, contacts, normals, candidates[index])
+        if len(candidates) > 1:
+            evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
+            best = int(np.argmax(evidence))
+            if evidence[best] > evidence[index] + AGNOSTIC_MARGIN:  # another explains more
+                index = best
+                fit = self._step_fit(kernel, contacts, normals, candidates[index])
+        self.state.gpis_shape = shapes[index - 1] if index else None
+        return fit
 
     def _step_fit(self, kernel, contacts, normals, prior):
         """A step's GPIS fit from ``prior``: extending the kept factor
@@ -279,7 +289,7 @@ class Estimation:
                     normals, shape=None):
         """The GPIS prior mean: the MAP shape with the solid behind the contacts it puts in
         its empty space added (``gpis_fill_radius``), or the object-agnostic ``shape``
-        (an :class:`Ellipsoid`), with the refuted space cut out."""
+        (a :class:`Superquadric`), with the refuted space cut out."""
         p = self._p
         free = np.vstack([noncontacts, free_space])
         prior = self._prior(model, rotation, translation) if shape is None else shape

@@ -49,7 +49,7 @@ class ExplorationState:
         The surface grid's cell kept from step to step (``gpis_box_tolerance``).
     gpis_fits : int
         Fits since the scale's last Newton step (``gpis_refit_every``).
-    gpis_shape : Ellipsoid or None
+    gpis_shape : Superquadric or None
         The object-agnostic prior mean the last fit started from (``gpis_agnostic``;
         None: the MAP shape's).
     gpis_cache : GramCache or None

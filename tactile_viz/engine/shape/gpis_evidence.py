@@ -4,10 +4,11 @@
 The paper's prior mean is the MAP shape. When the library holds nothing like the object
 (a ball against a mug, a 2 cm block against 10 cm priors) that shape keeps what nothing
 supports: the mug's cavity inside the ball. An ellipsoid fitted to the contacts is the
-classic object-agnostic GPIS prior (Williams and Fitzgibbon 2007 used a sphere). The
-GP's marginal likelihood of the contacts tells the two apart: with the same kernel, scale
-and noise, only the term ``-1/2 r^T K^-1 r`` of the residual ``r = D - mu(X)`` depends on
-the prior mean ``mu``.
+classic object-agnostic GPIS prior (Williams and Fitzgibbon 2007 used a sphere), and
+superquadrics, from an ellipsoid to a box, are the object-agnostic shapes of grasping
+(Vezzani et al. 2017). The GP's marginal likelihood of the contacts tells the priors
+apart: with the same kernel, scale and noise, only the term ``-1/2 r^T K^-1 r`` of the
+residual ``r = D - mu(X)`` depends on the prior mean ``mu``.
 """
 
 from dataclasses import dataclass
@@ -19,11 +20,15 @@ from scipy.optimize import nnls
 SHRINK_TOWARD_CENTROID = 0.05  # weight (per contact) pulling the centre to the centroid
 MAX_RADIUS_FACTOR = 2.0  # a radius is at most this many times the contacts' extent
 TINY = 1e-12
+ROUNDNESS = (1.0, 0.5, 0.2)  # an ellipsoid, a rounded and a nearly sharp box
+FACE_ITERATIONS = 5  # turns of a box's axes toward its contacts' normals
 
 
 @dataclass(frozen=True, eq=False)
-class Ellipsoid:
-    """An ellipsoid as a GPIS prior mean: ``prior(points) -> (values, gradients)``.
+class Superquadric:
+    """A superellipsoid as a GPIS prior mean, ``prior(points) -> (values, gradients)``:
+    ``F(y) = sum_k |y_k / r_k|^(2 / e) = 1`` in its frame, an ellipsoid at ``e = 1`` and
+    a box with rounded edges as ``e`` goes to 0.
 
     Attributes
     ----------
@@ -32,37 +37,43 @@ class Ellipsoid:
         Columns are its principal directions (a rotation), world frame.
     radii : (3,) float, scene units
         Its semi-axes along ``axes``.
+    roundness : float
+        The exponent ``e`` in (0, 1].
     """
 
     centre: np.ndarray
     axes: np.ndarray
     radii: np.ndarray
+    roundness: float = 1.0
 
     def __call__(self, points):
-        """Approximate signed distances (k,) and unit outward gradients (k, 3) at
-        ``points`` (k, 3): ``k0 (k0 - 1) / k1`` with ``k0 = |y / r|`` and
-        ``k1 = |y / r^2|`` in the ellipsoid's frame (exact on a sphere, exact at the
-        surface's sign and zero level everywhere)."""
+        """Radial distances ``|y| (1 - F^(-e/2))`` (k,) (exact on a sphere, zero on the
+        surface, negative inside) and unit outward gradients ``grad F / |grad F|`` (k, 3)
+        at ``points`` (k, 3)."""
         local = (np.atleast_2d(np.asarray(points, dtype=float)) - self.centre) @ self.axes
-        k0 = np.linalg.norm(local / self.radii, axis=1)
-        toward = local / self.radii**2
-        k1 = np.linalg.norm(toward, axis=1)
-        centred = k1 < TINY
-        values = np.where(centred, -self.radii.min(),
-                          k0 * (k0 - 1) / np.maximum(k1, TINY))
-        normals = toward / np.maximum(k1, TINY)[:, None]
+        power = 2.0 / self.roundness
+        scaled = np.abs(local) / self.radii
+        inside_out = np.sum(scaled**power, axis=1)
+        length = np.linalg.norm(local, axis=1)
+        values = length * (1.0 - np.maximum(inside_out, TINY) ** (-self.roundness / 2))
+        toward = np.sign(local) * scaled ** (power - 1) / self.radii
+        size = np.linalg.norm(toward, axis=1)
+        centred = size < TINY
+        values[centred] = -self.radii.min()
+        normals = toward / np.maximum(size, TINY)[:, None]
         normals[centred] = (0.0, 0.0, 1.0)
         return values, normals @ self.axes.T
 
 
-def fit_ellipsoid(points, normals, min_radius):
-    """The ellipsoid the contacts lie on, as a GPIS prior mean.
+def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS):
+    """Superquadrics the contacts lie on, one for each ``roundness``, as GPIS prior means.
 
     The centre is the point nearest every contact's normal line (they meet at a sphere's
     centre), pulled toward the contacts' centroid where the normals leave it open (a flat
-    face's all agree); the axes are the contacts' principal directions about it; the
-    radii solve ``sum_k y_k^2 / r_k^2 = 1`` at the contacts by non-negative least squares
-    in ``1 / r_k^2``, each within ``[min_radius, 2 x`` the contacts' extent along its axis
+    face's all agree); the axes are the contacts' principal directions about it (for a box,
+    turned toward the normals, :func:`face_axes`); for each roundness ``e`` the radii solve
+    ``sum_k |y_k|^(2/e) / r_k^(2/e) = 1`` at the contacts by non-negative least squares in
+    ``r_k^(-2/e)``, each within ``[min_radius, 2 x`` the contacts' extent along its axis
     ``+ min_radius]`` (an axis the contacts do not bound gets that extent).
 
     Parameters
@@ -71,16 +82,17 @@ def fit_ellipsoid(points, normals, min_radius):
         Contact positions and outward unit normals.
     min_radius : float, scene units
         The smallest semi-axis (> 0).
+    roundness : sequence of float in (0, 1]
 
     Returns
     -------
-    Ellipsoid or None
-        None with fewer than 4 contacts.
+    list of Superquadric
+        Empty with fewer than 4 contacts.
     """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     normals = np.asarray(normals, dtype=float).reshape(-1, 3)
     if len(points) < 4:
-        return None
+        return []
     centroid = points.mean(axis=0)
     across = np.eye(3)[None] - normals[:, :, None] * normals[:, None, :]  # I - n n^T
     pull = SHRINK_TOWARD_CENTROID * len(points)
@@ -90,13 +102,44 @@ def fit_ellipsoid(points, normals, min_radius):
     _, axes = np.linalg.eigh(offsets.T @ offsets)
     if np.linalg.det(axes) < 0:
         axes[:, 0] = -axes[:, 0]
-    local = offsets @ axes
-    extent = np.abs(local).max(axis=0)
-    inverse_squares, _ = nnls(local**2, np.ones(len(points)))
-    radii = np.where(inverse_squares > TINY,
-                     1.0 / np.sqrt(np.maximum(inverse_squares, TINY)), extent)
-    radii = np.clip(radii, min_radius, MAX_RADIUS_FACTOR * extent + min_radius)
-    return Ellipsoid(centre, axes, radii)
+    shapes = []
+    for e in roundness:
+        frame = axes if e == 1.0 else face_axes(normals, axes)
+        local = np.abs(offsets @ frame)
+        extent = local.max(axis=0)
+        unit = max(float(extent.max()), TINY)  # powers of up to 10 of lengths near 1
+        inverse_powers, _ = nnls((local / unit) ** (2.0 / e), np.ones(len(points)))
+        radii = unit * np.where(inverse_powers > TINY,
+                                np.maximum(inverse_powers, TINY) ** (-e / 2), extent / unit)
+        radii = np.clip(radii, min_radius, MAX_RADIUS_FACTOR * extent + min_radius)
+        shapes.append(Superquadric(centre, frame, radii, float(e)))
+    return shapes
+
+
+def face_axes(normals, axes, iterations=FACE_ITERATIONS):
+    """``axes`` (3, 3) turned so that the ``normals`` (n, 3) lie along them (a box's faces
+    face its axes, which the principal directions of a few contacts miss by degrees): each
+    normal is assigned its nearest signed axis, and the rotation taking the axes to the
+    normals so assigned is the orthogonal Procrustes solution, a few times over."""
+    for _ in range(iterations):
+        cosines = normals @ axes
+        nearest = np.argmax(np.abs(cosines), axis=1)
+        targets = np.zeros_like(normals)
+        rows = np.arange(len(normals))
+        targets[rows, nearest] = np.sign(cosines[rows, nearest])
+        left, _, right = np.linalg.svd(normals.T @ targets)
+        turned = left @ np.diag([1.0, 1.0, np.linalg.det(left @ right)]) @ right
+        if np.allclose(turned, axes, atol=1e-9):
+            break
+        axes = turned
+    return axes
+
+
+def fit_ellipsoid(points, normals, min_radius):
+    """The ellipsoid of :func:`fit_superquadrics` (roundness 1), or None with fewer than 4
+    contacts."""
+    shapes = fit_superquadrics(points, normals, min_radius, roundness=(1.0,))
+    return shapes[0] if shapes else None
 
 
 def contact_evidence(fit, prior, points, normals):
