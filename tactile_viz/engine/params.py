@@ -307,11 +307,11 @@ class SessionParams:
         "rounded or a sharp box) while their GP evidence favours it over the MAP shape's "
         "(beyond the paper).", kind="bool",
         notes="The contacts' log marginal likelihood under each prior mean, at one fit's "
-              "kernel and scale; the prior in force changes when another is ahead by "
-              "AGNOSTIC_MARGIN nats. A library of a few unlike priors leaves parts of the MAP "
-              "shape that nothing supports (a mug's cavity inside a ball); with a "
-              "superquadric in force the MAP prior's surface must be covered "
-              "(cover_prior) only where it lies outside the estimate. docs/novel.md.")
+              "kernel and scale; the prior in force changes when another is ahead by 10 "
+              "nats and a tenth of its own. A library of a few unlike priors leaves parts "
+              "of the MAP shape that nothing supports (a mug's cavity inside a ball); with "
+              "a superquadric in force the MAP prior's surface need not be covered "
+              "(cover_prior). docs/novel.md.")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "

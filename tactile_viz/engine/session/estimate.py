@@ -31,7 +31,8 @@ from .snapshot import Reconstruction
 
 FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
 FILL_SLACK = 0.02  # its ball, and this share of a size unit (a contact's localisation)
-AGNOSTIC_MARGIN = 10.0  # nats the other GPIS prior mean must gain to take over (hysteresis)
+AGNOSTIC_MARGIN = 10.0  # nats another GPIS prior mean must gain to take over (hysteresis),
+AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in force
 
 
 class Estimation:
@@ -79,7 +80,7 @@ class Estimation:
         """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's or,
         with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
         (``state.gpis_shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN``
-        nats (beyond the paper)."""
+        nats and ``AGNOSTIC_SHARE`` of its own (beyond the paper)."""
         p = self._p
         free = self.filter.noncontact_positions, self.state.free_space
         prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
@@ -93,7 +94,8 @@ class Estimation:
         if len(candidates) > 1:
             evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
             best = int(np.argmax(evidence))
-            if evidence[best] > evidence[index] + AGNOSTIC_MARGIN:  # another explains more
+            margin = max(AGNOSTIC_MARGIN, AGNOSTIC_SHARE * abs(evidence[index]))
+            if evidence[best] > evidence[index] + margin:  # another explains more
                 index = best
                 fit = self._step_fit(kernel, contacts, normals, candidates[index])
         self.state.gpis_shape = shapes[index - 1] if index else None

@@ -200,10 +200,9 @@ class Planner:
     def _coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
         surface) by the contacts: l.8, eq. 35, over the vertices still to visit; with
-        ``cover_prior`` a novel object's MAP prior counts too (beyond the paper); where the
-        GPIS started from an object-agnostic prior, only where it lies outside the estimate
-        (:meth:`_outside`). In a robot's scene only what its probe can reach counts
-        (:meth:`_in_scene`)."""
+        ``cover_prior`` a novel object's MAP prior counts too, unless the GPIS started from
+        an object-agnostic prior (beyond the paper). In a robot's scene only what its probe
+        can reach counts (:meth:`_in_scene`)."""
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
         reachable = self._reachable(surface)
@@ -218,26 +217,14 @@ class Planner:
                 recon.fit.mean_value, contacts))
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if recon is not None and self._p.cover_prior:
+        if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
                                                            self._p.gpis_carve_radius))
             if map_reach is not None:
                 prior_open = _both(prior_open, map_reach)
-            if self.state.gpis_shape is not None:
-                prior_open = self._outside(prior_open, map_vertices, recon.fit.mean_value)
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
-
-    def _outside(self, mask, vertices, estimate):
-        """``mask`` where the ``vertices`` lie farther than ``eps / 2`` outside the
-        ``estimate`` (``(k, 3) -> (k,)``). A vertex inside is touched through the estimate's
-        surface, which the stop covers: a mug prior's cavity within a ball's estimate
-        needs no touch of its own, a chair prior's legs beside a blob do."""
-        rows = np.flatnonzero(mask)
-        kept = np.zeros_like(mask)
-        kept[rows[np.asarray(estimate(vertices[rows])) > self._p.eps / 2]] = True
-        return kept
 
     def _in_scene(self, vertices, normals, outside, contacts):
         """Mask of the estimate's vertices the scene's probe can reach
