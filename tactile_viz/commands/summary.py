@@ -27,6 +27,8 @@ def result_summary(result, files=()):
     touches = f"{last['n_contacts']} contacts, {last['n_noncontacts']} misses"
     if last.get("novel"):
         verdict = f"novel (none of the {len(result.get('library', []))} priors)"
+        if last.get("gpis_prior"):
+            verdict += f", reconstructed from {_prior_words(last['gpis_prior'], result)}"
     else:
         verdict = f"known: {last['map_class']}"
     decided = result.get("decided_at")
@@ -57,6 +59,13 @@ def result_summary(result, files=()):
         lines.append(f"  learned: {learned['name']}")
     lines += [f"  {what}: {where}" for what, where in files]
     return lines
+
+
+def _prior_words(prior, result):
+    """``the prior mug_1`` or ``an ellipsoid fitted to the contacts``."""
+    if prior in result.get("library", []) or prior not in ("ellipsoid", "rounded box", "box"):
+        return f"the prior {prior}"
+    return f"{'an' if prior == 'ellipsoid' else 'a'} {prior} fitted to the contacts"
 
 
 def _xyz(values, digits):

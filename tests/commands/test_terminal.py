@@ -58,6 +58,11 @@ def test_the_summary_says_what_was_judged_when_and_where_the_files_went():
     lines = result_summary(novel)
     assert lines == ["mug_1: novel (none of the 2 priors); ran to step 14 without "
                      "stopping (12 contacts, 5 misses, 2.0 s)"]
+    lines = result_summary(dict(novel, steps=[dict(step, novel=True, gpis_prior="ellipsoid")]))
+    assert lines[0].startswith("mug_1: novel (none of the 2 priors), reconstructed from an "
+                               "ellipsoid fitted to the contacts; ran to step 14")
+    lines = result_summary(dict(novel, steps=[dict(step, novel=True, gpis_prior="mug_2")]))
+    assert "reconstructed from the prior mug_2;" in lines[0]
     assert result_summary({"steps": []}) == ["no step was taken"]
 
 

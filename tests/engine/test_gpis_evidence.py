@@ -103,6 +103,9 @@ def test_a_ball_against_unlike_priors_takes_the_ellipsoid_and_learns_what_it_rep
     held = [s for s in novel if s.gpis_shape is not None]
     assert held, "a sphere's contacts favour the ellipsoid over every other prior"
     assert np.ptp(held[-1].gpis_shape.radii) < 0.5  # the sphere's, radius 3
+    assert held[-1].record()["gpis_prior"] in ("ellipsoid", "rounded box", "box")
+    assert {s.record()["gpis_prior"] for s in novel if s.gpis_shape is None} <= set(
+        library.names)
     # Refitting from the snapshot (its ellipsoid prior included) gives the step's surface.
     last = held[-1]
     vertices, faces = session._surface_at(last, last.gpis_resolution)

@@ -92,6 +92,14 @@ class Snapshot:
     def __getstate__(self):
         return {**self.__dict__, "gpis_variance": self.gpis_variance}
 
+    @property
+    def gpis_prior(self):
+        """What the GPIS started from: the MAP class's name, the kind of a fitted
+        superquadric (``"ellipsoid"``, ``"rounded box"``, ``"box"``), or None (no GPIS)."""
+        if self.gpis_vertices is None:
+            return None
+        return self.map_class if self.gpis_shape is None else self.gpis_shape.kind
+
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
         return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
@@ -103,7 +111,8 @@ class Snapshot:
                 "timings": {k: float(v) for k, v in self.timings.items()},
                 "rotation_error_deg": self.rotation_error_deg,
                 "translation_error": self.translation_error,
-                "gpis_scale": self.gpis_scale, "decided": bool(self.decided),
+                "gpis_scale": self.gpis_scale, "gpis_prior": self.gpis_prior,
+                "decided": bool(self.decided),
                 "decision_confidence": float(self.decision_confidence),
                 "map_rotation": self.map_rotation.tolist(),
                 "map_translation": self.map_translation.tolist()}

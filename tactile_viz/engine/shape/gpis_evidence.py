@@ -46,6 +46,13 @@ class Superquadric:
     radii: np.ndarray
     roundness: float = 1.0
 
+    @property
+    def kind(self):
+        """``"ellipsoid"``, ``"rounded box"`` or ``"box"``, by its roundness."""
+        if self.roundness >= 1.0:
+            return "ellipsoid"
+        return "rounded box" if self.roundness >= 0.4 else "box"
+
     def __call__(self, points):
         """Radial distances ``|y| (1 - F^(-e/2))`` (k,) (exact on a sphere, zero on the
         surface, negative inside) and unit outward gradients ``grad F / |grad F|`` (k, 3)
