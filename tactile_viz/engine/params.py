@@ -303,7 +303,7 @@ class SessionParams:
               "dragon was worse with it), and alone it does not mend a ball against a mug "
               "prior: off by default (docs/novel.md).")
     gpis_agnostic: bool = _gpis(
-        False, "The GPIS prior mean is a superquadric fitted to the contacts (an ellipsoid, a "
+        True, "The GPIS prior mean is a superquadric fitted to the contacts (an ellipsoid, a "
         "rounded or a sharp box) while their GP evidence favours it over the MAP shape's "
         "(beyond the paper).", kind="bool",
         notes="The contacts' log marginal likelihood under each prior mean, at one fit's "

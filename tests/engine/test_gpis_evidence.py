@@ -94,8 +94,8 @@ def test_the_evidence_is_the_fits_own_term_and_prefers_the_prior_that_fits():
 def test_a_ball_against_unlike_priors_takes_the_ellipsoid_and_learns_what_it_reports(
         bundled, sphere_model):
     library = PriorLibrary(bundled[name] for name in ("mug_1", "guitar_1", "office_chair"))
-    params = session_preset("recommended", gpis_agnostic=True, max_steps_novel=40,
-                            final_candidates=0)
+    params = session_preset("recommended", max_steps_novel=40, final_candidates=0)
+    assert params.gpis_agnostic and not session_preset("paper").gpis_agnostic
     session = Session(make_truth(sphere_model, rng=2), library, "gpis-dhd", params, seed=2)
     session.run()
     novel = [s for s in session.snapshots if s.gpis_faces is not None]
@@ -112,6 +112,6 @@ def test_a_ball_against_unlike_priors_takes_the_ellipsoid_and_learns_what_it_rep
     np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
     np.testing.assert_array_equal(faces, last.gpis_faces)
     off = Session(make_truth(sphere_model, rng=2), library, "gpis-dhd",
-                  session_preset("recommended", max_steps_novel=5), seed=2)
+                  session_preset("recommended", max_steps_novel=5, gpis_agnostic=False), seed=2)
     off.run()
     assert all(s.gpis_shape is None for s in off.snapshots)
