@@ -776,8 +776,10 @@ def _inside_balls(session, snapshot):
 @pytest.mark.parametrize("when, cut", [("noisy", True), ("never", False)])
 def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model, when, cut):
     library = _box_library(sphere_model)
-    # The balls of every free point (gpis_carve_outside), as _inside_balls measures them.
-    params = session_preset("recommended", gpis_carve_estimate=when, gpis_carve_outside=True)
+    # The balls of every free point (gpis_carve_outside), as _inside_balls measures them;
+    # the box's phantom kept as the prior (a fitted ellipsoid would leave none to cut).
+    params = session_preset("recommended", gpis_carve_estimate=when, gpis_carve_outside=True,
+                            gpis_agnostic=False)
     session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))
     session.run(max_steps=30)
@@ -795,7 +797,9 @@ def _with_phantom(recon, far):
 @pytest.mark.parametrize("eps, covered", [(2.5, True), (0.01, False)])
 def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps, covered):
     library = _box_library(sphere_model)
-    params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25)
+    # The candidates are the MAP priors' fits: the box's, not a fitted ellipsoid.
+    params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25,
+                            gpis_agnostic=False)
     session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
     session.run()
     last = session.latest
