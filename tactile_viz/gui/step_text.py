@@ -74,7 +74,7 @@ def _reconstruction_fields(snapshot, size):
 def status_fields(snapshot, size=None):
     """The fields of :func:`status_text`."""
     if snapshot.novel:
-        fields = ["NOVEL", f"prior used {snapshot.map_class}"]
+        fields = ["NOVEL", f"prior used {prior_used(snapshot)}"]
         evidence = novelty_evidence(snapshot)
         fields += ([evidence] if evidence else []) + _reconstruction_fields(snapshot, size)
     else:
@@ -106,7 +106,7 @@ def summary_text(snapshot, size=None):
     """The status bar's short line on a step: the judgement, the MAP class (a novel
     object's prior used) and the error against the truth when there is one."""
     if snapshot.novel:
-        fields = ["NOVEL", f"prior used {snapshot.map_class}"]
+        fields = ["NOVEL", f"prior used {prior_used(snapshot)}"]
         error = snapshot.recon_error
         fields += [] if error is None else [f"recon error {error_text(error, size)}"]
     else:
@@ -121,7 +121,14 @@ def novelty_note(snapshot):
     lines = ["judged NOVEL: none of these priors"]
     evidence = novelty_evidence(snapshot)
     lines += [f"log {evidence}"] if evidence else []
-    return "\n".join(lines + [f"prior used for the reconstruction: {snapshot.map_class}"])
+    return "\n".join(lines + [f"prior used for the reconstruction: {prior_used(snapshot)}"])
+
+
+def prior_used(snapshot):
+    """What a novel step's GPIS started from: the MAP class, or ``ellipsoid fitted`` (a
+    superquadric fitted to the contacts, ``gpis_agnostic``)."""
+    shape = getattr(snapshot, "gpis_shape", None)
+    return snapshot.map_class if shape is None else f"{shape.kind} fitted"
 
 
 def noise_text(noise, outliers=0.0, unit_name="scene units", size=None):

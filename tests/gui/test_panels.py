@@ -9,6 +9,7 @@ from PySide6.QtWidgets import QAbstractButton, QWidget
 
 from tactile_viz.app.scene import Scene
 from tactile_viz.engine import PriorLibrary
+from tactile_viz.engine.shape.gpis_evidence import Superquadric
 from tactile_viz.gui.actions import ACTIONS
 from tactile_viz.gui.layers import LAYERS
 from tactile_viz.gui.main_window import MainWindow
@@ -151,6 +152,9 @@ def test_the_status_line_says_whether_a_known_object_is_decided_or_why_novel():
         "NOVEL | prior used mug_1 | evidence -195.4, threshold -184.7 | recon error 0.60 "
         "(10.0%) | size 6.50 (truth 6.00) | particles 9")
     assert summary_text(novel, 6.0) == "NOVEL | prior used mug_1 | recon error 0.60 (10.0%)"
+    fitted = SimpleNamespace(**vars(novel), gpis_shape=Superquadric(
+        np.zeros(3), np.eye(3), np.ones(3), 0.2))
+    assert summary_text(fitted, 6.0).startswith("NOVEL | prior used box fitted | recon")
     recorded = SimpleNamespace(**vars(novel) | dict(recon_error=None, gpis_vertices=None))
     assert "recon error - | size - | particles" in status_text(recorded, 6.0)
 
