@@ -141,44 +141,73 @@ class Estimation:
         """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
         else the newest reconstruction they cover, else the best supported one (the least
         :func:`support`): the GPIS fitted to every observation with the MAP prior of this
-        step and of each of the last ``final_candidates`` steps, each without and then
-        with the carve's cut of the estimate (beyond the paper). A novel object's MAP prior
+        step and of each of the last ``final_candidates`` steps, then (``gpis_agnostic``)
+        with each superquadric fitted to the contacts, each without and then with the
+        carve's cut of the estimate (beyond the paper). A novel object's MAP prior
         switches from step to step, and a switch at the last step can leave surface far
         from every contact (under noise, where the prior switches most, at the step cap
-        too); a candidate's support bounds how far its surface can lie from the object."""
-        f, p = self.filter, self._p
+        too); a candidate's support bounds how far its surface can lie from the object.
+        The state's ``gpis_shape`` follows the surface chosen."""
+        p = self._p
         tree = cKDTree(contacts)
         best_support = support(final.vertices, tree)
         if best_support <= p.eps:
             return final
         best = None
+        for candidate, box, shape in self._final_candidates(final, contacts, prior):
+            vertices, faces = zero_level_surface(candidate, box, p.final_resolution,
+                                                 fill_voids=p.gpis_fill_voids)
+            candidate_support = support(vertices, tree) if len(faces) else np.inf
+            if candidate_support <= p.eps:
+                self.state.gpis_shape = shape
+                return self._surface(candidate, box, p.final_resolution)
+            if candidate_support < best_support:
+                best_support, best = candidate_support, (candidate, box, shape)
+        if best is None:
+            return final
+        self.state.gpis_shape = best[2]
+        return self._surface(best[0], best[1], p.final_resolution)
+
+    def _final_candidates(self, final, contacts, prior):
+        """The fits :meth:`_best_supported` weighs, newest first, as ``(fit, (low, high),
+        superquadric or None)``."""
+        f, p = self.filter, self._p
         free = np.vstack([f.noncontact_positions, self.state.free_space])
         observed = self._noncontact_points()
         cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
                                 radius=p.gpis_carve_radius, keep_within=p.eps)
-        priors = self._recent_priors(p.final_candidates, prior)
-        for index, (class_name, rotation, translation) in enumerate(priors):
+        box = None
+        for index, (class_name, rotation, translation) in enumerate(
+                self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
             low, high, kernel = self._gpis_box(
                 transform_points(model.mesh.vertices, rotation, translation), contacts)
             if index == 0:
-                candidates = [cut(final.fit)]  # this step's own: its uncut fit is final's
-            else:
-                prior_mean = self._gpis_prior(model, rotation, translation, contacts,
-                                              f.noncontact_positions, self.state.free_space,
-                                              f.contact_normals)
-                fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                                self.state.gpis_scale, newton=False)
-                candidates = [fit, cut(fit)]
-            for candidate in candidates:
-                vertices, faces = zero_level_surface(candidate, (low, high), p.final_resolution,
-                                                     fill_voids=p.gpis_fill_voids)
-                candidate_support = support(vertices, tree) if len(faces) else np.inf
-                if candidate_support <= p.eps:
-                    return self._surface(candidate, (low, high), p.final_resolution)
-                if candidate_support < best_support:
-                    best_support, best = candidate_support, (candidate, (low, high))
-        return final if best is None else self._surface(best[0], best[1], p.final_resolution)
+                box = low, high, kernel, model, rotation, translation
+                # This step's own: its uncut fit is final's.
+                yield cut(final.fit), (low, high), self.state.gpis_shape
+                continue
+            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+                                          f.noncontact_positions, self.state.free_space,
+                                          f.contact_normals)
+            fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
+                            self.state.gpis_scale, newton=False)
+            yield fit, (low, high), None
+            yield cut(fit), (low, high), None
+        if not p.gpis_agnostic or box is None:
+            return
+        low, high, kernel, model, rotation, translation = box
+        own = getattr(self.state.gpis_shape, "roundness", None)
+        for shape in fit_superquadrics(contacts, f.contact_normals, p.eps / 2):
+            if shape.roundness == own:
+                continue  # the step's own
+            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+                                          f.noncontact_positions, self.state.free_space,
+                                          f.contact_normals, shape=shape)
+            fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
+                            self.state.gpis_scale, newton=False)
+            yield fit, (low, high), shape
+            yield cut(fit), (low, high), shape
 
     def _recent_priors(self, count, current):
         """The distinct MAP priors ``(class, rotation, translation)`` of ``current`` and the
