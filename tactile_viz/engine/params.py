@@ -394,9 +394,10 @@ class SessionParams:
     final_candidates: int = _gpis(
         10, "When a novel session stops with part of its reconstruction farther than eps "
         "from every contact, the reported surface is the newest one the contacts cover of "
-        "this and the last this many steps' MAP priors, each without and with the carve's "
-        "cut, else the best supported of them (beyond the paper; 0: the last step's MAP "
-        "prior, as the paper).", kind="int", valid="[0, 100]",
+        "this and the last this many steps' MAP priors (then, with gpis_agnostic, of the "
+        "superquadrics fitted to the contacts), each without and with the carve's cut, "
+        "else the best supported of them (beyond the paper; 0: the last step's prior, as "
+        "the paper).", kind="int", valid="[0, 100]",
         notes="A novel object's MAP prior switches from step to step, and a switch at the "
               "last step can leave surface 2 units from every contact (mug_2 at seed 12201: "
               "0.39 at step 394, 2.29 at the cap). Covered: every vertex within eps of a "
