@@ -101,3 +101,17 @@ def test_learned_trials_can_take_the_prior_of_an_earlier_run(tmp_path, capsys):
         cli(["bench", "paper", "--trials", "1", "--objects", "mug_1", "--learned-from",
              str(tmp_path / "missing.ply"), "--out", str(out), "--no-progress"])
     assert stop.value.code == 2 and "no such file" in capsys.readouterr().err
+
+
+def test_set_changes_every_tasks_preset_and_the_later_ones():
+    tasks = paper.protocol_tasks(["mug_1"], ["gpis-dhd"], 2, 5, "recommended", None, False,
+                                 {"mug_1": "known"})
+    later = paper.with_setting(tasks, {}, None, [("gpis_agnostic", False), ("eps", 0.3)])
+    assert all(t["params"]["gpis_agnostic"] is False and t["params"]["eps"] == 0.3
+               for t in tasks)
+    more = later(paper.learned_tasks({"name": "x"}, 1, 5, "recognise", None))
+    assert more[0]["params"]["eps"] == 0.3 and more[0]["params"]["stop_at_decision"]
+    plain = paper.protocol_tasks(["mug_1"], ["gpis-dhd"], 1, 5, "recommended", None, False,
+                                 {"mug_1": "known"})
+    paper.with_setting(plain, {}, None)
+    assert plain[0]["params"] is None  # the preset as it is
