@@ -142,13 +142,6 @@ def face_axes(normals, axes, iterations=FACE_ITERATIONS):
     return axes
 
 
-def fit_ellipsoid(points, normals, min_radius):
-    """The ellipsoid of :func:`fit_superquadrics` (roundness 1), or None with fewer than 4
-    contacts."""
-    shapes = fit_superquadrics(points, normals, min_radius, roundness=(1.0,))
-    return shapes[0] if shapes else None
-
-
 def contact_evidence(fit, prior, points, normals):
     """The part of the log marginal likelihood of the contacts that depends on the prior
     mean, ``-1/2 r^T K^-1 r`` with ``r`` their [value, gradient] observations less
