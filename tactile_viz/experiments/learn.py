@@ -17,9 +17,11 @@ reconstruction is learned as a prior, and the object is met again at another pos
 - ``many``: every other object, look-alikes of its family included.
 
 Per trial: judged novel at the end, the reconstruction error (two-way Hausdorff distance)
-as a share of the object's longest side, touches, whether the session stopped by itself,
-seconds; met again: whether the learned prior was the MAP at the decision, the touch of
-the decision, the pose error there as a share of the size, seconds. Writes ``learn.md``
+as a share of the object's longest side, the paper's on samples and from samples to the
+other surface (without the samples' floor: 5-10% of a compact object's size), touches,
+whether the session stopped by itself, seconds; met again: whether the learned prior was
+the MAP at the decision, the touch of the decision, the pose error there as a share of the
+size, seconds. Writes ``learn.md``
 (tables) and ``learn.json`` (every trial's summary) to ``--out`` and prints the tables.
 """
 
@@ -128,13 +130,14 @@ def learn_summary(result):
     """What the tables need of a trial that learns."""
     steps, size = result["steps"], result["object_size"]
     last = steps[-1]
-    recon = last.get("recon_error")
+    recon, surface = last.get("recon_error"), last.get("recon_surface_error")
     params, cap = result["params"], result["task"].get("max_steps")
     cap = cap or (params["max_steps_novel"] if last["novel"] else params["max_steps_known"])
     return {"object": result["object"], "library": result["task"]["tag"], "seed": result["seed"],
             "noise": [result["sensor"]["position_noise"], result["sensor"]["normal_noise_deg"]],
             "size": size, "judged_novel": bool(last["novel"]),
             "recon_share": None if recon is None or not last["novel"] else recon / size,
+            "surface_share": None if surface is None or not last["novel"] else surface / size,
             "touches": len(steps),
             "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"],
@@ -173,20 +176,23 @@ def _pose_within(row):
 def markdown(rows):
     """A table per library and noise level, then one row per trial."""
     lines = ["| library | noise (m, deg) | judged novel | recon. error, mean (max) % of "
-             "size | stopped by itself | learned, MAP met again | decided met again | "
-             "median touches to it | pose error at it, mean % of size | pose within recon. "
-             "+ 10% | median s (learn, again) |", "|" + "---|" * 11]
+             "size | to surface, mean (max) % | stopped by itself | learned, MAP met again | "
+             "decided met again | median touches to it | pose error at it, mean % of size | "
+             "pose within recon. + 10% | median s (learn, again) |", "|" + "---|" * 12]
     for which in sorted({r["library"] for r in rows}):
         for noise in sorted({tuple(r["noise"]) for r in rows}):
             mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
             n = len(mine)
             again = [r for r in mine if "decided_at" in r]
             shares = [r["recon_share"] for r in mine]
+            surface = [r.get("surface_share") for r in mine]
             lines.append(
                 f"| {which} | {noise[0]:g}, {noise[1]:g} | "
                 f"{sum(r['judged_novel'] for r in mine)}/{n} | "
                 f"{_fmt(_mean(shares), scale=100)} "
                 f"({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
+                f"{_fmt(_mean(surface), scale=100)} "
+                f"({_fmt(max([s for s in surface if s is not None], default=None), scale=100)}) | "
                 f"{sum(r['stopped'] for r in mine)}/{n} | "
                 f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "
@@ -195,13 +201,14 @@ def markdown(rows):
                 f"{sum(_pose_within(r) for r in again)}/{len(again)} | "
                 f"{_fmt(_median([r['seconds'] for r in mine]), '.0f')}, "
                 f"{_fmt(_median([r['again_seconds'] for r in again]), '.0f')} |")
-    lines += ["", "| object | size (cm) | library | noise | novel | recon. % | touches | "
-              "stopped | MAP again | decided at | pose % |", "|" + "---|" * 11]
+    lines += ["", "| object | size (cm) | library | noise | novel | recon. % | to surface % | "
+              "touches | stopped | MAP again | decided at | pose % |", "|" + "---|" * 12]
     for r in rows:
         lines.append(
             f"| {r['object']} | {100 * r['size']:.0f} | {r['library']} | "
             f"{r['noise'][0]:g}, {r['noise'][1]:g} | {'yes' if r['judged_novel'] else 'no'} | "
-            f"{_fmt(r['recon_share'], scale=100)} | {r['touches']} | "
+            f"{_fmt(r['recon_share'], scale=100)} | {_fmt(r.get('surface_share'), scale=100)} | "
+            f"{r['touches']} | "
             f"{'yes' if r['stopped'] else 'cap'} | "
             f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
             f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} |")

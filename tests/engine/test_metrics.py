@@ -1,7 +1,12 @@
 import numpy as np
 import pytest
+import trimesh
 
-from tactile_viz.engine.shape.metrics import directed_hausdorff
+from tactile_viz.engine.shape.metrics import (
+    directed_hausdorff,
+    surface_hausdorff,
+    two_way_hausdorff,
+)
 
 
 def _brute(a, b):
@@ -22,3 +27,19 @@ def test_directed_hausdorff_is_exact_near_and_far(offset, rng):
 def test_directed_hausdorff_of_empty_sets():
     assert directed_hausdorff(np.zeros((0, 3)), np.ones((4, 3))) == 0.0
     assert directed_hausdorff(np.ones((4, 3)), np.zeros((0, 3))) == float("inf")
+
+
+@pytest.mark.parametrize("scale", [0.01, 1.0, 100.0])
+def test_the_surface_hausdorff_has_no_sampling_floor(scale):
+    mesh = trimesh.creation.box((2.0 * scale, 2.0 * scale, 2.0 * scale))
+    a, _ = trimesh.sample.sample_surface(mesh, 2000, seed=0)
+    b, _ = trimesh.sample.sample_surface(mesh, 2000, seed=1)
+    surface = (mesh.vertices, mesh.faces)
+    assert two_way_hausdorff(a, b) > 0.05 * scale  # the samples' gaps
+    assert surface_hausdorff(a, surface, b, surface) < 1e-9 * scale
+    moved = mesh.copy()
+    moved.apply_translation((0.1 * scale, 0.0, 0.0))
+    distance = surface_hausdorff(a, surface, b + (0.1 * scale, 0.0, 0.0),
+                                 (moved.vertices, moved.faces))
+    assert distance == pytest.approx(0.1 * scale, rel=1e-6)
+    assert surface_hausdorff(a, surface, b, (np.zeros((0, 3)), np.zeros((0, 3), int))) == np.inf

@@ -43,7 +43,8 @@ def test_a_bundled_prior_of_a_task_has_its_size():
 
 def _result(name, steps, novel=True, learned=True, terminated=True, kind="learn"):
     records = [{"t": t, "novel": novel, "map_class": f"{name}_learned" if kind == "again"
-                else "knife", "recon_error": 0.005, "pose_error": 0.004,
+                else "knife", "recon_error": 0.005, "recon_surface_error": 0.003,
+                "pose_error": 0.004,
                 "decided": kind == "again" and t >= 9} for t in range(1, steps + 1)]
     result = {"object": name, "object_size": 0.1, "seed": 3, "seconds": 4.0, "steps": records,
               "terminated_at": steps if terminated else None,
@@ -71,6 +72,7 @@ def test_summaries_and_tables():
     row = learn.learn_summary(_result("cup", 30))
     assert row["judged_novel"] and row["stopped"] and row["learned"]
     assert np.isclose(row["recon_share"], 0.05) and row["touches"] == 30
+    assert np.isclose(row["surface_share"], 0.03)
     capped = learn.learn_summary(_result("cup", 30, novel=False, terminated=True))
     assert capped["recon_share"] is None and not capped["stopped"]  # the known cap, 30
     assert not learn.learn_summary(_result("cup", 30, terminated=False))["stopped"]
@@ -78,8 +80,8 @@ def test_summaries_and_tables():
     assert row["decided_learned"] and row["decided_at"] == 9
     assert np.isclose(row["pose_share"], 0.04)
     text = learn.markdown([row, capped])
-    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 |" in text
-    assert "| cup | 10 | few | 0, 0 | no | - | 30 | cap | - | - | - |" in text
+    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 3.0 (3.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 |" in text
+    assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - |" in text
 
 
 @pytest.mark.parametrize("argv", [["--objects", "teapot"], ["--libraries", "all"],

@@ -530,7 +530,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
     def _snapshot(self, belief, model, pose, map_vertices, recon, plan, paths,
                   observations, timings, errors, decision):
         """Record the step's :class:`Snapshot`."""
-        (rotation, translation), (pose_error, recon_error, truth_coverage) = pose, errors
+        (rotation, translation) = pose
+        pose_error, recon_error, truth_coverage, surface_error = errors
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         snapshot = Snapshot(
             step=self.step_count + 1, new_observations=tuple(observations),
@@ -548,7 +549,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
             target=None if self.state.target is None else frozen(self.state.target.position),
             dhd=float(plan.dhd), truth_coverage=truth_coverage, pose_error=pose_error,
-            recon_error=recon_error, terminated=plan.terminated, timings=timings,
+            recon_error=recon_error, recon_surface_error=surface_error,
+            terminated=plan.terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
             gpis_radius=None if recon is None else float(recon.fit.radius),

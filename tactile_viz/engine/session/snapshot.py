@@ -41,7 +41,10 @@ class Snapshot:
     """Everything a viewer or a benchmark needs after one step (arrays are read-only).
 
     Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
-    ``recon_error`` are None in a session without a simulated object. ``gpis_resolution``
+    ``recon_error`` (the paper's TWD on samples) are None in a session without a simulated
+    object; ``recon_surface_error`` is the reconstruction's TWD from samples to the other
+    surface, without the samples' floor
+    (:func:`~tactile_viz.engine.shape.metrics.surface_hausdorff`). ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
     stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
     its grid's cell when kept from step to step (else None); ``gpis_shape`` the
@@ -88,6 +91,7 @@ class Snapshot:
     translation_error: object = None
     decided: bool = False
     decision_confidence: float = 0.0
+    recon_surface_error: object = None
 
     def __getstate__(self):
         return {**self.__dict__, "gpis_variance": self.gpis_variance}
@@ -105,6 +109,7 @@ class Snapshot:
         return {"t": self.step, "map_class": self.map_class, "pose_error": self.pose_error,
                 "dhd": self.dhd, "truth_coverage": self.truth_coverage, "novel": self.novel,
                 "recon_error": self.recon_error,
+                "recon_surface_error": self.recon_surface_error,
                 "n_particles": self.n_particles, "n_contacts": int(len(self.contacts)),
                 "n_noncontacts": int(len(self.noncontacts)),
                 "step_seconds": float(sum(self.timings.values())),

@@ -6,10 +6,15 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..explore.simulator import GroundTruth
-from ..shape.metrics import directed_hausdorff, pose_difference, pose_error as metric_pose_error
+from ..shape.metrics import (
+    directed_hausdorff,
+    pose_difference,
+    pose_error as metric_pose_error,
+    surface_hausdorff,
+)
 from ..shape.objects import ObjectModel
 from ..shape.resting import resting_pose
-from ..transforms import random_pose
+from ..transforms import random_pose, transform_points
 
 
 class TruthMetrics:
@@ -41,20 +46,32 @@ class TruthMetrics:
         return last[1]
 
     def _truth_metrics(self, model, rotation, translation, recon, contacts):
-        """Pose error, reconstruction error and truth coverage against the simulated
-        object (None without one; the reconstruction error also while known)."""
+        """Pose error, reconstruction error (the paper's TWD on samples, and from samples
+        to the other surface: :func:`~..shape.metrics.surface_hausdorff`) and truth
+        coverage against the simulated object (None without one; the reconstruction
+        errors None without a reconstruction)."""
         if self.truth is None:
-            return None, None, None
+            return None, None, None, None
         pose_error = self._pose_error(model, rotation, translation)
-        recon_error = None
+        recon_error = surface_error = None
         if recon is not None and len(recon.faces):
             mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
             samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
             recon_error = max(directed_hausdorff(samples, self._truth_samples,
                                                  self._truth_tree()),
                               directed_hausdorff(self._truth_samples, samples))
+            surface_error = surface_hausdorff(samples, (recon.vertices, recon.faces),
+                                              self._truth_samples, self._truth_surface())
         return (float(pose_error), recon_error,
-                directed_hausdorff(self._truth_samples, contacts))
+                directed_hausdorff(self._truth_samples, contacts), surface_error)
+
+    def _truth_surface(self):
+        """The truth's vertices (world frame) and faces, placed once."""
+        if self.__dict__.get("_truth_placed") is None:
+            truth = self.truth
+            self._truth_placed = (transform_points(truth.model.mesh.vertices, truth.rotation,
+                                                   truth.translation), truth.model.mesh.faces)
+        return self._truth_placed
 
 
 def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0,

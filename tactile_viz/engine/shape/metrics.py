@@ -1,7 +1,9 @@
-"""Shape distances (directed and two-way Hausdorff distances on dense surface samples) and
+"""Shape distances (directed and two-way Hausdorff distances on dense surface samples, and
+from samples to the other surface) and
 pose differences up to the shape's symmetries (:mod:`.symmetry`); every length in scene
 units."""
 
+import igl
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
@@ -57,6 +59,40 @@ def directed_hausdorff(from_points, to_points, tree=None):
 def two_way_hausdorff(a, b):
     """``max(d_H(a, b), d_H(b, a))``: the paper's TWD."""
     return max(directed_hausdorff(a, b), directed_hausdorff(b, a))
+
+
+def surface_hausdorff(a_samples, a_mesh, b_samples, b_mesh):
+    """The TWD between two surfaces from samples of each to the other surface itself.
+
+    The paper's TWD between two sample sets is at least their sampling's gaps: a mesh
+    against 3,000 other samples of itself scores 5-10% of its size when compact. From
+    samples to the other surface (the nearest point on any of its triangles) that floor
+    goes; the estimate approaches the surfaces' Hausdorff distance from below.
+
+    Parameters
+    ----------
+    a_samples, b_samples : (n, 3) and (m, 3) float
+        Points on each surface, one frame.
+    a_mesh, b_mesh : tuple of ((v, 3) float, (f, 3) int)
+        The surfaces' vertices (that frame) and triangles.
+
+    Returns
+    -------
+    float
+        ``max(max_a d(a, B), max_b d(b, A))`` (``inf`` with an empty mesh).
+    """
+    def farthest(points, mesh):
+        vertices, faces = (np.ascontiguousarray(m) for m in mesh)
+        if len(points) == 0:
+            return 0.0
+        if len(faces) == 0:
+            return float("inf")
+        squared = igl.point_mesh_squared_distance(
+            np.ascontiguousarray(points, dtype=np.float64), vertices.astype(np.float64),
+            faces.astype(np.int64))[0]
+        return float(np.sqrt(max(float(squared.max()), 0.0)))
+
+    return max(farthest(a_samples, b_mesh), farthest(b_samples, a_mesh))
 
 
 def surface_samples(model, count=4000, seed=0):
