@@ -106,6 +106,8 @@ def test_novel_object_reconstructed_better_than_map(creature_session):
     last = creature_session.latest
     assert last.novel
     assert last.recon_error < last.pose_error
+    # From samples to the other surface: never farther than to the other's samples.
+    assert 0 <= last.recon_surface_error <= last.recon_error + 1e-9
     assert len(last.gpis_variance) == len(last.gpis_vertices) > 0
     assert np.all(np.isfinite(last.gpis_variance)) and np.all(last.gpis_variance >= 0)
 
@@ -213,8 +215,9 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
     with pytest.raises(ValueError):
         second.contacts[0, 0] = 1.0
     record = second.record()
-    assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error", "n_particles",
-            "n_contacts", "n_noncontacts", "step_seconds"} <= set(record)
+    assert {"t", "map_class", "pose_error", "dhd", "novel", "recon_error",
+            "recon_surface_error", "n_particles", "n_contacts", "n_noncontacts",
+            "step_seconds"} <= set(record)
     json.dumps(record)
 
 
@@ -807,20 +810,21 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     contacts = session.filter.contact_positions
     far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
     final = _with_phantom(_recon_of(session, last), far)
-    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
-                                                     last.map_translation))
-    # Covered: every vertex within eps of a contact. Where no candidate is covered (eps
-    # 0.01), the best supported one: the phantom 40 units off is gone either way.
+    low, high, _ = session._gpis_box(last.map_vertices, contacts)
+    cell = float((high - low).max()) / last.gpis_resolution
+    prior = (last.map_class, last.map_rotation, last.map_translation)
+    recon = session._best_supported(final, cell, contacts, prior)
+    # Covered: every vertex within eps and a grid cell of a contact. Where no candidate is
+    # covered (eps 0.01), the best supported one: the phantom 40 units off is gone either way.
     support = cKDTree(contacts).query(recon.vertices)[0].max()
-    assert (support <= session._p.eps) == covered
+    assert (support <= session._p.eps + 2 * cell) == covered
     assert recon is not final and support < 20.0
     # The session reported such a surface itself where its last one was not covered.
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
-    assert reported <= session._p.eps or not covered
+    assert reported <= session._p.eps + 2 * cell or not covered
     # A surface no candidate is better supported than stands.
-    best = session._best_supported(recon, contacts, (last.map_class, last.map_rotation,
-                                                    last.map_translation))
-    assert cKDTree(contacts).query(best.vertices)[0].max() <= support
+    best = session._best_supported(recon, cell, contacts, prior)
+    assert cKDTree(contacts).query(best.vertices)[0].max() <= support + cell
 
 
 def _recon_of(session, snapshot):
