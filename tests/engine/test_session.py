@@ -810,21 +810,20 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     contacts = session.filter.contact_positions
     far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
     final = _with_phantom(_recon_of(session, last), far)
-    low, high, _ = session._gpis_box(last.map_vertices, contacts)
-    cell = float((high - low).max()) / last.gpis_resolution
-    prior = (last.map_class, last.map_rotation, last.map_translation)
-    recon = session._best_supported(final, cell, contacts, prior)
-    # Covered: every vertex within eps and a grid cell of a contact. Where no candidate is
-    # covered (eps 0.01), the best supported one: the phantom 40 units off is gone either way.
+    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
+                                                     last.map_translation))
+    # Covered: every vertex within eps of a contact. Where no candidate is covered (eps
+    # 0.01), the best supported one: the phantom 40 units off is gone either way.
     support = cKDTree(contacts).query(recon.vertices)[0].max()
-    assert (support <= session._p.eps + 2 * cell) == covered
+    assert (support <= session._p.eps) == covered
     assert recon is not final and support < 20.0
     # The session reported such a surface itself where its last one was not covered.
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
-    assert reported <= session._p.eps + 2 * cell or not covered
+    assert reported <= session._p.eps or not covered
     # A surface no candidate is better supported than stands.
-    best = session._best_supported(recon, cell, contacts, prior)
-    assert cKDTree(contacts).query(best.vertices)[0].max() <= support + cell
+    best = session._best_supported(recon, contacts, (last.map_class, last.map_rotation,
+                                                    last.map_translation))
+    assert cKDTree(contacts).query(best.vertices)[0].max() <= support
 
 
 def _recon_of(session, snapshot):

@@ -7,6 +7,7 @@ A mixin of :class:`~.loop.Session` (reads its filter, parameters in scene units 
 exploration state).
 """
 
+import functools
 import time
 
 import numpy as np
@@ -42,11 +43,10 @@ class Estimation:
 
     def _map_shape(self, belief):
         """The MAP particle's prior, pose ``(rotation, translation)`` and surface vertices
-        (world frame); the session's lengths follow its size, or for a novel object the
-        size of the object-agnostic prior in force (:meth:`_use_lengths`)."""
+        (world frame); the session's lengths follow its size (:meth:`_use_lengths`)."""
         model = self.filter.models[self.filter.class_names.index(belief.map_class)]
         pose = belief.map_rotation, belief.map_translation
-        self._use_lengths(model, self.state.gpis_shape if belief.novel else None)
+        self._use_lengths(model)
         return model, pose, transform_points(model.mesh.vertices, *pose)
 
     def _aimed_pose(self, decision, model, pose, map_vertices):
@@ -60,9 +60,9 @@ class Estimation:
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
         p = self._p
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        low, high, kernel = self._gpis_box(map_vertices, contacts)
         clock = time.perf_counter()
-        fit, (low, high) = self._prior_fit(model, rotation, translation, map_vertices,
-                                           contacts, normals)
+        fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
         fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
@@ -76,52 +76,30 @@ class Estimation:
         timings["surface"] = time.perf_counter() - clock
         return recon
 
-    def _prior_fit(self, model, rotation, translation, map_vertices, contacts, normals):
-        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean and the box
-        ``(low, high)`` of its surface: the MAP shape's or, with ``gpis_agnostic``, a
-        superquadric fitted to the contacts; the one in force (``state.gpis_shape``)
-        unless another's evidence is ahead by ``AGNOSTIC_MARGIN`` nats and
-        ``AGNOSTIC_SHARE`` of its own (beyond the paper). The lengths, the box and the
-        kernel follow the prior in force (a superquadric stands for the object's size)."""
-        shapes = self._superquadrics(contacts, normals)
+    def _prior_fit(self, kernel, model, rotation, translation, contacts, normals):
+        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's or,
+        with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
+        (``state.gpis_shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN``
+        nats and ``AGNOSTIC_SHARE`` of its own (beyond the paper)."""
+        p = self._p
+        free = self.filter.noncontact_positions, self.state.free_space
+        prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
+        shapes = fit_superquadrics(contacts, normals, p.eps / 2) if p.gpis_agnostic else []
+        candidates = [prior] + [self._gpis_prior(model, rotation, translation, contacts, *free,
+                                                 normals, shape=shape) for shape in shapes]
         kept = self.state.gpis_shape
         index = next((i + 1 for i, shape in enumerate(shapes)
                       if kept is not None and shape.roundness == kept.roundness), 0)
-        fit, box, candidates = self._fit_from(index, shapes, model, rotation, translation,
-                                              map_vertices, contacts, normals)
+        fit = self._step_fit(kernel, contacts, normals, candidates[index])
         if len(candidates) > 1:
             evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
             best = int(np.argmax(evidence))
             margin = max(AGNOSTIC_MARGIN, AGNOSTIC_SHARE * abs(evidence[index]))
             if evidence[best] > evidence[index] + margin:  # another explains more
                 index = best
-                fit, box, _ = self._fit_from(index, shapes, model, rotation, translation,
-                                             map_vertices, contacts, normals)
+                fit = self._step_fit(kernel, contacts, normals, candidates[index])
         self.state.gpis_shape = shapes[index - 1] if index else None
-        return fit, box
-
-    def _fit_from(self, index, shapes, model, rotation, translation, map_vertices,
-                  contacts, normals):
-        """The fit from candidate ``index`` (0: the MAP shape, else ``shapes[index - 1]``)
-        with the lengths, box and kernel of that candidate; returns it, its box and every
-        candidate's prior mean at those lengths."""
-        shape = shapes[index - 1] if index else None
-        self._use_lengths(model, shape)
-        low, high, kernel = self._gpis_box(map_vertices, contacts, shape)
-        free = self.filter.noncontact_positions, self.state.free_space
-        candidates = [self._gpis_prior(model, rotation, translation, contacts, *free, normals,
-                                       shape=other) for other in [None, *shapes]]
-        return self._step_fit(kernel, contacts, normals, candidates[index]), (low, high), \
-            candidates
-
-    def _superquadrics(self, contacts, normals):
-        """The object-agnostic prior means (``gpis_agnostic``, else none): superquadrics
-        fitted to the contacts, clear of where the sensor found nothing, none thinner
-        than twice the position noise (nor a share of the contacts' extent)."""
-        if not self._p.gpis_agnostic:
-            return []
-        return fit_superquadrics(contacts, normals, 2.0 * self.sensor_noise[0] + 1e-9,
-                                 free=self._noncontact_points())
+        return fit
 
     def _step_fit(self, kernel, contacts, normals, prior):
         """A step's GPIS fit from ``prior``: extending the kept factor
@@ -149,103 +127,87 @@ class Estimation:
         p = self._p
         clock = time.perf_counter()
         final = recon
-        low, high, _ = self._gpis_box(map_vertices, contacts, self.state.gpis_shape)
         if p.final_resolution != p.gpis_resolution:
+            low, high, _ = self._gpis_box(map_vertices, contacts)
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
         if p.final_candidates:
-            cell = float((high - low).max()) / final.resolution
-            final = self._best_supported(final, cell, contacts, prior)
+            final = self._best_supported(final, contacts, prior)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
-    def _best_supported(self, final, cell, contacts, prior):
-        """``final`` (of grid ``cell``) if the contacts cover it (every vertex within
-        ``eps`` and a cell of a contact: a vertex can lie a cell off the level set), else
-        the newest reconstruction they cover, else the best supported one (the least
-        :func:`support` plus cell: a coarser grid skips corners): the GPIS fitted to every
-        observation with the MAP prior of this step and of each of the last
-        ``final_candidates`` steps, then (``gpis_agnostic``) with each superquadric fitted
-        to the contacts, each without and then with the carve's cut of the estimate
-        (beyond the paper). A novel object's MAP prior switches from step to step, and a
-        switch at the last step can leave surface far from every contact (under noise,
-        where the prior switches most, at the step cap too); a candidate's support bounds
-        how far its surface can lie from the object. The state's ``gpis_shape`` follows
-        the surface chosen."""
-        p, step_shape = self._p, self.state.gpis_shape
+    def _best_supported(self, final, contacts, prior):
+        """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
+        else the newest reconstruction they cover, else the best supported one (the least
+        :func:`support`): the GPIS fitted to every observation with the MAP prior of this
+        step and of each of the last ``final_candidates`` steps, then (``gpis_agnostic``)
+        with each superquadric fitted to the contacts, each without and then with the
+        carve's cut of the estimate (beyond the paper). A novel object's MAP prior
+        switches from step to step, and a switch at the last step can leave surface far
+        from every contact (under noise, where the prior switches most, at the step cap
+        too); a candidate's support bounds how far its surface can lie from the object.
+        The state's ``gpis_shape`` follows the surface chosen."""
+        p = self._p
         tree = cKDTree(contacts)
-        best_support = support(final.vertices, tree) + cell
-        if best_support <= p.eps + 2 * cell:
+        best_support = support(final.vertices, tree)
+        if best_support <= p.eps:
             return final
-        best = final, None, step_shape
+        best = None
         for candidate, box, shape in self._final_candidates(final, contacts, prior):
             vertices, faces = zero_level_surface(candidate, box, p.final_resolution,
                                                  fill_voids=p.gpis_fill_voids)
-            cell = float(np.subtract(box[1], box[0]).max()) / p.final_resolution
-            candidate_support = support(vertices, tree) + cell if len(faces) else np.inf
-            if candidate_support <= p.eps + 2 * cell:
-                best = candidate, box, shape
-                break
+            candidate_support = support(vertices, tree) if len(faces) else np.inf
+            if candidate_support <= p.eps:
+                self.state.gpis_shape = shape
+                return self._surface(candidate, box, p.final_resolution)
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape)
-        self.state.gpis_shape = best[2]
-        model = self.filter.models[self.filter.class_names.index(prior[0])]
-        self._use_lengths(model, best[2])
-        if best[1] is None:
+        if best is None:
             return final
+        self.state.gpis_shape = best[2]
         return self._surface(best[0], best[1], p.final_resolution)
 
     def _final_candidates(self, final, contacts, prior):
         """The fits :meth:`_best_supported` weighs, newest first, as ``(fit, (low, high),
-        superquadric or None)``, each at its own prior's lengths (:meth:`_use_lengths`)."""
-        f = self.filter
+        superquadric or None)``."""
+        f, p = self.filter, self._p
+        free = np.vstack([f.noncontact_positions, self.state.free_space])
         observed = self._noncontact_points()
-        step_model = None
+        cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
+                                radius=p.gpis_carve_radius, keep_within=p.eps)
+        box = None
         for index, (class_name, rotation, translation) in enumerate(
-                self._recent_priors(self._p.final_candidates, prior)):
+                self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
-            shape = self.state.gpis_shape if index == 0 else None
-            self._use_lengths(model, shape)
-            vertices = transform_points(model.mesh.vertices, rotation, translation)
-            low, high, kernel = self._gpis_box(vertices, contacts, shape)
+            low, high, kernel = self._gpis_box(
+                transform_points(model.mesh.vertices, rotation, translation), contacts)
             if index == 0:
-                step_model = model, rotation, translation, vertices
+                box = low, high, kernel, model, rotation, translation
                 # This step's own: its uncut fit is final's.
-                yield self._cut(final.fit, contacts), (low, high), shape
+                yield cut(final.fit), (low, high), self.state.gpis_shape
                 continue
-            fit = self._candidate_fit(kernel, model, rotation, translation, contacts, observed)
+            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+                                          f.noncontact_positions, self.state.free_space,
+                                          f.contact_normals)
+            fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
+                            self.state.gpis_scale, newton=False)
             yield fit, (low, high), None
-            yield self._cut(fit, contacts), (low, high), None
-        if not self._p.gpis_agnostic or step_model is None:
+            yield cut(fit), (low, high), None
+        if not p.gpis_agnostic or box is None:
             return
-        model, rotation, translation, vertices = step_model
+        low, high, kernel, model, rotation, translation = box
         own = getattr(self.state.gpis_shape, "roundness", None)
-        for shape in self._superquadrics(contacts, f.contact_normals):
+        for shape in fit_superquadrics(contacts, f.contact_normals, p.eps / 2):
             if shape.roundness == own:
                 continue  # the step's own
-            self._use_lengths(model, shape)
-            low, high, kernel = self._gpis_box(vertices, contacts, shape)
-            fit = self._candidate_fit(kernel, model, rotation, translation, contacts, observed,
-                                      shape)
+            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+                                          f.noncontact_positions, self.state.free_space,
+                                          f.contact_normals, shape=shape)
+            fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
+                            self.state.gpis_scale, newton=False)
             yield fit, (low, high), shape
-            yield self._cut(fit, contacts), (low, high), shape
-
-    def _candidate_fit(self, kernel, model, rotation, translation, contacts, observed,
-                       shape=None):
-        """A full fit from the MAP prior ``model`` or the superquadric ``shape``."""
-        f = self.filter
-        prior_mean = self._gpis_prior(model, rotation, translation, contacts,
-                                      f.noncontact_positions, self.state.free_space,
-                                      f.contact_normals, shape=shape)
-        return self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                         self.state.gpis_scale, newton=False)
-
-    def _cut(self, fit, contacts):
-        """``fit`` with every carve ball cut out where no contact is within ``eps``."""
-        free = np.vstack([self.filter.noncontact_positions, self.state.free_space])
-        return cut_free_space(fit, free_points=free, contacts=contacts,
-                              radius=self._p.gpis_carve_radius, keep_within=self._p.eps)
+            yield cut(fit), (low, high), shape
 
     def _recent_priors(self, count, current):
         """The distinct MAP priors ``(class, rotation, translation)`` of ``current`` and the
@@ -345,13 +307,11 @@ class Estimation:
         self.state.gpis_radius = kernel.radius
         return kernel
 
-    def _gpis_box(self, map_vertices, contacts, shape=None):
-        """The reconstruction box (low, high) and the GPIS kernel: about the contacts and
-        the prior mean's surface, the MAP shape's or the superquadric ``shape``'s."""
+    def _gpis_box(self, map_vertices, contacts):
+        """The reconstruction box (low, high) and the GPIS kernel."""
         p = self._p
-        prior = map_vertices if shape is None else np.vstack(shape.bounds())
-        low = np.minimum(prior.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
-        high = np.maximum(prior.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
+        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
+        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
         if p.gpis_kernel == "wendland":
             return low, high, WendlandKernel(p.gpis_support)
         return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))

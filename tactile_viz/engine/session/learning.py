@@ -47,12 +47,11 @@ class Learning:
         learned as reported at ``final_resolution``, the default ``learned_resolution``),
         and the box ``(low, high, spacing)`` of its surface at ``resolution``."""
         model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
-        self._use_lengths(model, snapshot.gpis_shape)
+        self._use_lengths(model)
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
                                  snapshot.normals, shape=snapshot.gpis_shape)
-        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts,
-                                           snapshot.gpis_shape)
+        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
         if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
             kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
         spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None

@@ -470,22 +470,16 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         del self.snapshots[saved.steps:]
         self._use_lengths()
 
-    def _use_lengths(self, model=None, shape=None):
+    def _use_lengths(self, model=None):
         """Set ``self._p``, the parameters with their lengths in scene units, and
         ``self._unit``, the scene units of a size unit: a sixth of the longest side of
-        the object-agnostic prior ``shape`` or else of ``model``, default those of the
-        latest step (the superquadric in force while novel, else the MAP object; the
-        library's reference size before the first step), or ``params.length_unit``.
-        Derived from the snapshots, so rollbacks and copies of a session need not keep
-        it."""
+        ``model``, default the latest MAP object (the library's reference size before the
+        first step), or ``params.length_unit``. Derived from the snapshots, so rollbacks and
+        copies of a session need not keep it."""
         if model is None and self.snapshots:
-            latest = self.latest
-            model = self.filter.models[self.filter.class_names.index(latest.map_class)]
-            shape = latest.gpis_shape if latest.novel else None
-        length = shape.length if shape is not None else None
-        unit = self.params.length_unit or (
-            length / PAPER_SIZE if length is not None
-            else model.size_unit if model is not None else self._filter_unit)
+            model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
+        unit = self.params.length_unit or (model.size_unit if model is not None
+                                           else self._filter_unit)
         if unit != self._unit:
             self._p, self._unit = self._scene_lengths(unit), unit
         return self._p

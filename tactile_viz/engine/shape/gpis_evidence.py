@@ -19,12 +19,9 @@ from scipy.optimize import nnls
 
 SHRINK_TOWARD_CENTROID = 0.05  # weight (per contact) pulling the centre to the centroid
 MAX_RADIUS_FACTOR = 2.0  # a radius is at most this many times the contacts' extent
-MIN_RADIUS_SHARE = 0.03  # and at least this share of their largest (a face's thickness)
 TINY = 1e-12
 ROUNDNESS = (1.0, 0.5, 0.2)  # an ellipsoid, a rounded and a nearly sharp box
 FACE_ITERATIONS = 5  # turns of a box's axes toward its contacts' normals
-FREE_SLACK = 0.02  # a free point may lie min_radius and this share of the reach inside
-CLEAR_PASSES = 4  # passes of clear_of
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,15 +39,12 @@ class Superquadric:
         Its semi-axes along ``axes``.
     roundness : float
         The exponent ``e`` in (0, 1].
-    span : float, scene units
-        The longest side of its contacts' box along ``axes`` (0 if not fitted to any).
     """
 
     centre: np.ndarray
     axes: np.ndarray
     radii: np.ndarray
     roundness: float = 1.0
-    span: float = 0.0
 
     @property
     def kind(self):
@@ -58,20 +52,6 @@ class Superquadric:
         if self.roundness >= 1.0:
             return "ellipsoid"
         return "rounded box" if self.roundness >= 0.4 else "box"
-
-    @property
-    def length(self):
-        """The object's size it stands for, as a mesh's longest side does (scene units):
-        its contacts' longest side, ``span``, or ``2 max(radii)`` when not fitted. A fit
-        overreaches where nothing was touched (an ellipsoid through a fork's flat sides is
-        a third longer than the fork) and free space shrinks it inside a hollow object;
-        the contacts lie on the object."""
-        return float(self.span) if self.span > 0 else 2.0 * float(self.radii.max())
-
-    def bounds(self):
-        """The world-frame box ``(low, high)`` (3,) each that holds it."""
-        half = np.abs(self.axes) @ self.radii
-        return self.centre - half, self.centre + half
 
     def __call__(self, points):
         """Radial distances ``|y| (1 - F^(-e/2))`` (k,) (exact on a sphere, zero on the
@@ -92,7 +72,7 @@ class Superquadric:
         return values, normals @ self.axes.T
 
 
-def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS, free=None):
+def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS):
     """Superquadrics the contacts lie on, one for each ``roundness``, as GPIS prior means.
 
     The centre is the point nearest every contact's normal line (they meet at a sphere's
@@ -100,22 +80,16 @@ def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS, free=Non
     face's all agree); the axes are the contacts' principal directions about it (for a box,
     turned toward the normals, :func:`face_axes`); for each roundness ``e`` the radii solve
     ``sum_k |y_k|^(2/e) / r_k^(2/e) = 1`` at the contacts by non-negative least squares in
-    ``r_k^(-2/e)``, each within ``[floor, 2 x`` the contacts' extent along its axis
-    ``+ floor]`` (an axis the contacts do not bound gets that extent), where the floor is
-    ``min_radius`` or 3% of the contacts' largest extent about the centre, whichever
-    is larger (the fit's scale follows the contacts alone, whatever the library's size).
+    ``r_k^(-2/e)``, each within ``[min_radius, 2 x`` the contacts' extent along its axis
+    ``+ min_radius]`` (an axis the contacts do not bound gets that extent).
 
     Parameters
     ----------
     points, normals : (n, 3) float, world frame
         Contact positions and outward unit normals.
     min_radius : float, scene units
-        The smallest semi-axis (> 0), for example the sensor's noise.
+        The smallest semi-axis (> 0).
     roundness : sequence of float in (0, 1]
-    free : (k, 3) float, optional
-        Points the sensor found free (world frame): a radius beyond the contacts' extent
-        shrinks, down to that extent, until none of them beyond it lies deeper inside
-        than ``min_radius`` and ``FREE_SLACK`` of the contacts' reach (:func:`clear_of`).
 
     Returns
     -------
@@ -136,8 +110,6 @@ def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS, free=Non
     if np.linalg.det(axes) < 0:
         axes[:, 0] = -axes[:, 0]
     shapes = []
-    reach = float(np.linalg.norm(offsets, axis=1).max())
-    floor = max(min_radius, MIN_RADIUS_SHARE * reach)
     for e in roundness:
         frame = axes if e == 1.0 else face_axes(normals, axes)
         local = np.abs(offsets @ frame)
@@ -146,45 +118,9 @@ def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS, free=Non
         inverse_powers, _ = nnls((local / unit) ** (2.0 / e), np.ones(len(points)))
         radii = unit * np.where(inverse_powers > TINY,
                                 np.maximum(inverse_powers, TINY) ** (-e / 2), extent / unit)
-        radii = np.clip(radii, floor, MAX_RADIUS_FACTOR * extent + floor)
-        if free is not None and len(free):
-            # Only free space beyond the contacts' reach bounds a radius: inside it a
-            # hollow object's cavity would shrink the shape to nothing.
-            beyond = np.abs((np.asarray(free, float) - centre) @ frame)
-            beyond = beyond[(beyond > extent).any(axis=1)]
-            radii = clear_of(radii, beyond, e, np.minimum(radii, np.maximum(extent, floor)),
-                             min_radius + FREE_SLACK * reach)
-        span = float(np.ptp(offsets @ frame, axis=0).max())
-        shapes.append(Superquadric(centre, frame, radii, float(e), span))
+        radii = np.clip(radii, min_radius, MAX_RADIUS_FACTOR * extent + min_radius)
+        shapes.append(Superquadric(centre, frame, radii, float(e)))
     return shapes
-
-
-def clear_of(radii, free, roundness, floor, slack, passes=CLEAR_PASSES):
-    """``radii`` (3,) shrunk so that no point of ``free`` (k, 3), absolute coordinates in
-    the superquadric's frame, lies inside it by more than ``slack`` (its radial distance,
-    scene units): each point deeper shrinks the axis it leans on most (the largest term
-    of ``F``) to put it at the slack's depth, the others held; shrinking only raises every
-    point's ``F``, so a few passes settle. No radius goes below ``floor`` (a float or
-    one per axis)."""
-    floor = np.broadcast_to(np.asarray(floor, dtype=float), (3,))
-    power = 2.0 / roundness
-    # The radial distance |y| (1 - F^(-e/2)) is -slack where F = (1 + slack/|y|)^(-2/e).
-    level = (1.0 + slack / np.maximum(np.linalg.norm(free, axis=1), TINY)) ** -power
-    radii = np.array(radii, dtype=float)
-    for _ in range(passes):
-        terms = (free / radii) ** power
-        inside_out = terms.sum(axis=1)
-        rows = np.flatnonzero(inside_out < level)
-        if not len(rows):
-            break
-        axis = np.argmax(terms[rows], axis=1)
-        rest = inside_out[rows] - terms[rows, axis]
-        bound = free[rows, axis] / np.maximum(level[rows] - rest, TINY) ** (1.0 / power)
-        for k in range(3):
-            mine = bound[axis == k]
-            if len(mine):
-                radii[k] = max(floor[k], min(radii[k], float(mine.min())))
-    return radii
 
 
 def face_axes(normals, axes, iterations=FACE_ITERATIONS):
