@@ -4,7 +4,8 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 (``object``, ``seed``, ``strategy``, ``preset``, ``params``, ``library``, ``truth_pose``,
 ``code_version``), ``terminated_at``, ``seconds`` and ``steps``, one
 :meth:`~tactile_viz.engine.Snapshot.record` per step (``t``, ``map_class``, ``pose_error``,
-``dhd``, ``novel``, ``recon_error``, ...). ``tests/engine/test_session.py`` checks the keys.
+``dhd``, ``novel``, ``recon_error``, ``recon_surface_error``, ...).
+``tests/engine/test_session.py`` checks the keys.
 """
 
 import functools
