@@ -523,7 +523,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             recon = self._final_surface(recon, map_vertices, contacts, timings,
                                         (model.name, *pose))
         with _timed(timings, "metrics"):
-            errors = self._truth_metrics(model, *pose, recon, contacts)
+            errors = self._truth_metrics(model, *pose, recon, contacts, plan.terminated)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
                               observations, timings, errors, decision)
 

@@ -43,7 +43,7 @@ class Snapshot:
     Frames: everything is in the world frame. ``truth_coverage``, ``pose_error`` and
     ``recon_error`` (the paper's TWD on samples) are None in a session without a simulated
     object; ``recon_surface_error`` is the reconstruction's TWD from samples to the other
-    surface, without the samples' floor
+    surface, without the samples' floor, on the step that stops (None before)
     (:func:`~tactile_viz.engine.shape.metrics.surface_hausdorff`). ``gpis_resolution``
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
     stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
