@@ -21,8 +21,8 @@ as a share of the object's longest side, the paper's on samples and from samples
 other surface (without the samples' floor: 5-10% of a compact object's size), touches,
 whether the session stopped by itself, seconds; met again: whether the learned prior was
 the MAP at the decision, the touch of the decision, the pose error there as a share of the
-size, seconds. Writes ``learn.md``
-(tables) and ``learn.json`` (every trial's summary) to ``--out`` and prints the tables.
+size, seconds. Writes ``learn.md`` (tables) and ``learn.json`` (every trial's summary) to
+``--out`` and prints the tables.
 """
 
 import argparse
@@ -166,6 +166,13 @@ def _fmt(value, spec=".1f", scale=1.0):
     return "-" if value is None else format(value * scale, spec)
 
 
+def _mean_max(shares):
+    """``mean (max)`` of the shares given, in percent (``-`` for none)."""
+    present = [s for s in shares if s is not None]
+    return (f"{_fmt(_mean(present), scale=100)} "
+            f"({_fmt(max(present, default=None), scale=100)})")
+
+
 def _pose_within(row):
     """Whether a met-again pose error is within the reconstruction error plus 10% of the
     size (what a learned shape can be posed to)."""
@@ -184,15 +191,11 @@ def markdown(rows):
             mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
             n = len(mine)
             again = [r for r in mine if "decided_at" in r]
-            shares = [r["recon_share"] for r in mine]
-            surface = [r.get("surface_share") for r in mine]
             lines.append(
                 f"| {which} | {noise[0]:g}, {noise[1]:g} | "
                 f"{sum(r['judged_novel'] for r in mine)}/{n} | "
-                f"{_fmt(_mean(shares), scale=100)} "
-                f"({_fmt(max([s for s in shares if s is not None], default=None), scale=100)}) | "
-                f"{_fmt(_mean(surface), scale=100)} "
-                f"({_fmt(max([s for s in surface if s is not None], default=None), scale=100)}) | "
+                f"{_mean_max([r['recon_share'] for r in mine])} | "
+                f"{_mean_max([r.get('surface_share') for r in mine])} | "
                 f"{sum(r['stopped'] for r in mine)}/{n} | "
                 f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "

@@ -82,14 +82,14 @@ def surface_hausdorff(a_samples, a_mesh, b_samples, b_mesh):
         ``max(max_a d(a, B), max_b d(b, A))`` (``inf`` with an empty mesh).
     """
     def farthest(points, mesh):
-        vertices, faces = (np.ascontiguousarray(m) for m in mesh)
+        vertices, faces = mesh
         if len(points) == 0:
             return 0.0
         if len(faces) == 0:
             return float("inf")
         squared = igl.point_mesh_squared_distance(
-            np.ascontiguousarray(points, dtype=np.float64), vertices.astype(np.float64),
-            faces.astype(np.int64))[0]
+            *(np.ascontiguousarray(a, dtype=t) for a, t in (
+                (points, np.float64), (vertices, np.float64), (faces, np.int64))))[0]
         return float(np.sqrt(max(float(squared.max()), 0.0)))
 
     return max(farthest(a_samples, b_mesh), farthest(b_samples, a_mesh))
