@@ -353,6 +353,15 @@ class SessionParams:
         "farther than eps from every contact (beyond the paper).", kind="bool",
         notes="The paper's, the default: among all; restricting it stopped home_chair and "
               "noisy_dino earlier with less of the object touched, seed 0.")
+    target_noise_stds: float = _session(
+        4.0, "Under position noise, the GPIS-DHD target and a check's surprise lie farther "
+        "than this many noise standard deviations from every contact (beyond the paper; 0: "
+        "the paper's target).", valid="[0, 20]",
+        notes="A touch nearer than that repeats a contact within the noise: it is given "
+              "up as a repeat and covers nothing new. Under noise the GPIS variance is "
+              "nearly flat over the surface (the noise term dominates it), so the paper's "
+              "largest-variance target falls as often beside a contact as far from one. "
+              "Noiseless it changes nothing.")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,

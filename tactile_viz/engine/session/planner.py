@@ -382,8 +382,7 @@ class Planner:
         :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
             index = variance_target(recon.vertices, recon.subset, recon.candidate_variance,
-                                    reachable, contacts,
-                                    self._p.eps if self._p.target_uncovered else None)
+                                    reachable, contacts, self._uncovered_beyond())
             target = recon.vertices[index]
             _, gradient = recon.fit.mean(target[None])
             return Aim(target, normalise_rows(gradient)[0], recon.fit.mean_value)
@@ -397,6 +396,18 @@ class Planner:
         normal = vertex_normals(model)[index] @ rotation.T
         estimate = ValueOf(self._prior(model, rotation, translation))
         return Aim(surface[index], normalise_rows(normal[None])[0], estimate)
+
+    def _uncovered_beyond(self):
+        """How far from every contact the novel target is looked for first (None: the
+        paper's, anywhere): ``eps`` with ``target_uncovered``, and at least the sensor's
+        noise times ``target_noise_stds`` (:meth:`_beyond_noise`)."""
+        beyond = max(self._p.eps if self._p.target_uncovered else 0.0, self._beyond_noise())
+        return beyond or None
+
+    def _beyond_noise(self):
+        """``target_noise_stds`` position-noise standard deviations (scene units): nearer a
+        contact a touch only repeats it within the noise."""
+        return self._p.target_noise_stds * self.sensor_noise[0]
 
     def _reachable(self, vertices, radius=None):
         """Mask of the vertices that exploration may still have to visit: away from every
