@@ -16,6 +16,7 @@ from tactile_viz.engine.explore.exploration import (
     rrt_step,
     sweep_directions,
     sweep_line,
+    variance_target,
     widest_gap,
 )
 from tactile_viz.engine.session import deepest_inside, free_approach
@@ -237,3 +238,16 @@ def test_a_raster_sweeps_a_cube_and_finds_a_thin_bar(sphere_model):
     touched = path[5]
     until = path_until(path, touched, 0.25)
     assert np.linalg.norm(until[-1] - touched) < 0.3 and len(until) < len(samples) / 4
+
+
+def test_the_variance_target_looks_beyond_a_distance_first():
+    # Four vertices on a line, contacts at 0; the variance is largest beside the contact
+    # (as under noise, where it is nearly flat), so only the distance moves the target.
+    vertices = np.array([[0.1, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [3.0, 0, 0]])
+    subset, contacts = np.arange(4), np.zeros((1, 3))
+    variance, reachable = np.array([1.0, 0.9, 0.8, 0.7]), np.ones(4, bool)
+    assert variance_target(vertices, subset, variance, reachable, contacts) == 0
+    assert variance_target(vertices, subset, variance, reachable, contacts, 0.5) == 1
+    assert variance_target(vertices, subset, variance, reachable, contacts, 2.5) == 3
+    # Nothing beyond it: the paper's target among all.
+    assert variance_target(vertices, subset, variance, reachable, contacts, 5.0) == 0

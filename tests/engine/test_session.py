@@ -85,6 +85,35 @@ def test_a_repeat_is_judged_within_the_sensor_noise(bundled, known):
     assert not noisy._repeats_contact(NonContact(first))
 
 
+def test_noisy_targets_and_surprises_lie_beyond_the_noise(sphere_model, monkeypatch):
+    # The sphere against a box prior is novel. Under noise (a tenth of a size unit) every
+    # variance target is looked for beyond 4 noise stds of every contact first
+    # (test_exploration checks the choice), and a check's touch nearer than that is no
+    # surprise. Noiseless, and in the paper's preset, nothing changes.
+    from tactile_viz.engine.session import planner
+
+    asked = []
+
+    def spy(*args, **kwargs):
+        asked.append(args[5] if len(args) > 5 else kwargs.get("uncovered_beyond"))
+        return variance_target(*args, **kwargs)
+
+    variance_target = planner.variance_target
+    monkeypatch.setattr(planner, "variance_target", spy)
+    noise = 0.06
+    session = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
+                      sensor_noise=(noise, 2.0))
+    session.run(max_steps=15)
+    assert session.latest.novel and asked
+    np.testing.assert_allclose(asked, 4 * noise)
+    assert session._new_ground() >= 4 * noise
+    quiet = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0)
+    assert quiet._uncovered_beyond() is None
+    paper = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
+                    sensor_noise=(noise, 2.0), params=session_preset("paper"))
+    assert paper._uncovered_beyond() is None
+
+
 @pytest.mark.slow
 def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
     # With the paper preset, this asian_dragon trial ends judged novel: the MAP pose is off
