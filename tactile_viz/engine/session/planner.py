@@ -2,9 +2,10 @@
 
 The paper's rules (Algorithm 2; lines and equations as tagged in :mod:`.loop`): the DHD of
 the estimate (l.8, eq. 35, :meth:`Planner._coverage`), the stop ``d_H <= eps`` (l.1,
-:meth:`Planner._stop_test`) and the next target (:meth:`Planner._choose_target`): the GPIS
-vertex of largest variance while novel (l.4, eq. 32), the MAP surface's vertex farthest from
-the contacts while known (l.6, eq. 36). Each returns what it decides; the step assigns the
+:mod:`.stop`, gathered by :meth:`Planner._stop_test`) and the next target
+(:meth:`Planner._choose_target`): the GPIS vertex of largest variance while novel (l.4,
+eq. 32), the MAP surface's vertex farthest from the contacts while known (l.6, eq. 36).
+Each returns what it decides; the step assigns the
 :class:`Plan` into the exploration state (:meth:`~.state.ExplorationState.adopt`).
 
 The extensions beyond the paper sit behind the same three calls; :data:`EXTENSIONS` lists
@@ -17,6 +18,8 @@ given-up targets   targets out of reach, and the free space of      (always on; 
                    missed probes, leave the DHD and the targets     miss it changes nothing)
 prior cover        a novel object's MAP prior must be covered too   ``cover_prior=False``
 uncovered target   the variance target among uncovered vertices     ``target_uncovered=False``
+noisy target       under noise, the variance target and a check's   ``target_noise_stds=0``
+                   surprise beyond the noise of every contact
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)
@@ -53,6 +56,7 @@ from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
 from .fields import BelowTangentPlane, ValueOf
 from .state import Aim, Check
+from .stop import Progress, stop_rule
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
@@ -67,6 +71,7 @@ MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is 
 # (extension, the parameter and value that switch it off; None: always on)
 EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
               ("uncovered target", ("target_uncovered", False)),
+              ("noisy target", ("target_noise_stds", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
               ("decision stop", ("stop_at_decision", False)),
               ("telling apart", ("decision_targets", False)),
@@ -100,19 +105,6 @@ class Coverage(NamedTuple):
     def value(self):
         """The DHD a snapshot reports and the stop compares with ``eps``."""
         return max(self.dhd, self.prior_dhd)
-
-
-class Stop(NamedTuple):
-    """The stop test of a step (l.1) with what holds it (beyond the paper)."""
-
-    terminated: bool
-    decided: bool
-    frontier: bool  # a frontier target is queued
-    checking: bool  # a check line is due
-    confirm: bool  # a confirm check of the decision is due
-    rivals: bool  # rival hypotheses are to be told apart
-    posing: bool  # the one hypothesis left is to be posed better
-    decision_checks: int  # confirm checks passed (0: the MAP no longer qualifies)
 
 
 @dataclass(frozen=True)
@@ -245,47 +237,13 @@ class Planner:
         return keep
 
     def _stop_test(self, coverage, belief, decision=UNDECIDED):
-        """The :class:`Stop`: l.1, ``d_H(S*, X_c) <= eps``, held by the extensions
-        (frontier, check lines, confirm checks, rivals), or the decision, or the step cap.
-
-        A decision also needs contacts all around the MAP surface (its DHD within
-        ``decision_cover``) and checks just outside it (:meth:`_decided`): a wrong pose or
-        class can fit contacts on one part within the noise (a novel statue's trident
-        fitted a knife), and nothing else would refute it."""
-        p = self._p
-        cap = p.max_steps_novel if belief.novel else p.max_steps_known
-        covered = coverage.value <= p.eps
-        exploring = belief.novel and self.strategy != "rrt"
-        frontier = exploring and bool(self.state.frontier)
-        checking = (covered and exploring and not frontier
-                    and self.state.checks_passed < p.check_lines)
-        decided, confirm, decision_checks = self._decided(decision, coverage.dhd)
-        # Rivals are aimed at (and the DHD stop waits) only while the MAP fits within the
-        # noise (else the object is none of them) and for decision_patience steps at most.
-        rivals = (p.decision_targets and not belief.novel and not decided
-                  and not confirm and decision.fits and len(decision.rivals) > 0
-                  and self.state.telling_steps < p.decision_patience)
-        # So is the MAP, once it is the one hypothesis left but its pose is not yet known
-        # well enough (a 2 cm block under 2 mm noise) or the filter's posterior not yet
-        # held by the classes weighed (a fork's spread over four thin classes, 0.988 when
-        # its surface was covered), within the same patience.
-        settling = (decision.fits and bool(decision.hypotheses)
-                    and decision.hypotheses[0].probability >= p.decision_confidence)
-        # A session that stops at the decision also waits while a known MAP does not yet
-        # fit within the noise (17 touches of a pencil at 2 mm, 2.5 times their expected
-        # residuals, covered it): more touches fit it, or judge the object novel.
-        doubting = p.stop_at_decision and bool(decision.hypotheses) and not decision.fits
-        posing = (p.decision_targets and not belief.novel and not rivals and not decided
-                  and (decision.loosest is not None or settling or doubting)
-                  and self.state.telling_steps < p.decision_patience)
-        # The DHD stop waits for the decision's checks too: they are a step or two, and a
-        # thin object is covered before they are swept (an 18 cm pencil in 15 touches).
-        terminated = bool((covered and not checking and not frontier and not rivals
-                           and not posing and not confirm)
-                          or (p.stop_at_decision and decided)
-                          or self.step_count + 1 >= cap)
-        return Stop(terminated, decided, frontier, checking, confirm, rivals, posing,
-                    decision_checks)
+        """The :class:`~.stop.Stop` of the step: :func:`~.stop.stop_rule` on its
+        coverage, belief and decision and the exploration state's progress."""
+        state = self.state
+        progress = Progress(self.step_count, bool(state.frontier), state.checks_passed,
+                            state.decision_checks, state.telling_steps)
+        return stop_rule(self._p, coverage.value, coverage.dhd, belief.novel,
+                         belief.novel and self.strategy != "rrt", decision, progress)
 
     def _choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
                        recon, contacts, decision=UNDECIDED):
@@ -331,19 +289,6 @@ class Planner:
                                           rotation, translation, contacts), None, **keep)
         return Plan(self._next_target(coverage.surface, coverage.reachable, recon, model,
                                       rotation, translation, contacts), None, **keep)
-
-    def _decided(self, decision, dhd):
-        """``(decided, confirm, decision_checks)``: the step's decision needs contacts all
-        around the MAP (``decision_cover``) and, exploring with ``decision_targets``,
-        ``decision_checks`` sweeps just outside it that touched nothing it does not predict
-        (``confirm``: plan the next); a MAP that no longer qualifies starts the count
-        again (the count returned)."""
-        ready = decision.decided and dhd <= self._p.decision_cover
-        count = self.state.decision_checks if ready else 0
-        if not self._p.decision_targets:
-            return ready, False, count
-        confirm = ready and count < self._p.decision_checks
-        return ready and not confirm, confirm, count
 
     def _telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""

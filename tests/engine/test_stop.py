@@ -1,0 +1,73 @@
+"""The stop rule (engine/session/stop.py) on its own: no session, no filter."""
+
+import numpy as np
+import pytest
+
+from tactile_viz.engine.belief.decision import UNDECIDED, Decision, Hypothesis
+from tactile_viz.engine.presets import session_preset
+from tactile_viz.engine.session.stop import Progress, decision_ready, stop_rule
+
+FRESH = Progress(step=10, frontier_queued=False, checks_passed=0, decision_checks=0,
+                 telling_steps=0)
+
+
+def _hypothesis(probability):
+    return Hypothesis(0, np.eye(3), np.zeros(3), 0.0, probability)
+
+
+def _decided(rivals=0):
+    others = tuple(_hypothesis(0.2) for _ in range(rivals))
+    return Decision(True, 0.999, (_hypothesis(0.999),) + others, fits=True)
+
+
+def test_the_paper_stops_as_soon_as_the_estimate_is_covered():
+    p = session_preset("paper")
+    for novel in (True, False):
+        assert stop_rule(p, p.eps, p.eps, novel, novel, UNDECIDED, FRESH).terminated
+        assert not stop_rule(p, 1.01 * p.eps, 0.0, novel, novel, UNDECIDED, FRESH).terminated
+
+
+@pytest.mark.parametrize("novel, cap", [(True, "max_steps_novel"), (False, "max_steps_known")])
+def test_the_step_cap_stops_whatever_holds(novel, cap):
+    p = session_preset("recommended")
+    last = FRESH._replace(step=getattr(p, cap) - 1)
+    assert stop_rule(p, 10 * p.eps, 10 * p.eps, novel, novel, UNDECIDED, last).terminated
+    assert not stop_rule(p, 10 * p.eps, 10 * p.eps, novel, novel, UNDECIDED,
+                         last._replace(step=last.step - 1)).terminated
+
+
+def test_a_covered_novel_estimate_waits_for_its_checks_and_frontier():
+    p = session_preset("recommended")
+    stop = stop_rule(p, p.eps, p.eps, True, True, UNDECIDED, FRESH)
+    assert stop.checking and not stop.terminated
+    passed = FRESH._replace(checks_passed=p.check_lines)
+    assert stop_rule(p, p.eps, p.eps, True, True, UNDECIDED, passed).terminated
+    queued = passed._replace(frontier_queued=True)
+    stop = stop_rule(p, p.eps, p.eps, True, True, UNDECIDED, queued)
+    assert stop.frontier and not stop.checking and not stop.terminated
+    # RRT explores without checks: covered is enough.
+    assert stop_rule(p, p.eps, p.eps, True, False, UNDECIDED, FRESH).terminated
+
+
+def test_a_decision_is_confirmed_before_it_stops_a_session():
+    p = session_preset("recognise")
+    around = p.decision_cover
+    stop = stop_rule(p, 10 * p.eps, around, False, False, _decided(), FRESH)
+    assert stop.confirm and not stop.decided and not stop.terminated
+    confirmed = FRESH._replace(decision_checks=p.decision_checks)
+    stop = stop_rule(p, 10 * p.eps, around, False, False, _decided(), confirmed)
+    assert stop.decided and stop.terminated and stop.decision_checks == p.decision_checks
+    # Contacts not yet all around the MAP: not decided, and the count starts again.
+    assert decision_ready(p, _decided(), 1.01 * around, p.decision_checks) == (False, False, 0)
+
+
+def test_rivals_hold_the_covered_stop_for_a_patience_at_most():
+    p = session_preset("recommended")
+    rivalled = Decision(False, 0.6, (_hypothesis(0.6), _hypothesis(0.4)), fits=True)
+    stop = stop_rule(p, p.eps, p.eps, False, False, rivalled, FRESH)
+    assert stop.rivals and not stop.terminated
+    tired = FRESH._replace(telling_steps=p.decision_patience)
+    assert stop_rule(p, p.eps, p.eps, False, False, rivalled, tired).terminated
+    # A MAP that fits nothing within the noise has no rivals to tell apart.
+    misfit = Decision(False, 0.6, rivalled.hypotheses, fits=False)
+    assert stop_rule(p, p.eps, p.eps, False, False, misfit, FRESH).terminated
