@@ -303,3 +303,19 @@ def test_a_surface_meshlab_refuses_is_one_mesh_error(monkeypatch):
     box = trimesh.creation.box()
     with pytest.raises(MeshError, match="could not be repaired .*2-manifold edges"):
         mesh_repair.repair_surface(box, "broken.glb")
+
+
+def test_several_inside_out_parts_are_turned_and_counted():
+    # Counts summed with numpy once broke the message (a learned mug's surface, seed 51100:
+    # "can't multiply sequence by non-int of type 'numpy.bool'", nothing learned).
+    from tactile_viz.engine.shape.mesh_repair import repair_surface
+
+    parts = [trimesh.creation.box((1, 1, 1)), trimesh.creation.box((1, 1, 1)),
+             trimesh.creation.icosphere()]
+    for offset, part in zip((0.0, 3.0, 6.0), parts):
+        part.apply_translation((offset, 0, 0))
+    for part in parts[1:]:
+        part.invert()
+    repaired, notes = repair_surface(trimesh.util.concatenate(parts), "three parts")
+    assert "2 inside-out parts turned" in notes
+    assert repaired.volume > 0 and len(repaired.split(only_watertight=False)) == 3

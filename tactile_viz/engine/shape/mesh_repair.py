@@ -24,6 +24,12 @@ MAX_HOLE_AREA_FRACTION = 0.05
 MAX_STRAY_AREA_FRACTION = 0.5
 
 
+def counted(count, noun):
+    """``"3 holes"``, ``"1 hole"``: ``count`` (any integer, numpy's too) and ``noun``."""
+    count = int(count)
+    return f"{count} {noun}{'s' * (count != 1)}"
+
+
 def needs_repair(mesh):
     """Whether ``mesh`` is anything but one closed, consistently wound piece.
 
@@ -87,20 +93,20 @@ def _repaired_surface(mesh, source):
     count = _non_manifold_edge_count(mesh)
     split = _split_non_manifold(mesh, count)
     if count:
-        notes.append(f"{count} non-manifold edge{'s' * (count != 1)} split")
+        notes.append(f"{counted(count, 'non-manifold edge')} split")
     parts = split.split(only_watertight=False, repair=False)
     closed, stray, holes = _closed_parts(parts, source)
     if holes:
-        notes.append(f"{holes} hole{'s' * (holes != 1)} closed")
+        notes.append(f"{counted(holes, 'hole')} closed")
     if stray:
         total = sum(part.area for part in parts)
-        notes.append(f"{len(stray)} open piece{'s' * (len(stray) != 1)} dropped "
+        notes.append(f"{counted(len(stray), 'open piece')} dropped "
                      f"({100 * sum(p.area for p in stray) / total:.2g}% of the surface)")
     flipped, inverted = np.sum([_orient_outward(part) for part in closed], axis=0)
     if flipped:
-        notes.append(f"{flipped} flipped face{'s' * (flipped != 1)} turned")
+        notes.append(f"{counted(flipped, 'flipped face')} turned")
     if inverted and len(closed) > 1:
-        notes.append(f"{inverted} inside-out part{'s' * (inverted != 1)} turned")
+        notes.append(f"{counted(inverted, 'inside-out part')} turned")
     merged, failed = _merge_overlapping(closed)
     if failed:
         notes.append(f"{failed} overlapping parts kept as they are (the union failed)")

@@ -25,7 +25,7 @@ import numpy as np
 import trimesh
 
 from ..errors import MeshError, MeshWarning
-from .mesh_repair import needs_repair, repair_surface
+from .mesh_repair import counted, needs_repair, repair_surface
 
 LONGEST_SIDE = 6.0  # the paper's normalisation (an explicit choice: meshes keep their size)
 # Length units a file or a recording may be in, as metres: a scene given in named units is
@@ -207,14 +207,14 @@ def _repaired(vertices, faces, source, max_faces):
     duplicates = int(len(mesh.faces) - unique.sum())
     if duplicates:
         mesh.update_faces(unique)
-        notes.append(f"{duplicates} duplicate face{'s' * (duplicates != 1)} removed")
+        notes.append(f"{counted(duplicates, 'duplicate face')} removed")
     mesh.remove_unreferenced_vertices()
     before = mesh.faces.copy()
     trimesh.repair.fix_winding(mesh)
     flipped = int((mesh.faces != before).any(axis=1).sum())
     flipped = min(flipped, len(mesh.faces) - flipped)  # the minority was turned
     if flipped:
-        notes.append(f"{flipped} flipped face{'s' * (flipped != 1)} turned")
+        notes.append(f"{counted(flipped, 'flipped face')} turned")
     if needs_repair(mesh):
         mesh, repairs = repair_surface(mesh, source)
         notes += repairs
