@@ -33,6 +33,10 @@ FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent 
 FILL_SLACK = 0.02  # its ball, and this share of a size unit (a contact's localisation)
 AGNOSTIC_MARGIN = 10.0  # nats another GPIS prior mean must gain to take over (hysteresis),
 AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in force
+# A superquadric's box margin and least radius are at most this share of the contacts'
+# extent (longest side of their box); the MAP prior's lengths cap them (eps / 2, the margin).
+SHAPE_SHARE = 0.1
+SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
 
 
 class Estimation:
@@ -60,9 +64,15 @@ class Estimation:
     def _reconstruct(self, model, rotation, translation, map_vertices, timings):
         p = self._p
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        low, high, kernel = self._gpis_box(map_vertices, contacts)
+        shape = self.state.gpis_shape
+        low, high, kernel = self._gpis_box(map_vertices, contacts, shape)
         clock = time.perf_counter()
         fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
+        if (self.state.gpis_shape is None) != (shape is None):
+            # The prior mean switched between the MAP shape and a superquadric: fit again
+            # in the box of the one now in force.
+            low, high, kernel = self._gpis_box(map_vertices, contacts, self.state.gpis_shape)
+            fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
         fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
@@ -84,7 +94,8 @@ class Estimation:
         p = self._p
         free = self.filter.noncontact_positions, self.state.free_space
         prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
-        shapes = fit_superquadrics(contacts, normals, p.eps / 2) if p.gpis_agnostic else []
+        shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts))
+                  if p.gpis_agnostic else [])
         candidates = [prior] + [self._gpis_prior(model, rotation, translation, contacts, *free,
                                                  normals, shape=shape) for shape in shapes]
         kept = self.state.gpis_shape
@@ -128,7 +139,7 @@ class Estimation:
         clock = time.perf_counter()
         final = recon
         if p.final_resolution != p.gpis_resolution:
-            low, high, _ = self._gpis_box(map_vertices, contacts)
+            low, high, _ = self._gpis_box(map_vertices, contacts, self.state.gpis_shape)
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
         if p.final_candidates:
@@ -184,8 +195,11 @@ class Estimation:
                 transform_points(model.mesh.vertices, rotation, translation), contacts)
             if index == 0:
                 box = low, high, kernel, model, rotation, translation
-                # This step's own: its uncut fit is final's.
-                yield cut(final.fit), (low, high), self.state.gpis_shape
+                # This step's own: its uncut fit is final's, in its box.
+                own_box = self._gpis_box(transform_points(model.mesh.vertices, rotation,
+                                                          translation),
+                                         contacts, self.state.gpis_shape)[:2]
+                yield cut(final.fit), own_box, self.state.gpis_shape
                 continue
             prior_mean = self._gpis_prior(model, rotation, translation, contacts,
                                           f.noncontact_positions, self.state.free_space,
@@ -198,9 +212,11 @@ class Estimation:
             return
         low, high, kernel, model, rotation, translation = box
         own = getattr(self.state.gpis_shape, "roundness", None)
-        for shape in fit_superquadrics(contacts, f.contact_normals, p.eps / 2):
+        for shape in fit_superquadrics(contacts, f.contact_normals,
+                                       self._least_radius(contacts)):
             if shape.roundness == own:
                 continue  # the step's own
+            low, high, kernel = self._gpis_box(None, contacts, shape)
             prior_mean = self._gpis_prior(model, rotation, translation, contacts,
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals, shape=shape)
@@ -307,14 +323,30 @@ class Estimation:
         self.state.gpis_radius = kernel.radius
         return kernel
 
-    def _gpis_box(self, map_vertices, contacts):
-        """The reconstruction box (low, high) and the GPIS kernel."""
+    def _gpis_box(self, map_vertices, contacts, shape=None):
+        """The reconstruction box (low, high) and the GPIS kernel: about the contacts and
+        the prior mean in force, the MAP surface ``map_vertices`` or a superquadric
+        ``shape`` (its margin at most ``SHAPE_SHARE`` of the contacts' extent: a 2 cm
+        block's superquadric in a 30 cm knife's box had 1 cm cells)."""
         p = self._p
-        low = np.minimum(map_vertices.min(axis=0), contacts.min(axis=0)) - p.gpis_margin
-        high = np.maximum(map_vertices.max(axis=0), contacts.max(axis=0)) + p.gpis_margin
+        margin = p.gpis_margin
+        if shape is None:
+            points = np.vstack([map_vertices, contacts])
+        else:
+            points = np.vstack([shape.corners, contacts])
+            margin = min(margin, SHAPE_SHARE * float(np.ptp(contacts, axis=0).max()))
+        low, high = points.min(axis=0) - margin, points.max(axis=0) + margin
         if p.gpis_kernel == "wendland":
             return low, high, WendlandKernel(p.gpis_support)
         return low, high, ThinPlateKernel(p.gpis_radius_factor * float(np.linalg.norm(high - low)))
+
+    def _least_radius(self, contacts):
+        """A superquadric's least semi-axis: ``eps / 2``, or less for contacts spanning
+        less than ``eps / (2 SHAPE_SHARE)`` (an object much smaller than the MAP prior),
+        but at least ``SHAPE_NOISE_STDS`` position-noise stds."""
+        extent = float(np.ptp(contacts, axis=0).max()) if len(contacts) else 0.0
+        return min(self._p.eps / 2, max(SHAPE_SHARE * extent,
+                                        SHAPE_NOISE_STDS * self.sensor_noise[0], 1e-9))
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
                     normals, shape=None):

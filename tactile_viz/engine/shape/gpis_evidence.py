@@ -53,6 +53,12 @@ class Superquadric:
             return "ellipsoid"
         return "rounded box" if self.roundness >= 0.4 else "box"
 
+    @property
+    def corners(self):
+        """The eight corners of its bounding box (8, 3), world frame."""
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        return self.centre + (signs * self.radii) @ self.axes.T
+
     def __call__(self, points):
         """Radial distances ``|y| (1 - F^(-e/2))`` (k,) (exact on a sphere, zero on the
         surface, negative inside) and unit outward gradients ``grad F / |grad F|`` (k, 3)
