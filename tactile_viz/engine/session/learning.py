@@ -51,7 +51,8 @@ class Learning:
         prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
                                  snapshot.normals, shape=snapshot.gpis_shape)
-        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts)
+        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts,
+                                           snapshot.gpis_shape)
         if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
             kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
         spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None
