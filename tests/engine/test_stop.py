@@ -71,3 +71,17 @@ def test_rivals_hold_the_covered_stop_for_a_patience_at_most():
     # A MAP that fits nothing within the noise has no rivals to tell apart.
     misfit = Decision(False, 0.6, rivalled.hypotheses, fits=False)
     assert stop_rule(p, p.eps, p.eps, False, False, misfit, FRESH).terminated
+
+
+def test_every_extension_is_off_in_the_paper_preset():
+    # planner.EXTENSIONS lists each rule beyond the paper once, with the parameter and the
+    # value that switch it off; the paper preset must hold every one of those values.
+    from tactile_viz.engine.session.planner import EXTENSIONS
+
+    paper, default = session_preset("paper"), session_preset("recommended")
+    switched = [off for _, off in EXTENSIONS if off is not None]
+    assert switched
+    for name, value in switched:
+        assert getattr(paper, name) == value, name
+    # and the default runs at least one of them (they are the project's, not the paper's)
+    assert any(getattr(default, name) != value for name, value in switched)
