@@ -107,6 +107,9 @@ def test_noisy_targets_and_surprises_lie_beyond_the_noise(sphere_model, monkeypa
     assert session.latest.novel and asked
     np.testing.assert_allclose(asked, 4 * noise)
     assert session._new_ground() >= 4 * noise
+    # Where the noise is the largest of the three lengths, it sets the surprise's distance.
+    session.sensor_noise = (1.0, 2.0)
+    assert session._new_ground() == pytest.approx(4.0)
     quiet = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0)
     assert quiet._uncovered_beyond() is None
     paper = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,

@@ -24,7 +24,7 @@ class Bookkeeping:
     """The exploration state's record of observations (see the module).
 
     Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``_filter_unit``,
-    ``strategy``, ``sensor_noise``, ``simulator`` and ``_check_kind``
+    ``strategy``, ``sensor_noise``, ``simulator``, ``_check_kind`` and ``_beyond_noise``
     (:class:`~.planner.Planner`); writes ``state``.
     """
 

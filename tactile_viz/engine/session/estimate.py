@@ -187,19 +187,17 @@ class Estimation:
         observed = self._noncontact_points()
         cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
                                 radius=p.gpis_carve_radius, keep_within=p.eps)
-        box = None
+        step_prior = None
         for index, (class_name, rotation, translation) in enumerate(
                 self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
+            shape = self.state.gpis_shape if index == 0 else None
             low, high, kernel = self._gpis_box(
-                transform_points(model.mesh.vertices, rotation, translation), contacts)
+                transform_points(model.mesh.vertices, rotation, translation), contacts, shape)
             if index == 0:
-                box = low, high, kernel, model, rotation, translation
+                step_prior = model, rotation, translation
                 # This step's own: its uncut fit is final's, in its box.
-                own_box = self._gpis_box(transform_points(model.mesh.vertices, rotation,
-                                                          translation),
-                                         contacts, self.state.gpis_shape)[:2]
-                yield cut(final.fit), own_box, self.state.gpis_shape
+                yield cut(final.fit), (low, high), shape
                 continue
             prior_mean = self._gpis_prior(model, rotation, translation, contacts,
                                           f.noncontact_positions, self.state.free_space,
@@ -208,9 +206,9 @@ class Estimation:
                             self.state.gpis_scale, newton=False)
             yield fit, (low, high), None
             yield cut(fit), (low, high), None
-        if not p.gpis_agnostic or box is None:
+        if not p.gpis_agnostic or step_prior is None:
             return
-        low, high, kernel, model, rotation, translation = box
+        model, rotation, translation = step_prior
         own = getattr(self.state.gpis_shape, "roundness", None)
         for shape in fit_superquadrics(contacts, f.contact_normals,
                                        self._least_radius(contacts)):
@@ -334,7 +332,7 @@ class Estimation:
             points = np.vstack([map_vertices, contacts])
         else:
             points = np.vstack([shape.corners, contacts])
-            margin = min(margin, SHAPE_SHARE * float(np.ptp(contacts, axis=0).max()))
+            margin = min(margin, SHAPE_SHARE * _extent(contacts))
         low, high = points.min(axis=0) - margin, points.max(axis=0) + margin
         if p.gpis_kernel == "wendland":
             return low, high, WendlandKernel(p.gpis_support)
@@ -344,8 +342,7 @@ class Estimation:
         """A superquadric's least semi-axis: ``eps / 2``, or less for contacts spanning
         less than ``eps / (2 SHAPE_SHARE)`` (an object much smaller than the MAP prior),
         but at least ``SHAPE_NOISE_STDS`` position-noise stds."""
-        extent = float(np.ptp(contacts, axis=0).max()) if len(contacts) else 0.0
-        return min(self._p.eps / 2, max(SHAPE_SHARE * extent,
+        return min(self._p.eps / 2, max(SHAPE_SHARE * _extent(contacts),
                                         SHAPE_NOISE_STDS * self.sensor_noise[0], 1e-9))
 
     def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
@@ -401,3 +398,8 @@ def support(vertices, contacts_tree):
     if len(vertices) == 0:
         return np.inf
     return float(contacts_tree.query(vertices)[0].max())
+
+
+def _extent(points):
+    """The longest side of the axis-aligned box of ``points`` (n, 3) (0 without any)."""
+    return float(np.ptp(points, axis=0).max()) if len(points) else 0.0
