@@ -154,6 +154,27 @@ def test_a_bank_keeps_the_samples_of_a_bounded_number_of_classes():
     np.testing.assert_allclose(again, first)
 
 
+def test_a_class_is_sampled_once_for_every_weight():
+    """The weight follows the MAP's size from touch to touch: a class asked at another
+    weight builds a tree on the samples it has, and its residuals are those of a surface
+    sampled afresh at that weight."""
+    from types import SimpleNamespace
+
+    from tactile_viz.engine.belief import oriented
+
+    models = [SimpleNamespace(mesh=trimesh.creation.box(extents=(1.0, 0.6, 0.2)))]
+    samples = {}
+    points = np.array([[0.1, 0.2, 0.12], [0.45, 0.0, 0.0]])
+    normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
+    for weight in (0.01, 0.05, 0.2):
+        evaluate = oriented.OrientedEvaluator(models, weight, samples=samples)
+        got, _ = evaluate([0, 0], points, normals)
+        fresh, _ = oriented.OrientedSurface(models[0].mesh, weight).residuals(points, normals)
+        np.testing.assert_array_equal(got, fresh)
+        assert len(evaluate.cache) == 1
+    assert len(samples) == 1
+
+
 def test_oriented_residuals_without_normals_are_refused(plate):
     """A caller that asks for oriented residuals must give the normals they need."""
     from tactile_viz.engine.belief.oriented import OrientedEvaluator

@@ -164,6 +164,27 @@ def test_a_resting_truth_lies_on_the_table_in_a_stable_pose(bundled, name):
         assert np.max(stable_ups @ up_in_object) > 1 - 1e-9
 
 
+def test_stable_poses_are_kept_on_disk_by_mesh_content(tmp_path, monkeypatch):
+    """A new process (here: a new model of the same mesh) reads the stable poses from the
+    disk cache instead of running trimesh again; a model with no cache computes them."""
+    first = stable_rotations(_box_model(tmp_path))
+    assert len(list(tmp_path.glob("stable1-*.npz"))) == 1
+
+    def refused(*args, **kwargs):
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(trimesh.poses, "compute_stable_poses", refused)
+    again = stable_rotations(_box_model(tmp_path))
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(a, b)
+    monkeypatch.undo()
+    model = _box_model(tmp_path, extents=(4.0, 3.0, 2.0))
+    model.cache = ArrayCache(False)  # memory only: computed, nothing stored
+    rotations, probabilities = stable_rotations(model)
+    assert probabilities.sum() == pytest.approx(1.0) and rotations.shape[1:] == (3, 3)
+    assert len(list(tmp_path.glob("stable1-*.npz"))) == 1
+
+
 def test_the_filter_weighs_down_a_hypothesis_off_the_table(tmp_path):
     model = _box_model(tmp_path)
     library = PriorLibrary([model])

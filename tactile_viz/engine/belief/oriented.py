@@ -40,7 +40,36 @@ SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spa
 MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough
 NORMAL_CAP = 3.0  # a contact's normal costs at most this many stds (a scan's rough face)
 LEAF_SIZE = 32  # samples per leaf of a surface's tree
-_KEEP = 16  # classes whose samples a bank keeps, about 3 MB each (least recently used dropped)
+# What a bank keeps, least recently used dropped: a class's samples (about 1 MB) whatever
+# the weight, and its tree for each weight (about 2 MB). The weight follows the MAP's size,
+# so one class is asked at several; 16 surfaces thrashed in a 40-touch dragon trial (66
+# built at 11 ms each).
+_KEEP_SAMPLES = 64
+_KEEP = 48  # trees, by class and weight
+
+
+class SurfaceSamples:
+    """A class's area-uniform surface samples and their face normals (deterministic).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The class's surface, object frame.
+    count : int
+
+    Attributes
+    ----------
+    points, normals : (count, 3) float, object frame
+    spacing : float, length units
+        ``sqrt(area / count)``: the samples' typical gap.
+    """
+
+    def __init__(self, mesh, count=SAMPLES):
+        mesh = bare_mesh(mesh)
+        points, faces = trimesh.sample.sample_surface(mesh, count, seed=0)
+        self.points = np.asarray(points, float)
+        self.normals = np.asarray(mesh.face_normals[faces], float)
+        self.spacing = float(np.sqrt(max(mesh.area, 0.0) / count))
 
 
 class OrientedSurface:
@@ -48,20 +77,18 @@ class OrientedSurface:
 
     Parameters
     ----------
-    mesh : trimesh.Trimesh
-        The class's surface, object frame.
+    mesh : trimesh.Trimesh or SurfaceSamples
+        The class's surface, object frame, or its samples.
     weight : float, length units
         ``lambda``: the position a unit change of normal is worth.
     count : int
-        Surface samples (face normals; deterministic).
+        Surface samples of a mesh (face normals; deterministic).
     """
 
     def __init__(self, mesh, weight, count=SAMPLES):
-        mesh = bare_mesh(mesh)
-        points, faces = trimesh.sample.sample_surface(mesh, count, seed=0)
-        self.points = np.asarray(points, float)
-        self.normals = np.asarray(mesh.face_normals[faces], float)
-        self.spacing = float(np.sqrt(max(mesh.area, 0.0) / count))
+        samples = mesh if isinstance(mesh, SurfaceSamples) else SurfaceSamples(mesh, count)
+        self.points, self.normals = samples.points, samples.normals
+        self.spacing = samples.spacing
         self.weight = float(weight)
         # Larger leaves than cKDTree's 16: a turned-away contact's nearest sample in six
         # dimensions lies far off, and the search then visits fewer, fuller nodes faster
@@ -93,17 +120,21 @@ class OrientedEvaluator:
     weight : float, length units
         ``lambda`` (:func:`normal_weight`).
     cache : dict, optional
-        Where the sampled surfaces are kept between evaluators (by class and weight).
+        Where the surfaces' trees are kept between evaluators (by class and weight).
+    samples : dict, optional
+        Where the classes' samples are kept between evaluators (by class).
     """
 
-    def __init__(self, models, weight, cache=None):
+    def __init__(self, models, weight, cache=None, samples=None):
         self.models, self.weight = models, float(weight)
         self.cache = {} if cache is None else cache
+        self.samples = {} if samples is None else samples
 
     def surface(self, class_index):
-        return kept_recent(self.cache, (int(class_index), self.weight),
-                           lambda: OrientedSurface(self.models[class_index].mesh, self.weight),
-                           _KEEP)
+        c = int(class_index)
+        return kept_recent(self.cache, (c, self.weight), lambda: OrientedSurface(
+            kept_recent(self.samples, c, lambda: SurfaceSamples(self.models[c].mesh),
+                        _KEEP_SAMPLES), self.weight), _KEEP)
 
     def __call__(self, classes, points, normals):
         classes = np.asarray(classes)
@@ -160,4 +191,6 @@ def normal_weight(position_scale, normal_noise_deg):
 def oriented_evaluator(bank, models, position_scale, normal_noise_deg):
     """An :class:`OrientedEvaluator` whose samples a prior bank keeps between steps."""
     cache = bank.__dict__.setdefault("_oriented", {})
-    return OrientedEvaluator(models, normal_weight(position_scale, normal_noise_deg), cache)
+    samples = bank.__dict__.setdefault("_oriented_samples", {})
+    return OrientedEvaluator(models, normal_weight(position_scale, normal_noise_deg), cache,
+                             samples)
