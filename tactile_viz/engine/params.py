@@ -362,6 +362,14 @@ class SessionParams:
               "nearly flat over the surface (the noise term dominates it), so the paper's "
               "largest-variance target falls as often beside a contact as far from one. "
               "Noiseless it changes nothing.")
+    cover_noise_stds: float = _session(
+        2.0, "Under position noise, a known object's surface counts as covered within "
+        "hypot(eps, this many noise standard deviations) of a contact (beyond the paper; 0: "
+        "within eps).", valid="[0, 20]",
+        notes="A small object's eps (10% of its size) can be the noise itself (a 2 cm block "
+              "at 2 mm): contacts never come nearer its far corners than the noise allows, "
+              "and the session ran to its cap. A novel object keeps eps (its estimate is "
+              "what the touches make it). Noiseless it changes nothing.")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,

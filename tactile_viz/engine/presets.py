@@ -33,7 +33,8 @@ PRESET_TABLE = {
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "decision_hold": False, "sdf_max_resolution": 0,
               "final_candidates": 0, "variance_points": 1500, "way_back_anchors": 1,
-              "misfit_novelty": 0.0, "gpis_agnostic": False, "target_noise_stds": 0.0},
+              "misfit_novelty": 0.0, "gpis_agnostic": False, "target_noise_stds": 0.0,
+              "cover_noise_stds": 0.0},
     # A robot that only needs to know what and where the object is: the default, stopped
     # as soon as the object is decided.
     "recognise": {"stop_at_decision": True},

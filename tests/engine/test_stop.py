@@ -85,3 +85,26 @@ def test_every_extension_is_off_in_the_paper_preset():
         assert getattr(paper, name) == value, name
     # and the default runs at least one of them (they are the project's, not the paper's)
     assert any(getattr(default, name) != value for name, value in switched)
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-9, 0.3, 1e3])
+def test_a_known_object_is_covered_within_its_noise_and_a_novel_within_eps(noise):
+    """Under position noise a known estimate counts as covered within
+    hypot(eps, cover_noise_stds x noise); a novel one, and the paper, within eps."""
+    p = session_preset("recommended")
+    reach = float(np.hypot(p.eps, p.cover_noise_stds * noise))
+    assert reach >= p.eps
+    known = stop_rule(p, reach, 0.0, False, False, UNDECIDED, FRESH, noise)
+    assert known.terminated
+    assert not stop_rule(p, 1.01 * reach, 0.0, False, False, UNDECIDED, FRESH,
+                         noise).terminated
+    beyond = np.nextafter(p.eps, np.inf) if noise == 0 else 0.5 * (p.eps + reach)
+    if beyond > p.eps * (1 + 1e-12):
+        assert stop_rule(p, beyond, 0.0, False, False, UNDECIDED, FRESH, noise).terminated
+    novel = stop_rule(p, beyond, 0.0, True, False, UNDECIDED, FRESH, noise)
+    assert novel.terminated == (beyond <= p.eps)
+    paper = session_preset("paper")
+    assert paper.cover_noise_stds == 0
+    assert stop_rule(paper, paper.eps, 0.0, False, False, UNDECIDED, FRESH, noise).terminated
+    assert not stop_rule(paper, 1.01 * paper.eps, 0.0, False, False, UNDECIDED, FRESH,
+                         noise).terminated

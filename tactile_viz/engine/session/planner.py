@@ -20,6 +20,8 @@ prior cover        a novel object's MAP prior must be covered too   ``cover_prio
 uncovered target   the variance target among uncovered vertices     ``target_uncovered=False``
 noisy target       under noise, the variance target and a check's   ``target_noise_stds=0``
                    surprise beyond the noise of every contact
+noisy cover        under noise, a known object is covered within    ``cover_noise_stds=0``
+                   its noise as well as eps
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)
@@ -72,6 +74,7 @@ MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is 
 EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
               ("uncovered target", ("target_uncovered", False)),
               ("noisy target", ("target_noise_stds", 0.0)),
+              ("noisy cover", ("cover_noise_stds", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
               ("decision stop", ("stop_at_decision", False)),
               ("telling apart", ("decision_targets", False)),
@@ -243,7 +246,8 @@ class Planner:
         progress = Progress(self.step_count, bool(state.frontier), state.checks_passed,
                             state.decision_checks, state.telling_steps)
         return stop_rule(self._p, coverage.value, coverage.dhd, belief.novel,
-                         belief.novel and self.strategy != "rrt", decision, progress)
+                         belief.novel and self.strategy != "rrt", decision, progress,
+                         self.sensor_noise[0])
 
     def _choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
                        recon, contacts, decision=UNDECIDED):

@@ -11,6 +11,8 @@ parameters in scene units, so that changing the stop means editing this module o
 
 from typing import NamedTuple
 
+import numpy as np
+
 
 class Stop(NamedTuple):
     """The stop test of a step (l.1) with what holds it (beyond the paper)."""
@@ -63,7 +65,7 @@ def decision_ready(p, decision, dhd, checks_done):
     return ready and not confirm, confirm, count
 
 
-def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress):
+def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress, noise=0.0):
     """The :class:`Stop` of a step.
 
     Parameters
@@ -80,13 +82,17 @@ def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress):
         Novel and reconstructing (not the RRT strategy): checks and the frontier apply.
     decision : Decision
     progress : Progress
+    noise : float, scene units
+        The sensor's position noise (std): a known object is covered within
+        ``hypot(eps, cover_noise_stds * noise)``.
 
     Returns
     -------
     Stop
     """
     cap = p.max_steps_novel if novel else p.max_steps_known
-    covered = covered_dhd <= p.eps                                      # l.1
+    reach = p.eps if novel else float(np.hypot(p.eps, p.cover_noise_stds * noise))
+    covered = covered_dhd <= reach                                      # l.1
     frontier = exploring and progress.frontier_queued
     checking = (covered and exploring and not frontier
                 and progress.checks_passed < p.check_lines)
