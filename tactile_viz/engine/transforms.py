@@ -32,11 +32,15 @@ def inverse_transform_points(points, rotation, translation):
 
 def inverse_transform_points_batch(points, rotations, translations=None):
     """``points (m, 3)`` (world frame) in each of ``k`` poses' object frames,
-    ``R_k^T (p - t_k)``: ``(k, m, 3)``. Without ``translations`` only turned (normals)."""
-    local = np.einsum("kij,mi->kmj", rotations, points)
+    ``R_k^T (p - t_k)``: ``(k, m, 3)``. Without ``translations`` only turned (normals).
+
+    As row vectors, ``p^T R_k``: one batched matrix product (BLAS), several times faster
+    than the same sum by ``einsum`` and equal to it up to the last bits."""
+    rotations = np.asarray(rotations, dtype=float)
+    local = np.matmul(np.asarray(points, dtype=float), rotations)
     if translations is None:
         return local
-    return local - np.einsum("kij,ki->kj", rotations, translations)[:, None]
+    return local - np.matmul(np.asarray(translations, dtype=float)[:, None], rotations)
 
 
 def invert(rotation, translation):

@@ -12,7 +12,12 @@ from tactile_viz.engine.belief.ppf import (
     quantise,
     rotation_to_x,
 )
-from tactile_viz.engine.transforms import transform_points
+from tactile_viz.engine.transforms import (
+    inverse_transform_points,
+    inverse_transform_points_batch,
+    random_pose,
+    transform_points,
+)
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -181,3 +186,22 @@ def test_combining_tables_of_other_steps_is_an_error(mug_features):
     with pytest.raises(ValueError, match="different key steps"):
         PairTable.combine([PairTable.build(*mug_features),
                            PairTable.build(*mug_features, distance_step=0.2)])
+
+
+def test_the_batched_inverse_transform_is_each_poses_own():
+    """R_k^T (p - t_k) for k poses at once (one matrix product) equals the transform of
+    each pose in turn, with and without translations, for tiny and huge coordinates."""
+    rng = np.random.default_rng(3)
+    for scale in (1e-6, 1.0, 1e6):
+        poses = [random_pose(rng, scale) for _ in range(5)]
+        rotations = np.array([r for r, _ in poses])
+        translations = np.array([t for _, t in poses])
+        points = rng.normal(scale=scale, size=(7, 3))
+        batch = inverse_transform_points_batch(points, rotations, translations)
+        turned = inverse_transform_points_batch(points, rotations)
+        assert batch.shape == turned.shape == (5, 7, 3)
+        for k, (rotation, translation) in enumerate(poses):
+            np.testing.assert_allclose(batch[k], inverse_transform_points(
+                points, rotation, translation), rtol=0, atol=1e-12 * scale)
+            np.testing.assert_allclose(turned[k], points @ rotation, rtol=0,
+                                       atol=1e-12 * scale)

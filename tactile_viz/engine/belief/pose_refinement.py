@@ -100,7 +100,7 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]
             np.put_along_axis(active, farthest, False, axis=1)
         values = np.where(active, values, 0.0)
-        normals = np.einsum("kij,kmj->kmi", rotations, gradients) * active[..., None]
+        normals = np.matmul(gradients, rotations.transpose(0, 2, 1)) * active[..., None]
         jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)
         if support is not None:
             heights, rows = support_residuals(support, classes, rotations, translations, centre)
@@ -111,11 +111,12 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     cost = np.square(values).sum(axis=1)
     damping = np.full(len(classes), _DAMPING)
     for _ in range(iterations):
-        normal = np.einsum("kmi,kmj->kij", jacobian, jacobian)
+        transposed = jacobian.transpose(0, 2, 1)
+        normal = np.matmul(transposed, jacobian)  # J^T J
         diagonal = np.einsum("kii->ki", normal)
         diagonal = diagonal + _FLOOR * diagonal.max(axis=1, keepdims=True) + np.finfo(float).tiny
         lhs = normal + (damping[:, None] * diagonal)[:, :, None] * np.eye(6)
-        step = np.linalg.solve(lhs, -np.einsum("kmi,km->ki", jacobian, values)[..., None])[..., 0]
+        step = np.linalg.solve(lhs, -np.matmul(transposed, values[..., None]))[..., 0]
         turn = Rotation.from_rotvec(step[:, :3]).as_matrix()
         new_rotations = turn @ rotations
         new_translations = (np.einsum("kij,kj->ki", turn, translations - centre) + centre
