@@ -535,7 +535,7 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     monkeypatch.setattr(module, "symmetry_group",
                         lambda model: dataclasses.replace(group(model), roughness=0.0))
     lead = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).hypotheses[0]
-    limit = module.chi2.ppf(0.99, 40 - module.POSE_PARAMETERS) * 1e-10
+    limit = module.chi2_quantile(0.99, 40 - module.POSE_PARAMETERS) * 1e-10
     assert lead.misfit > limit  # the grid alone would refuse it
     assert module.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
                               pf.noncontact_positions, None) < limit
@@ -713,3 +713,15 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
         assert novel and novel == list(range(novel[0], session.latest.step + 1))
         assert len(known) >= novel_from
         assert all(s.gpis_vertices is not None for s in session.snapshots if s.novel)
+
+
+def test_the_chi2_quantile_is_scipy_stats_own():
+    """The decision's quantile is scipy.stats's chi2.ppf to the bit (without importing
+    scipy.stats), from one degree of freedom to thousands, at every confidence."""
+    from scipy.stats import chi2
+
+    from tactile_viz.engine.belief.decision import chi2_quantile
+
+    for dof in (1, 2, 7, 94, 3000):
+        for confidence in (0.5, 0.9, 0.99, 0.999999):
+            assert chi2_quantile(confidence, dof) == chi2.ppf(confidence, dof)

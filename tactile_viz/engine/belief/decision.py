@@ -50,7 +50,7 @@ expected to take the most posterior mass from the others.
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2, norm
+from scipy.special import chdtrc, gammaincinv, ndtri
 
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
@@ -277,7 +277,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # the noise and that detail.
     roughness = symmetry_group(pf.models[classes[0]]).roughness
     dof = len(contacts) - POSE_PARAMETERS
-    quantile = chi2.ppf(confidence, dof) if dof > 0 else 0.0
+    quantile = chi2_quantile(confidence, dof) if dof > 0 else 0.0
     # The grid errs most inside thin parts, where noisy readings lie, and more than its
     # error at the surface says: where the grid's residuals fail, the mesh is asked, with
     # no grid error.
@@ -289,8 +289,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                               oriented)
         fits = on_mesh <= quantile * mesh2
         if not fits:
-            grid2 = limit / max(chi2.ppf(confidence, dof), 1e-300)
-            fit_p = float(max(chi2.sf(lead.misfit / grid2, dof), chi2.sf(on_mesh / mesh2, dof)))
+            grid2 = limit / max(chi2_quantile(confidence, dof), 1e-300)
+            fit_p = float(max(chdtrc(dof, lead.misfit / grid2), chdtrc(dof, on_mesh / mesh2)))
     loosest, modes = None, ()
     if fits and level >= confidence:
         modes = _open_modes(pf.bank, hypotheses, lead, limit,
@@ -302,6 +302,13 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p)
+
+
+def chi2_quantile(q, dof):
+    """``scipy.stats.chi2.ppf(q, dof)`` to the bit, from :mod:`scipy.special` (as
+    ``chdtrc`` is its ``sf`` and ``ndtri`` the normal's ``ppf``): importing
+    :mod:`scipy.stats` was a third of the engine's import."""
+    return 2.0 * gammaincinv(dof / 2, q)
 
 
 def model_floor2(pf, class_index, floor):
@@ -319,7 +326,7 @@ def fit_limit(pf, class_index, floor, confidence, dof):
     if dof <= 0:
         return 0.0
     roughness = symmetry_group(pf.models[class_index]).roughness
-    return chi2.ppf(confidence, dof) * max(model_floor2(pf, class_index, floor)
+    return chi2_quantile(confidence, dof) * max(model_floor2(pf, class_index, floor)
                                            + roughness**2, 1e-300)
 
 
@@ -375,7 +382,7 @@ def _loosest(pf, hypothesis, scale2, confidence, tolerance):
         pivot=transform_points(group.centre[None], hypothesis.rotation,
                                hypothesis.translation)[0]))
     worst = int(np.argmax(spread))
-    if norm.ppf(0.5 + confidence / 2) * spread[worst] <= tolerance * pf.models[c].length:
+    if ndtri(0.5 + confidence / 2) * spread[worst] <= tolerance * pf.models[c].length:
         return None
     return (transform_points(pf.bank.points[c][worst:worst + 1], hypothesis.rotation,
                              hypothesis.translation)[0],
