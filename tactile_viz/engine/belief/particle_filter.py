@@ -18,6 +18,7 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 """
 
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..errors import ParameterError
@@ -432,8 +433,6 @@ class ParticleFilter:
             normal_error = gradients[:len(p)] - n @ rotation
             outside = np.minimum(values[len(p):] - self.scene.tip_radius, 0.0)
             return np.concatenate([values[:len(p)] / sd, normal_error.ravel() / sn, outside / sd])
-
-        from scipy.optimize import least_squares  # imported when first used: a slow import
 
         try:
             result = least_squares(residuals, np.zeros(6), method="trf",

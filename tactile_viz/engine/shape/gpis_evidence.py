@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import solve_triangular
+from scipy.optimize import nnls
 
 SHRINK_TOWARD_CENTROID = 0.05  # weight (per contact) pulling the centre to the centroid
 MAX_RADIUS_FACTOR = 2.0  # a radius is at most this many times the contacts' extent
@@ -114,8 +115,6 @@ def fit_superquadrics(points, normals, min_radius, roundness=ROUNDNESS):
     _, axes = np.linalg.eigh(offsets.T @ offsets)
     if np.linalg.det(axes) < 0:
         axes[:, 0] = -axes[:, 0]
-    from scipy.optimize import nnls  # imported when first used: a slow import
-
     shapes = []
     for e in roundness:
         frame = axes if e == 1.0 else face_axes(normals, axes)
