@@ -208,3 +208,26 @@ def test_a_grid_asks_the_winding_number_where_it_must_and_gets_every_nodes_sign(
         np.testing.assert_array_equal(array, every.to_arrays()[name], err_msg=name)
     far = np.abs(grid.values) > 1.5 * spacing  # regions inside the wall, the cavity, outside
     assert (grid.values[far] < 0).any() and (grid.values[far] > 0).any()
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_inside_test_is_the_winding_numbers_and_skips_points_beyond_the_box(scale,
+                                                                              rng):
+    """Points outside the mesh's bounding box are outside (their winding number is below
+    1/2), on a closed mesh and on an open one (a box without its lid); the rest keep the
+    winding number's answer."""
+    import trimesh
+
+    from tactile_viz.engine.shape.sdf import ExactDistance
+
+    closed = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
+    lidless = closed.submesh([np.flatnonzero(closed.face_normals[:, 2] < 0.5)],
+                             append=True)
+    for mesh in (closed, lidless):
+        exact = ExactDistance(mesh.vertices * scale, mesh.faces)
+        points = rng.uniform(-1.5, 1.5, (4000, 3)) * scale
+        winding = exact._winding.winding_number(points) > 0.5
+        np.testing.assert_array_equal(exact.inside(points), winding)
+        beyond = np.any(np.abs(points) > np.array([1.0, 0.5, 0.25]) * scale, axis=1)
+        assert beyond.any() and not exact.inside(points[beyond]).any()
+        assert exact.inside(np.zeros((1, 3)))[0]  # the lid's gap leaves the middle in

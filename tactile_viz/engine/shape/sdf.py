@@ -107,9 +107,23 @@ class ExactDistance:
         return np.where(inside, -distance, distance), closest, face
 
     def inside(self, points):
-        """Whether each of ``(k, 3)`` points is inside: a winding number over 1/2."""
+        """Whether each of ``(k, 3)`` points is inside: a winding number over 1/2.
+
+        Asked only inside the mesh's bounding box: a point outside it sees the whole
+        surface within less than a half space, a solid angle under 2 pi, so its winding
+        number is below 1/2 (most of a decision's free-space points lie there)."""
         points = np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
-        return self._winding.winding_number(points) > 0.5
+        low, high = self._box
+        within = np.all((points >= low) & (points <= high), axis=1)
+        result = np.zeros(len(points), dtype=bool)
+        if within.any():
+            result[within] = self._winding.winding_number(
+                np.ascontiguousarray(points[within])) > 0.5
+        return result
+
+    @cached_property
+    def _box(self):
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
 
     @cached_property
     def closed(self):
