@@ -725,3 +725,42 @@ def test_the_chi2_quantile_is_scipy_stats_own():
     for dof in (1, 2, 7, 94, 3000):
         for confidence in (0.5, 0.9, 0.99, 0.999999):
             assert chi2_quantile(confidence, dof) == chi2.ppf(confidence, dof)
+
+
+@pytest.mark.parametrize("clearance", [0.0, 0.05])
+def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monkeypatch,
+                                                                    clearance):
+    """Free-space points beyond the tip's radius from the mesh's box skip the mesh's
+    look-up; near and inside ones do not: the fit is the one every point is asked for."""
+    from tactile_viz.engine.belief import mesh_fit
+    from tactile_viz.engine.scene import Scene
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 20, seed=2))
+    monkeypatch.setattr(pf, "scene", Scene(tip_radius=clearance))
+    lead = decide(pf, state, 0.99, floor=1e-3, same_mode=0.1).hypotheses[0]
+    rng = np.random.default_rng(5)
+    centre = lead.translation
+    outside = np.vstack([centre + rng.uniform(-8, 8, (300, 3)),  # mostly far
+                         pf.contact_positions + 0.02 * pf.contact_normals,  # just outside
+                         centre + rng.uniform(-0.2, 0.2, (10, 3))])  # inside
+    exact = pf.exact_distance(lead.class_index)
+    asked = []
+    query = exact.query
+    monkeypatch.setattr(exact, "query", lambda points: asked.append(len(points)) or
+                        query(points))
+    spared = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
+                                  outside, None)
+
+    def every_point(evaluate, *args, **kwargs):
+        def plain(classes, points):
+            distance, _, face = query(points.reshape(-1, 3))
+            return (distance.reshape(points.shape[:-1]),
+                    exact.face_normal(face).reshape(points.shape))
+        return refine(plain, *args, **kwargs)
+
+    refine = mesh_fit.refine_poses
+    monkeypatch.setattr(mesh_fit, "refine_poses", every_point)
+    plain = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
+                                 outside, None)
+    assert spared == plain
+    assert max(asked) < len(pf.contact_positions) + len(outside)
