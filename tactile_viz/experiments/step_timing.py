@@ -4,7 +4,9 @@
 
 Contacts are sampled on the object at a random pose and fed to the particle filter; then
 each part of one more step (filter update, GPIS fit, surface extraction with variance,
-target choice, simulator probe) is timed ``--repeats`` times and the median printed. The
+target choice, simulator probe, the decision beyond the paper) is timed ``--repeats`` times
+and the median printed, beside a reference of the machine's speed: the Cholesky factor of
+an 800 x 800 matrix ``a a^T + 800 I``. The
 GPIS factorisation is also timed both ways: a full Cholesky of ``a K0 + s I`` against
 appending the new contact's 4 rows to the previous factor (block update, O(n^2)); and the
 ``recommended`` preset's incremental fit and surface (docs/gpis.md) when that contact joins.
@@ -18,6 +20,7 @@ import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
 from ..cli import ArgumentParser, ExtendList, bundled_object, count_int, seed_int
+from ..engine.belief.decision import decide
 from ..engine.belief.particle_filter import ParticleFilter
 from ..engine.explore.exploration import enforce_contact
 from ..engine.explore.simulator import ContactSimulator, random_touch
@@ -91,6 +94,7 @@ def measure(object_name, sizes, repeats, seed=0):
             lambda: (zero_level_surface(fit, (low, high), 32), fit.variance(subset)), repeats)
         timing["target"] = _median_time(
             lambda: (np.argmax(fit.variance(subset[:1])), fit.mean(subset[:1])), repeats)
+        timing["decision"] = _median_time(lambda: _decision(particle_filter), repeats)
         timing["simulator"] = _median_time(
             lambda: enforce_contact(simulator, path[0] * 0.5 + path[1] * 0.5,
                                     np.array([0.0, 0.0, 1.0]), contacts, normals), repeats)
@@ -102,8 +106,25 @@ def measure(object_name, sizes, repeats, seed=0):
             lambda: append_factor(previous, gram[:-4, -4:], gram[-4:, -4:]), repeats)
         timing.update(_incremental(contacts, normals, prior, radius, fit.scale, (low, high),
                                    repeats))
+        square = np.random.default_rng(seed).standard_normal((800, 800))
+        timing["reference"] = _median_time(lambda: reference_cholesky(square), repeats)
         rows.append((size, timing))
     return rows
+
+
+def reference_cholesky(a):
+    """The machine's speed: the Cholesky factor of ``a a^T + n I`` for a square ``a (n, n)``
+    (standard normal, n = 800: the reference the decision's cost is compared with)."""
+    return cholesky(a @ a.T + len(a) * np.eye(len(a)), lower=True, check_finite=False)
+
+
+def _decision(particle_filter):
+    """The decision of the filter's belief with the default preset's parameters (the
+    bundled objects' size unit is one scene unit)."""
+    p = session_preset("recommended")
+    return decide(particle_filter, particle_filter.state, p.decision_confidence,
+                  floor=p.decision_floor, same_mode=p.decision_same_mode,
+                  pose_tolerance=p.decision_pose_error)
 
 
 def _incremental(contacts, normals, prior, kernel, scale, box, repeats):
