@@ -42,15 +42,15 @@ SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-no
 class Estimation:
     """MAP shape, GPIS fit and surface of a session (see the module).
 
-    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``rng``, ``sensor_noise``
-    and ``_use_lengths``; writes ``state.gpis_scale`` (the kernel scale the fit found)."""
+    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``rng`` and
+    ``sensor_noise``; writes ``state.gpis_scale`` (the kernel scale the fit found)."""
 
     def _map_shape(self, belief):
         """The MAP particle's prior, pose ``(rotation, translation)`` and surface vertices
-        (world frame); the session's lengths follow its size (:meth:`_use_lengths`)."""
+        (world frame). Changes nothing: the step makes the session's lengths follow the
+        prior's size (:meth:`_use_lengths`)."""
         model = self.filter.models[self.filter.class_names.index(belief.map_class)]
         pose = belief.map_rotation, belief.map_translation
-        self._use_lengths(model)
         return model, pose, transform_points(model.mesh.vertices, *pose)
 
     def _aimed_pose(self, decision, model, pose, map_vertices):

@@ -502,6 +502,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         with _timed(timings, "filter"):
             belief = self.filter.update(observations)             # l.2: PF, eqs. 19-20
         model, pose, map_vertices = self._map_shape(belief)       # l.2: z*, eq. 14
+        self._use_lengths(model)                                  # lengths in its size
         contacts, recon = self.filter.contact_positions, None
         if belief.novel:                                          # l.3: below eq. 24
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
