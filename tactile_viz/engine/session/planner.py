@@ -371,18 +371,10 @@ class Planner:
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
-        distance = self._refuted_tree(refuted).query(vertices, distance_upper_bound=radius)[0]
+        distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
+            vertices, distance_upper_bound=radius)[0]
         far = distance >= radius
         return far if far.any() else np.ones(len(vertices), bool)
-
-    def _refuted_tree(self, refuted):
-        """A KD-tree of ``refuted`` points, kept while they stay the same (a step asks
-        twice, and a step without a miss adds none)."""
-        kept = self.__dict__.get("_refuted_kdtree")
-        key = refuted.tobytes()
-        if kept is None or kept[0] != key:
-            kept = self._refuted_kdtree = key, cKDTree(refuted)
-        return kept[1]
 
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
@@ -511,3 +503,10 @@ def segment_points(segments, spacing):
     starts = np.repeat(segments[:, 0], counts, axis=0)
     ends = np.repeat(segments[:, 1], counts, axis=0)
     return starts + fractions[:, None] * (ends - starts)
+
+
+@functools.lru_cache(maxsize=4)
+def refuted_tree(points):
+    """A KD-tree of refuted points given as the bytes of a ``(k, 3)`` float array, kept
+    while they stay the same (a step asks twice, and a step without a miss adds none)."""
+    return cKDTree(np.frombuffer(points, dtype=float).reshape(-1, 3))
