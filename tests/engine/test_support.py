@@ -137,3 +137,40 @@ def test_a_far_pose_mode_that_fits_too_holds_the_decision_and_is_aimed_at(box):
     assert _open_modes(pf.bank, (lead, far), lead, 10.0, np.inf) == ()
     decision = Decision(False, 0.999, (lead, far, near), True, None, 0.1, modes)
     assert far in decision.rivals and near not in decision.rivals
+
+
+def _points_one_by_one(support, classes, rotations):
+    """Support.points as it was written first: one hypothesis at a time."""
+    cos_limit = np.cos(np.radians(20.0))
+    rows = []
+    for c, rotation in zip(classes, rotations):
+        hull, downs, faces = resting_faces(support.models[int(c)])
+        down = -(rotation.T @ support.up)
+        dots = downs @ down
+        best = int(np.argmax(dots))
+        rows.append(hull[faces[best]] if dots[best] >= cos_limit
+                    else hull[[int(np.argmax(hull @ down))]])
+    width = max(max(len(face) for face in resting_faces(support.models[int(c)])[2])
+                for c in np.unique(classes))
+    points = np.stack([np.vstack([row, np.repeat(row[:1], width - len(row), 0)])
+                       for row in rows])
+    mask = np.arange(width)[None] < np.array([len(row) for row in rows])[:, None]
+    return points, mask
+
+
+def test_the_resting_vertices_of_many_hypotheses_are_each_ones_own(box, tmp_path):
+    """Hypotheses of several classes at once, near and far from their stable poses, get
+    the vertices each would get alone, padded alike."""
+    wedge = trimesh.creation.cone(radius=2.0, height=3.0, sections=5)
+    cone = ObjectModel.from_arrays(wedge.vertices, wedge.faces, "cone",
+                                   cache=ArrayCache(tmp_path), longest_side=4.0)
+    support = Support(UP, np.zeros(3), (box, cone))
+    rng = np.random.default_rng(8)
+    near = Rotation.from_rotvec(rng.normal(scale=0.1, size=(20, 3))).as_matrix()
+    rotations = np.concatenate([Rotation.random(40, random_state=9).as_matrix(), near])
+    classes = rng.integers(0, 2, len(rotations))
+    points, mask = support.points(classes, rotations)
+    expected, expected_mask = _points_one_by_one(support, classes, rotations)
+    np.testing.assert_array_equal(points, expected)
+    np.testing.assert_array_equal(mask, expected_mask)
+    assert mask.sum(axis=1).max() > 1 and mask.sum(axis=1).min() == 1

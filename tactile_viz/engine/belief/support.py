@@ -35,6 +35,17 @@ def resting_faces(model):
     return hull, downs, faces
 
 
+@functools.lru_cache(maxsize=64)
+def _padded_faces(model):
+    """Each stable face's hull vertices, padded with its first to the largest face's
+    count: ``(s, w, 3)``, and the counts ``(s,)``."""
+    hull, _, faces = resting_faces(model)
+    width = max(len(face) for face in faces)
+    padded = np.stack([hull[np.r_[face, np.repeat(face[:1], width - len(face))]]
+                       for face in faces])
+    return padded, np.array([len(face) for face in faces])
+
+
 @dataclass(frozen=True, eq=False)
 class Support:
     """A table under the hypotheses: its upward unit normal ``up`` and a point of it
@@ -61,20 +72,27 @@ class Support:
         mask : (k, p) bool
             The real ones.
         """
+        classes = np.asarray(classes).astype(np.int64)
         cos_limit = np.cos(np.radians(STABLE_ANGLE_DEG))
-        rows = []
-        for c, rotation in zip(np.asarray(classes), rotations):
-            hull, downs, faces = resting_faces(self.models[int(c)])
-            down = -(rotation.T @ self.up)  # the table's down in the object frame
-            dots = downs @ down
-            best = int(np.argmax(dots))
-            rows.append(hull[faces[best]] if dots[best] >= cos_limit
-                        else hull[[int(np.argmax(hull @ down))]])
-        width = max(max(len(face) for face in resting_faces(self.models[int(c)])[2])
-                    for c in np.unique(classes))
-        points = np.stack([np.vstack([row, np.repeat(row[:1], width - len(row), 0)])
-                           for row in rows])
-        mask = np.arange(width)[None] < np.array([len(row) for row in rows])[:, None]
+        down = -np.einsum("kji,j->ki", rotations, self.up)  # the table's down, object frame
+        unique = np.unique(classes)
+        width = max(_padded_faces(self.models[int(c)])[0].shape[1] for c in unique)
+        points = np.empty((len(classes), width, 3))
+        counts = np.empty(len(classes), np.int64)
+        for c in unique:  # one look-up a class, not a hypothesis
+            rows = np.flatnonzero(classes == c)
+            hull, downs, _ = resting_faces(self.models[int(c)])
+            padded, sizes = _padded_faces(self.models[int(c)])
+            dots = down[rows] @ downs.T  # (n, s)
+            best = np.argmax(dots, axis=1)
+            on_face = dots[np.arange(len(rows)), best] >= cos_limit
+            lowest = hull[np.argmax(down[rows] @ hull.T, axis=1)]  # (n, 3)
+            chosen = np.where(on_face[:, None, None], padded[best],
+                              lowest[:, None, :])  # (n, w_c, 3)
+            points[rows, :chosen.shape[1]] = chosen
+            points[rows, chosen.shape[1]:] = chosen[:, :1]
+            counts[rows] = np.where(on_face, sizes[best], 1)
+        mask = np.arange(width)[None] < counts[:, None]
         return points, mask
 
 
