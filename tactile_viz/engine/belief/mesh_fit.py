@@ -22,7 +22,7 @@ def mesh_misfit(pf, class_index, rotation, translation, outside, oriented):
     and ``outside (q, 3)`` that lie inside."""
     exact = pf.exact_distance(class_index)
     m, clearance = len(pf.contact_positions), pf.scene.tip_radius
-    low, high = exact.vertices.min(axis=0), exact.vertices.max(axis=0)
+    low, high = exact.bounds
 
     def evaluate(classes, points):
         # A free-space point farther than the tip's radius from the mesh's box lies

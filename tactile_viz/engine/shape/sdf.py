@@ -113,7 +113,7 @@ class ExactDistance:
         surface within less than a half space, a solid angle under 2 pi, so its winding
         number is below 1/2 (most of a decision's free-space points lie there)."""
         points = np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
-        low, high = self._box
+        low, high = self.bounds
         within = np.all((points >= low) & (points <= high), axis=1)
         result = np.zeros(len(points), dtype=bool)
         if within.any():
@@ -122,7 +122,8 @@ class ExactDistance:
         return result
 
     @cached_property
-    def _box(self):
+    def bounds(self):
+        """The mesh's axis-aligned bounding box: ``(low (3,), high (3,))``, object frame."""
         return self.vertices.min(axis=0), self.vertices.max(axis=0)
 
     @cached_property
