@@ -67,6 +67,8 @@ def measure(object_name, sizes, repeats, seed=0):
     rng = np.random.default_rng(seed)
     rows = []
     particle_filter = ParticleFilter(library, rng=seed)
+    square = np.random.default_rng(seed).standard_normal((800, 800))  # the reference's
+    p = session_preset("recommended")
     for size in sizes:
         while len(particle_filter.contact_positions) < size:
             particle_filter.update(simulator.probe(random_touch(truth, rng)))
@@ -94,7 +96,7 @@ def measure(object_name, sizes, repeats, seed=0):
             lambda: (zero_level_surface(fit, (low, high), 32), fit.variance(subset)), repeats)
         timing["target"] = _median_time(
             lambda: (np.argmax(fit.variance(subset[:1])), fit.mean(subset[:1])), repeats)
-        timing["decision"] = _median_time(lambda: _decision(particle_filter), repeats)
+        timing["decision"] = _median_time(lambda: _decision(particle_filter, p), repeats)
         timing["simulator"] = _median_time(
             lambda: enforce_contact(simulator, path[0] * 0.5 + path[1] * 0.5,
                                     np.array([0.0, 0.0, 1.0]), contacts, normals), repeats)
@@ -106,7 +108,6 @@ def measure(object_name, sizes, repeats, seed=0):
             lambda: append_factor(previous, gram[:-4, -4:], gram[-4:, -4:]), repeats)
         timing.update(_incremental(contacts, normals, prior, radius, fit.scale, (low, high),
                                    repeats))
-        square = np.random.default_rng(seed).standard_normal((800, 800))
         timing["reference"] = _median_time(lambda: reference_cholesky(square), repeats)
         rows.append((size, timing))
     return rows
@@ -118,10 +119,9 @@ def reference_cholesky(a):
     return cholesky(a @ a.T + len(a) * np.eye(len(a)), lower=True, check_finite=False)
 
 
-def _decision(particle_filter):
-    """The decision of the filter's belief with the default preset's parameters (the
-    bundled objects' size unit is one scene unit)."""
-    p = session_preset("recommended")
+def _decision(particle_filter, p):
+    """The decision of the filter's belief with the session parameters ``p`` (the bundled
+    objects' size unit is one scene unit)."""
     return decide(particle_filter, particle_filter.state, p.decision_confidence,
                   floor=p.decision_floor, same_mode=p.decision_same_mode,
                   pose_tolerance=p.decision_pose_error)
