@@ -231,3 +231,60 @@ def test_the_inside_test_is_the_winding_numbers_and_skips_points_beyond_the_box(
         beyond = np.any(np.abs(points) > np.array([1.0, 0.5, 0.25]) * scale, axis=1)
         assert beyond.any() and not exact.inside(points[beyond]).any()
         assert exact.inside(np.zeros((1, 3)))[0]  # the lid's gap leaves the middle in
+
+
+def _every_node(exact, origin, spacing, counts):
+    axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return exact.query(nodes)[0].reshape(tuple(counts))
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+@pytest.mark.parametrize("band", [2.0, 4.0])
+def test_a_banded_grid_is_exact_near_the_surface_and_close_beyond(scale, band):
+    """A banded grid holds the exact distance at every node within ``band`` voxels of the
+    surface, exact signs everywhere, and beyond the band a value within some share of the
+    distance, the less the wider the band (a cup: a cavity and concave seams, where
+    interpolation cuts corners; tiny and huge)."""
+    from tactile_viz.engine.shape.sdf import ExactDistance, build_sdf_grid, grid_layout
+
+    mesh = _cup(wall=0.3)
+    exact = ExactDistance(mesh.vertices * scale, mesh.faces)
+    bounds = mesh.bounds * scale
+    origin, spacing, counts = grid_layout(bounds, 70, 1.0 * scale)
+    truth = _every_node(exact, origin, spacing, counts)
+    grid = build_sdf_grid(exact, bounds, resolution=70, padding=1.0 * scale, band=band)
+    plain = build_sdf_grid(exact, bounds, resolution=70, padding=1.0 * scale)
+    near = np.abs(truth) < band * spacing
+    # Within the band the values are the exact grid's (to its 16-bit steps, which differ
+    # by the largest value) and every sign is the exact one.
+    step = max(grid.value_step, plain.value_step)
+    np.testing.assert_allclose(grid.values[near], plain.values[near], rtol=0, atol=step)
+    np.testing.assert_array_equal(np.sign(grid.values), np.sign(plain.values))
+    assert (~near).mean() > 0.5  # most nodes are interpolated
+    error = np.abs(grid.values - truth)
+    assert np.all(error[~near] <= (0.1 + 0.4 / band) * np.abs(truth[~near]) + step)
+
+
+def test_a_banded_distance_is_the_exact_one_on_a_small_grid():
+    """At or below the coarsest size nothing is interpolated."""
+    from tactile_viz.engine.shape.sdf import ExactDistance, banded_distance, grid_layout
+
+    mesh = _cup()
+    exact = ExactDistance(mesh.vertices, mesh.faces)
+    origin, spacing, counts = grid_layout(mesh.bounds, 12, 0.5)
+    np.testing.assert_array_equal(banded_distance(exact, origin, spacing, counts, 1.0),
+                                  np.abs(_every_node(exact, origin, spacing, counts)))
+
+
+def test_a_banded_prior_keeps_its_own_cache_entries(tmp_path):
+    """Exact and banded grids of one mesh are separate cache entries; the exact one keeps
+    the key it had before bands."""
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    model = _fork(ArrayCache(tmp_path))
+    banded = model.with_params(sdf_exact_band=3.0)
+    assert model._sdf_params() == {"resolution": 24, "padding": model._padding}
+    assert banded._sdf_params() == {**model._sdf_params(), "band": 3.0}
+    assert not np.array_equal(model.sdf.codes, banded.sdf.codes)
+    assert model.sdf.shape == banded.sdf.shape

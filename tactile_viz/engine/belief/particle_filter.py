@@ -71,6 +71,7 @@ class ParticleFilter:
             raise ParameterError("the prior library is empty")
         wanted = {"sdf_resolution": self.params.sdf_resolution,
                   "sdf_max_resolution": self.params.sdf_max_resolution,
+                  "sdf_exact_band": self.params.sdf_exact_band,
                   "n_features": self.params.n_features}
         self.models = [model.with_params(**wanted)
                        if any(getattr(model.params, key) != value for key, value in wanted.items())

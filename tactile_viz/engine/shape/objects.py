@@ -53,6 +53,10 @@ class ModelParams:
     sdf_padding : float, size units
         Margin of the SDF grid around the bounding box (a size unit is a sixth of the
         object's longest side).
+    sdf_exact_band : float, voxels
+        0: the grid holds the exact distance at every node. Otherwise only nodes within
+        this many voxels of the surface are exact and the others are interpolated from
+        coarser grids (:func:`~tactile_viz.engine.shape.sdf.banded_distance`).
     n_features : int
         Number of Poisson-disk feature points.
     feature_seed : int
@@ -62,6 +66,7 @@ class ModelParams:
     sdf_resolution: int = 64
     sdf_max_resolution: int = 256
     sdf_padding: float = 1.0
+    sdf_exact_band: float = 0.0
     n_features: int = 200
     feature_seed: int = 0
 
@@ -225,7 +230,7 @@ class ObjectModel:
         return self._grid_at(self.grid_resolution)
 
     def _grid_at(self, resolution):
-        params = {"resolution": int(resolution), "padding": self._padding}
+        params = self._grid_params(resolution)
         arrays = self.cache.get_or_build(
             "sdf5", self.content_hash, params,
             lambda: build_sdf_grid(self.exact, self.mesh.bounds, **params).to_arrays())
@@ -292,11 +297,17 @@ class ObjectModel:
     def _padding(self):
         return self.params.sdf_padding * self.size_unit
 
+    def _grid_params(self, resolution):
+        # An exact grid's key has no band: the entries built before bands stay valid.
+        band = self.params.sdf_exact_band
+        return {"resolution": int(resolution), "padding": self._padding,
+                **({"band": float(band)} if band > 0 else {})}
+
     def _sdf_params(self):
-        return {"resolution": self.grid_resolution, "padding": self._padding}
+        return self._grid_params(self.grid_resolution)
 
     def _resolution_params(self):
-        return {"resolution": self.params.sdf_resolution, "padding": self._padding,
+        return {**self._grid_params(self.params.sdf_resolution),
                 "max_resolution": self.params.sdf_max_resolution,
                 "misses": THIN_MISSES, "cosine": MISS_COSINE, "nodes": MAX_REFINED_NODES,
                 "checks": SURFACE_CHECKS}

@@ -34,6 +34,8 @@ GRADIENT_MAX = 127  # the 8-bit code of a gradient component of 1
 # Grid nodes per distance query of a grid build: the query's closest points (24 bytes a
 # node) are not kept, so a 2-million-node grid needs some 10 MB for them, not 50.
 _GRID_BATCH = 1 << 18
+# A banded grid's coarsest level is exact everywhere (16 voxels a side: 5,000 nodes or so).
+_COARSEST = 17
 _FAR_VOXELS = 1.001  # nodes farther than this from the surface share their region's sign
 # A grid is fine enough when at most this share of surface points sees its gradient more
 # than 60 degrees off the surface normal (the bundled objects: at most 0.5% at 64 voxels;
@@ -387,8 +389,8 @@ def _interpolate(codes, gradient_codes, offset, shape, origin, spacing, value_st
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = 0.0, 0.0, 1.0
 
 
-def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
-    """Sample an exact signed distance on a regular grid over a padded box.
+def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
+    """Sample a signed distance on a regular grid over a padded box.
 
     Parameters
     ----------
@@ -399,28 +401,114 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0):
         Number of voxels along the longest side of the padded box.
     padding : float
         Margin added on every side of the box.
+    band : float, voxels
+        0: the exact distance at every node. Otherwise exact only at the nodes that may
+        lie within ``band`` voxels of the surface, the rest interpolated
+        (:func:`banded_distance`); the signs are exact either way.
 
     Returns
     -------
     SDFGrid
     """
     origin, spacing, counts = grid_layout(bounds, resolution, padding)
-    axes = [origin[i] + spacing * np.arange(counts[i]) for i in range(3)]
     shape = tuple(int(n) for n in counts)
-
-    def nodes(index):  # (k, 3) positions of flat node indices (C order)
-        index = np.unravel_index(index, shape)
-        return np.column_stack([axis[i] for axis, i in zip(axes, index)])
-
-    distance = np.empty(int(np.prod(shape)))
-    for start in range(0, len(distance), _GRID_BATCH):  # a batch at a time
-        batch = np.arange(start, min(start + _GRID_BATCH, len(distance)))
-        points = nodes(batch)
-        squared = exact._closest(points)[0]  # the closest points are not kept
-        distance[batch] = np.sqrt(np.maximum(squared, 0.0))
+    nodes = _node_positions(origin, spacing, shape)
+    if band > 0:
+        distance = banded_distance(exact, origin, spacing, shape, band).reshape(-1)
+    else:
+        distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
     inside = _grid_inside(exact, nodes, distance, shape, spacing)
     values = np.where(inside, -distance, distance).reshape(shape)
     return SDFGrid.from_values(origin, spacing, values)
+
+
+def _node_positions(origin, spacing, shape):
+    """``nodes(index)``: the (k, 3) positions of flat node indices (C order)."""
+    axes = [origin[i] + spacing * np.arange(shape[i]) for i in range(3)]
+
+    def nodes(index):
+        index = np.unravel_index(index, shape)
+        return np.column_stack([axis[i] for axis, i in zip(axes, index)])
+
+    return nodes
+
+
+def _exact_distance(exact, nodes, index):
+    """Unsigned exact distances at the flat node indices ``index``, a batch at a time."""
+    distance = np.empty(len(index))
+    for start in range(0, len(index), _GRID_BATCH):
+        batch = slice(start, start + _GRID_BATCH)
+        squared = exact._closest(nodes(index[batch]))[0]  # the closest points not kept
+        distance[batch] = np.sqrt(np.maximum(squared, 0.0))
+    return distance
+
+
+def banded_distance(exact, origin, spacing, shape, band, coarsest=_COARSEST):
+    """Unsigned distance on a grid, exact within ``band`` voxels of the surface.
+
+    A grid of twice the spacing is built first (the same way, down to ``coarsest`` voxels
+    a side, which is exact everywhere) and interpolated trilinearly at this grid's nodes.
+    A distance changes by at most the distance moved, so a node whose coarse neighbour's
+    lower bound less the way to it is still ``band`` voxels or more is far from the surface
+    and keeps the interpolated value; every other node is asked exactly. Far nodes cost
+    the exact query the most (a 16,000-face cup refined to 128 voxels: 5.5 s of closest
+    points against 1.7 s with a band of 4); their values are off by at most some 17% of
+    the distance (the seams of a concave field), none within the band.
+
+    Parameters
+    ----------
+    exact : ExactDistance
+    origin : (3,) float
+    spacing : float
+    shape : (3,) int
+    band : float, voxels
+    coarsest : int
+        Nodes along the longest side at or below which the grid is exact everywhere.
+
+    Returns
+    -------
+    (nx, ny, nz) float
+    """
+    return _banded(exact, np.asarray(origin, float), float(spacing), tuple(shape), band,
+                   coarsest)[0]
+
+
+def _banded(exact, origin, spacing, shape, band, coarsest):
+    """:func:`banded_distance` and a lower bound of the distance at each node."""
+    nodes = _node_positions(origin, spacing, shape)
+    if max(shape) <= coarsest:
+        distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
+        distance = distance.reshape(shape)
+        return distance, distance
+    coarse_shape = tuple(n // 2 + 1 for n in shape)  # coarse node i is this grid's 2i
+    coarse, coarse_low = _banded(exact, origin, 2 * spacing, coarse_shape, band, coarsest)
+    value = _upsampled(coarse, shape)
+    # The coarse node at (i // 2, j // 2, k // 2) lies one spacing away along each odd
+    # index: the distance here is at least its lower bound less that way.
+    odd = sum(np.arange(n).reshape([-1 if axis == a else 1 for a in range(3)]) % 2
+              for axis, n in enumerate(shape))
+    low = coarse_low[_halves(shape)] - spacing * np.sqrt(odd)
+    near = np.flatnonzero(low < band * spacing)
+    exact_values = _exact_distance(exact, nodes, near)
+    value.reshape(-1)[near] = exact_values
+    low.reshape(-1)[near] = exact_values
+    return value, low
+
+
+def _halves(shape):
+    """Index arrays that pick coarse node (i // 2, j // 2, k // 2) for each node."""
+    return np.ix_(*(np.arange(n) // 2 for n in shape))
+
+
+def _upsampled(coarse, shape):
+    """Trilinear values at the nodes of a grid of half the spacing, ``shape`` nodes: axis by
+    axis, even nodes the coarse ones, odd nodes the mean of their two neighbours."""
+    values = coarse
+    for axis, n in enumerate(shape):
+        lower = np.take(values, np.arange(n) // 2, axis=axis)
+        upper = np.take(values, (np.arange(n) + 1) // 2, axis=axis)
+        values = 0.5 * (lower + upper)
+    return np.ascontiguousarray(values)
 
 
 def _grid_inside(exact, nodes, distance, shape, spacing):
