@@ -485,9 +485,10 @@ def _banded(exact, origin, spacing, shape, band, coarsest):
     value = _upsampled(coarse, shape)
     # The coarse node at (i // 2, j // 2, k // 2) lies one spacing away along each odd
     # index: the distance here is at least its lower bound less that way.
-    odd = sum(np.arange(n).reshape([-1 if axis == a else 1 for a in range(3)]) % 2
+    odd = sum((np.arange(n, dtype=np.uint8) % 2).reshape([-1 if axis == a else 1
+                                                          for a in range(3)])
               for axis, n in enumerate(shape))
-    low = coarse_low[_halves(shape)] - spacing * np.sqrt(odd)
+    low = coarse_low[_halves(shape)] - spacing * np.sqrt(np.arange(4.0))[odd]
     near = np.flatnonzero(low < band * spacing)
     exact_values = _exact_distance(exact, nodes, near)
     value.reshape(-1)[near] = exact_values
