@@ -18,6 +18,8 @@ class PosedSDF:
     another process); this one holds the model, not its grid, so that a pickle can name
     the model instead of copying the grid."""
 
+    exact = False  # as a field pickled before it had the choice
+
     def __init__(self, model, rotation, translation, exact=False):
         self.model, self.rotation, self.translation = model, rotation, translation
         self.exact = exact
