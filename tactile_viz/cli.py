@@ -272,16 +272,17 @@ def preset_name(text):
     return text
 
 
-def add_preset_argument(parser, default=None):
+def add_preset_argument(parser, default=None, purpose=""):
     """``--preset NAME``, one of the engine's session presets (default ``recommended``; an old
-    name is taken with a note on stderr), declared here once for every command."""
+    name is taken with a note on stderr), declared here once for every command; ``purpose``
+    ends its help."""
     from .engine.presets import DEFAULT_PRESET, SESSION_PRESETS
 
     default = default or DEFAULT_PRESET
     parser.add_argument("--preset", type=preset_name, default=default, metavar="NAME",
                         help=f"speed/accuracy preset: {', '.join(SESSION_PRESETS)} (default "
                              f"{default}; paper: the paper exactly; recommended: the "
-                             "project's configuration)")
+                             f"project's configuration){purpose}")
 
 
 # Options that set a declared parameter besides --set: option -> the parameter's name.

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import ArgumentParser, ExtendList, output_dir
+from ..cli import ArgumentParser, ExtendList, add_preset_argument, output_dir
 from ..engine.errors import LibraryError
 from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
 from ..engine.shape.meshes import UNITS, split_units, unit_factor
@@ -40,6 +40,8 @@ def add_library_arguments(parser):
         sub.add_argument("--name-from", choices=list(NAME_FROM), default="file",
                          help="a prior's default name: the file's (default), its folder's or "
                               "its folder's folder's (<object>/google_16k/textured.obj)")
+        add_preset_argument(sub, purpose="; the grids and tables are built for this "
+                            "preset's trials (recognise: exact only near the surface, faster)")
         sub.add_argument("--no-progress", action="store_true", help="no progress bars")
         if action == "add":
             sub.add_argument("--from-library", metavar="DIR",
@@ -125,14 +127,16 @@ def prior_bar(items):
     return _bar(items, "priors' grids and tables", True, unit="prior")
 
 
-def prepare(library, progress=False):
-    """Build the grids and tables a session over ``library`` needs with the default preset
-    into the disk cache (in child processes, one a core, when there are several): the first
-    trial then starts at once. Nothing is loaded here."""
+def prepare(library, progress=False, preset=None):
+    """Build the grids and tables a session over ``library`` needs with ``preset`` (default
+    the default preset) into the disk cache (in child processes, one a core, when there are
+    several): the first trial with that preset then starts at once. Nothing is loaded
+    here."""
     from ..engine.belief.prior_build import build_missing
+    from ..engine.presets import DEFAULT_PRESET, session_preset
     from ..engine.session import Session
 
-    pf = Session(None, library).filter
+    pf = Session(None, library, params=session_preset(preset or DEFAULT_PRESET)).filter
     build_missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg,
                   progress=prior_bar if progress else None)
 
@@ -166,7 +170,7 @@ def _add(args):
 
 def _save(library, folder, args, done):
     library.save(folder)
-    prepare(library, not args.no_progress)
+    prepare(library, not args.no_progress, args.preset)
     unit = library.units or "scene units"
     print(f"{done}; {folder} holds {len(library)} ({_sizes(library)} {unit} long)")
     return 0

@@ -202,12 +202,14 @@ class FilterParams:
               "normal more than 60 degrees off (parts thinner than about two voxels: a "
               "fork's tines), up to about 10 MB a grid.")
     sdf_exact_band: float = _filter(
-        4.0, "Voxels from the surface within which a prior's SDF grid is exact; farther "
+        0.0, "Voxels from the surface within which a prior's SDF grid is exact; farther "
         "nodes are interpolated from coarser grids (0: exact at every node).",
         valid="[0, inf)",
-        notes="Far nodes cost the exact distance the most: a 16,000-face prior's grid "
-              "builds 2-5x faster; beyond the band a value is off by up to some 17% of "
-              "the distance, never in sign.")
+        notes="4 in the recognise preset. Far nodes cost the exact distance the most: a "
+              "16,000-face prior's grid builds 2-5x faster; beyond the band a value is "
+              "off by up to some 15-25% of the distance, never in sign. A known object's "
+              "contacts lie near its surface; a novel object's lie far from every prior's, "
+              "and its reconstruction is worse with a band.")
 
     def __post_init__(self):
         check_fields(self)

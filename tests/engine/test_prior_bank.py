@@ -148,24 +148,3 @@ def test_building_a_bank_does_not_keep_the_exact_distances(tmp_path):
     model.exact  # noqa: B018 (a model that had them keeps them)
     PriorBank([model], 0.2, 12.0)
     assert "exact" in model.__dict__
-
-
-def test_a_gpis_prior_reads_the_exact_grid_of_a_banded_class(sphere_model, rng):
-    """A bank of banded grids serves the filter; a GPIS prior mean reads the class's grid
-    without a band, the same arrays as a model built exact (and the bank's own grid when
-    the class has no band)."""
-    from tactile_viz.engine.belief.prior_bank import exact_grid_of, grid_of
-    from tactile_viz.engine.session.fields import PosedSDF
-
-    banded = sphere_model.with_params(sdf_exact_band=2.0)
-    bank_for([banded], 0.5, 12.0)
-    exact = exact_grid_of(banded)
-    plain = sphere_model.sdf
-    for name, array in exact.to_arrays().items():
-        np.testing.assert_array_equal(array, plain.to_arrays()[name], err_msg=name)
-    assert not np.array_equal(grid_of(banded).codes, plain.codes)
-    assert exact_grid_of(sphere_model) is grid_of(sphere_model)
-    points = rng.uniform(-8.0, 8.0, (200, 3))
-    rotation, translation = np.eye(3), np.zeros(3)
-    np.testing.assert_array_equal(PosedSDF(banded, rotation, translation, exact=True)(points)[0],
-                                  plain.evaluate(points)[0])

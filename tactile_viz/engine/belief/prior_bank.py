@@ -14,7 +14,7 @@ small as one read from the cache.
 from __future__ import annotations
 
 import ctypes
-from functools import cached_property, lru_cache
+from functools import cached_property
 
 import numpy as np
 
@@ -190,22 +190,6 @@ def grid_of(model):
         if c is not None:
             return bank.grid(c)
     return model.sdf
-
-
-def exact_grid_of(model):
-    """``model``'s SDF grid exact at every node: :func:`grid_of` when it is (an
-    ``sdf_exact_band`` of 0), else the model's grid without a band, built or read from the
-    disk cache the first time it is asked for and kept for the last few models."""
-    if model.params.sdf_exact_band <= 0:
-        return grid_of(model)
-    return _exact_grid(model)
-
-
-@lru_cache(maxsize=8)
-def _exact_grid(model):
-    exact = model.with_params(sdf_exact_band=0.0)
-    with exact.transient_exact():
-        return exact.load_sdf()
 
 
 def bank_for(models, distance_step, angle_step_deg, progress=None) -> PriorBank:

@@ -349,13 +349,10 @@ class Estimation:
                     normals, shape=None):
         """The GPIS prior mean: the MAP shape with the solid behind the contacts it puts in
         its empty space added (``gpis_fill_radius``), or the object-agnostic ``shape``
-        (a :class:`Superquadric`), with the refuted space cut out. The MAP shape's field is
-        read from its exact grid: a novel object's surface lies where the prior's does
-        not, beyond the band in which the bank's grid is exact."""
+        (a :class:`Superquadric`), with the refuted space cut out."""
         p = self._p
         free = np.vstack([noncontacts, free_space])
-        prior = (PosedSDF(model, rotation, translation, exact=True) if shape is None
-                 else shape)
+        prior = self._prior(model, rotation, translation) if shape is None else shape
         if p.gpis_fill_radius > 0 and len(contacts) and shape is None:
             slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit
             # Only a contact the prior puts in its empty space is evidence against it.

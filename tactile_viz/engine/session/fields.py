@@ -6,27 +6,21 @@ another process)."""
 
 import numpy as np
 
-from ..belief.prior_bank import exact_grid_of, grid_of
+from ..belief.prior_bank import grid_of
 from ..explore.exploration import free_approach  # noqa: F401 (re-exported: the session's)
 
 
 class PosedSDF:
     """A model's SDF placed at a pose: ``field(points) -> (values (k,), gradients (k, 3))``
-    for (k, 3) world points; from the grid exact at every node with ``exact``, else from
-    the prior bank's (exact only near the surface with an ``sdf_exact_band``). Callables
-    of a session are classes, not closures, so that a session pickles (the app steps it in
-    another process); this one holds the model, not its grid, so that a pickle can name
-    the model instead of copying the grid."""
+    for (k, 3) world points. Callables of a session are classes, not closures, so that a
+    session pickles (the app steps it in another process); this one holds the model, not
+    its grid, so that a pickle can name the model instead of copying the grid."""
 
-    exact = False  # as a field pickled before it had the choice
-
-    def __init__(self, model, rotation, translation, exact=False):
+    def __init__(self, model, rotation, translation):
         self.model, self.rotation, self.translation = model, rotation, translation
-        self.exact = exact
 
     def __call__(self, points):
-        grid = exact_grid_of(self.model) if self.exact else grid_of(self.model)
-        values, gradients = grid.evaluate(
+        values, gradients = grid_of(self.model).evaluate(
             (np.atleast_2d(points) - self.translation) @ self.rotation)
         return values, gradients @ self.rotation.T
 
