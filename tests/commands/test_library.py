@@ -70,3 +70,23 @@ def test_another_library_is_added_whole(scans, capsys):
                  "--no-progress"]) == 0
     assert main(["library", "add", "one", "--from-library", "two", "--no-progress"]) == 0
     assert PriorLibrary.load("one").names == ["can", "ball", "box"]
+
+
+def test_a_library_is_built_for_the_presets_trials(scans, capsys, tmp_path, monkeypatch):
+    """``--preset recognise`` builds the banded grids its trials read, the default the
+    exact ones: each trial then finds its priors built."""
+    from tactile_viz.engine.belief.prior_build import missing
+
+    monkeypatch.setenv("TACTILE_VIZ_CACHE", str(tmp_path / "own_cache"))
+    from tactile_viz.engine.presets import session_preset
+    from tactile_viz.engine.session import Session
+
+    assert main(["library", "build", "lib", *scans, "--mesh-units", "mm", "--name-from",
+                 "grandparent", "--preset", "recognise", "--no-progress"]) == 0
+    library = PriorLibrary.load("lib")
+
+    def unbuilt(preset):
+        pf = Session(None, library, params=session_preset(preset)).filter
+        return missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg)
+
+    assert unbuilt("recognise") == [] and len(unbuilt("recommended")) == 3
