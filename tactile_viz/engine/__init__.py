@@ -44,7 +44,8 @@ from .session.loop import Sensor
 from .shape.library import PriorLibrary
 from .shape.meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .shape.objects import ModelParams, ObjectModel, bundled_names, load_bundled
-from .shape.sdf import ExactDistance, SDFGrid, build_sdf_grid
+from .shape.sdf import ExactDistance, SDFGrid
+from .shape.sdf_build import build_sdf_grid
 from .transforms import random_pose
 
 __all__ = [

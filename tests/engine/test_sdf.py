@@ -99,7 +99,7 @@ def test_a_grid_is_refined_until_it_resolves_thin_parts(tmp_path):
 
     from tactile_viz.engine.io.cache import ArrayCache
     from tactile_viz.engine.shape.objects import SURFACE_CHECKS
-    from tactile_viz.engine.shape.sdf import MAX_REFINED_NODES, THIN_MISSES, missed_share
+    from tactile_viz.engine.shape.sdf_build import MAX_REFINED_NODES, THIN_MISSES, missed_share
 
     coarse = _fork(ArrayCache(tmp_path))
     assert coarse.grid_resolution == 24
@@ -192,7 +192,8 @@ def _cup(wall=0.5, sections=48):
 
 @pytest.mark.parametrize("open_surface", [False, True])
 def test_a_grid_asks_the_winding_number_where_it_must_and_gets_every_nodes_sign(open_surface):
-    from tactile_viz.engine.shape.sdf import ExactDistance, build_sdf_grid, grid_layout
+    from tactile_viz.engine.shape.sdf import ExactDistance
+    from tactile_viz.engine.shape.sdf_build import build_sdf_grid, grid_layout
 
     mesh = _cup()
     faces = mesh.faces[5:] if open_surface else mesh.faces  # a hole: nothing is skipped
@@ -245,7 +246,8 @@ def test_a_banded_grid_is_exact_near_the_surface_and_close_beyond(band, scale):
     surface, exact signs everywhere, and beyond the band a value within some share of the
     distance, the less the wider the band (a cup: a cavity and concave seams, where
     interpolation cuts corners; tiny and huge)."""
-    from tactile_viz.engine.shape.sdf import ExactDistance, build_sdf_grid, grid_layout
+    from tactile_viz.engine.shape.sdf import ExactDistance
+    from tactile_viz.engine.shape.sdf_build import build_sdf_grid, grid_layout
 
     mesh = _cup(wall=0.3)
     exact = ExactDistance(mesh.vertices * scale, mesh.faces)
@@ -267,7 +269,8 @@ def test_a_banded_grid_is_exact_near_the_surface_and_close_beyond(band, scale):
 
 def test_a_banded_distance_is_the_exact_one_on_a_small_grid():
     """At or below the coarsest size nothing is interpolated."""
-    from tactile_viz.engine.shape.sdf import ExactDistance, banded_distance, grid_layout
+    from tactile_viz.engine.shape.sdf import ExactDistance
+    from tactile_viz.engine.shape.sdf_build import banded_distance, grid_layout
 
     mesh = _cup()
     exact = ExactDistance(mesh.vertices, mesh.faces)

@@ -80,7 +80,7 @@ def test_the_forks_grid_resolves_its_tines(tmp_path):
     they do not (the held-out scans failed on forks, knives and spatulas)."""
     from tactile_viz.engine import ObjectModel
     from tactile_viz.engine.io.cache import ArrayCache
-    from tactile_viz.engine.shape.sdf import THIN_MISSES, missed_share
+    from tactile_viz.engine.shape.sdf_build import THIN_MISSES, missed_share
 
     spec = next(s for s in hard_objects.HARD_SPECS if s.name == "fork")
     mesh = hard_objects.build_mesh(spec)

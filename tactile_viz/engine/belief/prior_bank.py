@@ -18,7 +18,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ..shape.sdf import SDFGrid, grid_layout, interpolate
+from ..shape.sdf import SDFGrid, interpolate
+from ..shape.sdf_build import grid_layout
 from .ppf import PairTable, rotation_to_x
 
 

@@ -38,7 +38,7 @@ from ..io.cache import ArrayCache
 
 CHILD_MIN = 4  # priors to build below which the build stays in this process
 # A child's peak: 230 MB of interpreter and libraries, 90 MB more for a refined 2-million-
-# node grid (the largest, sdf.MAX_REFINED_NODES); no more children than memory holds.
+# node grid (the largest, sdf_build.MAX_REFINED_NODES); no more children than memory holds.
 CHILD_BYTES = 400e6
 # libigl splits each query over this many threads (default: every core). With one child a
 # core each gets two: more would crowd the cores, one would leave a core idle while the

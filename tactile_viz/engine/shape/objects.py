@@ -24,12 +24,11 @@ from ..errors import MeshError
 from ..io.cache import ArrayCache
 from ..params import PAPER_SIZE
 from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
-from .sdf import (
+from .sdf import ExactDistance, SDFGrid
+from .sdf_build import (
     MAX_REFINED_NODES,
     MISS_COSINE,
     THIN_MISSES,
-    ExactDistance,
-    SDFGrid,
     build_sdf_grid,
     fitted_resolution,
 )
@@ -48,7 +47,7 @@ class ModelParams:
         Voxels along the longest side of the padded SDF grid.
     sdf_max_resolution : int
         Up to how many voxels the grid is refined (doubling) while it misses thin parts
-        (:func:`~tactile_viz.engine.shape.sdf.fitted_resolution`); at most
+        (:func:`~tactile_viz.engine.shape.sdf_build.fitted_resolution`); at most
         ``sdf_resolution``: never.
     sdf_padding : float, size units
         Margin of the SDF grid around the bounding box (a size unit is a sixth of the
@@ -56,7 +55,7 @@ class ModelParams:
     sdf_exact_band : float, voxels
         0: the grid holds the exact distance at every node. Otherwise only nodes within
         this many voxels of the surface are exact and the others are interpolated from
-        coarser grids (:func:`~tactile_viz.engine.shape.sdf.banded_distance`).
+        coarser grids (:func:`~tactile_viz.engine.shape.sdf_build.banded_distance`).
     n_features : int
         Number of Poisson-disk feature points.
     feature_seed : int

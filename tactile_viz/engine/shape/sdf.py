@@ -11,12 +11,7 @@ Two kinds, both with negative values inside:
   the value at the clamped point, which is always positive. :func:`interpolate` does the
   same for many grids stored one after another (the prior bank).
 
-Building a grid asks the winding number only where the sign can change: on a closed
-surface (every edge in both directions) the winding number is the same all over a region
-of nodes farther than a voxel from the surface and joined through such nodes, so one node
-(two, as a check) of each region answers for all of it. A cup's grid took half its time
-in winding numbers, in its cavity; the signs are those of asking every node (every
-bundled object's grid and the tests' are the same bytes).
+The grid is built in :mod:`.sdf_build`.
 """
 
 from dataclasses import dataclass
@@ -25,25 +20,11 @@ from functools import cached_property
 import igl
 import numpy as np
 from numba import njit
-from scipy import ndimage
 
 # Below this length a gradient is taken to vanish (the medial axis or a flat grid region).
 _TINY = 1e-12
 CODE_MAX = 32767  # the largest 16-bit code of a node value
 GRADIENT_MAX = 127  # the 8-bit code of a gradient component of 1
-# Grid nodes per distance query of a grid build: the query's closest points (24 bytes a
-# node) are not kept, so a 2-million-node grid needs some 10 MB for them, not 50.
-_GRID_BATCH = 1 << 18
-# A banded grid's coarsest level is exact everywhere (16 voxels a side: 5,000 nodes or so).
-_COARSEST = 17
-_FAR_VOXELS = 1.001  # nodes farther than this from the surface share their region's sign
-# A grid is fine enough when at most this share of surface points sees its gradient more
-# than 60 degrees off the surface normal (the bundled objects: at most 0.5% at 64 voxels;
-# a fork's 2 mm tines on a 20 cm fork: 11%, and 0 at 128).
-THIN_MISSES = 0.01
-MISS_COSINE = 0.5
-# The finest grid a thin part may ask for: about 10 MB (a compact object at 128 voxels).
-MAX_REFINED_NODES = 2_100_000
 
 
 def normalise_rows(vectors, fallback=(0.0, 0.0, 1.0)):
@@ -387,219 +368,6 @@ def _interpolate(codes, gradient_codes, offset, shape, origin, spacing, value_st
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = gx / norm, gy / norm, gz / norm
         else:
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = 0.0, 0.0, 1.0
-
-
-def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
-    """Sample a signed distance on a regular grid over a padded box.
-
-    Parameters
-    ----------
-    exact : ExactDistance
-    bounds : (2, 3) float
-        The object's axis-aligned bounding box.
-    resolution : int
-        Number of voxels along the longest side of the padded box.
-    padding : float
-        Margin added on every side of the box.
-    band : float, voxels
-        0: the exact distance at every node. Otherwise exact only at the nodes that may
-        lie within ``band`` voxels of the surface, the rest interpolated
-        (:func:`banded_distance`); the signs are exact either way.
-
-    Returns
-    -------
-    SDFGrid
-    """
-    origin, spacing, counts = grid_layout(bounds, resolution, padding)
-    shape = tuple(int(n) for n in counts)
-    nodes = _node_positions(origin, spacing, shape)
-    if band > 0:
-        distance = banded_distance(exact, origin, spacing, shape, band).reshape(-1)
-    else:
-        distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
-    inside = _grid_inside(exact, nodes, distance, shape, spacing)
-    values = np.where(inside, -distance, distance).reshape(shape)
-    return SDFGrid.from_values(origin, spacing, values)
-
-
-def _node_positions(origin, spacing, shape):
-    """``nodes(index)``: the (k, 3) positions of flat node indices (C order)."""
-    axes = [origin[i] + spacing * np.arange(shape[i]) for i in range(3)]
-
-    def nodes(index):
-        index = np.unravel_index(index, shape)
-        return np.column_stack([axis[i] for axis, i in zip(axes, index)])
-
-    return nodes
-
-
-def _exact_distance(exact, nodes, index):
-    """Unsigned exact distances at the flat node indices ``index``, a batch at a time."""
-    distance = np.empty(len(index))
-    for start in range(0, len(index), _GRID_BATCH):
-        batch = slice(start, start + _GRID_BATCH)
-        squared = exact._closest(nodes(index[batch]))[0]  # the closest points not kept
-        distance[batch] = np.sqrt(np.maximum(squared, 0.0))
-    return distance
-
-
-def banded_distance(exact, origin, spacing, shape, band, coarsest=_COARSEST):
-    """Unsigned distance on a grid, exact within ``band`` voxels of the surface.
-
-    A grid of twice the spacing is built first (the same way, down to ``coarsest`` voxels
-    a side, which is exact everywhere) and interpolated trilinearly at this grid's nodes.
-    A distance changes by at most the distance moved, so a node whose coarse neighbour's
-    lower bound less the way to it is still ``band`` voxels or more is far from the surface
-    and keeps the interpolated value; every other node is asked exactly. Far nodes cost
-    the exact query the most (a 16,000-face cup refined to 128 voxels: 5.5 s of closest
-    points against 1.7 s with a band of 4); their values are off by at most some 17% of
-    the distance (the seams of a concave field), none within the band.
-
-    Parameters
-    ----------
-    exact : ExactDistance
-    origin : (3,) float
-    spacing : float
-    shape : (3,) int
-    band : float, voxels
-    coarsest : int
-        Nodes along the longest side at or below which the grid is exact everywhere.
-
-    Returns
-    -------
-    (nx, ny, nz) float
-    """
-    return _banded(exact, np.asarray(origin, float), float(spacing), tuple(shape), band,
-                   coarsest)[0]
-
-
-def _banded(exact, origin, spacing, shape, band, coarsest):
-    """:func:`banded_distance` and a lower bound of the distance at each node."""
-    nodes = _node_positions(origin, spacing, shape)
-    if max(shape) <= coarsest:
-        distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
-        distance = distance.reshape(shape)
-        return distance, distance
-    coarse_shape = tuple(n // 2 + 1 for n in shape)  # coarse node i is this grid's 2i
-    coarse, coarse_low = _banded(exact, origin, 2 * spacing, coarse_shape, band, coarsest)
-    value = _upsampled(coarse, shape)
-    # The coarse node at (i // 2, j // 2, k // 2) lies one spacing away along each odd
-    # index: the distance here is at least its lower bound less that way.
-    odd = sum((np.arange(n, dtype=np.uint8) % 2).reshape([-1 if axis == a else 1
-                                                          for a in range(3)])
-              for axis, n in enumerate(shape))
-    low = coarse_low[_halves(shape)] - spacing * np.sqrt(np.arange(4.0))[odd]
-    near = np.flatnonzero(low < band * spacing)
-    exact_values = _exact_distance(exact, nodes, near)
-    value.reshape(-1)[near] = exact_values
-    low.reshape(-1)[near] = exact_values
-    return value, low
-
-
-def _halves(shape):
-    """Index arrays that pick coarse node (i // 2, j // 2, k // 2) for each node."""
-    return np.ix_(*(np.arange(n) // 2 for n in shape))
-
-
-def _upsampled(coarse, shape):
-    """Trilinear values at the nodes of a grid of half the spacing, ``shape`` nodes: axis by
-    axis, even nodes the coarse ones, odd nodes the mean of their two neighbours."""
-    values = coarse
-    for axis, n in enumerate(shape):
-        lower = np.take(values, np.arange(n) // 2, axis=axis)
-        upper = np.take(values, (np.arange(n) + 1) // 2, axis=axis)
-        values = 0.5 * (lower + upper)
-    return np.ascontiguousarray(values)
-
-
-def _grid_inside(exact, nodes, distance, shape, spacing):
-    """Whether each grid node is inside (:meth:`ExactDistance.inside`), from winding
-    numbers at the nodes within a voxel of a closed surface and at two nodes of each region
-    of the others (see the module's docstring); a region whose two disagree is asked
-    node by node, as is every node of a surface that is not closed."""
-    inside = np.empty(len(distance), bool)
-
-    def ask(index):
-        for start in range(0, len(index), _GRID_BATCH):
-            batch = index[start:start + _GRID_BATCH]
-            inside[batch] = exact.inside(nodes(batch))
-
-    if not exact.closed:
-        ask(np.arange(len(distance)))
-        return inside
-    # Two neighbours (a voxel apart) of which one is farther than a voxel from the
-    # surface have no surface between them: their winding numbers are the same.
-    labels, count = ndimage.label((distance > _FAR_VOXELS * spacing).reshape(shape))
-    labels = labels.reshape(-1)
-    ask(np.flatnonzero(labels == 0))
-    if count:
-        first = np.unique(labels, return_index=True)[1][1:]
-        last = len(labels) - 1 - np.unique(labels[::-1], return_index=True)[1][1:]
-        region = np.concatenate([[False], exact.inside(nodes(first))])
-        far = np.flatnonzero(labels)
-        inside[far] = region[labels[far]]
-        unsure = np.flatnonzero(region[1:] != exact.inside(nodes(last))) + 1
-        if len(unsure):
-            ask(np.flatnonzero(np.isin(labels, unsure)))
-    return inside
-
-
-def missed_share(grid, points, normals):
-    """Share of surface points at which a grid's gradient is more than 60 degrees off the
-    surface normal: parts thinner than about two voxels, whose field the grid folds.
-
-    Parameters
-    ----------
-    grid : SDFGrid
-    points, normals : (n, 3) float, object frame
-        Points on the surface and their outward unit normals.
-
-    Returns
-    -------
-    float
-    """
-    _, gradients = grid.evaluate(points)
-    return float(np.mean(np.einsum("ij,ij->i", gradients, normals) < MISS_COSINE))
-
-
-def fitted_resolution(grid_at, bounds, padding, points, normals, resolution, max_resolution):
-    """The coarsest grid resolution, doubling from ``resolution``, that resolves a shape's
-    thin parts (:func:`missed_share` at most :data:`THIN_MISSES`), at most ``max_resolution``
-    voxels and :data:`MAX_REFINED_NODES` nodes; the finest allowed if none does.
-
-    Parameters
-    ----------
-    grid_at : callable
-        ``grid_at(resolution) -> SDFGrid`` (built or read from a cache).
-    bounds : (2, 3) float
-    padding : float
-    points, normals : (n, 3) float
-        Surface samples and their outward unit normals, object frame.
-    resolution, max_resolution : int
-
-    Returns
-    -------
-    int
-    """
-    while missed_share(grid_at(resolution), points, normals) > THIN_MISSES:
-        finer = 2 * resolution
-        nodes = np.prod(grid_layout(bounds, finer, padding)[2])
-        if finer > max_resolution or nodes > MAX_REFINED_NODES:
-            break
-        resolution = finer
-    return resolution
-
-
-def grid_layout(bounds, resolution=64, padding=1.0):
-    """Where :func:`build_sdf_grid` puts its nodes: ``origin`` (3,), ``spacing`` and
-    ``counts`` (3,) int."""
-    low = np.asarray(bounds[0], dtype=float) - padding
-    high = np.asarray(bounds[1], dtype=float) + padding
-    spacing = float((high - low).max()) / int(resolution)
-    counts = np.ceil((high - low) / spacing - 1e-9).astype(int) + 1
-    # Centre the nodes on the box so the object sits symmetrically in the grid.
-    origin = (low + high) / 2 - spacing * (counts - 1) / 2
-    return origin, spacing, counts
 
 
 def _area_weighted_vertex_normals(vertices, faces, face_normals_unscaled):
