@@ -80,6 +80,10 @@ def add_trial_arguments(parser):
     what.add_argument("--object-file", metavar="MESH[:UNIT]", type=mesh_file,
                       help="any mesh file trimesh reads; a suffix :mm, :m, ... or :FACTOR "
                            "gives its unit")
+    parser.add_argument("--object-name", metavar="NAME",
+                        help="the --object-file object's name in the summary and the JSON "
+                             "(default: the file's; a scan set's textured.obj is better named "
+                             "by its folder)")
     add_prior_arguments(parser)
     parser.add_argument("--strategy", choices=STRATEGIES, default="gpis-dhd")
     parser.add_argument("--seed", type=seed_int, default=0,
@@ -229,8 +233,11 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
 def run_trial_command(args):
     library = load_priors(args)
     units = scene_units(args, library)
+    if args.object and args.object_name:
+        raise ParameterError("--object-name names an --object-file object; a bundled "
+                             "object keeps its name")
     truth_model = (load_bundled(args.object) if args.object
-                   else load_mesh(args, args.object_file, units))
+                   else load_mesh(args, args.object_file, units, name=args.object_name))
     for message in size_warnings(args, library, truth_model):
         say(args, "warning", message)
     learn_to = check_learning(args, library)

@@ -90,3 +90,19 @@ def test_a_library_is_built_for_the_presets_trials(scans, capsys, tmp_path, monk
         return missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg)
 
     assert unbuilt("recognise") == [] and len(unbuilt("recommended")) == 3
+
+
+def test_a_scan_sets_object_is_named_on_the_command_line(scans, capsys):
+    """``--object-name`` names an ``--object-file`` object (a scan set's files are all
+    ``textured.obj``); a bundled object keeps its own name."""
+    assert main(["library", "build", "lib", *scans, "--mesh-units", "mm", "--name-from",
+                 "grandparent", "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["trial", "--object-file", f"{scans[2]}:mm", "--object-name", "can",
+                 "--library-dir", "lib", "--max-steps", "2", "--no-progress",
+                 "--json", "t.json"]) == 0
+    assert json.load(open("t.json"))["object"] == "can"
+    assert capsys.readouterr().err.startswith("can: ")
+    assert main(["trial", "--object", "mug_1", "--object-name", "cup", "--max-steps",
+                 "1", "--no-progress"]) == 2
+    assert "--object-name names an --object-file object" in capsys.readouterr().err
