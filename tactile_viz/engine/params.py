@@ -206,7 +206,7 @@ class FilterParams:
         "nodes are interpolated from coarser grids (0: exact at every node).",
         valid="[0, inf)",
         notes="4 in the recognise preset. Far nodes cost the exact distance the most: a "
-              "16,000-face prior's grid builds 2-5x faster; beyond the band a value is "
+              "library of 16,000-face priors builds 2-3x faster; beyond the band a value is "
               "off by up to some 15-25% of the distance, never in sign. A known object's "
               "contacts lie near its surface; a novel object's lie far from every prior's, "
               "and its reconstruction is worse with a band.")
