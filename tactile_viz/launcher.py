@@ -6,6 +6,7 @@ clone runs the same), a thin launcher of :mod:`tactile_viz.gui`.
     tactile-viz app --object mug_1 --steps 40 --screenshot out.png   # headless picture
     tactile-viz app --object-file cup.stl --library known --prior-file cup.stl   # own meshes
     tactile-viz app --object-file can.stl:mm --prior-file cup.stl:mm bowl.stl:m  # with units
+    tactile-viz app --object-file scans/mug/textured.obj:m --object-name mug --library-dir lib
     tactile-viz app --observations touches.csv --library-dir my_library  # recorded touches
     tactile-viz app --table --reach-angle 60 --tip-radius 0.2   # on a table, a robot's reach
 
@@ -56,6 +57,9 @@ def parse_args(argv=None, prog=PROG):
     what.add_argument("--object-file", metavar="MESH[:UNIT]",
                       help="a mesh file as the ground truth; a suffix :mm, :m, ... or "
                            ":FACTOR gives its unit")
+    parser.add_argument("--object-name", metavar="NAME",
+                        help="the --object-file object's name in the window (default: the "
+                             "file's; a scan set's textured.obj is better named by its folder)")
     what.add_argument("--observations", metavar="FILE",
                       help="step through recorded touches (CSV: kind,x,y,z,nx,ny,nz, or a "
                            "ROS 2 bag: .mcap, .db3 or a bag folder) instead of touching an "
@@ -131,6 +135,8 @@ def argument_problem(args):
         return f"--seed must be 0 or more, not {args.seed}"
     if args.steps < 0:
         return f"--steps must be 0 or more, not {args.steps}"
+    if args.object_name and not args.object_file:
+        return "--object-name names an --object-file object, not a bundled one or a recording"
     if args.observations and args.learn_first:
         return "--learn-first needs an object to explore, not --observations"
     from tactile_viz.commands.inputs import mesh_units, options_problem
@@ -194,7 +200,8 @@ def build_scene(args):
 
     library = load_priors(args)
     units = scene_units(args, library)
-    truth = load_mesh(args, args.object_file, units) if args.object_file else None
+    truth = (load_mesh(args, args.object_file, units, name=args.object_name)
+             if args.object_file else None)
     for message in size_warnings(args, library, truth):
         log.warning("%s", message)
     scene = Scene(truth_name=args.object or "mug_1", truth_model=truth, seed=args.seed,

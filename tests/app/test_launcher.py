@@ -104,6 +104,7 @@ def _refused(launcher, capsys, argv):
     (["--seed", "x"], "invalid int value"),
     (["--library", "known", "--library-dir", "{tmp}"], "not allowed with"),
     (["--object", "mug_1", "--observations", "{tmp}/t.csv"], "not allowed with"),
+    (["--object", "mug_1", "--object-name", "cup"], "--object-name names an --object-file"),
 ])
 def test_bad_options_exit_2_with_one_line(launcher, capsys, tmp_path, argv, said):
     argv = [arg.replace("{tmp}", str(tmp_path)) for arg in argv]
@@ -152,6 +153,9 @@ def test_scene_from_a_mesh_file_and_from_recorded_touches(launcher, box_file, to
     scene = launcher.build_scene(args)
     assert scene.truth_model.name == "crate" and scene.seed == 4
     assert scene.library.names == ["crate"]
+    args = launcher.parse_args(["--log-file", "", "--object-file", str(box_file),
+                                "--object-name", "mug", "--prior-file", str(box_file)])
+    assert launcher.build_scene(args).truth_model.name == "mug"  # a scan set's textured.obj
     args = launcher.parse_args(["--log-file", "", "--observations", str(touches_file),
                                 "--library", "novel"])
     scene = launcher.build_scene(args)
