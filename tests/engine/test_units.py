@@ -15,6 +15,7 @@ from tactile_viz.engine.io.export import estimate_record, export_session
 from tactile_viz.engine.io.observation_file import format_observations, read_observations
 from tactile_viz.engine.params import FilterParams, SessionParams, length_fields, scaled_lengths
 from tactile_viz.engine.session import RecordedSession, Session, make_truth, session_preset
+from tactile_viz.engine.session.lengths import OWN_CONTACTS, own_unit, session_lengths
 from tactile_viz.engine.shape.metrics import error_threshold
 from tactile_viz.engine.shape.objects import is_learned_file, load_bundled
 
@@ -259,3 +260,61 @@ def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, 
                              read_observations(tmp_path / "named.csv", "m"), library, "m") is None
     assert recording_warning(tmp_path / "m.csv", read_observations(tmp_path / "m.csv", "m"),
                              library, "m") is None
+
+
+def test_own_unit_is_the_contacts_span_when_much_smaller_than_the_prior():
+    """A sixth of the contacts' longest side along their principal axes, at any scale and
+    turned any way; None at or above the share of the prior's unit, with too few contacts
+    or without a span."""
+    rng = np.random.default_rng(0)
+    cube = trimesh.sample.sample_surface(trimesh.creation.box([1.0, 1.0, 1.0]), 400, seed=1)[0]
+    long_box = trimesh.sample.sample_surface(trimesh.creation.box([3.0, 1.0, 0.5]), 400,
+                                             seed=1)[0]
+    turn = trimesh.transformations.random_rotation_matrix(rand=rng.random(3))[:3, :3]
+    for scale in (1e-3, 1.0, 1e3):
+        points = long_box @ turn.T * scale + 5 * scale
+        assert own_unit(points, 10 * scale, 0.5) == pytest.approx(3 * scale / 6, rel=0.02)
+        assert own_unit(points, 0.9 * scale, 0.5) is None  # not under half the prior's
+        assert own_unit(points, 10 * scale, 0.0) is None  # own_size_share 0: never
+    assert 1 / 6 <= own_unit(cube, 10.0, 0.5) <= np.sqrt(3) / 6
+    assert own_unit(long_box[:OWN_CONTACTS - 1], 10.0, 0.5) is None  # too few to tell
+    assert own_unit(np.zeros((OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
+
+
+def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(metric_mugs):
+    """A 2 cm die against 10-25 cm priors: once judged novel, eps and the probes' lengths
+    follow its contacts' span, and the GPIS's and the decision's stay the prior's; with
+    ``own_size_share`` 0 (the paper preset) every length is the prior's."""
+    die = trimesh.creation.box([0.02, 0.02, 0.02])
+    die = ObjectModel.from_arrays(die.vertices, die.faces, "die")
+    for share in (0.5, 0.0):
+        session = Session(make_truth(die, rng=[2, 0]), metric_mugs, seed=2,
+                          params=SessionParams(own_size_share=share))
+        for _ in range(30):
+            snapshot = session.step()
+            if snapshot.novel and len(snapshot.contacts) >= OWN_CONTACTS:
+                break
+        assert snapshot.novel and len(snapshot.contacts) >= OWN_CONTACTS
+        unit = metric_mugs[snapshot.map_class].size_unit
+        p = session._p
+        assert p.gpis_margin == pytest.approx(SessionParams().gpis_margin * unit)
+        assert p.decision_cover == pytest.approx(SessionParams().decision_cover * unit)
+        if share:
+            own = own_unit(snapshot.contacts, unit, share)
+            assert own is not None  # a 2 cm span beside a 10-25 cm prior
+            assert p.eps == pytest.approx(0.6 * own)
+            assert p.contact_spacing == pytest.approx(0.3 * own)
+        else:
+            assert p.eps == pytest.approx(0.6 * unit)
+            assert p.contact_spacing == pytest.approx(0.3 * unit)
+
+
+def test_an_own_eps_under_noise_is_at_least_the_noise_and_at_most_the_priors():
+    params, unit = SessionParams(), 0.1 / 6
+    assert session_lengths(params, unit, 0.02 / 6, noise=0.002).eps == pytest.approx(
+        np.hypot(0.002, 2 * 0.002))
+    assert session_lengths(params, unit, 0.095 / 6, noise=0.002).eps == pytest.approx(0.01)
+    assert session_lengths(params, unit, noise=0.002).eps == pytest.approx(0.01)
+    assert session_lengths(params, unit, 0.02 / 6).eps == pytest.approx(0.002)  # noiseless
+    tipped = session_lengths(params, unit, 0.02 / 6, tip_radius=0.005)
+    assert tipped.gpis_carve_radius == pytest.approx(params.gpis_carve_radius * unit + 0.005)

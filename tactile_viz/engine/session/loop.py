@@ -48,6 +48,7 @@ from .bookkeeping import Bookkeeping
 from .estimate import Estimation
 from .fields import deepest_inside, free_approach
 from .learning import Learning
+from .lengths import own_unit, session_lengths
 from .planner import SWEEP_RADIUS, Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
 from .state import Checkpoint, ExplorationState
@@ -168,6 +169,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                                      scene=self.scene)
         self.snapshots = []
         self._p, self._unit = self._scene_lengths(self._filter_unit), self._filter_unit
+        self._lengths = self._filter_unit, None  # (size unit, own size unit): _use_lengths
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
         self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
 
@@ -470,27 +472,32 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         del self.snapshots[saved.steps:]
         self._use_lengths()
 
-    def _use_lengths(self, model=None):
+    def _use_lengths(self, model=None, novel=None):
         """Set ``self._p``, the parameters with their lengths in scene units, and
         ``self._unit``, the scene units of a size unit: a sixth of the longest side of
         ``model``, default the latest MAP object (the library's reference size before the
-        first step), or ``params.length_unit``. Derived from the snapshots, so rollbacks and
-        copies of a session need not keep it."""
+        first step), or ``params.length_unit``; a ``novel`` object (default: as the latest
+        step judged it) much smaller than ``model`` is explored at its own size
+        (:func:`own_unit`). Derived from the snapshots and the filter's contacts, so
+        rollbacks and copies of a session need not keep it."""
         if model is None and self.snapshots:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
+        if novel is None:
+            novel = bool(self.snapshots) and self.latest.novel
         unit = self.params.length_unit or (model.size_unit if model is not None
                                            else self._filter_unit)
-        if unit != self._unit:
-            self._p, self._unit = self._scene_lengths(unit), unit
+        own = None
+        if novel and not self.params.length_unit:
+            own = own_unit(self.filter.contact_positions, unit, self.params.own_size_share)
+        if (unit, own) != self._lengths:
+            self._p, self._unit = self._scene_lengths(unit, own), unit
+            self._lengths = unit, own
         return self._p
 
-    def _scene_lengths(self, unit):
-        """The parameters in scene units; a tip of radius r widens the carve of the
-        space its centre passed through by r (the object was at least r away)."""
-        p = scaled_lengths(self.params, unit)
-        if self.scene.tip_radius:
-            p = replace(p, gpis_carve_radius=p.gpis_carve_radius + self.scene.tip_radius)
-        return p
+    def _scene_lengths(self, unit, own=None):
+        """The parameters in scene units (:func:`~.lengths.session_lengths`)."""
+        return session_lengths(self.params, unit, own, self.sensor_noise[0],
+                               self.scene.tip_radius)
 
     def _generators(self):
         return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
@@ -502,7 +509,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         with _timed(timings, "filter"):
             belief = self.filter.update(observations)             # l.2: PF, eqs. 19-20
         model, pose, map_vertices = self._map_shape(belief)       # l.2: z*, eq. 14
-        self._use_lengths(model)                                  # lengths in its size
+        self._use_lengths(model, belief.novel)                    # lengths in its size
         contacts, recon = self.filter.contact_positions, None
         if belief.novel:                                          # l.3: below eq. 24
             recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
@@ -510,6 +517,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             decision = self._decide(belief)
         if self._misfits(belief, decision):                       # beyond the paper
             belief, decision = replace(belief, novel=True), UNDECIDED
+            self._use_lengths(model, novel=True)
             recon = self._reconstruct(model, *pose, map_vertices, timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)

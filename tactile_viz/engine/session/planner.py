@@ -22,6 +22,8 @@ noisy target       under noise, the variance target and a check's   ``target_noi
                    surprise beyond the noise of every contact
 noisy cover        under noise, a known object is covered within    ``cover_noise_stds=0``
                    its noise as well as eps
+own size           a novel object much smaller than its MAP prior   ``own_size_share=0``
+                   is explored at its own size (eps, probes)
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)
@@ -75,6 +77,7 @@ EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)
               ("uncovered target", ("target_uncovered", False)),
               ("noisy target", ("target_noise_stds", 0.0)),
               ("noisy cover", ("cover_noise_stds", 0.0)),
+              ("own size", ("own_size_share", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
               ("decision stop", ("stop_at_decision", False)),
               ("telling apart", ("decision_targets", False)),

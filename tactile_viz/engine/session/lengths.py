@@ -1,0 +1,83 @@
+"""A session's lengths in scene units: the parameters' size units turned into the scene's.
+
+Each length parameter is in size units, a sixth of an object's longest side
+(:mod:`..params`). A session measures them in its MAP object's (docs/units.md), but a novel
+object much smaller than its MAP prior is explored at its own size: the prior's eps and
+contact spacing are then larger than the object (a 2 cm block beside a 25 cm knife was
+stopped by the knife's 25 mm eps, and every touch after the first few was given up within
+its 12.5 mm spacing). Plain functions, so that the rule is tested without a session.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..params import PAPER_SIZE, scaled_lengths
+
+# What a novel object much smaller than its MAP prior measures in its own size unit
+# (own_size_share): the stop's eps and the probes'. The GPIS's box, kernel and carve, and
+# the decision, keep the prior's.
+OWN_LENGTHS = ("eps", "probe_depth", "approach_clearance", "follow_step", "contact_spacing",
+               "max_follow", "rrt_step")
+# Fewer contacts span less than the object: a 10 cm mug judged novel at its third touch
+# beside a 20 cm prior spanned 4.5 cm.
+OWN_CONTACTS = 10
+
+
+def own_unit(contacts, unit, share):
+    """A novel object's own size unit: a sixth of the longest side of its contacts' box
+    along their principal axes, when that is under ``share`` of ``unit`` and there are at
+    least :data:`OWN_CONTACTS`; else None.
+
+    Parameters
+    ----------
+    contacts : (m, 3) float, scene units
+    unit : float, scene units
+        The MAP prior's size unit.
+    share : float
+        ``own_size_share`` (0: never).
+
+    Returns
+    -------
+    float or None, scene units
+    """
+    contacts = np.asarray(contacts, dtype=float)
+    if share <= 0 or len(contacts) < OWN_CONTACTS:
+        return None
+    centred = contacts - contacts.mean(axis=0)
+    axes = np.linalg.svd(centred, full_matrices=False)[2]
+    own = float(np.ptp(centred @ axes.T, axis=0).max()) / PAPER_SIZE
+    return own if 0.0 < own < share * unit else None
+
+
+def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):
+    """``params`` with their lengths in scene units.
+
+    Parameters
+    ----------
+    params : SessionParams
+        In size units.
+    unit : float, scene units
+        The size unit (the MAP object's).
+    own : float, optional, scene units
+        A novel object's own size unit (:func:`own_unit`): :data:`OWN_LENGTHS` are in it,
+        and ``eps`` is its own within the noise, ``hypot(eps, cover_noise_stds noise)``,
+        but at most ``unit``'s.
+    noise : float, scene units
+        The sensor's position noise (std).
+    tip_radius : float, scene units
+        A probe tip of radius r widens the carve of the space its centre passed through by
+        r (the object was at least r away).
+
+    Returns
+    -------
+    SessionParams
+    """
+    p = scaled_lengths(params, unit)
+    if own is not None:
+        mine = scaled_lengths(params, own)
+        eps = min(p.eps, float(np.hypot(mine.eps, p.cover_noise_stds * noise)))
+        p = replace(p, **{**{name: getattr(mine, name) for name in OWN_LENGTHS}, "eps": eps})
+    if tip_radius:
+        p = replace(p, gpis_carve_radius=p.gpis_carve_radius + tip_radius)
+    return p
