@@ -262,22 +262,20 @@ def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, 
                              library, "m") is None
 
 
-def test_own_unit_is_the_contacts_span_when_much_smaller_than_the_prior():
-    """A sixth of the contacts' longest side along their principal axes, at any scale and
-    turned any way; None at or above the share of the prior's unit, with too few contacts
-    or without a span."""
+def test_own_unit_is_the_contacts_diameter_when_much_smaller_than_the_prior():
+    """A sixth of the largest distance between two contacts, at any scale and turned any
+    way; None at or above the share of the prior's unit, with too few contacts or without
+    a span."""
     rng = np.random.default_rng(0)
-    cube = trimesh.sample.sample_surface(trimesh.creation.box([1.0, 1.0, 1.0]), 400, seed=1)[0]
-    long_box = trimesh.sample.sample_surface(trimesh.creation.box([3.0, 1.0, 0.5]), 400,
-                                             seed=1)[0]
+    ball = trimesh.sample.sample_surface(trimesh.creation.icosphere(4, radius=0.5), 400,
+                                         seed=1)[0]
     turn = trimesh.transformations.random_rotation_matrix(rand=rng.random(3))[:3, :3]
     for scale in (1e-3, 1.0, 1e3):
-        points = long_box @ turn.T * scale + 5 * scale
-        assert own_unit(points, 10 * scale, 0.5) == pytest.approx(3 * scale / 6, rel=0.02)
-        assert own_unit(points, 0.9 * scale, 0.5) is None  # not under half the prior's
+        points = ball @ turn.T * scale + 5 * scale
+        assert own_unit(points, 10 * scale, 0.5) == pytest.approx(scale / 6, rel=0.02)
+        assert own_unit(points, 0.3 * scale, 0.5) is None  # not under half the prior's
         assert own_unit(points, 10 * scale, 0.0) is None  # own_size_share 0: never
-    assert 1 / 6 <= own_unit(cube, 10.0, 0.5) <= np.sqrt(3) / 6
-    assert own_unit(long_box[:OWN_CONTACTS - 1], 10.0, 0.5) is None  # too few to tell
+    assert own_unit(ball[:OWN_CONTACTS - 1], 10.0, 0.5) is None  # too few to tell
     assert own_unit(np.zeros((OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
 
 

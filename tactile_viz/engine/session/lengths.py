@@ -8,9 +8,11 @@ stopped by the knife's 25 mm eps, and every touch after the first few was given 
 its 12.5 mm spacing). Plain functions, so that the rule is tested without a session.
 """
 
+import functools
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial.distance import pdist
 
 from ..params import PAPER_SIZE, scaled_lengths
 
@@ -25,9 +27,14 @@ OWN_CONTACTS = 10
 
 
 def own_unit(contacts, unit, share):
-    """A novel object's own size unit: a sixth of the longest side of its contacts' box
-    along their principal axes, when that is under ``share`` of ``unit`` and there are at
-    least :data:`OWN_CONTACTS`; else None.
+    """A novel object's own size unit: a sixth of its contacts' diameter (the largest
+    distance between two of them), when that is under ``share`` of ``unit`` and there are
+    at least :data:`OWN_CONTACTS` contacts; else None.
+
+    The diameter, not a box's longest side: it does not depend on axes (a cube's principal
+    axes are any three, and its box along them was 5-50% longer from one touch to the
+    next), it only grows as contacts come, and it is the size a touch can tell before the
+    object's corners are found.
 
     Parameters
     ----------
@@ -41,13 +48,17 @@ def own_unit(contacts, unit, share):
     -------
     float or None, scene units
     """
-    contacts = np.asarray(contacts, dtype=float)
+    contacts = np.ascontiguousarray(contacts, dtype=float)
     if share <= 0 or len(contacts) < OWN_CONTACTS:
         return None
-    centred = contacts - contacts.mean(axis=0)
-    axes = np.linalg.svd(centred, full_matrices=False)[2]
-    own = float(np.ptp(centred @ axes.T, axis=0).max()) / PAPER_SIZE
+    own = _diameter(contacts.tobytes()) / PAPER_SIZE
     return own if 0.0 < own < share * unit else None
+
+
+@functools.lru_cache(maxsize=8)
+def _diameter(data):
+    # A step asks it several times of the same contacts (6 ms at 400 of them).
+    return float(pdist(np.frombuffer(data, dtype=float).reshape(-1, 3)).max())
 
 
 def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):

@@ -478,7 +478,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         ``model``, default the latest MAP object (the library's reference size before the
         first step), or ``params.length_unit``; a ``novel`` object (default: as the latest
         step judged it) much smaller than ``model`` is explored at its own size
-        (:func:`own_unit`). Derived from the snapshots and the filter's contacts, so
+        (:func:`~.lengths.own_unit`). Derived from the snapshots and the filter's contacts, so
         rollbacks and copies of a session need not keep it."""
         if model is None and self.snapshots:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
