@@ -23,7 +23,7 @@ noisy target       under noise, the variance target and a check's   ``target_noi
 noisy cover        under noise, a known object is covered within    ``cover_noise_stds=0``
                    its noise as well as eps
 own size           a novel object much smaller than its MAP prior   ``own_size_share=0``
-                   is explored at its own size (eps, probes)
+                   is explored at its own size (eps, probes)        (the default)
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)
