@@ -3,6 +3,7 @@ import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact, random_pose
 from tactile_viz.engine.explore.simulator import sample_path
+from tactile_viz.engine.scene import Scene
 
 
 @pytest.fixture(params=["mug_1", "armadillo", "office_chair"])
@@ -69,6 +70,62 @@ def test_a_path_is_evaluated_in_batches_as_it_would_be_whole(truth, rng):
         expected = simulator._bisect(samples[hit - 1], samples[hit], distance[hit - 1])
         observation = simulator.probe([start, point - 0.2 * normal[0]])
         np.testing.assert_array_equal(observation.position, expected)
+
+
+def _every_sample(field, samples):
+    """The first sample inside and the distance before it, from every sample's distance."""
+    distance = field(samples)
+    if distance[0] < 0:
+        return 0, None
+    inside = np.flatnonzero(distance <= 0)
+    if not len(inside):
+        return None, None
+    return inside[0], (distance[inside[0] - 1] if inside[0] else None)
+
+
+@pytest.mark.parametrize("scene", [None, Scene.on_table(height=-2.5, tip_radius=0.3)])
+def test_skipped_samples_change_no_first_contact(truth, rng, scene):
+    """The samples skipped by their distance (1-Lipschitz) leave the first sample inside,
+    and the distance before it, as every sample's distance gives them: polylines passing
+    far, grazing and through the object, with and without a table and a tip."""
+    simulator = ContactSimulator(truth, scene=scene)
+    field = simulator._gap if scene is not None else truth.signed_distance
+    found = 0
+    for _ in range(40):
+        ends = truth.translation + rng.normal(scale=rng.choice([1.0, 4.0, 12.0]), size=(3, 3))
+        samples = sample_path(ends, simulator.step)
+        hit, before = simulator._first_inside(samples, field)
+        expected_hit, expected_before = _every_sample(field, samples)
+        assert hit == expected_hit
+        # A distance asked alone can differ from the batch's in its last bit.
+        assert (before is None) == (expected_before is None)
+        assert before is None or before == pytest.approx(expected_before, rel=1e-12)
+        found += hit is not None
+    assert 0 < found < 40  # both kinds of path were drawn
+
+
+def test_a_far_small_object_is_missed_without_asking_every_sample(bundled):
+    """A line 20 units long past a 0.1 unit sphere: a few hundred of its 60,000 samples
+    are asked."""
+    import trimesh
+
+    from tactile_viz.engine import ObjectModel
+
+    ball = trimesh.creation.icosphere(3, radius=0.05)
+    truth = GroundTruth(ObjectModel.from_arrays(ball.vertices, ball.faces, "ball"), np.eye(3),
+                        np.zeros(3))
+    simulator = ContactSimulator(truth)
+    asked = []
+    field = truth.signed_distance
+
+    def counted(points):
+        asked.append(len(points))
+        return field(points)
+
+    samples = sample_path([[-10.0, 0.5, 0.0], [10.0, 0.5, 0.0]], simulator.step)
+    assert len(samples) > 50_000
+    assert simulator._first_inside(samples, counted) == (None, None)
+    assert sum(asked) < 2_000
 
 
 def test_same_seed_same_noisy_observations(truth):
