@@ -7,6 +7,7 @@ import re
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.distance import pdist
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
 from tactile_viz.engine.explore.simulator import ContactSimulator, random_touch
@@ -273,6 +274,11 @@ def test_own_unit_is_the_contacts_diameter_when_much_smaller_than_the_prior():
     for scale in (1e-3, 1.0, 1e3):
         points = ball @ turn.T * scale + 5 * scale
         assert own_unit(points, 10 * scale, 0.5) == pytest.approx(scale / 6, rel=0.02)
+        assert own_unit(points, 10 * scale, 0.5) == pytest.approx(pdist(points).max() / 6,
+                                                                  rel=1e-12)
+        flat = points * [1.0, 1.0, 0.0]  # no hull: every pair
+        assert own_unit(flat, 10 * scale, 0.5) == pytest.approx(pdist(flat).max() / 6,
+                                                                rel=1e-12)
         assert own_unit(points, 0.3 * scale, 0.5) is None  # not under half the prior's
         assert own_unit(points, 10 * scale, 0.0) is None  # own_size_share 0: never
     assert own_unit(ball[:OWN_CONTACTS - 1], 10.0, 0.5) is None  # too few to tell

@@ -12,6 +12,7 @@ import functools
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 from scipy.spatial.distance import pdist
 
 from ..params import PAPER_SIZE, scaled_lengths
@@ -57,8 +58,14 @@ def own_unit(contacts, unit, share):
 
 @functools.lru_cache(maxsize=8)
 def _diameter(data):
-    # A step asks it several times of the same contacts (6 ms at 400 of them).
-    return float(pdist(np.frombuffer(data, dtype=float).reshape(-1, 3)).max())
+    # A step asks it several times of the same contacts. The farthest pair are corners of
+    # their hull: its few vertices, not the m^2 / 2 pairs of a long session.
+    points = np.frombuffer(data, dtype=float).reshape(-1, 3)
+    try:
+        points = points[ConvexHull(points).vertices]
+    except QhullError:  # flat or on a line: every pair
+        pass
+    return float(pdist(points).max())
 
 
 def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):
