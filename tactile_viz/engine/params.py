@@ -384,14 +384,9 @@ class SessionParams:
         "size explores at its own size: eps and the probes' lengths follow the contacts' "
         "diameter (beyond the paper; 0, the default: the MAP prior's size).",
         valid="[0, 1]", control=(0.0, 1.0),
-        notes="A 2 cm block judged novel beside a 25 cm knife is stopped by the knife's eps "
-              "(25 mm, more than the block), and every touch after the first few is given "
-              "up within the knife's contact spacing (12.5 mm). At 0.5 its reconstruction "
-              "went from 23% to 9% of its size (48% to 20% at 2 mm), but longer sessions "
-              "of thin objects stopped less often by themselves at 2 mm: off by default "
-              "(docs/novel.md). The GPIS's box, kernel and carve and the decision keep the "
-              "MAP prior's size; eps is at least hypot(its own eps, cover_noise_stds noise "
-              "stds) and never more than the MAP prior's.")
+        notes="At 0.5 a 2 cm block beside a 25 cm knife was reconstructed 9% of its size "
+              "off, not 23% (20%, not 48%, at 2 mm), but fewer noisy sessions stopped by "
+              "themselves: off by default (docs/novel.md, engine/session/lengths.py).")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
