@@ -104,6 +104,17 @@ def test_skipped_samples_change_no_first_contact(truth, rng, scene):
     assert 0 < found < 40  # both kinds of path were drawn
 
 
+def test_a_path_from_the_surface_touches_at_its_start(truth, rng):
+    simulator = ContactSimulator(truth)
+    point = truth.surface_points(1, rng)[0]
+    samples = sample_path([point, point + [5.0, 0.0, 0.0]], simulator.step)
+
+    def on_surface(points):  # exactly 0 at the path's start
+        return np.where(np.all(points == point, axis=1), 0.0, truth.signed_distance(points))
+
+    assert simulator._first_inside(samples, on_surface) == (0, None)
+
+
 def test_a_far_small_object_is_missed_without_asking_every_sample(bundled):
     """A line 20 units long past a 0.1 unit sphere: a few hundred of its 60,000 samples
     are asked."""

@@ -209,6 +209,8 @@ class ContactSimulator:
                 hit = start + crossing[0]
                 if crossing[0]:
                     return hit, distance[crossing[0] - 1]
+                if last is None:  # the path starts on the surface
+                    return hit, None
                 if last[0] == hit - 1:
                     return hit, last[1]
                 return hit, field(samples[hit - 1:hit])[0]
