@@ -116,8 +116,8 @@ def test_a_path_from_the_surface_touches_at_its_start(truth, rng):
 
 
 def test_a_far_small_object_is_missed_without_asking_every_sample(bundled):
-    """A line 20 units long past a 0.1 unit sphere: a few hundred of its 60,000 samples
-    are asked."""
+    """A line 20 units long past a 0.1 unit sphere: under 2,000 of its 60,000 samples are
+    asked."""
     import trimesh
 
     from tactile_viz.engine import ObjectModel

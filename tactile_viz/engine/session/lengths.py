@@ -1,11 +1,12 @@
 """A session's lengths in scene units: the parameters' size units turned into the scene's.
 
 Each length parameter is in size units, a sixth of an object's longest side
-(:mod:`..params`). A session measures them in its MAP object's (docs/units.md), but a novel
-object much smaller than its MAP prior is explored at its own size: the prior's eps and
-contact spacing are then larger than the object (a 2 cm block beside a 25 cm knife was
-stopped by the knife's 25 mm eps, and every touch after the first few was given up within
-its 12.5 mm spacing). Plain functions, so that the rule is tested without a session.
+(:mod:`..params`). A session measures them in its MAP object's (docs/units.md); with
+``own_size_share`` (off by default) a novel object much smaller than its MAP prior is
+explored at its own size, since the prior's eps and contact spacing can be larger than the
+object (a 2 cm block beside a 25 cm knife was stopped by the knife's 25 mm eps, and every
+touch after the first few was given up within its 12.5 mm spacing). Plain functions, so
+that the rule is tested without a session.
 """
 
 import functools
