@@ -603,17 +603,17 @@ def test_the_plausible_hypotheses_are_weighed_on_their_meshes(shapes, monkeypatc
     pf, _ = _filter(shapes, _touches(shapes["box"], 20, seed=4))
     weighed_classes = []
 
-    def mesh_misfit(pf, class_index, *args):
+    def mesh_fit(pf, class_index, rotation, translation, *args):
         weighed_classes.append(class_index)
-        return {0: 4.0, 1: 1.0}[class_index]
+        return {0: 4.0, 1: 1.0}[class_index], rotation, translation
 
-    monkeypatch.setattr(module, "mesh_misfit", mesh_misfit)
+    monkeypatch.setattr(module, "mesh_fit", mesh_fit)
     classes, rotations = np.arange(3), np.repeat(np.eye(3)[None], 3, axis=0)
 
     def weigh(probabilities):
         return np.exp(module.weighed_on_meshes(
             pf, classes, rotations, np.zeros((3, 3)), np.log(probabilities), np.zeros(3),
-            np.zeros((0, 3)), None, floor=0.1))
+            np.zeros((0, 3)), None, floor=0.1)[0])
 
     p = weigh([0.6, 0.4, 1e-6])
     assert p[1] > 0.99 * (p[0] + p[1]) and sorted(weighed_classes) == [0, 1]

@@ -252,7 +252,7 @@ def test_under_noise_the_filter_takes_the_rod_not_the_blade(rod_and_blade, seed)
 
 def _refinements(monkeypatch):
     """Record each refine_poses call of the discrimination: (iterations, start rotations)."""
-    from tactile_viz.engine.belief import discrimination
+    from tactile_viz.engine.belief import discrimination, pose_refinement
 
     calls, refine = [], discrimination.refine_poses
 
@@ -263,6 +263,7 @@ def _refinements(monkeypatch):
                       iterations, **options)
 
     monkeypatch.setattr(discrimination, "refine_poses", spy)
+    monkeypatch.setattr(pose_refinement, "refine_poses", spy)
     return calls
 
 

@@ -47,7 +47,7 @@ point that tells them apart best: the point of one hypothesis's surface where a 
 expected to take the most posterior mass from the others.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import chdtrc, gammaincinv, ndtri
@@ -55,9 +55,10 @@ from scipy.special import chdtrc, gammaincinv, ndtri
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
-from .mesh_fit import mesh_misfit, weighed_on_meshes
+from .incremental import NOTHING, Refined, full_search_due, remembered, starts
+from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
 from .oriented import oriented_evaluator, turned_cost
-from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
+from .pose_refinement import POSE_PARAMETERS, refine_warm, surface_uncertainty
 from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from .support import table_support
 
@@ -71,6 +72,7 @@ AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfa
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
 MAX_RIVALS = 8  # the most plausible rivals aimed at and carried to the next step
+REFINE_TOLERANCE = 1e-4  # a hypothesis's fit ends once a step gains less than this share
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,6 +127,8 @@ class Decision:
         The chi-squared test's p-value of the MAP's residuals, the better of its grid's
         and its mesh's (1 when it fits at the confidence, or when not assessed): how
         unlikely a right hypothesis leaves them.
+    refined : Refined
+        What it refined, for the next touch's starts (:mod:`.incremental`).
     """
 
     decided: bool
@@ -135,6 +139,7 @@ class Decision:
     scale: float = 0.0
     modes: tuple = ()
     fit_p: float = 1.0
+    refined: Refined = field(default=NOTHING, repr=False)
 
     @property
     def rivals(self):
@@ -156,7 +161,8 @@ UNDECIDED = Decision(False, 0.0)
 
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
-           pose_tolerance=np.inf, normal_noise_deg=0.0):
+           pose_tolerance=np.inf, normal_noise_deg=0.0, refined=NOTHING, refresh=1,
+           budget=np.inf):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -190,11 +196,40 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         The sensor's normal noise (std, degrees): with ``floor`` it weighs a contact's
         normal against its position when it is matched to a hypothesis's surface
         (:mod:`.oriented`).
+    refined : Refined
+        The last touch's ``Decision.refined``: candidates start from its poses, and
+        between full searches those in its modes are left out (:mod:`.incremental`);
+        they and the ``carried`` hypotheses take the filter's ``refine_warm_iterations``
+        steps (0: every refinement starts afresh and takes ``refine_iterations``).
+    refresh : int
+        Contacts between full searches (``decision_refresh``). Only a full search decides:
+        an incremental touch that would is searched in full. 1 (or no
+        ``refine_warm_iterations``): every touch searches afresh from the filter's poses,
+        as before :mod:`.incremental`.
+    budget : int
+        Between full searches, the candidates besides the MAP's that a touch refines
+        from the filter's poses at most (``decision_budget``).
 
     Returns
     -------
     Decision
     """
+    options = dict(confidence=confidence, floor=floor, same_mode=same_mode, carried=carried,
+                   free_space=free_space, pose_tolerance=pose_tolerance,
+                   normal_noise_deg=normal_noise_deg, refined=refined, budget=budget)
+    if refresh <= 1 or not pf.params.refine_warm_iterations:  # as before: afresh each touch
+        return _weigh(pf, belief, full=True, incremental=False, **options)
+    full = full_search_due(refined, len(pf.contact_positions), refresh)
+    decision = _weigh(pf, belief, full=full, incremental=True, **options)
+    if decision.decided and not full:
+        decision = _weigh(pf, belief, full=True, incremental=True, **options)
+    return decision
+
+
+def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
+           normal_noise_deg, refined, budget, full, incremental):
+    """:func:`decide`, a full search or not, with what the last touch refined or
+    afresh (not ``incremental``: the decision as it was before :mod:`.incremental`)."""
     contacts = pf.contact_positions
     if belief.particles is None or len(contacts) < 3:
         return UNDECIDED
@@ -209,28 +244,46 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                         contacts, [map_class], OTHER_CLASSES, pf.params.sigma_d)
     flipped_rotations, flipped_translations = flips(pf, map_class, particles.rotations[chosen],
                                                     particles.translations[chosen])
-    kept = [h for h in carried if h.class_index < len(pf.models)]
-    classes = np.r_[classes, others, np.full(len(flipped_rotations), map_class),
-                    [h.class_index for h in kept]].astype(np.int64)
+    classes = np.r_[classes, others, np.full(len(flipped_rotations), map_class)].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
                                 np.repeat(particles.rotations[chosen][None], len(others), 0),
-                                flipped_rotations,
-                                np.reshape([h.rotation for h in kept], (-1, 3, 3))])
+                                flipped_rotations])
     translations = np.concatenate([particles.translations[candidates],
-                                   np.repeat(particles.translations[chosen][None], len(others), 0),
-                                   flipped_translations,
+                                   np.repeat(particles.translations[chosen][None],
+                                             len(others), 0), flipped_translations])
+    begun = rotations, translations
+    warm_iterations = pf.params.refine_warm_iterations if incremental else 0
+    memory = refined if incremental else NOTHING
+    tolerance = REFINE_TOLERANCE if incremental else 0.0
+    rotations, translations, source, fresh = starts(classes, rotations, translations, memory,
+                                                    same_mode, full, budget)
+    left_out = classes[~fresh & (source >= 0)]  # weighed at an earlier touch
+    classes, rotations, translations, started = (classes[fresh], rotations[fresh],
+                                                 translations[fresh], source[fresh] >= 0)
+    # A carried hypothesis a fresh one starts from is weighed once.
+    kept = [h for h in carried if h.class_index < len(pf.models) and not (
+        warm_iterations and _starts_at(h, classes, rotations, translations))]
+    classes = np.r_[classes, [h.class_index for h in kept]].astype(np.int64)
+    rotations = np.concatenate([rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
+    translations = np.concatenate([translations,
                                    np.reshape([h.translation for h in kept], (-1, 3))])
+    # The carried hypotheses were refined at the last touch too.
+    started = np.r_[started, np.full(len(kept), warm_iterations > 0)]
     outside = pf.noncontact_positions if free_space is None else np.vstack(
         [pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg)
     try:
-        rotations, translations, misfit = refine_poses(
-            pf.bank.evaluate, classes, rotations, translations, contacts,
-            outside, pf.params.refine_iterations,
+        rotations, translations, misfit = refine_warm(
+            pf.bank.evaluate, classes, rotations, translations, started,
+            pf.params.refine_iterations, warm_iterations, contacts, outside,
             trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
-            clearance=pf.scene.tip_radius, support=table_support(pf))
+            clearance=pf.scene.tip_radius, support=table_support(pf), boxes=pf.bank.boxes,
+            tolerance=tolerance)
     except np.linalg.LinAlgError:
         return UNDECIDED
+    memory = remembered(memory, source, fresh, begun, classes,
+                        (rotations.copy(), translations.copy()),
+                        len(contacts) if full else memory.searched)
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     best = float(misfit.min())
     shape2 = pf.models[classes[0]].shape_error ** 2  # a learned shape's own error
@@ -254,8 +307,11 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior
-    log_p = weighed_on_meshes(pf, classes[keep], rotations[keep], translations[keep], log_p,
-                              turned[keep] + occam, outside, oriented, floor)
+    log_p, meshes = weighed_on_meshes(
+        pf, classes[keep], rotations[keep], translations[keep], log_p, turned[keep] + occam,
+        outside, oriented, floor, (refined.meshes or NO_FITS) if incremental else NO_FITS,
+        same_mode, tolerance)
+    memory = replace(memory, meshes=meshes)
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
     order = np.r_[0, order[order != 0]]  # the MAP candidate leads
@@ -266,7 +322,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     # classes matter: those weighed here must hold the confidence between them.
     # Summed in name order: a set's order follows the string hash, which changes from one
     # process to the next, and so would the sum's last bit.
-    weighed = sorted({belief.class_names[c] for c in classes[keep]})
+    weighed = sorted({belief.class_names[c] for c in np.r_[classes[keep], left_out]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
     lead = _lead(hypotheses, scale2, confidence)
     level = min(weighed_share, lead.probability)
@@ -286,7 +342,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     if dof > 0 and not fits:
         mesh2 = max(floor**2 + shape2 + roughness**2, 1e-300)
         on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
-                              oriented)
+                              oriented, tolerance)
         fits = on_mesh <= quantile * mesh2
         if not fits:
             grid2 = limit / max(chi2_quantile(confidence, dof), 1e-300)
@@ -300,8 +356,17 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                and not modes)
     if decided:  # the decided pose is the one reported and aimed from
         hypotheses = (lead,) + tuple(h for h in hypotheses if h is not lead)
+        memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
-                    float(np.sqrt(scale2)), modes, fit_p)
+                    float(np.sqrt(scale2)), modes, fit_p, memory)
+
+
+def _starts_at(hypothesis, classes, rotations, translations):
+    """Whether a hypothesis's pose is one of ``rotations``, ``translations`` of its class,
+    to the bit."""
+    mine = np.flatnonzero(classes == hypothesis.class_index)
+    return bool(np.any(np.all(rotations[mine] == hypothesis.rotation, axis=(1, 2))
+                       & np.all(translations[mine] == hypothesis.translation, axis=1)))
 
 
 def chi2_quantile(q, dof):

@@ -39,7 +39,7 @@ from . import kernels
 from .likelihood import normalise_log_weights
 from .oriented import MIN_NORMAL_NOISE_DEG, oriented_evaluator, turned_cost
 from .particles import Particles
-from .pose_refinement import refine_poses
+from .pose_refinement import refine_poses, refine_warm, warm_starts
 
 
 def contenders(particles, count, min_mass):
@@ -153,21 +153,13 @@ def _refined(pf, candidates, oriented, warm):
             pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
             trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
             clearance=pf.scene.tip_radius), {})
-    keys = [(int(c), r.tobytes(), t.tobytes()) for c, r, t in
-            zip(candidates.classes, candidates.rotations, candidates.translations)]
-    rotations, translations = candidates.rotations.copy(), candidates.translations.copy()
-    started = np.array([key in warm for key in keys], dtype=bool)
-    for index in np.flatnonzero(started):
-        rotations[index], translations[index] = warm[keys[index]]
-    misfit = np.empty(len(keys))
-    for chosen, iterations in ((started, params.refine_warm_iterations),
-                               (~started, params.refine_iterations)):
-        if chosen.any():
-            rotations[chosen], translations[chosen], misfit[chosen] = refine_poses(
-                pf.bank.evaluate, candidates.classes[chosen], rotations[chosen],
-                translations[chosen], pf.contact_positions, pf.noncontact_positions,
-                iterations, trim=params.outlier_probability, normals=pf.contact_normals,
-                oriented=oriented, clearance=pf.scene.tip_radius)
+    keys, rotations, translations, started = warm_starts(
+        candidates.classes, candidates.rotations, candidates.translations, warm)
+    rotations, translations, misfit = refine_warm(
+        pf.bank.evaluate, candidates.classes, rotations, translations, started,
+        params.refine_iterations, params.refine_warm_iterations, pf.contact_positions,
+        pf.noncontact_positions, trim=params.outlier_probability, normals=pf.contact_normals,
+        oriented=oriented, clearance=pf.scene.tip_radius)
     refined = {key: (rotations[index], translations[index]) for index, key in enumerate(keys)}
     return rotations, translations, misfit, refined
 

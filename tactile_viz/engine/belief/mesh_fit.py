@@ -6,8 +6,11 @@ class's mesh (exact distance); :func:`weighed_on_meshes` weighs the few plausibl
 hypotheses of a decision so.
 """
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
+from .incremental import in_mode
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .support import table_support
 
@@ -15,11 +18,45 @@ MESH_NATS = 9.2  # hypotheses within this of the most probable are weighed on th
 MESH_HYPOTHESES = 4  # this many at most
 
 
-def mesh_misfit(pf, class_index, rotation, translation, outside, oriented):
+@dataclass(frozen=True, eq=False)
+class MeshFits:
+    """Hypotheses refined on their meshes at one touch, for the next's starts.
+
+    Attributes
+    ----------
+    classes : (k,) int
+    rotations : (k, 3, 3) float
+    translations : (k, 3) float
+        Their poses on the grid (where the mesh's refinement started).
+    mesh_rotations : (k, 3, 3) float
+    mesh_translations : (k, 3) float
+        Where it ended.
+    """
+
+    classes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    translations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    mesh_rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    mesh_translations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+NO_FITS = MeshFits()
+
+
+def mesh_misfit(pf, class_index, rotation, translation, outside, oriented, tolerance=0.0):
     """The squared residuals (squared scene units) of a class posed at ``rotation (3, 3)``,
     ``translation (3,)`` (world frame), refined on its mesh (exact distance) from there, as
     :func:`~.pose_refinement.refine_poses` sums them on the grid: the filter's contacts,
-    and ``outside (q, 3)`` that lie inside."""
+    and ``outside (q, 3)`` that lie inside; ``tolerance`` as
+    :func:`~.pose_refinement.refine_poses`'."""
+    return mesh_fit(pf, class_index, rotation, translation, outside, oriented,
+                    tolerance=tolerance)[0]
+
+
+def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iterations=None,
+             tolerance=0.0):
+    """:func:`mesh_misfit` and the refined pose: ``(misfit, rotation (3, 3), translation
+    (3,))``, refined in ``iterations`` steps (None: ``refine_iterations``)."""
     exact = pf.exact_distance(class_index)
     m, clearance = len(pf.contact_positions), pf.scene.tip_radius
     low, high = exact.bounds
@@ -39,16 +76,16 @@ def mesh_misfit(pf, class_index, rotation, translation, outside, oriented):
             normals[asked] = exact.face_normal(face)
         return distance.reshape(points.shape[:-1]), normals.reshape(points.shape)
 
-    *_, misfit = refine_poses(evaluate, [class_index], rotation[None], translation[None],
-                              pf.contact_positions, outside, pf.params.refine_iterations,
-                              trim=pf.params.outlier_probability, normals=pf.contact_normals,
-                              oriented=oriented, clearance=pf.scene.tip_radius,
-                              support=table_support(pf))
-    return float(misfit[0])
+    rotations, translations, misfit = refine_poses(
+        evaluate, [class_index], rotation[None], translation[None], pf.contact_positions,
+        outside, pf.params.refine_iterations if iterations is None else iterations,
+        trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
+        clearance=pf.scene.tip_radius, support=table_support(pf), tolerance=tolerance)
+    return float(misfit[0]), rotations[0], translations[0]
 
 
 def weighed_on_meshes(pf, classes, rotations, translations, log_p, charges, outside,
-                      oriented, floor):
+                      oriented, floor, warm=NO_FITS, distance=0.0, tolerance=0.0):
     """A fit posterior with its plausible hypotheses weighed again on their meshes.
 
     The plausible ones are those within ``MESH_NATS`` of the most probable
@@ -72,24 +109,51 @@ def weighed_on_meshes(pf, classes, rotations, translations, log_p, charges, outs
     oriented : OrientedEvaluator or None
     floor : float, scene units
         Least noise scale of the residuals.
+    warm : MeshFits
+        The last touch's: a hypothesis in the mode of one of its grid poses
+        (:func:`~.incremental.in_mode` within ``distance``) starts from its mesh pose and
+        takes ``refine_warm_iterations`` steps (one new contact moves the optimum little).
+    tolerance : float
+        As :func:`~.pose_refinement.refine_poses`'.
 
     Returns
     -------
     log_p : (k,) float
+    fits : MeshFits
+        This touch's, for the next.
     """
     plausible = np.flatnonzero(log_p >= log_p.max() - MESH_NATS)
     plausible = plausible[np.argsort(-log_p[plausible], kind="stable")][:MESH_HYPOTHESES]
     if len(plausible) < 2:
-        return log_p
-    exact = np.array([mesh_misfit(pf, int(classes[k]), rotations[k], translations[k],
-                                  outside, oriented) for k in plausible])
+        return log_p, warm
+    fitted = [_fitted(pf, int(classes[k]), rotations[k], translations[k], outside, oriented,
+                      warm, distance, tolerance) for k in plausible]
+    fits = MeshFits(classes[plausible], rotations[plausible], translations[plausible],
+                    np.reshape([f[1] for f in fitted], (-1, 3, 3)),
+                    np.reshape([f[2] for f in fitted], (-1, 3)))
+    exact = np.array([f[0] for f in fitted])
     exact = np.where(np.isfinite(exact), exact, np.inf)
     if not np.isfinite(exact).any():
-        return log_p
+        return log_p, fits
     dof = max(len(pf.contact_positions) - POSE_PARAMETERS, 1)
     scale2 = max(exact.min() / dof, floor**2, 1e-300)
     weighed = -(exact - exact.min()) / (2 * scale2) - charges[plausible]  # as decide's log p
     log_p = log_p.copy()
     log_p[plausible] = (weighed - np.logaddexp.reduce(weighed)
                         + np.logaddexp.reduce(log_p[plausible]))
-    return log_p
+    return log_p, fits
+
+
+def _fitted(pf, class_index, rotation, translation, outside, oriented, warm, distance,
+            tolerance):
+    """:func:`mesh_fit` from the grid's pose, or warm from the last touch's mesh pose of
+    the same hypothesis (see :func:`weighed_on_meshes`)."""
+    mine = np.flatnonzero(warm.classes == class_index)
+    same = mine[in_mode(rotation, translation, warm.rotations[mine], warm.translations[mine],
+                        distance)] if len(mine) else mine
+    if not len(same) or not pf.params.refine_warm_iterations:
+        return mesh_fit(pf, class_index, rotation, translation, outside, oriented,
+                        tolerance=tolerance)
+    return mesh_fit(pf, class_index, warm.mesh_rotations[same[0]],
+                    warm.mesh_translations[same[0]], outside, oriented,
+                    pf.params.refine_warm_iterations, tolerance)

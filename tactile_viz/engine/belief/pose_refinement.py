@@ -23,11 +23,13 @@ POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 # Of the largest diagonal entry, added to all: a direction nothing constrains stays put.
 _FLOOR = 1e-12
+_REJECTIONS = 3  # refused steps in a row that end a fit (with a tolerance)
+_FITTED = 1e-12  # a fit this far below its start is done (with a tolerance)
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
                  iterations=10, trim=0.0, normals=None, oriented=None, clearance=0.0,
-                 support=None):
+                 support=None, boxes=None, tolerance=0.0):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -62,6 +64,16 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     support : Support, optional
         A table the poses rest on: the heights of the hull vertices each rests on are
         residuals too (:func:`~.support.support_residuals`).
+    boxes : ((c, 3) float, (c, 3) float), optional
+        Each class's box in its object frame, outside which ``evaluate`` is positive and
+        grows by at least the distance to it (a grid's; :attr:`~.prior_bank.PriorBank.boxes`):
+        a non-contact farther than ``clearance`` outside every pose's box costs nothing
+        and is not evaluated (the same fit; the free space of missed probes is mostly far
+        from the object).
+    tolerance : float
+        A pose's fit ends early once a step lowers its sum of squares by less than this
+        share, or ``_REJECTIONS`` steps in a row are refused, or it is below ``_FITTED``
+        of where it began (0: every pose takes every step).
 
     Returns
     -------
@@ -84,15 +96,16 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     classes = np.asarray(classes)
     rotations, translations = np.array(rotations, float), np.array(translations, float)
 
-    def residuals(rotations, translations):
+    def residuals(rotations, translations, which):
+        classes_ = classes[which]
         local = inverse_transform_points_batch(points, rotations, translations)  # R^T (p - t)
-        values, gradients = evaluate(classes, local)
+        values, gradients = _evaluated(evaluate, classes_, local, inside_only, boxes, clearance)
         if oriented is not None:
             m = len(contacts)
             facing = inverse_transform_points_batch(measured, rotations)  # R^T n
             k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients[:, :m], facing) < 0)
             if len(k):
-                values[k, i], gradients[k, i] = oriented(classes[k], local[k, i], facing[k, i])
+                values[k, i], gradients[k, i] = oriented(classes_[k], local[k, i], facing[k, i])
         if clearance:
             values[:, len(contacts):] -= clearance
         active = ~inside_only | (values < 0)
@@ -103,32 +116,127 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         normals = np.matmul(gradients, rotations.transpose(0, 2, 1)) * active[..., None]
         jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)
         if support is not None:
-            heights, rows = support_residuals(support, classes, rotations, translations, centre)
+            heights, rows = support_residuals(support, classes_, rotations, translations, centre)
+            # As wide as for every class (some poses are refined apart: ``tolerance``).
+            pad = support.width(classes)
+            heights = np.pad(heights, ((0, 0), (0, pad - heights.shape[1])))
+            rows = np.pad(rows, ((0, 0), (0, pad - rows.shape[1]), (0, 0)))
             values, jacobian = np.hstack([values, heights]), np.hstack([jacobian, rows])
         return values, jacobian
 
-    values, jacobian = residuals(rotations, translations)
+    values, jacobian = residuals(rotations, translations, np.arange(len(classes)))
     cost = np.square(values).sum(axis=1)
     damping = np.full(len(classes), _DAMPING)
+    fitting = np.arange(len(classes))  # the poses still refined
+    first, rejected = cost.copy(), np.zeros(len(classes), int)
     for _ in range(iterations):
-        transposed = jacobian.transpose(0, 2, 1)
-        normal = np.matmul(transposed, jacobian)  # J^T J
+        if tolerance:
+            fitting = np.flatnonzero((rejected < _REJECTIONS) & (cost > _FITTED * first))
+            if not len(fitting):
+                break
+        k = fitting
+        transposed = jacobian[k].transpose(0, 2, 1)
+        normal = np.matmul(transposed, jacobian[k])  # J^T J
         diagonal = np.einsum("kii->ki", normal)
         diagonal = diagonal + _FLOOR * diagonal.max(axis=1, keepdims=True) + np.finfo(float).tiny
-        lhs = normal + (damping[:, None] * diagonal)[:, :, None] * np.eye(6)
-        step = np.linalg.solve(lhs, -np.matmul(transposed, values[..., None]))[..., 0]
+        lhs = normal + (damping[k][:, None] * diagonal)[:, :, None] * np.eye(6)
+        step = np.linalg.solve(lhs, -np.matmul(transposed, values[k][..., None]))[..., 0]
         turn = Rotation.from_rotvec(step[:, :3]).as_matrix()
-        new_rotations = turn @ rotations
-        new_translations = (np.einsum("kij,kj->ki", turn, translations - centre) + centre
+        new_rotations = turn @ rotations[k]
+        new_translations = (np.einsum("kij,kj->ki", turn, translations[k] - centre) + centre
                             + step[:, 3:])
-        new_values, new_jacobian = residuals(new_rotations, new_translations)
+        new_values, new_jacobian = residuals(new_rotations, new_translations, k)
         new_cost = np.square(new_values).sum(axis=1)
-        better = new_cost < cost
-        rotations[better], translations[better] = new_rotations[better], new_translations[better]
-        values[better], jacobian[better], cost[better] = (new_values[better],
-                                                          new_jacobian[better], new_cost[better])
-        damping = np.where(better, damping / 3, damping * 10)
+        better = new_cost < cost[k]
+        # A step that gains less than the tolerance ends a pose's fit as if refused.
+        rejected[k] = np.where(new_cost < cost[k] * (1 - tolerance), 0,
+                               np.where(better, _REJECTIONS, rejected[k] + 1))
+        b = k[better]
+        rotations[b], translations[b] = new_rotations[better], new_translations[better]
+        values[b], jacobian[b], cost[b] = (new_values[better], new_jacobian[better],
+                                           new_cost[better])
+        damping[k] = np.where(better, damping[k] / 3, damping[k] * 10)
     return rotations, translations, cost
+
+
+def _evaluated(evaluate, classes, local, inside_only, boxes, clearance):
+    """``evaluate(classes, local)``, with each pose's non-contacts outside its class's box
+    by more than ``clearance`` left out: value ``inf``, gradient 0 (``refine_poses``
+    leaves them out of the fit, as it would their positive distances)."""
+    if boxes is None or not inside_only.any():
+        return evaluate(classes, local)
+    outside = local[:, inside_only]
+    low, high = boxes[0][classes][:, None], boxes[1][classes][:, None]
+    gap = np.linalg.norm(np.maximum(np.maximum(low - outside, outside - high), 0.0), axis=2)
+    pose, point = np.nonzero(gap <= clearance)
+    values = np.full(local.shape[:2], np.inf)
+    gradients = np.zeros(local.shape)
+    values[:, ~inside_only], gradients[:, ~inside_only] = evaluate(classes, local[:, ~inside_only])
+    if len(pose):
+        column = np.flatnonzero(inside_only)[point]
+        near, slopes = evaluate(classes[pose], local[pose, column][:, None])
+        values[pose, column], gradients[pose, column] = near[:, 0], slopes[:, 0]
+    return values, gradients
+
+
+def warm_starts(classes, rotations, translations, warm):
+    """Where each pose starts: its refined pose of the last step when ``warm`` holds it.
+
+    Parameters
+    ----------
+    classes : (k,) int
+    rotations : (k, 3, 3) float
+    translations : (k, 3) float
+    warm : dict
+        ``(class, rotation bytes, translation bytes)`` -> ``(rotation, translation)``: the
+        last step's refined poses by their starts (a particle that survived resampling
+        keeps its pose to the bit).
+
+    Returns
+    -------
+    keys : list of tuple
+        Each pose's key (its start as given).
+    rotations, translations
+        The starts, copies.
+    started : (k,) bool
+        Which start from a refined pose.
+    """
+    keys = [(int(c), r.tobytes(), t.tobytes()) for c, r, t in
+            zip(classes, np.asarray(rotations, float), np.asarray(translations, float))]
+    rotations, translations = np.array(rotations, float), np.array(translations, float)
+    started = np.array([key in warm for key in keys], dtype=bool)
+    for index in np.flatnonzero(started):
+        rotations[index], translations[index] = warm[keys[index]]
+    return keys, rotations, translations, started
+
+
+def refine_warm(evaluate, classes, rotations, translations, warm, iterations, warm_iterations,
+                contacts, noncontacts=None, **options):
+    """:func:`refine_poses` in two batches: the poses marked ``warm`` (each starts from a
+    pose refined at the last step, whose optimum one new contact moves little) take
+    ``warm_iterations`` steps, the others ``iterations``.
+
+    Parameters
+    ----------
+    evaluate, classes, rotations, translations, contacts, noncontacts, **options
+        As for :func:`refine_poses`.
+    warm : (k,) bool
+    iterations, warm_iterations : int
+
+    Returns
+    -------
+    rotations, translations, misfit
+        As :func:`refine_poses`, in the order given.
+    """
+    classes, warm = np.asarray(classes), np.asarray(warm, dtype=bool)
+    rotations, translations = np.array(rotations, float), np.array(translations, float)
+    misfit = np.empty(len(classes))
+    for chosen, steps in ((warm, warm_iterations), (~warm, iterations)):
+        if chosen.any():
+            rotations[chosen], translations[chosen], misfit[chosen] = refine_poses(
+                evaluate, classes[chosen], rotations[chosen], translations[chosen], contacts,
+                noncontacts, steps, **options)
+    return rotations, translations, misfit
 
 
 def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,

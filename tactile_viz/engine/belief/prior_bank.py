@@ -120,6 +120,14 @@ class PriorBank:
                   self.spacings, self.value_steps, self.points, self.normals, self.frames)
         return int(sum(a.nbytes for a in arrays) + self.pairs.nbytes)
 
+    @cached_property
+    def boxes(self):
+        """Each class's grid box, object frame: ``low (c, 3)``, ``high (c, 3)``, its first
+        and last nodes (outside it a class's value is positive and grows by at least the
+        distance to it: :func:`~tactile_viz.engine.shape.sdf.interpolate`)."""
+        low = np.asarray(self.origins, float)
+        return low, low + (np.asarray(self.shapes) - 1) * np.asarray(self.spacings, float)[:, None]
+
     def grid(self, c):
         """Class ``c``'s :class:`~tactile_viz.engine.shape.sdf.SDFGrid` as views into the bank's
         arrays (no copy)."""

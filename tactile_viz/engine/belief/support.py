@@ -55,6 +55,10 @@ class Support:
     floor_point: np.ndarray
     models: tuple
 
+    def width(self, classes):
+        """The most hull vertices any pose of these classes rests on."""
+        return max(_padded_faces(self.models[int(c)])[0].shape[1] for c in np.unique(classes))
+
     def points(self, classes, rotations):
         """The hull vertices each hypothesis rests on, object frame.
 
@@ -76,7 +80,7 @@ class Support:
         cos_limit = np.cos(np.radians(STABLE_ANGLE_DEG))
         down = -np.einsum("kji,j->ki", rotations, self.up)  # the table's down, object frame
         unique = np.unique(classes)
-        width = max(_padded_faces(self.models[int(c)])[0].shape[1] for c in unique)
+        width = self.width(unique)
         points = np.empty((len(classes), width, 3))
         counts = np.empty(len(classes), np.int64)
         for c in unique:  # one look-up a class, not a hypothesis

@@ -520,6 +520,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             self._use_lengths(model, novel=True)
             recon = self._reconstruct(model, *pose, map_vertices, timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
+        self.state.decision_refined = decision.refined
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):
             coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35

@@ -173,7 +173,9 @@ class Planner:
                       same_mode=max(p.decision_same_mode, 2 * noise),
                       carried=self.state.hypotheses, free_space=free_space,
                       pose_tolerance=p.decision_pose_error,
-                      normal_noise_deg=self.sensor_noise[1])
+                      normal_noise_deg=self.sensor_noise[1],
+                      refined=self.state.decision_refined, refresh=p.decision_refresh,
+                      budget=p.decision_budget)
 
     def _misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):

@@ -10,6 +10,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..belief.incremental import NOTHING
+
 
 class Aim(NamedTuple):
     """The target a step reaches for: ``position`` and outward ``normal`` (world frame) and
@@ -86,6 +88,9 @@ class ExplorationState:
     decided : bool
         Whether the last decision was decided (its MAP, ``hypotheses[0]``, is then only
         refitted while it holds: :func:`~tactile_viz.engine.belief.held.held_decision`).
+    decision_refined : Refined
+        What the last decision refined (``Decision.refined``): the next starts from it
+        (:mod:`~tactile_viz.engine.belief.incremental`).
     decision_checks : int
         Checks in a row around a MAP ready to be decided that touched nothing it does not
         predict.
@@ -129,6 +134,7 @@ class ExplorationState:
     checks_passed: int = 0
     hypotheses: tuple = ()
     decided: bool = False
+    decision_refined: Any = NOTHING
     decision_checks: int = 0
     confirming: bool = False
     telling_steps: int = 0
