@@ -503,14 +503,12 @@ class SessionParams:
         "them; or twice the position noise) are one hypothesis.", valid=_POSITIVE, length=1,
         control=(1e-3, 2.0), notes="Symmetries of the shape are not rivals.")
     decision_refresh: int = _session(
-        4, "Contacts between the decision's full searches; between them a touch refines "
-        "only the hypotheses the last one found and starts from its poses (1: a full "
-        "search every touch).", kind="int", valid=_AT_LEAST_1, control=(1, 50),
-        notes="Only a full search decides (engine/belief/incremental.py).")
+        4, "Contacts between the decision's full searches; between them a touch starts from "
+        "the last one's hypotheses (1: afresh every touch).", kind="int", valid=_AT_LEAST_1,
+        control=(1, 50), notes="Only a full search decides (engine/belief/incremental.py).")
     decision_budget: int = _session(
-        4, "Between the decision's full searches, the hypotheses a touch refines from the "
-        "filter's poses at most, besides the MAP's (the rest wait for the next full "
-        "search).", kind="int", valid=_AT_LEAST_0, control=(0, 50))
+        4, "Between full searches, the new hypotheses a touch refines at most besides the "
+        "MAP's.", kind="int", valid=_AT_LEAST_0, control=(0, 50))
     decision_targets: bool = _session(
         True, "While a known object is not decided, touch where the plausible hypotheses' "
         "surfaces disagree most (beyond the paper).", kind="bool",

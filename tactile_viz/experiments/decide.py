@@ -33,6 +33,7 @@ spent deciding and in the filter. Writes ``decide.md`` (tables),
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -311,8 +312,23 @@ def main(argv=None):
               scenes_from_args(args), args.max_steps),
         args.workers, progress=not args.no_progress, description="decide")
     summaries = [summary(r) for r in results]
-    write_tables(out / "decide", summaries, markdown(summaries))
+    write_tables(out / "decide", summaries, markdown(summaries) + reference_line())
     return 1 if failed else 0
+
+
+def reference_line(repeats=5):
+    """The machine's speed in this run, to read the milliseconds a touch against: the
+    median time of :func:`~.step_timing.reference_cholesky` (800 x 800)."""
+    from .step_timing import reference_cholesky
+
+    square = np.random.default_rng(0).standard_normal((800, 800))
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        reference_cholesky(square)
+        times.append(time.perf_counter() - start)
+    return (f"\nReference: an 800 x 800 Cholesky (``a a^T + 800 I``) takes "
+            f"{1000 * float(np.median(times)):.0f} ms here (median of {repeats}).\n")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 
 Contacts are sampled on the object at a random pose and fed to the particle filter; then
 each part of one more step (filter update, GPIS fit, surface extraction with variance,
-target choice, simulator probe, the decision beyond the paper) is timed ``--repeats`` times
+target choice, simulator probe, the decision beyond the paper: a full search, and a touch
+between full searches that starts from a full search's hypotheses at the same contacts)
+is timed ``--repeats`` times
 and the median printed, beside a reference of the machine's speed: the Cholesky factor of
 an 800 x 800 matrix ``a a^T + 800 I``. The
 GPIS factorisation is also timed both ways: a full Cholesky of ``a K0 + s I`` against
@@ -15,6 +17,7 @@ appending the new contact's 4 rows to the previous factor (block update, O(n^2))
 import argparse
 import functools
 import time
+from dataclasses import replace
 
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular
@@ -97,6 +100,10 @@ def measure(object_name, sizes, repeats, seed=0):
         timing["target"] = _median_time(
             lambda: (np.argmax(fit.variance(subset[:1])), fit.mean(subset[:1])), repeats)
         timing["decision"] = _median_time(lambda: _decision(particle_filter, p), repeats)
+        searched = _decision(particle_filter, p, refresh=p.decision_refresh)
+        timing["decision between searches"] = _median_time(lambda: _decision(
+            particle_filter, p, refresh=p.decision_refresh, carried=searched.carried,
+            refined=replace(searched.refined, decided=False)), repeats)
         timing["simulator"] = _median_time(
             lambda: enforce_contact(simulator, path[0] * 0.5 + path[1] * 0.5,
                                     np.array([0.0, 0.0, 1.0]), contacts, normals), repeats)
@@ -119,12 +126,13 @@ def reference_cholesky(a):
     return cholesky(a @ a.T + len(a) * np.eye(len(a)), lower=True, check_finite=False)
 
 
-def _decision(particle_filter, p):
+def _decision(particle_filter, p, **options):
     """The decision of the filter's belief with the session parameters ``p`` (the bundled
-    objects' size unit is one scene unit)."""
+    objects' size unit is one scene unit): a full search, or with ``options``
+    (``refresh``, ``carried``, ``refined``) a touch between full searches."""
     return decide(particle_filter, particle_filter.state, p.decision_confidence,
                   floor=p.decision_floor, same_mode=p.decision_same_mode,
-                  pose_tolerance=p.decision_pose_error)
+                  pose_tolerance=p.decision_pose_error, **options)
 
 
 def _incremental(contacts, normals, prior, kernel, scale, box, repeats):
