@@ -603,7 +603,7 @@ def test_the_plausible_hypotheses_are_weighed_on_their_meshes(shapes, monkeypatc
     pf, _ = _filter(shapes, _touches(shapes["box"], 20, seed=4))
     weighed_classes = []
 
-    def mesh_fit(pf, class_index, rotation, translation, *args):
+    def mesh_fit(pf, class_index, rotation, translation, *args, **options):
         weighed_classes.append(class_index)
         return {0: 4.0, 1: 1.0}[class_index], rotation, translation
 

@@ -58,7 +58,7 @@ from .discrimination import contenders, lookalikes
 from .incremental import NOTHING, Refined, full_search_due, remembered, starts
 from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
 from .oriented import oriented_evaluator, turned_cost
-from .pose_refinement import POSE_PARAMETERS, refine_warm, surface_uncertainty
+from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
 from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from .support import table_support
 
@@ -198,14 +198,13 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         (:mod:`.oriented`).
     refined : Refined
         The last touch's ``Decision.refined``: candidates start from its poses, and
-        between full searches those in its modes are left out (:mod:`.incremental`);
-        they and the ``carried`` hypotheses take the filter's ``refine_warm_iterations``
-        steps (0: every refinement starts afresh and takes ``refine_iterations``).
+        between full searches those in its modes are left out (:mod:`.incremental`).
     refresh : int
         Contacts between full searches (``decision_refresh``). Only a full search decides:
-        an incremental touch that would is searched in full. 1 (or no
-        ``refine_warm_iterations``): every touch searches afresh from the filter's poses,
-        as before :mod:`.incremental`.
+        an incremental touch that would is searched in full; every fit stops once it
+        converges (``REFINE_TOLERANCE``). 1: every touch searches afresh from the
+        filter's poses, every fit takes ``refine_iterations``, as before
+        :mod:`.incremental`.
     budget : int
         Between full searches, the candidates besides the MAP's that a touch refines
         from the filter's poses at most (``decision_budget``).
@@ -217,7 +216,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     options = dict(confidence=confidence, floor=floor, same_mode=same_mode, carried=carried,
                    free_space=free_space, pose_tolerance=pose_tolerance,
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget)
-    if refresh <= 1 or not pf.params.refine_warm_iterations:  # as before: afresh each touch
+    if refresh <= 1:  # as before: afresh at each touch
         return _weigh(pf, belief, full=True, incremental=False, **options)
     full = full_search_due(refined, len(pf.contact_positions), refresh)
     decision = _weigh(pf, belief, full=full, incremental=True, **options)
@@ -252,30 +251,26 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                                    np.repeat(particles.translations[chosen][None],
                                              len(others), 0), flipped_translations])
     begun = rotations, translations
-    warm_iterations = pf.params.refine_warm_iterations if incremental else 0
     memory = refined if incremental else NOTHING
     tolerance = REFINE_TOLERANCE if incremental else 0.0
     rotations, translations, source, fresh = starts(classes, rotations, translations, memory,
                                                     same_mode, full, budget)
     left_out = classes[~fresh & (source >= 0)]  # weighed at an earlier touch
-    classes, rotations, translations, started = (classes[fresh], rotations[fresh],
-                                                 translations[fresh], source[fresh] >= 0)
+    classes, rotations, translations = classes[fresh], rotations[fresh], translations[fresh]
     # A carried hypothesis a fresh one starts from is weighed once.
     kept = [h for h in carried if h.class_index < len(pf.models) and not (
-        warm_iterations and _starts_at(h, classes, rotations, translations))]
+        incremental and _starts_at(h, classes, rotations, translations))]
     classes = np.r_[classes, [h.class_index for h in kept]].astype(np.int64)
     rotations = np.concatenate([rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
     translations = np.concatenate([translations,
                                    np.reshape([h.translation for h in kept], (-1, 3))])
-    # The carried hypotheses were refined at the last touch too.
-    started = np.r_[started, np.full(len(kept), warm_iterations > 0)]
     outside = pf.noncontact_positions if free_space is None else np.vstack(
         [pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg)
     try:
-        rotations, translations, misfit = refine_warm(
-            pf.bank.evaluate, classes, rotations, translations, started,
-            pf.params.refine_iterations, warm_iterations, contacts, outside,
+        rotations, translations, misfit = refine_poses(
+            pf.bank.evaluate, classes, rotations, translations, contacts, outside,
+            pf.params.refine_iterations,
             trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
             clearance=pf.scene.tip_radius, support=table_support(pf), boxes=pf.bank.boxes,
             tolerance=tolerance)

@@ -112,7 +112,8 @@ def weighed_on_meshes(pf, classes, rotations, translations, log_p, charges, outs
     warm : MeshFits
         The last touch's: a hypothesis in the mode of one of its grid poses
         (:func:`~.incremental.in_mode` within ``distance``) starts from its mesh pose and
-        takes ``refine_warm_iterations`` steps (one new contact moves the optimum little).
+        (one new contact moves the optimum little: with a ``tolerance`` it converges in a
+        few steps).
     tolerance : float
         As :func:`~.pose_refinement.refine_poses`'.
 
@@ -151,9 +152,8 @@ def _fitted(pf, class_index, rotation, translation, outside, oriented, warm, dis
     mine = np.flatnonzero(warm.classes == class_index)
     same = mine[in_mode(rotation, translation, warm.rotations[mine], warm.translations[mine],
                         distance)] if len(mine) else mine
-    if not len(same) or not pf.params.refine_warm_iterations:
+    if not len(same):
         return mesh_fit(pf, class_index, rotation, translation, outside, oriented,
                         tolerance=tolerance)
     return mesh_fit(pf, class_index, warm.mesh_rotations[same[0]],
-                    warm.mesh_translations[same[0]], outside, oriented,
-                    pf.params.refine_warm_iterations, tolerance)
+                    warm.mesh_translations[same[0]], outside, oriented, tolerance=tolerance)

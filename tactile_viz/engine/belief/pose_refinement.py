@@ -23,8 +23,7 @@ POSE_PARAMETERS = 6  # three of rotation, three of translation
 _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 # Of the largest diagonal entry, added to all: a direction nothing constrains stays put.
 _FLOOR = 1e-12
-_REJECTIONS = 3  # refused steps in a row that end a fit (with a tolerance)
-_FITTED = 1e-12  # a fit this far below its start is done (with a tolerance)
+_FITTED = 1e-9  # a fit this far below its start is done (with a tolerance: rounding)
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
@@ -71,9 +70,9 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         and is not evaluated (the same fit; the free space of missed probes is mostly far
         from the object).
     tolerance : float
-        A pose's fit ends early once a step lowers its sum of squares by less than this
-        share, or ``_REJECTIONS`` steps in a row are refused, or it is below ``_FITTED``
-        of where it began (0: every pose takes every step).
+        A pose's fit ends early once a step taken lowers its sum of squares by less than
+        this share, or it is below ``_FITTED`` of where it began (0: every pose takes every
+        step; a refused step raises the damping and the fit goes on).
 
     Returns
     -------
@@ -128,10 +127,10 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     cost = np.square(values).sum(axis=1)
     damping = np.full(len(classes), _DAMPING)
     fitting = np.arange(len(classes))  # the poses still refined
-    first, rejected = cost.copy(), np.zeros(len(classes), int)
+    first, done = cost.copy(), np.zeros(len(classes), bool)
     for _ in range(iterations):
         if tolerance:
-            fitting = np.flatnonzero((rejected < _REJECTIONS) & (cost > _FITTED * first))
+            fitting = np.flatnonzero(~done & (cost > _FITTED * first))
             if not len(fitting):
                 break
         k = fitting
@@ -148,9 +147,8 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         new_values, new_jacobian = residuals(new_rotations, new_translations, k)
         new_cost = np.square(new_values).sum(axis=1)
         better = new_cost < cost[k]
-        # A step that gains less than the tolerance ends a pose's fit as if refused.
-        rejected[k] = np.where(new_cost < cost[k] * (1 - tolerance), 0,
-                               np.where(better, _REJECTIONS, rejected[k] + 1))
+        # A step taken that gains less than the tolerance ends a pose's fit.
+        done[k] = better & (new_cost >= cost[k] * (1 - tolerance))
         b = k[better]
         rotations[b], translations[b] = new_rotations[better], new_translations[better]
         values[b], jacobian[b], cost[b] = (new_values[better], new_jacobian[better],
