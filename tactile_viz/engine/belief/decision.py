@@ -302,11 +302,12 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior
-    log_p, meshes = weighed_on_meshes(
-        pf, classes[keep], rotations[keep], translations[keep], log_p, turned[keep] + occam,
-        outside, oriented, floor, (refined.meshes or NO_FITS) if incremental else NO_FITS,
-        same_mode, tolerance)
-    memory = replace(memory, meshes=meshes)
+    if full:  # between full searches the grid's posterior only aims and carries rivals
+        log_p, meshes = weighed_on_meshes(
+            pf, classes[keep], rotations[keep], translations[keep], log_p, turned[keep] + occam,
+            outside, oriented, floor, (refined.meshes or NO_FITS) if incremental else NO_FITS,
+            same_mode, tolerance)
+        memory = replace(memory, meshes=meshes)
     probability = np.exp(log_p - np.logaddexp.reduce(log_p))
     order = np.argsort(-probability, kind="stable")
     order = np.r_[0, order[order != 0]]  # the MAP candidate leads

@@ -20,6 +20,10 @@ contact moves every optimum little, so a touch starts from the last one's work:
 - every fit stops once a step gains less than a small share of its squares (a warm one
   after a few steps).
 
+An incremental touch also leaves the mesh fits (:mod:`.mesh_fit`) to the full searches: it
+only aims at and carries rivals, which the grid's fit posterior does well enough (the
+cups' and mugs' exact distances were half of such a touch).
+
 A *full* search leaves nothing out. It comes every ``decision_refresh`` contacts, and
 before any decision is reported: an incremental touch can only say "not yet" (what it
 leaves out are rivals the last touch found implausible, and one that came back would
