@@ -55,7 +55,7 @@ from scipy.special import chdtrc, gammaincinv, ndtri
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
-from .incremental import NOTHING, Refined, full_search_due, remembered, starts
+from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
@@ -66,7 +66,6 @@ TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
 HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
-MODE_ANGLE_DEG = 10.0  # poses closer than this (and same_mode) are one mode without a test
 GRID_ERROR_PERCENTILE = 95
 AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfaces do
 SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces

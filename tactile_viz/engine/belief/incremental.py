@@ -27,14 +27,14 @@ cups' and mugs' exact distances were half of such a touch).
 A *full* search leaves nothing out. It comes every ``decision_refresh`` contacts, and
 before any decision is reported: an incremental touch can only say "not yet" (what it
 leaves out are rivals the last touch found implausible, and one that came back would
-only be noticed late, never decided through).
+only be noticed late, never decided through); the touch after a decision is one too.
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-MODE_ANGLE_DEG = 10.0  # poses of one class closer than this (and the mode's distance) are one
+MODE_ANGLE_DEG = 10.0  # poses of one class closer than this (and a distance) are one mode
 
 
 @dataclass(frozen=True, eq=False)
