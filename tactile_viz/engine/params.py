@@ -503,33 +503,28 @@ class SessionParams:
         "them; or twice the position noise) are one hypothesis.", valid=_POSITIVE, length=1,
         control=(1e-3, 2.0), notes="Symmetries of the shape are not rivals.")
     decision_refresh: int = _session(
-        4, "Contacts between the decision's full searches; between them a touch starts from "
-        "the last one's hypotheses (1: afresh every touch).", kind="int", valid=_AT_LEAST_1,
-        control=(1, 50), notes="Only a full search decides (engine/belief/incremental.py).")
+        4, "Contacts between the decision's full searches, the only ones that decide (1: "
+        "afresh every touch).", kind="int", valid=_AT_LEAST_1, control=(1, 50))
     decision_budget: int = _session(
-        4, "Between full searches, the new hypotheses a touch refines at most besides the "
-        "MAP's.", kind="int", valid=_AT_LEAST_0, control=(0, 50))
+        4, "New hypotheses a touch between full searches refines at most, besides the MAP's.",
+        kind="int", valid=_AT_LEAST_0, control=(0, 50))
     decision_targets: bool = _session(
         True, "While a known object is not decided, touch where the plausible hypotheses' "
         "surfaces disagree most (beyond the paper).", kind="bool",
-        notes="While its MAP fits within the noise, holding the DHD stop, for "
-              "decision_patience steps at most; the MAP pose reported and aimed from is its "
-              "refined fit. False: the paper's targets, stop and MAP particle.")
+        notes="While its MAP fits (the DHD stop held), decision_patience steps at most, aimed "
+              "from its refined fit. False: the paper's targets, stop and MAP particle.")
     decision_patience: int = _session(
         30, "Steps of a session aimed at rival hypotheses at most (then the paper's targets "
         "and stop).", kind="int", valid=_AT_LEAST_0, control=(0, 300))
     decision_hold: bool = _session(
         True, "Once decided, each touch only refits the decided pose and keeps the decision "
         "while the contacts fit it within the noise (False: decide afresh every touch).",
-        kind="bool", notes="A misfit, another MAP class or a class posterior below "
-        "decision_confidence makes the decision afresh (engine/belief/held.py).")
+        kind="bool", notes="A misfit, another MAP class or a lower posterior decides afresh.")
     decision_candidates: int = _session(
         2000, "Surface points of each hypothesis a telling target is chosen from (0: its "
         "feature points).", kind="int", valid=_AT_LEAST_0, control=(0, 20000),
-        notes="The part that tells two shapes apart can be small (a screwdriver's tip): "
-              "few of the feature points lie on it, and the touches' spacing soon uses "
-              "them up. Cost: the hypotheses' distances at every candidate, each step a "
-              "rival is aimed at.")
+        notes="The part that tells two shapes apart can be small (a screwdriver's tip): few "
+              "feature points lie on it. Cost: the hypotheses' distances at every candidate.")
     misfit_novelty: float = _session(
         1e-6, "An object the paper's test judges known is novel once its MAP's refined "
         "residuals have a chi-squared p-value below this for 5 steps in a row with contacts "

@@ -2,6 +2,8 @@
 hypotheses an incremental touch leaves out, full searches, and the refinement's spared
 work (free space outside a pose's box, fits that stop once converged)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -182,7 +184,7 @@ def test_an_incremental_touch_refines_fewer_and_only_a_full_search_decides(shape
 
     monkeypatch.setattr(decision_module, "refine_poses", spy)
     monkeypatch.setattr(decision_module, "_weigh", spy_weigh)
-    undecided = first.refined.__class__(**{**first.refined.__dict__, "decided": False})
+    undecided = dataclasses.replace(first.refined, decided=False)
     again = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, carried=first.carried,
                    refined=undecided, refresh=4)
     assert fulls[0] is False and weighed[0] < len(first.refined.classes)
