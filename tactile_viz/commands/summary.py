@@ -37,7 +37,10 @@ def result_summary(result, files=()):
     elif not last.get("novel"):
         verdict += ", not decided"
     stop = result.get("terminated_at")
-    ended = (f"stopped by itself at step {stop}" if stop is not None
+    cap = (result.get("params") or {}).get("max_steps_novel" if last.get("novel")
+                                           else "max_steps_known")
+    ended = (f"stopped at its step cap ({cap})" if stop is not None and cap and stop >= cap
+             else f"stopped by itself at step {stop}" if stop is not None
              else f"ran to step {last['t']} without stopping")
     if result.get("interrupted"):
         ended = f"interrupted at step {last['t']}"

@@ -64,6 +64,11 @@ def test_the_summary_says_what_was_judged_when_and_where_the_files_went():
     lines = result_summary(dict(novel, steps=[dict(step, novel=True, gpis_prior="mug_2")]))
     assert "reconstructed from the prior mug_2;" in lines[0]
     assert result_summary({"steps": []}) == ["no step was taken"]
+    # A session the step cap ended did not stop by itself.
+    capped = dict(novel, terminated_at=14, params={"max_steps_novel": 14, "max_steps_known": 9})
+    assert "; stopped at its step cap (14) (12 contacts" in result_summary(capped)[0]
+    assert "stopped by itself at step 14" in result_summary(
+        dict(capped, params={"max_steps_novel": 400}))[0]
 
 
 def test_ctrl_c_keeps_the_touches_done_and_says_interrupted(tmp_path, capsys, monkeypatch):

@@ -219,10 +219,16 @@ class Planner:
         prior_open, prior_dhd = None, 0.0
         if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
+            # The way a probe went to its touch refutes the prior there too: a prior's
+            # part standing off the object is passed through on the way to the surface
+            # below it, and no contact ever comes within eps of it.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
-                                                           self._p.gpis_carve_radius))
-            if map_reach is not None:
+                                                           self._p.gpis_carve_radius),
+                                         self.state.swept, every=False)
+            if map_reach is not None and prior_open.any():
                 prior_open = _both(prior_open, map_reach)
+            prior_open = prior_open & ~buried(map_vertices, prior_open, recon.fit.mean_value,
+                                              contacts, self._p.eps)
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
 
@@ -363,23 +369,25 @@ class Planner:
         contact a touch only repeats it within the noise."""
         return self._p.target_noise_stds * self.sensor_noise[0]
 
-    def _reachable(self, vertices, radius=None):
+    def _reachable(self, vertices, radius=None, swept=(), every=True):
         """Mask of the vertices that exploration may still have to visit: away from every
-        target the sensor failed to reach and from the free space that missed probes
-        passed through (within ``radius``, default ``contact_spacing``).
+        target the sensor failed to reach, from the free space that missed probes passed
+        through and from the ``swept`` points, (k, 3) (within ``radius``, default
+        ``contact_spacing``).
 
-        The DHD and the next target leave the others out (all vertices count if none is
-        left): probing there again cannot change the estimate, so the trial would only run
-        to its step cap.
+        The DHD and the next target leave the others out (with ``every``, all vertices
+        count if none is left; the prior's cover is then done): probing there again cannot
+        change the estimate, so the trial would only run to its step cap.
         """
-        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
+        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space,
+                             np.reshape(swept, (-1, 3))])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
         distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
             vertices, distance_upper_bound=radius)[0]
         far = distance >= radius
-        return far if far.any() else np.ones(len(vertices), bool)
+        return far if far.any() or not every else np.ones(len(vertices), bool)
 
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
@@ -466,6 +474,39 @@ def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
     :func:`~tactile_viz.engine.shape.meshes.bare_mesh`): a long run meets many MAP classes."""
     return bare_mesh(model.mesh).vertex_normals
+
+
+def buried(vertices, mask, estimate, contacts, depth):
+    """Mask of the ``mask`` vertices farther than ``depth`` from every contact that the
+    ``estimate`` (positive outside; ``GPISFit.mean_value``) holds deeper than ``depth``
+    inside: a prior's surface inside the object (a 4 cm ball prior within a 6.6 cm can)
+    lies under the estimate's own surface, which a probe meets first, so touching cannot
+    cover it; the estimate's DHD asks for that surface instead. Only vertices that could
+    hold the stop (farther than ``depth`` from the contacts) are evaluated.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float, world frame
+    mask : (n,) bool
+        The vertices asked about.
+    estimate : callable
+        ``(k, 3) -> (k,)`` values, scene units.
+    contacts : (m, 3) float, world frame
+    depth : float, scene units
+        ``eps``.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    out = np.zeros(len(vertices), bool)
+    asked = np.flatnonzero(mask)
+    if len(asked) == 0 or len(contacts) == 0:
+        return out
+    far = asked[cKDTree(contacts).query(vertices[asked], distance_upper_bound=depth)[0] > depth]
+    if len(far):
+        out[far] = np.asarray(estimate(vertices[far])) < -depth
+    return out
 
 
 def _both(mask, other):
