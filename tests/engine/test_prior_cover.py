@@ -10,7 +10,8 @@ import trimesh
 
 from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.scene import FREE
-from tactile_viz.engine.session.planner import Planner, buried
+from tactile_viz.engine.session.fields import buried
+from tactile_viz.engine.session.planner import Planner
 from tactile_viz.engine.session.state import ExplorationState
 
 

@@ -58,7 +58,7 @@ from ..explore.scene_moves import check_line
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
-from .fields import BelowTangentPlane, ValueOf
+from .fields import BelowTangentPlane, ValueOf, buried
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -474,39 +474,6 @@ def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
     :func:`~tactile_viz.engine.shape.meshes.bare_mesh`): a long run meets many MAP classes."""
     return bare_mesh(model.mesh).vertex_normals
-
-
-def buried(vertices, mask, estimate, contacts, depth):
-    """Mask of the ``mask`` vertices farther than ``depth`` from every contact that the
-    ``estimate`` (positive outside; ``GPISFit.mean_value``) holds deeper than ``depth``
-    inside: a prior's surface inside the object (a 4 cm ball prior within a 6.6 cm can)
-    lies under the estimate's own surface, which a probe meets first, so touching cannot
-    cover it; the estimate's DHD asks for that surface instead. Only vertices that could
-    hold the stop (farther than ``depth`` from the contacts) are evaluated.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float, world frame
-    mask : (n,) bool
-        The vertices asked about.
-    estimate : callable
-        ``(k, 3) -> (k,)`` values, scene units.
-    contacts : (m, 3) float, world frame
-    depth : float, scene units
-        ``eps``.
-
-    Returns
-    -------
-    (n,) bool
-    """
-    out = np.zeros(len(vertices), bool)
-    asked = np.flatnonzero(mask)
-    if len(asked) == 0 or len(contacts) == 0:
-        return out
-    far = asked[cKDTree(contacts).query(vertices[asked], distance_upper_bound=depth)[0] > depth]
-    if len(far):
-        out[far] = np.asarray(estimate(vertices[far])) < -depth
-    return out
 
 
 def _both(mask, other):
