@@ -72,22 +72,23 @@ def test_a_prior_inside_the_estimate_does_not_hold_the_stop(scale):
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
-def test_the_way_to_a_touch_refutes_the_prior_it_passed(scale):
-    # The prior stands 0.3 off the object: no contact comes within eps of it, but the
-    # probes that touched the surface below passed through it.
+def test_a_prior_refuted_everywhere_by_missed_probes_is_covered(scale):
+    # The prior stands 0.3 off the object: no contact comes within eps of it; missed
+    # probes through it refute it where they passed, and all of it once they passed
+    # everywhere (it does not come back whole).
     planner, recon = _Planner(scale), _estimate(scale)
     contacts = _ball(scale, 2)
     prior = _ball(1.3 * scale)
     assert planner._coverage(recon, prior, contacts).prior_dhd > 0.25 * scale
     directions = prior / np.linalg.norm(prior, axis=1, keepdims=True)
-    upper = directions[:, 2] >= 0  # probes came down to the upper half only
+    upper = directions[:, 2] >= 0  # probes missed through the upper half only
     way = np.concatenate([d * scale * np.linspace(1.0, 2.0, 21)[:, None]
                           for d in directions[upper]])
-    planner.state.swept = way
+    planner.state.free_space = way
     coverage = planner._coverage(recon, prior, contacts)
     assert coverage.prior_open is not None
     assert not coverage.prior_open[upper].any()
     assert coverage.prior_open[directions[:, 2] < -0.2].all()
     assert coverage.prior_dhd > 0.25 * scale  # the lower half is still open
-    planner.state.swept = np.concatenate([way, -way])
+    planner.state.free_space = np.concatenate([way, -way])
     assert planner._coverage(recon, prior, contacts).prior_dhd == 0.0

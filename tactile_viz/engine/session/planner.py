@@ -219,12 +219,9 @@ class Planner:
         prior_open, prior_dhd = None, 0.0
         if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
-            # The way a probe went to its touch refutes the prior there too: a prior's
-            # part standing off the object is passed through on the way to the surface
-            # below it, and no contact ever comes within eps of it.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
                                                            self._p.gpis_carve_radius),
-                                         self.state.swept, every=False)
+                                         every=False)
             if map_reach is not None and prior_open.any():
                 prior_open = _both(prior_open, map_reach)
             prior_open = prior_open & ~buried(map_vertices, prior_open, recon.fit.mean_value,
@@ -369,18 +366,16 @@ class Planner:
         contact a touch only repeats it within the noise."""
         return self._p.target_noise_stds * self.sensor_noise[0]
 
-    def _reachable(self, vertices, radius=None, swept=(), every=True):
+    def _reachable(self, vertices, radius=None, every=True):
         """Mask of the vertices that exploration may still have to visit: away from every
-        target the sensor failed to reach, from the free space that missed probes passed
-        through and from the ``swept`` points, (k, 3) (within ``radius``, default
-        ``contact_spacing``).
+        target the sensor failed to reach and from the free space that missed probes
+        passed through (within ``radius``, default ``contact_spacing``).
 
         The DHD and the next target leave the others out (with ``every``, all vertices
         count if none is left; the prior's cover is then done): probing there again cannot
         change the estimate, so the trial would only run to its step cap.
         """
-        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space,
-                             np.reshape(swept, (-1, 3))])
+        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
         radius = self._p.contact_spacing if radius is None else radius
