@@ -731,11 +731,13 @@ def test_the_chi2_quantile_is_scipy_stats_own():
 def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monkeypatch,
                                                                     clearance):
     """Free-space points beyond the tip's radius from the mesh's box skip the mesh's
-    look-up; near and inside ones do not: the fit is the one every point is asked for."""
+    look-up, and so do those whose distance at the last look-up, less how far they moved
+    since, is beyond it; near and inside ones do not: the fit is the one every point is
+    asked for."""
     from tactile_viz.engine.belief import mesh_fit
     from tactile_viz.engine.scene import Scene
 
-    pf, state = _filter(shapes, _touches(shapes["cylinder"], 20, seed=2))
+    pf, state = _filter(shapes, _touches(shapes["knobbed"], 30, seed=2))
     monkeypatch.setattr(pf, "scene", Scene(tip_radius=clearance))
     lead = decide(pf, state, 0.99, floor=1e-3, same_mode=0.1).hypotheses[0]
     rng = np.random.default_rng(5)
@@ -744,12 +746,29 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
                          pf.contact_positions + 0.02 * pf.contact_normals,  # just outside
                          centre + rng.uniform(-0.2, 0.2, (10, 3))])  # inside
     exact = pf.exact_distance(lead.class_index)
+    # In the knobbed box's box (beside the knob), 0.3 to 0.6 off its surface: asked once,
+    # then spared.
+    low, high = exact.bounds
+    grid = low + (high - low) * rng.uniform(0.02, 0.98, (400, 3))
+    corners = grid[(exact.query(grid)[0] > 0.3) & (exact.query(grid)[0] < 0.6)]
+    assert len(corners) > 10
+    outside = np.vstack([outside, corners @ lead.rotation.T + lead.translation])
     asked = []
     query = exact.query
     monkeypatch.setattr(exact, "query", lambda points: asked.append(len(points)) or
                         query(points))
+    refine, looked_at = mesh_fit.refine_poses, []
+
+    def recording(evaluate, *args, **kwargs):
+        def spy(classes, points):
+            looked_at.append(points.reshape(-1, 3).copy())
+            return evaluate(classes, points)
+        return refine(spy, *args, **kwargs)
+
+    monkeypatch.setattr(mesh_fit, "refine_poses", recording)
     spared = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
                                   outside, None)
+    monkeypatch.setattr(mesh_fit, "refine_poses", refine)
 
     def every_point(evaluate, *args, **kwargs):
         def plain(classes, points):
@@ -758,9 +777,14 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
                     exact.face_normal(face).reshape(points.shape))
         return refine(plain, *args, **kwargs)
 
-    refine = mesh_fit.refine_poses
     monkeypatch.setattr(mesh_fit, "refine_poses", every_point)
     plain = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
                                  outside, None)
     assert spared == plain
     assert max(asked) < len(pf.contact_positions) + len(outside)
+    # What the box alone would have asked: the contacts and every point near the box.
+    m, (low, high) = len(pf.contact_positions), exact.bounds
+    by_box = [m + int((np.linalg.norm(np.maximum(np.maximum(low - p[m:], p[m:] - high), 0),
+                                      axis=1) <= clearance).sum()) for p in looked_at]
+    assert len(asked) == len(by_box) > 1
+    assert sum(asked) <= sum(by_box) - (len(asked) - 1) * len(corners) // 2

@@ -60,20 +60,26 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
     exact = pf.exact_distance(class_index)
     m, clearance = len(pf.contact_positions), pf.scene.tip_radius
     low, high = exact.bounds
+    last = {}  # the points of the last look-up and a lower bound of their distances
 
     def evaluate(classes, points):
-        # A free-space point farther than the tip's radius from the mesh's box lies
-        # outside the shape grown by it, whatever its exact distance: its residual is 0
-        # (refine_poses), so its distance to the box stands in for the mesh's, and most
-        # of the points are spared the mesh's look-up.
+        # A free-space point farther than the tip's radius from the shape has residual 0
+        # (refine_poses) whatever its exact distance, so a lower bound above the radius
+        # stands in for it: its distance to the mesh's box, or its distance at the last
+        # look-up less how far it moved since (a distance is 1-Lipschitz; a fit's steps
+        # move the points little). Most points are spared the mesh's look-up.
         flat = points.reshape(-1, 3)
-        gap = np.linalg.norm(np.maximum(np.maximum(low - flat, flat - high), 0.0), axis=1)
-        asked = (np.arange(len(flat)) % points.shape[-2] < m) | (gap <= clearance)
-        distance, normals = gap, np.zeros_like(flat)
+        bound = np.linalg.norm(np.maximum(np.maximum(low - flat, flat - high), 0.0), axis=1)
+        if last.get("points") is not None and last["points"].shape == flat.shape:
+            moved = np.linalg.norm(flat - last["points"], axis=1)
+            bound = np.maximum(bound, last["bound"] - moved)
+        asked = (np.arange(len(flat)) % points.shape[-2] < m) | (bound <= clearance)
+        distance, normals = bound, np.zeros_like(flat)
         normals[:, 2] = 1.0
         if asked.any():
             distance[asked], _, face = exact.query(flat[asked])
             normals[asked] = exact.face_normal(face)
+        last.update(points=flat.copy(), bound=distance.copy())
         return distance.reshape(points.shape[:-1]), normals.reshape(points.shape)
 
     rotations, translations, misfit = refine_poses(
