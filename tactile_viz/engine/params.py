@@ -354,9 +354,9 @@ class SessionParams:
     cover_prior: bool = _session(
         True, "A novel object's exploration also has to cover the MAP prior's surface "
         "(beyond the paper).", kind="bool",
-        notes="Within eps of a contact, refuted by a missed probe, or deeper than eps inside "
-              "the estimate (no probe reaches it), so that a reconstruction that shrank away "
-              "from the untouched prior cannot pass the stop.")
+        notes="Within eps of a contact, or refuted by a missed probe, so that a "
+              "reconstruction that shrank away from the untouched prior cannot pass the "
+              "stop.")
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
         "farther than eps from every contact (beyond the paper).", kind="bool",

@@ -1,11 +1,10 @@
 """Callables and point sets a session builds: a model's SDF at a pose, the values of a
-field, the space below a tangent plane, thinned free-space samples, what lies buried in an
-estimate, and how deep a probe goes (how far out it starts, :func:`free_approach`, is
-exploration's, re-exported here). The callables are classes, not closures, so that a
-session pickles (the app steps it in another process)."""
+field, the space below a tangent plane, thinned free-space samples, and how deep a probe
+goes (how far out it starts, :func:`free_approach`, is exploration's, re-exported here).
+The callables are classes, not closures, so that a session pickles (the app steps it in
+another process)."""
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..belief.prior_bank import grid_of
 from ..explore.exploration import free_approach  # noqa: F401 (re-exported: the session's)
@@ -75,36 +74,3 @@ def deepest_inside(estimate, target, normal, max_depth, samples=21):
     depths = np.linspace(0.0, max_depth, samples)
     values = estimate(target - depths[:, None] * normal)
     return float(max(depths[int(np.argmin(values))], max_depth / (samples - 1)))
-
-
-def buried(vertices, mask, estimate, contacts, depth):
-    """Mask of the ``mask`` vertices farther than ``depth`` from every contact that the
-    ``estimate`` (positive outside; ``GPISFit.mean_value``) holds deeper than ``depth``
-    inside: a prior's surface inside the object (a 4 cm ball prior within a 6.6 cm can)
-    lies under the estimate's own surface, which a probe meets first, so touching cannot
-    cover it; the estimate's DHD asks for that surface instead. Only vertices that could
-    hold the stop (farther than ``depth`` from the contacts) are evaluated.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float, world frame
-    mask : (n,) bool
-        The vertices asked about.
-    estimate : callable
-        ``(k, 3) -> (k,)`` values, scene units.
-    contacts : (m, 3) float, world frame
-    depth : float, scene units
-        ``eps``.
-
-    Returns
-    -------
-    (n,) bool
-    """
-    out = np.zeros(len(vertices), bool)
-    asked = np.flatnonzero(mask)
-    if len(asked) == 0 or len(contacts) == 0:
-        return out
-    far = asked[cKDTree(contacts).query(vertices[asked], distance_upper_bound=depth)[0] > depth]
-    if len(far):
-        out[far] = np.asarray(estimate(vertices[far])) < -depth
-    return out

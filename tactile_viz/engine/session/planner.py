@@ -58,7 +58,7 @@ from ..explore.scene_moves import check_line
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
-from .fields import BelowTangentPlane, ValueOf, buried
+from .fields import BelowTangentPlane, ValueOf
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -220,12 +220,9 @@ class Planner:
         if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
-                                                           self._p.gpis_carve_radius),
-                                         every=False)
-            if map_reach is not None and prior_open.any():
+                                                           self._p.gpis_carve_radius))
+            if map_reach is not None:
                 prior_open = _both(prior_open, map_reach)
-            prior_open = prior_open & ~buried(map_vertices, prior_open, recon.fit.mean_value,
-                                              contacts, self._p.eps)
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
 
@@ -366,14 +363,14 @@ class Planner:
         contact a touch only repeats it within the noise."""
         return self._p.target_noise_stds * self.sensor_noise[0]
 
-    def _reachable(self, vertices, radius=None, every=True):
+    def _reachable(self, vertices, radius=None):
         """Mask of the vertices that exploration may still have to visit: away from every
         target the sensor failed to reach and from the free space that missed probes
         passed through (within ``radius``, default ``contact_spacing``).
 
-        The DHD and the next target leave the others out (with ``every``, all vertices
-        count if none is left; the prior's cover is then done): probing there again cannot
-        change the estimate, so the trial would only run to its step cap.
+        The DHD and the next target leave the others out (all vertices count if none is
+        left): probing there again cannot change the estimate, so the trial would only run
+        to its step cap.
         """
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
         if len(refuted) == 0:
@@ -382,7 +379,7 @@ class Planner:
         distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
             vertices, distance_upper_bound=radius)[0]
         far = distance >= radius
-        return far if far.any() or not every else np.ones(len(vertices), bool)
+        return far if far.any() else np.ones(len(vertices), bool)
 
     def _plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
