@@ -750,9 +750,9 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
     # then spared.
     low, high = exact.bounds
     grid = low + (high - low) * rng.uniform(0.02, 0.98, (400, 3))
-    corners = grid[(exact.query(grid)[0] > 0.3) & (exact.query(grid)[0] < 0.6)]
-    assert len(corners) > 10
-    outside = np.vstack([outside, corners @ lead.rotation.T + lead.translation])
+    beside = grid[(exact.query(grid)[0] > 0.3) & (exact.query(grid)[0] < 0.6)]
+    assert len(beside) > 10
+    outside = np.vstack([outside, beside @ lead.rotation.T + lead.translation])
     asked = []
     query = exact.query
     monkeypatch.setattr(exact, "query", lambda points: asked.append(len(points)) or
@@ -787,4 +787,4 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
     by_box = [m + int((np.linalg.norm(np.maximum(np.maximum(low - p[m:], p[m:] - high), 0),
                                       axis=1) <= clearance).sum()) for p in looked_at]
     assert len(asked) == len(by_box) > 1
-    assert sum(asked) <= sum(by_box) - (len(asked) - 1) * len(corners) // 2
+    assert sum(asked) <= sum(by_box) - (len(asked) - 1) * len(beside) // 2
