@@ -70,7 +70,7 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
         # move the points little). Most points are spared the mesh's look-up.
         flat = points.reshape(-1, 3)
         bound = np.linalg.norm(np.maximum(np.maximum(low - flat, flat - high), 0.0), axis=1)
-        if last.get("points") is not None and last["points"].shape == flat.shape:
+        if "points" in last and last["points"].shape == flat.shape:
             moved = np.linalg.norm(flat - last["points"], axis=1)
             bound = np.maximum(bound, last["bound"] - moved)
         asked = (np.arange(len(flat)) % points.shape[-2] < m) | (bound <= clearance)
