@@ -394,10 +394,11 @@ class SessionParams:
               "nothing farther than contact_spacing from the estimate and from every contact "
               "before the session stops; a check that does restarts the count (part of the "
               "object was never predicted) and grows a frontier from the contact: targets "
-              "eps along four tangents, each contact on new ground growing it again, and the "
-              "session does not stop while one is queued. 48: a part beside the touched "
-              "body that nothing predicted is the commonest error left, and more checks "
-              "reach it, at some 16% more steps (docs/bench-novel.md).")
+              "eps along four tangents, each contact on ground neither a contact nor the "
+              "estimate predicted growing it again, and the session does not stop while "
+              "one is queued. 48: a part beside the touched body that nothing predicted "
+              "is the commonest error left, and more checks reach it, at some 16% more "
+              "steps (docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,

@@ -23,8 +23,9 @@ CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are o
 class Bookkeeping:
     """The exploration state's record of observations (see the module).
 
-    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``_filter_unit``,
-    ``strategy``, ``sensor_noise``, ``simulator``, ``_check_kind`` and ``_beyond_noise``
+    Reads the session's ``filter``, ``state``, ``latest``, ``_p``, ``_unit``,
+    ``_filter_unit``, ``strategy``, ``sensor_noise``, ``simulator``, ``_check_kind`` and
+    ``_beyond_noise``
     (:class:`~.planner.Planner`); writes ``state``.
     """
 
@@ -140,10 +141,21 @@ class Bookkeeping:
                                                  SWEPT_SPACING * self._unit)
 
     def _follow_frontier(self, touched):
-        """After a frontier target: a contact on new ground grows the frontier from it."""
+        """After a frontier target: a contact on new ground grows the frontier from it,
+        ground neither a contact nor the estimate the target was planned on predicted.
+        Where the estimate has come to hold the part the frontier followed, the checks
+        test it: grown from every contact beyond the spacing, the frontier tiled the
+        whole surface again at half ``eps`` (a 35 cm sofa to the step cap)."""
         contacts = self.filter.contact_positions
-        if (self.state.frontier_target and isinstance(touched, Contact) and len(contacts)
-                and cKDTree(contacts).query(touched.position)[0] > self._new_ground()):
+        if not (self.state.frontier_target and isinstance(touched, Contact)
+                and len(contacts)):
+            return
+        last = self.latest
+        estimate = None if last is None else last.gpis_vertices
+        known = [points for points in (contacts, estimate)
+                 if points is not None and len(points)]
+        if min(cKDTree(points).query(touched.position)[0]
+               for points in known) > self._new_ground():
             self._grow_frontier(touched)
 
     def _new_ground(self):
