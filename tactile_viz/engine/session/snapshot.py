@@ -1,7 +1,7 @@
 """What a session hands out: immutable snapshots of each step, the guarded moves it asks
 of a sensor, the targets it reaches for and the reconstruction of a novel object."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -180,6 +180,20 @@ class Reconstruction:
     @property
     def empty(self):
         return len(self.vertices) == 0
+
+    def restricted(self, keep):
+        """The same estimate on the vertices of mask ``keep`` (whole parts: a face is kept
+        when its three vertices are) and the faces among them."""
+        index = np.full(len(self.vertices), -1)
+        index[keep] = np.arange(np.count_nonzero(keep))
+        faces = index[self.faces[keep[self.faces].all(axis=1)]]
+        subset, candidates = self.subset, self.candidate_variance
+        if subset is not None:
+            mine = keep[subset]
+            subset, candidates = index[subset[mine]], candidates[mine]
+        vertex_variance = None if self.vertex_variance is None else self.vertex_variance[keep]
+        return replace(self, vertices=self.vertices[keep], faces=faces, subset=subset,
+                       candidate_variance=candidates, vertex_variance=vertex_variance)
 
     @cached_property
     def variance(self):
