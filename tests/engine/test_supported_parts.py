@@ -50,3 +50,12 @@ def test_a_restricted_estimate_keeps_its_faces_and_variance_on_the_kept_part():
     np.testing.assert_array_equal(part.vertices[part.subset], vertices[[0, 5, 40]])
     np.testing.assert_array_equal(part.candidate_variance, [0.0, 1.0, 4.0])
     np.testing.assert_array_equal(part.variance, recon.vertex_variance[:body])
+
+
+def test_a_restricted_estimate_without_a_variance_sample_has_none():
+    vertices, faces, body = _two_balls(1.0)
+    recon = Reconstruction(vertices, faces, np.array([body, body + 3]), np.ones(2),
+                           fit=None, resolution=32)
+    part = recon.restricted(np.arange(len(vertices)) < body)
+    assert part.subset is None
+    np.testing.assert_array_equal(part.variance, np.zeros(body))

@@ -25,8 +25,7 @@ class Bookkeeping:
 
     Reads the session's ``filter``, ``state``, ``latest``, ``_p``, ``_unit``,
     ``_filter_unit``, ``strategy``, ``sensor_noise``, ``simulator``, ``_check_kind`` and
-    ``_beyond_noise``
-    (:class:`~.planner.Planner`); writes ``state``.
+    ``_beyond_noise`` (:class:`~.planner.Planner`); writes ``state``.
     """
 
     def _after_moves(self, kind, done):

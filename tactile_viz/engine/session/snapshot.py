@@ -183,7 +183,8 @@ class Reconstruction:
 
     def restricted(self, keep):
         """The same estimate on the vertices of mask ``keep`` (whole parts: a face is kept
-        when its three vertices are) and the faces among them."""
+        when its three vertices are) and the faces among them; with no variance sample
+        left on them, no variance (zero)."""
         index = np.full(len(self.vertices), -1)
         index[keep] = np.arange(np.count_nonzero(keep))
         faces = index[self.faces[keep[self.faces].all(axis=1)]]
@@ -191,6 +192,7 @@ class Reconstruction:
         if subset is not None:
             mine = keep[subset]
             subset, candidates = index[subset[mine]], candidates[mine]
+            subset = subset if len(subset) else None
         vertex_variance = None if self.vertex_variance is None else self.vertex_variance[keep]
         return replace(self, vertices=self.vertices[keep], faces=faces, subset=subset,
                        candidate_variance=candidates, vertex_variance=vertex_variance)
