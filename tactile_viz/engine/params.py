@@ -395,10 +395,9 @@ class SessionParams:
               "before the session stops; a check that does restarts the count (part of the "
               "object was never predicted) and grows a frontier from the contact: targets "
               "eps along four tangents, each contact on ground neither a contact nor the "
-              "estimate predicted growing it again, and the session does not stop while "
-              "one is queued. 48: a part beside the touched body that nothing predicted "
-              "is the commonest error left, and more checks reach it, at some 16% more "
-              "steps (docs/bench-novel.md).")
+              "estimate predicted growing it again; no stop while one is queued. 48: a "
+              "part beside the touched body that nothing predicted is the commonest error "
+              "left; more checks reach it, at 16% more steps (docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,
@@ -431,17 +430,15 @@ class SessionParams:
         "from every contact, the reported surface is the newest one the contacts cover of "
         "this and the last this many steps' MAP priors (then, with gpis_agnostic, of the "
         "superquadrics fitted to the contacts), each without and with the carve's cut, "
-        "else the best supported of them, without its parts that no contact comes within "
-        "eps of (beyond the paper; 0: the last step's prior whole, as the paper).",
-        kind="int", valid="[0, 100]",
+        "else the best supported of them, without parts no contact comes within eps of "
+        "(beyond the paper; 0: the step's own prior, whole).", kind="int", valid="[0, 100]",
         notes="A novel object's MAP prior switches from step to step, and a switch at the "
               "last step can leave surface 2 units from every contact (mug_2 at seed 12201: "
               "0.39 at step 394, 2.29 at the cap). Covered: every vertex within eps of a "
               "contact, the stop's own test. Where no candidate is covered, the one whose "
               "farthest vertex lies nearest a contact, if nearer than the last surface's; "
               "a part no contact comes near is a phantom (an 8 cm cup at the cap: a blob 5 "
-              "cm off every contact, 69 mm of error); the exploration never changes "
-              "(docs/gpis.md).")
+              "cm off every contact); the exploration never changes (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
         "new prior.", kind="int", valid="[8, inf)",
