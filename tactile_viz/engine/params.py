@@ -280,8 +280,12 @@ class SessionParams:
         "paper).", kind="bool", notes="Value only, which removes the prior's surface where "
         "a probe passed through it.")
     gpis_noncontact_value: float = _gpis(
-        0.1, "The GPIS value a non-contact observes (with gpis_noncontacts).",
+        0.1, "The GPIS value a non-contact observes (gpis_noncontacts, gpis_refute_rounds).",
         valid=_POSITIVE, length=1)
+    gpis_refute_rounds: int = _gpis(
+        0, "Refits, at most, with the non-contacts the fit puts inside observing f = "
+        "gpis_noncontact_value (beyond the paper; 0: none).", kind="int", valid="[0, 10]",
+        notes="A miss removes a bulge of the fit itself; not yet measured whole (docs/gpis.md).")
     gpis_carve_radius: float = _gpis(
         0.6, "Radius of the balls cut out of the GPIS prior mean around non-contacts (beyond "
         "the paper; 0 keeps the prior whole).", valid=_AT_LEAST_0, length=1,
@@ -325,12 +329,8 @@ class SessionParams:
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "
         "sensor, or always.", kind="choice", choices=CARVE_ESTIMATE,
-        notes="Under sensor noise the thin-plate correction puts surface far from every "
-              "contact, which a miss does not remove (the carved prior is already outside "
-              "there), so the exploration aims at it again and again. The cut removes it, "
-              "but with fewer phantom targets the stop comes sooner, and the protocol's "
-              "final errors under noise were worse with it (docs/novel.md): off by "
-              "default.")
+        notes="It removes the fit's phantoms but dents thin true parts a probe passed "
+              "near: mixed on the protocol and on bench learn (docs/journal/not-kept.md).")
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",

@@ -25,7 +25,7 @@ from ..shape.gpis import (
 )
 from ..shape.gpis_evidence import contact_evidence, fit_superquadrics
 from ..shape.gpis_incremental import fit_gpis_incremental
-from ..shape.gpis_prior import contact_balls, filled_prior
+from ..shape.gpis_prior import contact_balls, filled_prior, refuted_fit
 from ..shape.gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
 from .fields import PosedSDF, thin_points
@@ -267,8 +267,14 @@ class Estimation:
                               everywhere)
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
-        return fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton,
-                        **self._observation_options(noncontacts))
+        """A full fit, then refitted while it puts a non-contact inside (beyond the
+        paper: ``gpis_refute_rounds``, at the scale the first fit took)."""
+        options = self._observation_options(noncontacts)
+        fit = fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton, **options)
+        return refuted_fit(
+            fit, noncontacts, self._p.gpis_noncontact_value, self._p.gpis_refute_rounds,
+            lambda refuting: fit_gpis(contacts, normals, prior, kernel, scale=fit.scale,
+                                      newton=False, refuting=refuting, **options))
 
     def _newton_due(self, contacts):
         """Whether a full fit takes the scale's Newton step: every ``gpis_refit_every``

@@ -381,7 +381,7 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
 
 
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,
-             noncontacts=None, noncontact_value=0.1):
+             noncontacts=None, noncontact_value=0.1, refuting=None):
     """Fit the GPIS to contacts, taking one Newton step on the kernel scale.
 
     Parameters
@@ -403,9 +403,12 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
         (with step halving).
     noncontacts : (k, 3) float, optional
         Positions known to be outside the object (beyond the paper): those where the prior
-        value is below ``noncontact_value`` observe ``f = noncontact_value`` with noise
-        variance ``(noncontact_value / 2)^2``.
+        value is below ``noncontact_value`` observe ``f = noncontact_value`` with the
+        contacts' noise variance.
     noncontact_value : float
+    refuting : (q, 3) float, optional
+        Positions outside the object that observe ``f = noncontact_value`` whatever the
+        prior there (:func:`~.gpis_prior.refuted_fit`).
 
     Returns
     -------
@@ -413,7 +416,8 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     """
     kernel = as_kernel(kernel)
     everything, kept, residual, noise = observations(points, normals, prior, noncontacts,
-                                                     noncontact_value, noise_variance)
+                                                     noncontact_value, noise_variance,
+                                                     refuting)
     if len(everything) == 0:
         return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)

@@ -23,9 +23,10 @@ def noncontact_observations(prior, noncontacts, value):
 
 
 def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
-                 noise_variance=1e-4):
+                 noise_variance=1e-4, refuting=None):
     """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
-    that contradict the prior (value ``noncontact_value``), less the prior mean.
+    that contradict the prior and the ``refuting`` (q, 3) points, whatever the prior there
+    (value ``noncontact_value``), less the prior mean.
 
     Returns
     -------
@@ -42,6 +43,8 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     normals = np.asarray(normals, dtype=float).reshape(-1, 3)
     outside = (np.zeros((0, 3)) if noncontacts is None
                else noncontact_observations(prior, noncontacts, noncontact_value))
+    if refuting is not None:
+        outside = np.vstack([outside, np.asarray(refuting, dtype=float).reshape(-1, 3)])
     everything = np.vstack([points, outside])
     if len(everything) == 0:
         return everything, np.zeros(0, dtype=int), np.zeros(0), np.zeros(0)
@@ -55,6 +58,43 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
                             np.full(len(outside), float(noise_variance))])
     return everything, kept, residual[kept], noise
+
+
+def refuted_fit(fit, free, value, rounds, refit):
+    """``fit`` fitted again while it puts points known to be outside inside (beyond the
+    paper): each round adds the ``free`` points whose posterior mean is below ``value`` to
+    those observing ``f = value``, at most ``rounds`` times.
+
+    The carve (:func:`carved_prior`) removes a prior's phantom part where a probe passed
+    through it; a bulge of the fit itself, where the prior is outside, it cannot: a
+    thin-plate fit of an 8 cm cup touched on both sides of its 2 mm walls grew one 3-6 cm
+    beyond every contact, the targets aimed at it and every probe missed it.
+
+    Parameters
+    ----------
+    fit : GPISFit
+    free : (q, 3) float, world frame
+        Points outside the object: non-contacts and points along missed probes.
+    value : float, scene units
+        ``gpis_noncontact_value``.
+    rounds : int
+    refit : callable
+        ``refit(refuting (k, 3)) -> GPISFit``: the same fit with those points observed.
+
+    Returns
+    -------
+    GPISFit
+        ``fit`` itself when it puts none of ``free`` inside.
+    """
+    free = np.asarray(free, dtype=float).reshape(-1, 3)
+    chosen = np.zeros(len(free), dtype=bool)
+    for _ in range(rounds if len(free) else 0):
+        inside = np.asarray(fit.mean_value(free)) < value
+        if not (inside & ~chosen).any():
+            break
+        chosen |= inside
+        fit = refit(free[chosen])
+    return fit
 
 
 def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only=False):
