@@ -34,8 +34,8 @@ $(PY):
 	  exit 1; fi
 	$(PYTHON) -m venv $(VENV)
 
-# Then the numba kernels are compiled into their cache, which a first trial would
-# otherwise do (13-16 s of a fresh clone's first two-step trial).
+# Then the numba kernels are compiled into their cache (7-20 s), which a first trial
+# would otherwise do (13-16 s of a fresh clone's first two-step trial).
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install --no-input --disable-pip-version-check -q -e '.[$(EXTRAS)]'
 	OPENBLAS_NUM_THREADS=1 $(PY) -m tactile_viz.engine.warmup
