@@ -11,8 +11,8 @@ from tactile_viz.engine.shape.gpis_prior import refuted_fit
 class _Fit:
     """A fit whose posterior mean is ``values`` at the free points given to the test."""
 
-    def __init__(self, values, refuting=()):
-        self.values, self.refuting = np.asarray(values, float), np.asarray(refuting)
+    def __init__(self, values):
+        self.values = np.asarray(values, float)
 
     def mean_value(self, points):
         return self.values[: len(points)]
