@@ -212,6 +212,54 @@ def test_a_grid_asks_the_winding_number_where_it_must_and_gets_every_nodes_sign(
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_sign_parts_join_neighbours_no_surface_can_pass_between(scale):
+    """Nodes along a line crossed by a plane between the second and third: distances 1.5,
+    0.5, 0.5, 1.5, 2.5 voxels. The first two join (1.5 + 0.5 > 1: no surface point lies
+    between them), the two beside the plane do not (0.5 + 0.5), the rest join the third."""
+    from tactile_viz.engine.shape.sdf_build import sign_parts
+
+    spacing = 0.7 * scale
+    distance = np.array([1.5, 0.5, 0.5, 1.5, 2.5]) * spacing
+    part, count = sign_parts(distance, (5, 1, 1), spacing)
+    assert count == 2
+    assert part[0] == part[1] != part[2] == part[3] == part[4]
+    alone, many = sign_parts(distance, (5, 1, 1), spacing, linked=False)
+    assert many == 4 and len(np.unique(alone)) == 4  # the far ones a region, each near one
+
+
+def test_linked_signs_ask_fewer_winding_numbers_for_the_same_grid():
+    """A cup's grid: the same signs as a part for each node within a voxel, from fewer
+    winding numbers (the two a part asks, and the near nodes that no neighbour joins)."""
+    from tactile_viz.engine.shape.sdf import ExactDistance
+    from tactile_viz.engine.shape.sdf_build import (
+        _exact_distance,
+        _grid_inside,
+        _node_positions,
+        grid_layout,
+    )
+
+    mesh = _cup(wall=0.3)
+    exact = ExactDistance(mesh.vertices, mesh.faces)
+    origin, spacing, counts = grid_layout(mesh.bounds, 40, 0.5)
+    shape = tuple(int(n) for n in counts)
+    nodes = _node_positions(origin, spacing, shape)
+    distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
+    asked = []
+    inside = exact.inside
+
+    def counted(points):
+        asked.append(len(points))
+        return inside(points)
+
+    exact.inside = counted
+    separate = _grid_inside(exact, nodes, distance, shape, spacing, linked=False)
+    alone, asked[:] = sum(asked), []
+    linked = _grid_inside(exact, nodes, distance, shape, spacing)
+    np.testing.assert_array_equal(linked, separate)
+    assert sum(asked) < 0.7 * alone
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_the_inside_test_is_the_winding_numbers_and_skips_points_beyond_the_box(scale,
                                                                               rng):
     """Points outside the mesh's bounding box are outside (their winding number is below

@@ -2,16 +2,17 @@
 go, their distances and signs, and how fine a grid a shape's thin parts need.
 
 Building a grid asks the winding number only where the sign can change: on a closed
-surface (every edge in both directions) the winding number is the same all over a region
-of nodes farther than a voxel from the surface and joined through such nodes, so one node
-(two, as a check) of each region answers for all of it. A cup's grid took half its time
+surface (every edge in both directions) the winding number is the same all over a part
+of nodes joined by segments that no surface crosses (:func:`sign_parts`), so one node
+(two, as a check) of each part answers for all of it. A cup's grid took half its time
 in winding numbers, in its cavity; the signs are those of asking every node (every
 bundled object's grid and the tests' are the same bytes). With a band
 (:func:`banded_distance`) only the nodes near the surface are asked their distance.
 """
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, sparse
+from scipy.sparse import csgraph
 
 from .sdf import SDFGrid
 
@@ -58,7 +59,9 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
         distance = banded_distance(exact, origin, spacing, shape, band).reshape(-1)
     else:
         distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
-    inside = _grid_inside(exact, nodes, distance, shape, spacing)
+    # A band under a voxel leaves nodes within a voxel interpolated: none linked by them.
+    inside = _grid_inside(exact, nodes, distance, shape, spacing,
+                          linked=band == 0 or band >= _FAR_VOXELS)
     values = np.where(inside, -distance, distance).reshape(shape)
     return SDFGrid.from_values(origin, spacing, values)
 
@@ -154,36 +157,86 @@ def _upsampled(coarse, shape):
     return np.ascontiguousarray(values)
 
 
-def _grid_inside(exact, nodes, distance, shape, spacing):
-    """Whether each grid node is inside (:meth:`ExactDistance.inside`), from winding
-    numbers at the nodes within a voxel of a closed surface and at two nodes of each region
-    of the others (see the module's docstring); a region whose two disagree is asked
-    node by node, as is every node of a surface that is not closed."""
+def _grid_inside(exact, nodes, distance, shape, spacing, linked=True):
+    """Whether each grid node is inside (:meth:`ExactDistance.inside`): on a closed surface
+    from winding numbers at two nodes of each part of nodes that share a sign
+    (:func:`sign_parts`), a part whose two disagree asked node by node; on a surface that is
+    not closed at every node."""
     inside = np.empty(len(distance), bool)
 
     def ask(index):
+        answers = np.empty(len(index), bool)
         for start in range(0, len(index), _GRID_BATCH):
-            batch = index[start:start + _GRID_BATCH]
-            inside[batch] = exact.inside(nodes(batch))
+            answers[start:start + _GRID_BATCH] = exact.inside(
+                nodes(index[start:start + _GRID_BATCH]))
+        return answers
 
     if not exact.closed:
-        ask(np.arange(len(distance)))
+        inside[:] = ask(np.arange(len(distance)))
         return inside
-    # Two neighbours (a voxel apart) of which one is farther than a voxel from the
-    # surface have no surface between them: their winding numbers are the same.
-    labels, count = ndimage.label((distance > _FAR_VOXELS * spacing).reshape(shape))
-    labels = labels.reshape(-1)
-    ask(np.flatnonzero(labels == 0))
-    if count:
-        first = np.unique(labels, return_index=True)[1][1:]
-        last = len(labels) - 1 - np.unique(labels[::-1], return_index=True)[1][1:]
-        region = np.concatenate([[False], exact.inside(nodes(first))])
-        far = np.flatnonzero(labels)
-        inside[far] = region[labels[far]]
-        unsure = np.flatnonzero(region[1:] != exact.inside(nodes(last))) + 1
-        if len(unsure):
-            ask(np.flatnonzero(np.isin(labels, unsure)))
+    part, count = sign_parts(distance, shape, spacing, linked)
+    order = np.argsort(part, kind="stable")
+    sizes = np.bincount(part, minlength=count)
+    ends = np.cumsum(sizes)
+    first, last = order[ends - sizes], order[ends - 1]
+    sign = ask(first)
+    several = np.flatnonzero(sizes > 1)
+    unsure = several[ask(last[several]) != sign[several]]
+    inside[:] = sign[part]
+    if len(unsure):
+        index = np.flatnonzero(np.isin(part, unsure))
+        inside[index] = ask(index)
     return inside
+
+
+def sign_parts(distance, shape, spacing, linked=True):
+    """Parts of a grid's nodes that share one side of a closed surface.
+
+    Two neighbours (a voxel apart) with no surface point on the segment between them have
+    the same winding number. There is none when their distances add up to more than the
+    segment's length (``d(a) + d(b) > h``: a surface point on it would lie within ``t`` of
+    one and ``h - t`` of the other); so the nodes farther than a voxel from the surface
+    share their region's sign, and a node within a voxel joins every neighbour it is so
+    linked to (``linked``; else each is a part of its own). A thin cup's grid at 128 voxels
+    asked 87,000 winding numbers near its walls, and 26,000 so linked.
+
+    Parameters
+    ----------
+    distance : (n,) float
+        Unsigned distances at the nodes (C order of ``shape``): exact within a voxel of
+        the surface, at least a voxel beyond it.
+    shape : (3,) int
+    spacing : float
+    linked : bool
+
+    Returns
+    -------
+    part : (n,) int
+        Each node's part, ``0 <= part < count``.
+    count : int
+    """
+    reach = _FAR_VOXELS * spacing
+    far = distance > reach
+    labels, regions = ndimage.label(far.reshape(shape))
+    labels = labels.reshape(-1)
+    near = np.flatnonzero(~far)
+    part = labels - 1
+    part[near] = regions + np.arange(len(near))
+    count = regions + len(near)
+    if not linked or not len(near):
+        return part, count
+    values, parts, close = (array.reshape(shape) for array in (distance, part, ~far))
+    rows, columns = [], []
+    for axis in range(3):
+        low = tuple(slice(0, -1) if a == axis else slice(None) for a in range(3))
+        high = tuple(slice(1, None) if a == axis else slice(None) for a in range(3))
+        link = (close[low] | close[high]) & (values[low] + values[high] > reach)
+        rows.append(parts[low][link])
+        columns.append(parts[high][link])
+    rows, columns = np.concatenate(rows), np.concatenate(columns)
+    graph = sparse.coo_matrix((np.ones(len(rows), bool), (rows, columns)), (count, count))
+    count, joined = csgraph.connected_components(graph, directed=False)
+    return joined[part], int(count)
 
 
 def missed_share(grid, points, normals):
