@@ -45,6 +45,7 @@ from ..cli import (
     add_set_argument,
     count_int,
     fraction,
+    name_list,
     nonnegative_int,
     output_dir,
     positive_int,
@@ -288,6 +289,7 @@ def main(argv=None):
     parser.add_argument("--preset", default="recognise", help="session preset")
     add_set_argument(parser)
     parser.add_argument("--objects", default=None, metavar="NAME[,NAME...]",
+                        type=name_list(_known_names, "a known object"),
                         help="known objects to run (default: all)")
     parser.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                         help="cap every trial at N steps (default: known trials run until "
@@ -314,6 +316,11 @@ def main(argv=None):
     summaries = [summary(r) for r in results]
     write_tables(out / "decide", summaries, markdown(summaries) + reference_line())
     return 1 if failed else 0
+
+
+def _known_names():
+    """The known objects a trial can run: the bundled known set and the hard objects."""
+    return list(bundled_names("known")) + list(HARD_SIZES_M)
 
 
 def reference_line(repeats=5):

@@ -100,6 +100,7 @@ def test_the_forks_grid_resolves_its_tines(tmp_path):
     (["--noise", "0.001:-1"], ">= 0"),
     (["--set", "decision_confidence"], "decision_confidence"),
     (["--outliers", "0.6"], "[0, 0.5)"),
+    (["--objects", "mug_1,drill"], "not a known object: 'drill'"),
 ])
 def test_bad_arguments_get_one_line(capsys, argv, message):
     with pytest.raises(SystemExit) as stop:
