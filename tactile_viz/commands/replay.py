@@ -134,7 +134,7 @@ def run_replay_command(args):
               "interrupted": records.interrupted,
               "units": units, "seconds": time.perf_counter() - start, "steps": records}
     if args.export:
-        export_session(session, args.export, units)
+        export_session(session, args.export, units, interrupted=records.interrupted)
         write_scene_line(Path(args.export) / "observations.csv", scene)
     if args.export_bag:
         export_bag(session, args.export_bag, units)

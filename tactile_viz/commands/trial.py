@@ -246,7 +246,7 @@ def run_trial_command(args):
     def finish(session, interrupted=False):
         extra = {}
         if args.export:
-            export_session(session, args.export, units)
+            export_session(session, args.export, units, interrupted=interrupted)
             write_scene_line(Path(args.export) / "observations.csv", scene)
         if args.export_bag:
             export_bag(session, args.export_bag, units)

@@ -89,7 +89,12 @@ def test_ctrl_c_keeps_the_touches_done_and_says_interrupted(tmp_path, capsys, mo
     assert status == 130
     result = json.loads(out.read_text())
     assert result["interrupted"] is True and len(result["steps"]) == 2
-    assert (export / "observations.csv").exists()
+    recording = (export / "observations.csv").read_text()
+    assert recording.startswith("# interrupted: at step 2")
+    assert json.loads((export / "estimate.json").read_text())["interrupted"] is True
+    from tactile_viz.engine.io.observation_file import read_observations
+
+    assert len(read_observations(export / "observations.csv")) == 2  # the mark is a comment
     assert "interrupted at step 2" in capsys.readouterr().err
     calls.clear()
     monkeypatch.setattr(Session, "step", lambda self: (_ for _ in ()).throw(KeyboardInterrupt))

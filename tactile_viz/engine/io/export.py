@@ -64,7 +64,8 @@ def _ply(vertices, faces):
     return trimesh.Trimesh(vertices, faces, process=False).export(file_type="ply")
 
 
-def export_session(session, folder, units: str | None = None, bag: bool = False) -> list[Path]:
+def export_session(session, folder, units: str | None = None, bag: bool = False,
+                   interrupted: bool = False) -> list[Path]:
     """Write the latest estimate of ``session`` and its touches to ``folder``.
 
     Parameters
@@ -77,6 +78,9 @@ def export_session(session, folder, units: str | None = None, bag: bool = False)
         The scene's length unit, written into the files (None: the mesh files' own).
     bag : bool
         Also write ``session.mcap`` (needs rosbags).
+    interrupted : bool
+        The run was stopped before it ended (Ctrl-C): ``estimate.json`` says so and the
+        recording starts with an ``# interrupted:`` comment naming the last step.
 
     Returns
     -------
@@ -91,9 +95,11 @@ def export_session(session, folder, units: str | None = None, bag: bool = False)
     folder = Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        written = [write_atomic(folder / "observations.csv",
-                                format_observations(session.recorded_steps(),
-                                                    units).encode()),
+        recording = format_observations(session.recorded_steps(), units)
+        if interrupted:
+            recording = (f"# interrupted: at step {snapshot.step}, before the session "
+                         f"ended\n{recording}")
+        written = [write_atomic(folder / "observations.csv", recording.encode()),
                    write_atomic(folder / "map_shape.ply",
                                 _ply(snapshot.map_vertices, snapshot.map_faces))]
         reconstruction = folder / "reconstruction.ply"
@@ -102,7 +108,8 @@ def export_session(session, folder, units: str | None = None, bag: bool = False)
                 _ply(snapshot.gpis_vertices, snapshot.gpis_faces))))
         elif reconstruction.exists():
             os.remove(reconstruction)
-        text = json.dumps(estimate_record(session, snapshot, units), indent=1)
+        record = {**estimate_record(session, snapshot, units), "interrupted": interrupted}
+        text = json.dumps(record, indent=1)
         written.append(write_atomic(folder / "estimate.json", text.encode()))
         if bag:
             from .bag_export import export_bag
