@@ -116,6 +116,54 @@ def test_a_grid_is_refined_until_it_resolves_thin_parts(tmp_path):
     assert again.grid_resolution == fine.grid_resolution and "exact" not in again.__dict__
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_refined_grid_is_exact_near_the_surface_and_the_coarse_exact_field_beyond(scale,
+                                                                                    rng):
+    """A grid refined past an exact grid's resolution (48 voxels past 24, as a thin cup's
+    128 past 64) holds the exact grid's values within the band and, beyond it, a field as
+    close to the distance as the unrefined exact grid's; tiny and huge."""
+    from tactile_viz.engine.shape.sdf import ExactDistance
+    from tactile_viz.engine.shape.sdf_build import REFINED_BAND, build_sdf_grid, grid_layout
+
+    mesh = _cup(wall=0.3)
+    exact = ExactDistance(mesh.vertices * scale, mesh.faces)
+    bounds, padding = mesh.bounds * scale, 0.5 * scale
+    refined = build_sdf_grid(exact, bounds, 48, padding, band=REFINED_BAND,
+                             exact_resolution=24)
+    fine, coarse = (build_sdf_grid(exact, bounds, r, padding) for r in (48, 24))
+    spacing = grid_layout(bounds, 48, padding)[1]
+    points = rng.uniform(bounds[0] - padding, bounds[1] + padding, (6000, 3))
+    truth = exact.signed_distance(points)
+    value = {name: grid.evaluate(points)[0]
+             for name, grid in (("refined", refined), ("fine", fine), ("coarse", coarse))}
+    near = np.abs(truth) < 2 * spacing  # every corner of its cell within the band
+    assert near.sum() > 500 and (~near).sum() > 500
+    np.testing.assert_allclose(value["refined"][near], value["fine"][near],
+                               atol=1e-3 * spacing)
+    error = {name: np.median(np.abs(v[~near] - truth[~near]) / np.abs(truth[~near]))
+             for name, v in value.items()}
+    assert error["refined"] <= 1.2 * error["coarse"]
+    assert error["fine"] < error["refined"]  # the far field is the coarse one, not exact
+
+
+def test_a_refined_grid_is_banded_by_its_key_only_where_grids_are_exact(tmp_path):
+    """The grid of a thin shape refined past ``sdf_resolution`` is keyed (and built) exact
+    within ``REFINED_BAND`` voxels; an unrefined grid's key is as before, and a banded
+    preset's refined grid keeps its own band."""
+    from tactile_viz.engine.io.cache import ArrayCache
+    from tactile_viz.engine.shape.sdf_build import REFINED_BAND
+
+    fork = _fork(ArrayCache(tmp_path)).with_params(sdf_max_resolution=256)
+    assert fork.grid_resolution > 24
+    assert fork._sdf_params() == {"resolution": fork.grid_resolution,
+                                  "padding": fork._padding, "band": REFINED_BAND,
+                                  "exact_resolution": 24}
+    assert fork._grid_params(24) == {"resolution": 24, "padding": fork._padding}
+    banded = fork.with_params(sdf_exact_band=2.0)
+    assert banded._grid_params(48) == {"resolution": 48, "padding": fork._padding,
+                                       "band": 2.0}
+
+
 def test_a_compact_shape_keeps_its_grid(sphere_model):
     refining = sphere_model.with_params(sdf_max_resolution=256)
     assert refining.grid_resolution == sphere_model.params.sdf_resolution

@@ -28,6 +28,7 @@ from .sdf import ExactDistance, SDFGrid
 from .sdf_build import (
     MAX_REFINED_NODES,
     MISS_COSINE,
+    REFINED_BAND,
     THIN_MISSES,
     build_sdf_grid,
     fitted_resolution,
@@ -299,8 +300,13 @@ class ObjectModel:
     def _grid_params(self, resolution):
         # An exact grid's key has no band: the entries built before bands stay valid.
         band = self.params.sdf_exact_band
-        return {"resolution": int(resolution), "padding": self._padding,
-                **({"band": float(band)} if band > 0 else {})}
+        key = {"resolution": int(resolution), "padding": self._padding}
+        if band > 0:
+            return {**key, "band": float(band)}
+        if resolution > self.params.sdf_resolution:  # refined: exact near the surface
+            return {**key, "band": REFINED_BAND,
+                    "exact_resolution": int(self.params.sdf_resolution)}
+        return key
 
     def _sdf_params(self):
         return self._grid_params(self.grid_resolution)

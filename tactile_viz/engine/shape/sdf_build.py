@@ -29,9 +29,13 @@ THIN_MISSES = 0.01
 MISS_COSINE = 0.5
 # The finest grid a thin part may ask for: about 10 MB (a compact object at 128 voxels).
 MAX_REFINED_NODES = 2_100_000
+# Voxels from the surface within which a grid refined past an exact grid's resolution is
+# exact; beyond, it holds the exact grid's own field (a trilinear field sampled at half its
+# spacing and interpolated again is the same field), which every unrefined prior has.
+REFINED_BAND = 4.0
 
 
-def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
+def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0, exact_resolution=0):
     """Sample a signed distance on a regular grid over a padded box.
 
     Parameters
@@ -47,6 +51,10 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
         0: the exact distance at every node. Otherwise exact only at the nodes that may
         lie within ``band`` voxels of the surface, the rest interpolated
         (:func:`banded_distance`); the signs are exact either way.
+    exact_resolution : int
+        With a band, the voxels along the longest side of the coarsest level, which is
+        exact at every node (0: 16). A grid refined for thin parts with this its unrefined
+        resolution holds, beyond the band, the unrefined exact grid's field.
 
     Returns
     -------
@@ -56,7 +64,9 @@ def build_sdf_grid(exact, bounds, resolution=64, padding=1.0, band=0.0):
     shape = tuple(int(n) for n in counts)
     nodes = _node_positions(origin, spacing, shape)
     if band > 0:
-        distance = banded_distance(exact, origin, spacing, shape, band).reshape(-1)
+        coarsest = exact_resolution + 1 if exact_resolution > 0 else _COARSEST
+        distance = banded_distance(exact, origin, spacing, shape, band,
+                                   coarsest).reshape(-1)
     else:
         distance = _exact_distance(exact, nodes, np.arange(int(np.prod(shape))))
     # A band under a voxel leaves nodes within a voxel interpolated: none linked by them.
