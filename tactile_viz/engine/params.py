@@ -198,9 +198,9 @@ class FilterParams:
     sdf_max_resolution: int = _filter(
         256, "Up to how many voxels a prior's SDF grid is refined for thin parts (at most "
         "sdf_resolution: never).", kind="int", valid="[0, inf)",
-        notes="Doubled from sdf_resolution while over 1% of the surface sees the grid's "
-              "normal more than 60 degrees off (parts thinner than about two voxels: a "
-              "fork's tines), up to about 10 MB a grid.")
+        notes="Doubled while over 1% of the surface sees the grid's normal over 60 degrees "
+              "off (a fork's tines), up to about 10 MB a grid; exact within 4 voxels of the "
+              "surface, and beyond as exact as the sdf_resolution grid (or its band).")
     sdf_exact_band: float = _filter(
         0.0, "Voxels from the surface within which a prior's SDF grid is exact; farther "
         "nodes are interpolated from coarser grids (0: exact at every node).",
