@@ -43,3 +43,40 @@ def test_the_surface_hausdorff_has_no_sampling_floor(scale):
                                  (moved.vertices, moved.faces))
     assert distance == pytest.approx(0.1 * scale, rel=1e-6)
     assert surface_hausdorff(a, surface, b, (np.zeros((0, 3)), np.zeros((0, 3), int))) == np.inf
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_truth_evaluator_measures_a_step_without_a_session(scale, rng):
+    """The truth's own shape at its own pose is no error; the same shape shifted is off by
+    the shift; a reconstruction that is the truth's surface is off by at most the samples'
+    gap and, on a final step, by about nothing; contacts on every sample cover the truth;
+    another shape has no rotation error (tiny and huge)."""
+    from types import SimpleNamespace
+
+    from tactile_viz.engine.session.truth import TruthEvaluator, make_truth
+    from tactile_viz.engine.shape.objects import ObjectModel
+    from tactile_viz.engine.transforms import transform_points
+
+    box = trimesh.creation.box((2.0 * scale, 1.0 * scale, 0.5 * scale))
+    model = ObjectModel.from_arrays(box.vertices, box.faces, "box")
+    ball = trimesh.creation.icosphere(radius=0.6 * scale)
+    other = ObjectModel.from_arrays(ball.vertices, ball.faces, "ball")
+    truth = make_truth(model, rng=rng)
+    evaluator = TruthEvaluator(truth, 2000)
+    placed = transform_points(model.mesh.vertices, truth.rotation, truth.translation)
+    recon = SimpleNamespace(vertices=placed, faces=model.mesh.faces)  # what it reads
+    same = evaluator.errors(model, truth.rotation, truth.translation, recon,
+                            evaluator.points, final=True)
+    assert same["pose_error"] == pytest.approx(0.0, abs=1e-9 * scale)
+    assert same["rotation_error_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert same["truth_coverage"] == 0.0
+    assert 0 < same["recon_error"] < 0.2 * scale
+    assert same["recon_surface_error"] < 1e-6 * scale
+    shift = np.array([0.1, 0.0, 0.0]) * scale
+    shifted = evaluator.errors(model, truth.rotation, truth.translation + shift, None,
+                               evaluator.points[:10])
+    assert shifted["pose_error"] == pytest.approx(0.1 * scale, rel=1e-6)
+    assert shifted["recon_error"] is None and shifted["truth_coverage"] > 0
+    elsewhere = evaluator.errors(other, truth.rotation, truth.translation, None,
+                                 evaluator.points)
+    assert elsewhere["rotation_error_deg"] is None and elsewhere["pose_error"] > 0

@@ -42,8 +42,6 @@ from ..params import PAPER_SIZE, SessionParams, scaled_lengths
 from ..presets import noise_matched
 from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
-from ..shape.metrics import surface_samples
-from ..transforms import transform_points
 from .bookkeeping import Bookkeeping
 from .estimate import Estimation
 from .fields import deepest_inside, free_approach
@@ -52,7 +50,7 @@ from .lengths import own_unit, session_lengths
 from .planner import SWEEP_RADIUS, Planner
 from .snapshot import Move, Snapshot, frozen, hypotheses
 from .state import Checkpoint, ExplorationState
-from .truth import TruthMetrics, make_truth  # noqa: F401 (make_truth: public here too)
+from .truth import TruthEvaluator, make_truth  # noqa: F401 (make_truth: public here too)
 
 Observation = Union[Contact, NonContact]
 
@@ -83,7 +81,7 @@ def _one_move(path):
     return [path], [result]
 
 
-class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
+class Session(Planner, Bookkeeping, Estimation, Learning):
     """Active exploration of one object with one prior library: Algorithm 2, step by step.
 
     The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
@@ -148,7 +146,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         self.rng = np.random.default_rng([self.seed, 1])
         self.simulator = None
         self.sensor = sensor
-        self._truth_samples = None
+        self.evaluator = None  # errors against the truth, outside the timed step
         if truth is not None:
             self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
                                               normal_noise_deg=self.sensor_noise[1],
@@ -156,9 +154,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
                                               outlier_fraction=sensor_outliers,
                                               scene=self.scene)
             self.sensor = self.simulator
-            self._truth_samples = transform_points(
-                surface_samples(truth.model, self.params.metric_samples), truth.rotation,
-                truth.translation)
+            self.evaluator = TruthEvaluator(truth, self.params.metric_samples)
         # The filter's lengths scale with the library, which all classes share.
         self._filter_unit = self.params.length_unit or library.reference_size / PAPER_SIZE
         filter_params = scaled_lengths(self.params.filter, self._filter_unit)
@@ -532,17 +528,16 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
         if plan.terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings,
                                         (model.name, *pose))
-        with _timed(timings, "metrics"):
-            errors = self._truth_metrics(model, *pose, recon, contacts, plan.terminated)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
-                              observations, timings, errors, decision)
+                              observations, timings, decision)
 
     def _snapshot(self, belief, model, pose, map_vertices, recon, plan, paths,
-                  observations, timings, errors, decision):
-        """Record the step's :class:`Snapshot`."""
+                  observations, timings, decision):
+        """Record the step's :class:`Snapshot`, with the evaluator's errors (untimed)."""
         (rotation, translation) = pose
-        pose_error, recon_error, truth_coverage, surface_error = errors
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
+        errors = {} if self.evaluator is None else self.evaluator.errors(
+            model, rotation, translation, recon, contacts, plan.terminated)
         snapshot = Snapshot(
             step=self.step_count + 1, new_observations=tuple(observations),
             paths=tuple(frozen(p) for p in paths), contacts=frozen(contacts),
@@ -558,8 +553,9 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             gpis_variance=None if recon is None else recon.deferred_variance(),
             gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
             target=None if self.state.target is None else frozen(self.state.target.position),
-            dhd=float(plan.dhd), truth_coverage=truth_coverage, pose_error=pose_error,
-            recon_error=recon_error, recon_surface_error=surface_error,
+            dhd=float(plan.dhd), truth_coverage=errors.get("truth_coverage"),
+            pose_error=errors.get("pose_error"), recon_error=errors.get("recon_error"),
+            recon_surface_error=errors.get("recon_surface_error"),
             terminated=plan.terminated, timings=timings,
             hypotheses=hypotheses(belief),
             gpis_resolution=None if recon is None else recon.resolution,
@@ -567,7 +563,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning, TruthMetrics):
             gpis_spacing=None if recon is None else recon.spacing,
             gpis_shape=None if recon is None else self.state.gpis_shape,
             decided=bool(plan.decided), decision_confidence=decision.confidence,
-            **self._pose_difference(model, rotation, translation))
+            rotation_error_deg=errors.get("rotation_error_deg"),
+            translation_error=errors.get("translation_error"))
         self.snapshots.append(snapshot)
         return snapshot
 

@@ -1,5 +1,5 @@
-"""What a simulated trial measures against its ground truth (a mixin of
-:class:`~.loop.Session`), and the ground truth of a trial."""
+"""What a simulated trial measures against its ground truth (:class:`TruthEvaluator`,
+outside the step), and the ground truth of a trial."""
 
 import numpy as np
 import trimesh
@@ -11,69 +11,100 @@ from ..shape.metrics import (
     pose_difference,
     pose_error as metric_pose_error,
     surface_hausdorff,
+    surface_samples,
 )
 from ..shape.objects import ObjectModel
 from ..shape.resting import resting_pose
 from ..transforms import random_pose, transform_points
 
 
-class TruthMetrics:
-    """Errors against ``self.truth`` (None without a simulated object)."""
+class TruthEvaluator:
+    """What a simulated trial's steps measure against the object, outside the step: the
+    session hands it each step's estimate and reports what it says beside the step
+    (:class:`~.snapshot.Snapshot`'s error fields), untimed.
 
-    def _pose_difference(self, model, rotation, translation):
-        """``rotation_error_deg`` and ``translation_error`` of the MAP against the simulated
-        object (None without one, or when the MAP is another shape)."""
-        if self.truth is None:
-            return {}
+    Parameters
+    ----------
+    truth : GroundTruth
+        The simulated object, placed in the world.
+    samples : int
+        Surface samples of the truth and of a reconstruction (``metric_samples``).
+
+    Attributes
+    ----------
+    truth : GroundTruth
+    samples : int
+    points : (samples, 3) float, world frame
+        The truth's surface samples.
+    """
+
+    def __init__(self, truth, samples):
+        self.truth, self.samples = truth, int(samples)
+        self.points = transform_points(surface_samples(truth.model, self.samples),
+                                       truth.rotation, truth.translation)
+        self._tree = self._placed = self._last_pose = None
+
+    def errors(self, model, rotation, translation, recon, contacts, final=False):
+        """The snapshot's error fields of one step's estimate: ``pose_error``,
+        ``recon_error`` (the paper's TWD on samples; None without a reconstruction),
+        ``recon_surface_error`` (on the ``final`` step only: samples to the other surface,
+        :func:`~..shape.metrics.surface_hausdorff`, 60-90 ms), ``truth_coverage`` (the
+        truth's samples to the nearest contact) and, when the MAP is the truth's shape,
+        ``rotation_error_deg`` and ``translation_error``.
+
+        Parameters
+        ----------
+        model : ObjectModel
+            The MAP shape.
+        rotation : (3, 3) float
+        translation : (3,) float, world frame
+            Its pose (object to world).
+        recon : Reconstruction or None
+            The step's GPIS surface (its ``vertices`` and ``faces``), world frame.
+        contacts : (n, 3) float, world frame
+        final : bool
+
+        Returns
+        -------
+        dict
+        """
+        recon_error = surface_error = None
+        if recon is not None and len(recon.faces):
+            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
+            samples, _ = trimesh.sample.sample_surface(mesh, self.samples, seed=0)
+            recon_error = max(directed_hausdorff(samples, self.points, self._truth_tree()),
+                              directed_hausdorff(self.points, samples))
+            if final:
+                surface_error = surface_hausdorff(samples, (recon.vertices, recon.faces),
+                                                  self.points, self._truth_surface())
         angle, distance = pose_difference(model, rotation, translation, self.truth)
-        return {"rotation_error_deg": angle, "translation_error": distance}
-
-    def _truth_tree(self):
-        """A KD-tree of the truth's samples, built once (not pickled: a session pickles
-        as its setup)."""
-        if self.__dict__.get("_truth_kdtree") is None:
-            self._truth_kdtree = cKDTree(self._truth_samples)
-        return self._truth_kdtree
+        return {"pose_error": float(self._pose_error(model, rotation, translation)),
+                "recon_error": recon_error, "recon_surface_error": surface_error,
+                "truth_coverage": directed_hausdorff(self.points, contacts),
+                "rotation_error_deg": angle, "translation_error": distance}
 
     def _pose_error(self, model, rotation, translation):
         """:func:`~..shape.metrics.pose_error` of the MAP, remembered for the last pose (the
         MAP often stays where it was for many steps)."""
         key = (id(model), np.asarray(rotation).tobytes(), np.asarray(translation).tobytes())
-        last = self.__dict__.get("_last_pose_error")
-        if last is None or last[0] != key:
-            last = self._last_pose_error = key, metric_pose_error(
-                model, rotation, translation, self.truth, self._p.metric_samples)
-        return last[1]
+        if self._last_pose is None or self._last_pose[0] != key:
+            self._last_pose = key, metric_pose_error(model, rotation, translation,
+                                                     self.truth, self.samples)
+        return self._last_pose[1]
 
-    def _truth_metrics(self, model, rotation, translation, recon, contacts, final=False):
-        """Pose error, reconstruction error (the paper's TWD on samples, and on the
-        ``final`` step only, from samples to the other surface:
-        :func:`~..shape.metrics.surface_hausdorff`, 60-90 ms) and truth coverage against
-        the simulated object (None without one; the reconstruction errors None without a
-        reconstruction)."""
-        if self.truth is None:
-            return None, None, None, None
-        pose_error = self._pose_error(model, rotation, translation)
-        recon_error = surface_error = None
-        if recon is not None and len(recon.faces):
-            mesh = trimesh.Trimesh(recon.vertices, recon.faces, process=False)
-            samples, _ = trimesh.sample.sample_surface(mesh, self._p.metric_samples, seed=0)
-            recon_error = max(directed_hausdorff(samples, self._truth_samples,
-                                                 self._truth_tree()),
-                              directed_hausdorff(self._truth_samples, samples))
-            if final:
-                surface_error = surface_hausdorff(samples, (recon.vertices, recon.faces),
-                                                  self._truth_samples, self._truth_surface())
-        return (float(pose_error), recon_error,
-                directed_hausdorff(self._truth_samples, contacts), surface_error)
+    def _truth_tree(self):
+        """A KD-tree of the truth's samples, built once."""
+        if self._tree is None:
+            self._tree = cKDTree(self.points)
+        return self._tree
 
     def _truth_surface(self):
         """The truth's vertices (world frame) and faces, placed once."""
-        if self.__dict__.get("_truth_placed") is None:
+        if self._placed is None:
             truth = self.truth
-            self._truth_placed = (transform_points(truth.model.mesh.vertices, truth.rotation,
-                                                   truth.translation), truth.model.mesh.faces)
-        return self._truth_placed
+            self._placed = (transform_points(truth.model.mesh.vertices, truth.rotation,
+                                             truth.translation), truth.model.mesh.faces)
+        return self._placed
 
 
 def make_truth(model: ObjectModel, rng=None, max_translation: float = 1.0,
