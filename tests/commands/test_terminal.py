@@ -111,6 +111,7 @@ def test_an_object_far_smaller_than_the_priors_is_named_as_the_likely_cause(tmp_
                  "--no-progress", "--quiet", "--json", str(tmp_path / "t.json")]) == 2
     err = capsys.readouterr().err.splitlines()
     assert "60 times smaller" in err[0]
-    assert err[-1].endswith("within 0.866 of the origin, as the priors' size sets it: is "
-                            "the object there, and of about the priors' size?")
+    assert err[-1].endswith("within 0.866 of the origin and the rest within 2.6, as the "
+                            "priors' size sets it: is the object there, and of about the "
+                            "priors' size?")
     assert not (tmp_path / "t.json").exists()

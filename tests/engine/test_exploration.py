@@ -36,6 +36,35 @@ def test_first_contact_touches(simulator, rng):
     assert _on_sphere(observations[-1]) and len(paths) == len(observations)
 
 
+@pytest.mark.parametrize("unit", [1e-3, 1.0, 1e3])
+def test_the_first_lines_widen_after_fifty_misses_and_keep_them(unit):
+    """Fifty lines pass within half a unit of the centre (each axis), drawn as they always
+    were; if all miss, fifty more reach up to WIDE_OFFSET units; every miss is kept."""
+    from tactile_viz.engine.explore.exploration import WIDE_OFFSET, first_contact_moves
+    from tactile_viz.engine.explore.observations import NonContact
+
+    centre = np.array([1.0, -2.0, 0.5]) * unit
+    moves = first_contact_moves(centre, np.random.default_rng(4), radius=10 * unit, unit=unit)
+    paths, path = [], next(moves)
+    while len(paths) < 70:
+        paths.append(path)
+        path = moves.send(NonContact(path[-1]))
+    done = None
+    try:
+        moves.send(Contact(path[0], np.array([0.0, 0.0, 1.0])))
+    except StopIteration as stop:
+        done = stop.value
+    assert done is not None and len(done[0]) == len(done[1]) == 71
+    assert all(isinstance(o, NonContact) for o in done[1][:-1])
+    offsets = np.array([p.mean(axis=0) - centre for p in done[0]]) / unit
+    assert np.abs(offsets[:50]).max() <= 0.5 and np.abs(offsets[50:]).max() > 0.5
+    assert np.abs(offsets[50:]).max() <= WIDE_OFFSET
+    again = np.random.default_rng(4)  # the first round's draws, as before
+    again.normal(size=(1, 3))  # the first line's direction
+    np.testing.assert_allclose(offsets[0], again.uniform(-0.5, 0.5, size=3), rtol=1e-9,
+                               atol=1e-12)
+
+
 def test_reaching_a_real_target_gives_one_contact(simulator):
     target, normal = np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0])
     paths, observations, reached = enforce_contact(
