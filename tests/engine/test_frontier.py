@@ -17,15 +17,17 @@ from tactile_viz.engine.session.state import ExplorationState
 
 class _Keeper(Bookkeeping, Planner):
     """What following the frontier reads: parameters in scene units, the contacts, the
-    exploration state after a frontier target and the last step's estimate."""
+    exploration state after a frontier target with the whole estimate the last step
+    planned on (its snapshot reports only supported parts: here none, to show it is not
+    read)."""
 
     def __init__(self, scale, contacts, estimate):
         p = session_preset("recommended")
         self._p = dataclasses.replace(p, eps=0.2 * scale, contact_spacing=0.1 * scale)
         self.sensor_noise = (0.0, 0.0)
         self.filter = types.SimpleNamespace(contact_positions=contacts)
-        self.state = ExplorationState(frontier_target=True)
-        self.latest = types.SimpleNamespace(gpis_vertices=estimate)
+        self.state = ExplorationState(frontier_target=True, estimate_vertices=estimate)
+        self.latest = types.SimpleNamespace(gpis_vertices=None)
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])

@@ -254,6 +254,43 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
     json.dumps(record)
 
 
+def test_every_reported_surface_holds_only_supported_parts(novel_session):
+    """Each novel snapshot reports the parts of its estimate some contact comes within eps
+    of (the bundled objects' eps is one size unit at every step), as the final one does."""
+    from tactile_viz.engine.session.estimate import supported_parts
+
+    eps = novel_session._p.eps
+    reported = [s for s in novel_session.snapshots if s.gpis_faces is not None]
+    assert len(reported) > 10
+    for snapshot in reported:
+        assert supported_parts(snapshot.gpis_vertices, snapshot.gpis_faces,
+                               snapshot.contacts, eps).all(), snapshot.step
+
+
+@pytest.mark.slow
+def test_what_a_snapshot_reports_does_not_steer_the_exploration(bundled, known, monkeypatch):
+    """The planner keeps the whole estimate (the frontier asks it what it predicted): a
+    novel session whose snapshots report half of each surface touches the same points as
+    one that reports it whole."""
+    library = PriorLibrary([model for model in known if model.name not in ("vase_1", "bottle_1")])
+
+    def contacts(report):
+        monkeypatch.setattr(Session, "_reported", lambda self, recon, contacts, timings:
+                            report(recon))
+        session = Session(make_truth(bundled["vase_2"], rng=2), library, "gpis-dhd", seed=2)
+        session.run(max_steps=40)
+        return session.latest.contacts, [s for s in session.snapshots if s.gpis_faces is not None]
+
+    def half(recon):
+        return None if recon is None else recon.restricted(
+            np.arange(len(recon.vertices)) < len(recon.vertices) // 2)
+
+    whole, novel = contacts(lambda recon: recon)
+    halved, _ = contacts(half)
+    assert len(novel) > 5
+    np.testing.assert_array_equal(halved, whole)
+
+
 def test_the_drawn_variance_is_spread_when_first_read_and_pickled_as_values(novel_session):
     """A novel step's snapshot holds its variance as a deferred spread of the candidates'
     (headless runs never draw it); read, it is every vertex's, the candidates' exactly;

@@ -149,8 +149,7 @@ class Bookkeeping:
         if not (self.state.frontier_target and isinstance(touched, Contact)
                 and len(contacts)):
             return
-        last = self.latest
-        estimate = None if last is None else last.gpis_vertices
+        estimate = self.state.estimate_vertices
         known = [points for points in (contacts, estimate)
                  if points is not None and len(points)]
         if min(cKDTree(points).query(touched.position)[0]

@@ -155,6 +155,21 @@ class Estimation:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
+    def _reported(self, recon, contacts, timings):
+        """The step's surface as a snapshot reports it: with ``final_candidates`` (as the
+        final surface), only the parts some contact comes within ``eps`` of
+        (:func:`supported_parts`); the planner keeps the whole estimate. A part no contact
+        comes near is a phantom of the prior mean or the kernel, and it comes and goes from
+        step to step (an 8 cm cup's error between 10 and 90 mm on consecutive touches)."""
+        if recon is None or recon.empty or not self._p.final_candidates:
+            return recon
+        clock = time.perf_counter()
+        keep = supported_parts(recon.vertices, recon.faces, contacts, self._p.eps)
+        if keep.any() and not keep.all():
+            recon = recon.restricted(keep)
+        timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
+        return recon
+
     def _best_supported(self, final, contacts, prior):
         """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
         else the newest reconstruction they cover, else the best supported one (the least

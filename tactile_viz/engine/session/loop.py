@@ -525,9 +525,12 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
             plan = self._choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
                                        map_vertices, recon, contacts, decision)  # l.6: 36
         self.state.adopt(plan)
+        self.state.estimate_vertices = None if recon is None else recon.vertices
         if plan.terminated:
             recon = self._final_surface(recon, map_vertices, contacts, timings,
                                         (model.name, *pose))
+        else:
+            recon = self._reported(recon, contacts, timings)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
                               observations, timings, decision)
 

@@ -74,6 +74,9 @@ class ExplorationState:
         Targets beside contacts on parts nothing predicted, still to visit.
     frontier_target : bool
         Whether ``target`` came from the frontier.
+    estimate_vertices : (k, 3) float or None
+        The whole surface the last step planned on (a snapshot reports only its parts some
+        contact supports): the frontier asks whether it predicted a touch.
     telling_apart : bool
         Whether ``target`` is where rival hypotheses disagree (beyond the paper).
     check : Check or None
@@ -128,6 +131,7 @@ class ExplorationState:
     missed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     frontier: list = field(default_factory=list)
     frontier_target: bool = False
+    estimate_vertices: Any = None
     telling_apart: bool = False
     check: Any = None
     check_directions: list = field(default_factory=list)
