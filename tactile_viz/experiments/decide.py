@@ -6,13 +6,14 @@
 [--reach-angle DEG] [--tip-radius R ...] [--workers 2] [--out DIR] [--no-progress]``
 
 One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
-40 cm, :data:`~.sizes.SIZES_M`) and the objects of :mod:`.hard_objects`, made to be hard:
-two screwdrivers that differ only at the tip, a smooth and a bumpy ball of one size, the
-mug and a copy 4% larger, a cup and a nested copy 6% smaller (2 mm walls), a knife, a
-pencil, a fork and a spatula, a block and a plank (symmetric). Each
-known object is placed at a random pose per seed and explored until the session stops (at
-the decision with the ``recognise`` preset); the bundled novel objects (at their sizes,
-not in the library) are explored for ``--novel-steps`` steps and must not be decided.
+40 cm, :data:`~.sizes.SIZES_M`) and the objects of
+:mod:`~tactile_viz.assetgen.hard_objects`, made to be hard: two screwdrivers that differ
+only at the tip, a smooth and a bumpy ball of one size, the mug and a copy 4% larger, a cup
+and a nested copy 6% smaller (2 mm walls), a knife, a pencil, a fork and a spatula, a block
+and a plank (symmetric). Each known object is placed at a random pose per seed and explored
+until the session stops (at the decision with the ``recognise`` preset); the bundled novel
+objects (at their sizes, not in the library) are explored for ``--novel-steps`` steps and
+must not be decided.
 The simulated sensor adds Gaussian noise (position std in metres, normal tilt std in
 degrees) and the model is told the same noise.
 
@@ -38,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assetgen.hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from ..cli import (
     ArgumentParser,
     ExtendList,
@@ -57,7 +59,6 @@ from ..engine.io.files import write_atomic
 from ..engine.presets import session_preset
 from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import bundled_names
-from .hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from .runner import make_task, run_all
 from .sizes import SIZES_M
 

@@ -5,12 +5,13 @@
 [--workers 2] [--out DIR] [--no-progress]``
 
 The objects are the project's own at real sizes in metres: the bundled known objects at
-:data:`~.sizes.SIZES_M` (12 to 40 cm) and the hard objects of :mod:`.hard_objects` (a 2 cm
-block to a 33 cm plank, in families of look-alikes: two screwdrivers, two balls, two mugs,
-two nested cups, the utensils). Each object on test is left out of its library and
-explored with the ``recommended`` preset until the session stops (or ``--max-steps``); its
-reconstruction is learned as a prior, and the object is met again at another pose (seed +
-1000) with that prior added, with the ``recognise`` preset. Two libraries:
+:data:`~.sizes.SIZES_M` (12 to 40 cm) and the hard objects of
+:mod:`~tactile_viz.assetgen.hard_objects` (a 2 cm block to a 33 cm plank, in families of
+look-alikes: two screwdrivers, two balls, two mugs, two nested cups, the utensils). Each
+object on test is left out of its library and explored with the ``recommended`` preset
+until the session stops (or ``--max-steps``); its reconstruction is learned as a prior, and
+the object is met again at another pose (seed + 1000) with that prior added, with the
+``recognise`` preset. Two libraries:
 
 - ``few``: three priors unlike the object (the first three of :data:`FEW` outside its
   family): what a lab with a handful of scans has;
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assetgen.hard_objects import HARD_SIZES_M, hard_meshes
 from ..cli import (
     ArgumentParser,
     ExtendList,
@@ -44,7 +46,6 @@ from ..cli import (
 )
 from ..engine.presets import session_preset
 from .decide import _median, noise_level, write_tables
-from .hard_objects import HARD_SIZES_M, hard_meshes
 from .runner import make_task, open_pool, run_tasks
 from .sizes import SIZES_M
 

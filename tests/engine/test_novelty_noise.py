@@ -69,8 +69,8 @@ def test_thin_tines_stay_known_under_noise(tmp_path):
     """A fork (tines 0.07 of its 6 units, at most two voxels of its grid) touched at 1%:
     measured on its mesh, not its grid, whose normals inside a tine point anywhere."""
     from tactile_viz.assetgen.build import build_mesh
+    from tactile_viz.assetgen.hard_objects import HARD_SPECS
     from tactile_viz.engine.io.cache import ArrayCache
-    from tactile_viz.experiments.hard_objects import HARD_SPECS
 
     mesh = build_mesh(next(spec for spec in HARD_SPECS if spec.name == "fork"))
     fork = ObjectModel.from_arrays(mesh.vertices, mesh.faces, "fork", longest_side=6.0,

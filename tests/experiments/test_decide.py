@@ -6,7 +6,8 @@ import pytest
 import trimesh
 
 from tactile_viz.__main__ import main
-from tactile_viz.experiments import decide, hard_objects
+from tactile_viz.assetgen import hard_objects
+from tactile_viz.experiments import decide
 
 
 def _result(name, decided_at, map_class=None, novel=False, tag="known", noise=(0.0, 0.0),

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assetgen import sdf as s
-from ..assetgen.build import build_mesh, ply_bytes
-from ..assetgen.catalog import ObjectSpec, by_name
 from ..engine.io.files import write_atomic
+from . import sdf as s
+from .build import build_mesh, ply_bytes
+from .catalog import ObjectSpec, by_name
 
 HANDLE_TOP = 2.6  # design units (z up, longest side about 6)
 
