@@ -32,6 +32,7 @@ import argparse
 import numpy as np
 import trimesh
 
+from tactile_viz.assetgen.catalog import SIZES_M  # plausible sizes of the bundled objects
 from tactile_viz.engine import Contact, NonContact, PriorLibrary
 from tactile_viz.engine.errors import ParameterError
 from tactile_viz.engine.explore.simulator import GroundTruth
@@ -41,7 +42,6 @@ from tactile_viz.engine.shape.metrics import error_threshold, pose_difference, t
 from tactile_viz.engine.shape.objects import bundled_names, load_bundled
 from tactile_viz.engine.shape.resting import resting_pose
 from tactile_viz.engine.transforms import random_pose
-from tactile_viz.experiments.sizes import SIZES_M  # plausible sizes of the bundled objects
 
 SLACK = 1e-6  # metres: how far below the table the controller lets a waypoint be (rounding)
 TOUCHING = 1e-9  # metres: a centre this near the raised table plane rests on it

@@ -425,6 +425,19 @@ CATALOG = [
 ]
 
 
+# Longest sides in metres: plausible for the objects, within 5 to 40 cm (a novel object
+# near its known twin's size, as real variants are). The catalogue's shapes are made at
+# the paper's size (6 units); these are what a robot would meet.
+SIZES_M = {
+    "armadillo": 0.20, "asian_dragon": 0.30, "elephant": 0.15, "bottle_1": 0.25,
+    "mug_1": 0.10, "ice_cream_1": 0.18, "guitar_1": 0.40, "vase_1": 0.30,
+    "office_chair": 0.12, "sofa_1": 0.35,
+    "neptune": 0.24, "dragon": 0.26, "noisy_dino": 0.17, "bottle_2": 0.22, "mug_2": 0.11,
+    "ice_cream_2": 0.16, "guitar_2": 0.36, "vase_2": 0.27, "home_chair": 0.13,
+    "sofa_2": 0.33,
+}
+
+
 def by_name(name):
     """Catalogue entry with the given name; ``KeyError`` if there is none."""
     for spec in CATALOG:

@@ -6,7 +6,7 @@
 [--reach-angle DEG] [--tip-radius R ...] [--workers 2] [--out DIR] [--no-progress]``
 
 One metric library (metres) holds the ten bundled known objects at plausible sizes (10 to
-40 cm, :data:`~.sizes.SIZES_M`) and the objects of
+40 cm, :data:`~tactile_viz.assetgen.catalog.SIZES_M`) and the objects of
 :mod:`~tactile_viz.assetgen.hard_objects`, made to be hard: two screwdrivers that differ
 only at the tip, a smooth and a bumpy ball of one size, the mug and a copy 4% larger, a cup
 and a nested copy 6% smaller (2 mm walls), a knife, a pencil, a fork and a spatula, a block
@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assetgen.catalog import SIZES_M
 from ..assetgen.hard_objects import COUNTERPARTS, HARD_SIZES_M, hard_meshes
 from ..cli import (
     ArgumentParser,
@@ -60,7 +61,6 @@ from ..engine.presets import session_preset
 from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import bundled_names
 from .runner import make_task, run_all
-from .sizes import SIZES_M
 
 DEFAULT_NOISE = ((0.0, 0.0), (0.001, 1.0), (0.002, 2.0))
 BAND_M = (0.10, 0.30)  # the sizes issue 38's targets are stated for (longest side, m)

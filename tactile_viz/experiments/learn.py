@@ -5,7 +5,7 @@
 [--workers 2] [--out DIR] [--no-progress]``
 
 The objects are the project's own at real sizes in metres: the bundled known objects at
-:data:`~.sizes.SIZES_M` (12 to 40 cm) and the hard objects of
+:data:`~tactile_viz.assetgen.catalog.SIZES_M` (12 to 40 cm) and the hard objects of
 :mod:`~tactile_viz.assetgen.hard_objects` (a 2 cm block to a 33 cm plank, in families of
 look-alikes: two screwdrivers, two balls, two mugs, two nested cups, the utensils). Each
 object on test is left out of its library and explored with the ``recommended`` preset
@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assetgen.catalog import SIZES_M
 from ..assetgen.hard_objects import HARD_SIZES_M, hard_meshes
 from ..cli import (
     ArgumentParser,
@@ -47,7 +48,6 @@ from ..cli import (
 from ..engine.presets import session_preset
 from .decide import _median, noise_level, write_tables
 from .runner import make_task, open_pool, run_tasks
-from .sizes import SIZES_M
 
 OBJECTS = ("block", "cup", "ball_bumpy", "mug_1", "elephant", "screwdriver_cross", "fork",
            "bottle_1", "sofa_1", "guitar_1")

@@ -22,22 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assetgen.catalog import SIZES_M
 from ..cli import ArgumentParser, count_int, name_list, nonnegative_int, output_dir, workers_int
 from ..engine.io.files import write_atomic
 from ..engine.shape.metrics import error_threshold
 from ..engine.shape.objects import bundled_manifest, bundled_names
 from .runner import make_task, run_all
 
-# Longest sides in metres: plausible for the objects, within 5 to 40 cm (a novel object
-# near its known twin's size, as real variants are).
-SIZES_M = {
-    "armadillo": 0.20, "asian_dragon": 0.30, "elephant": 0.15, "bottle_1": 0.25,
-    "mug_1": 0.10, "ice_cream_1": 0.18, "guitar_1": 0.40, "vase_1": 0.30,
-    "office_chair": 0.12, "sofa_1": 0.35,
-    "neptune": 0.24, "dragon": 0.26, "noisy_dino": 0.17, "bottle_2": 0.22, "mug_2": 0.11,
-    "ice_cream_2": 0.16, "guitar_2": 0.36, "vase_2": 0.27, "home_chair": 0.13,
-    "sofa_2": 0.33,
-}
 SCALES = ("paper", "metric")
 
 
