@@ -5,7 +5,7 @@ Its JSON is what scripts and the benchmarks read, so its keys only grow: the set
 ``code_version``), ``terminated_at``, ``seconds`` and ``steps``, one
 :meth:`~tactile_viz.engine.Snapshot.record` per step (``t``, ``map_class``, ``pose_error``,
 ``dhd``, ``novel``, ``recon_error``, ``recon_surface_error``, ...).
-``tests/engine/test_session.py`` checks the keys.
+``tests/engine/session/test_session.py`` checks the keys.
 """
 
 import functools

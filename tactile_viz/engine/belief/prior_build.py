@@ -17,7 +17,7 @@ built), so a child held up by a slow prior (a refined grid) leaves the rest to t
 A child that fails writes one line on stderr naming the prior and the fault and stops; the
 parent then hands out no more priors, lets the others finish the one they hold and raises
 that line. A prior's cache entries are the same bytes whichever process builds it: the
-same code on the same arrays (``tests/engine/test_prior_build.py`` compares the files).
+same code on the same arrays (``tests/engine/belief/test_prior_build.py`` compares the files).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-ASSETS = Path(__file__).resolve().parents[2] / "assets"
+ASSETS = Path(__file__).resolve().parents[3] / "assets"
 KNOWN = ["armadillo", "asian_dragon", "elephant", "bottle_1", "mug_1",
          "ice_cream_1", "guitar_1", "vase_1", "office_chair", "sofa_1"]
 NOVEL = ["neptune", "dragon", "noisy_dino", "bottle_2", "mug_2",

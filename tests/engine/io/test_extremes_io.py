@@ -28,7 +28,7 @@ from tactile_viz.engine import (
 )
 from tactile_viz.engine.session import Session, SessionError, SessionParams, make_truth
 
-from .conftest import snapshot
+from ..conftest import snapshot
 
 
 @pytest.fixture(scope="module")

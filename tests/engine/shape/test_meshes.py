@@ -12,7 +12,7 @@ from tactile_viz.engine import (
 )
 from tactile_viz.engine.shape.meshes import content_hash
 
-from .conftest import snapshot
+from ..conftest import snapshot
 
 
 def _sphere():

@@ -6,7 +6,7 @@ import trimesh
 
 from tactile_viz.engine import LibraryError, ObjectModel, PriorLibrary, bundled_names
 
-from .conftest import snapshot
+from ..conftest import snapshot
 
 
 def test_save_and_load_round_trip(small_library):
