@@ -229,7 +229,10 @@ class ParticleFilter:
         if self.params.merge_distance > 0:
             self.particles = merge_close_poses(self.particles, self.params.merge_distance,
                                                np.radians(self.params.merge_angle_deg))
-        self.particles, chosen, self.refined = discriminate(self, self.particles, self.refined)
+        chosen = None
+        if self.params.contenders:  # beyond the paper: near twins refined and weighed
+            self.particles, chosen, self.refined = discriminate(self, self.particles,
+                                                                self.refined)
         if self.bank.large:
             release_freed_memory()
         return self._record(sampled, chosen)
