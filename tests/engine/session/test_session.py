@@ -269,9 +269,11 @@ def test_every_reported_surface_holds_only_supported_parts(novel_session):
 
 @pytest.mark.slow
 def test_what_a_snapshot_reports_does_not_steer_the_exploration(bundled, known, monkeypatch):
-    """The planner keeps the whole estimate (the frontier asks it what it predicted): a
-    novel session whose snapshots report half of each surface touches the same points as
-    one that reports it whole."""
+    """Nothing that plans reads what a snapshot reports: a novel session whose snapshots
+    report half of each surface touches the same points, its first 40 steps, as one that
+    reports it whole. (No frontier target comes that early: that the frontier reads the
+    planner's whole estimate, not the snapshot's, is ``test_frontier.py``'s, which fails
+    if it reads the snapshot.)"""
     library = PriorLibrary([model for model in known if model.name not in ("vase_1", "bottle_1")])
 
     def contacts(report):
