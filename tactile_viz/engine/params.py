@@ -482,8 +482,7 @@ class SessionParams:
         0.05, "A decision also needs the MAP's pose known within this share of its longest "
         "side (at decision_confidence).", valid=_POSITIVE, control=(1e-3, 1.0),
         notes="The fit's Gauss-Newton covariance, as the displacement of the MAP surface "
-              "along its normals; the success threshold is 10% (TWD). A 2 cm block under 2 "
-              "mm noise is known long before it is posed within 10% of its size.")
+              "along its normals; the success threshold is 10% (TWD).")
     decision_floor: float = _session(
         0.01, "How far a right hypothesis's contacts may lie off its surface besides the "
         "sensor's noise and the grid's own error.", valid=_POSITIVE, length=1,
@@ -509,6 +508,9 @@ class SessionParams:
     decision_budget: int = _session(
         4, "New hypotheses a touch between full searches refines at most, besides the MAP's.",
         kind="int", valid=_AT_LEAST_0, control=(0, 50))
+    decision_normals: bool = _session(
+        True, "The decided pose is fitted to the contacts' normals too, and a pose mode they "
+        "refute is not open (beyond the paper).", kind="bool")
     decision_targets: bool = _session(
         True, "While a known object is not decided, touch where the plausible hypotheses' "
         "surfaces disagree most (beyond the paper).", kind="bool",

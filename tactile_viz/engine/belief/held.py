@@ -12,14 +12,14 @@ chi-squared test of its residuals at ``confidence``, and the filter still puts t
 
 import numpy as np
 
-from .decision import Decision, Hypothesis, fit_limit, model_floor2
+from .decision import Decision, Hypothesis, fit_limit, model_floor2, posed_by_normals
 from .oriented import oriented_evaluator
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .support import table_support
 
 
 def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
-                  normal_noise_deg=0.0):
+                  normal_noise_deg=0.0, normals=False):
     """The decided ``lead`` refitted to every contact, as a :class:`~.decision.Decision`,
     or None when the decision must be made afresh.
 
@@ -30,7 +30,7 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     belief : FilterState
     lead : Hypothesis
         The decided hypothesis of an earlier touch.
-    confidence, floor, free_space, normal_noise_deg
+    confidence, floor, free_space, normal_noise_deg, normals
         As for :func:`~.decision.decide`.
 
     Returns
@@ -51,7 +51,8 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
         return None
     outside = np.vstack([pf.noncontact_positions, np.reshape(
         [] if free_space is None else free_space, (-1, 3))])
-    oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg)
+    oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
+                                  normals)
     try:
         rotations, translations, misfit = refine_poses(
             pf.bank.evaluate, np.array([c]), lead.rotation[None], lead.translation[None],
@@ -64,6 +65,8 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     misfit = float(misfit[0])
     if not misfit <= fit_limit(pf, c, floor, confidence, dof):
         return None  # a misfit (or NaN) reopens the decision
-    kept = Hypothesis(c, rotations[0], translations[0], misfit, 1.0)
+    # Tested on positions, reported posed by the normals too (as :func:`~.decision.decide`).
+    kept = posed_by_normals(pf, Hypothesis(c, rotations[0], translations[0], misfit, 1.0),
+                            outside, oriented)
     scale = float(np.sqrt(max(misfit / dof, model_floor2(pf, c, floor), 1e-300)))
     return Decision(True, share, (kept,), True, None, scale, ())

@@ -39,6 +39,9 @@ from .prior_bank import kept_recent
 SAMPLES = 20_000  # surface samples per class; point-to-plane forgives their spacing
 MIN_NORMAL_NOISE_DEG = 10.0  # sample normals on curved parts and edges are this rough
 NORMAL_CAP = 3.0  # a contact's normal costs at most this many stds (a scan's rough face)
+# A grid's normal is this rough where the surface is flat (the pose fits add the turn of
+# the normal across the position noise, :func:`~.pose_refinement.normal_weights`).
+FIT_NORMAL_NOISE_DEG = 2.0
 LEAF_SIZE = 32  # samples per leaf of a surface's tree
 # What a bank keeps, least recently used dropped: a class's samples (about 1 MB) whatever
 # the weight, and its tree for each weight (about 2 MB). The weight follows the MAP's size,
@@ -123,10 +126,15 @@ class OrientedEvaluator:
         Where the surfaces' trees are kept between evaluators (by class and weight).
     samples : dict, optional
         Where the classes' samples are kept between evaluators (by class).
+    fit_noise : (float, float), optional
+        The position noise (length units) and normal noise (radians) with which the pose
+        fits that use this evaluator weigh the contacts' normals too (``normal_noise`` of
+        :func:`~.pose_refinement.refine_poses`); None: positions alone.
     """
 
-    def __init__(self, models, weight, cache=None, samples=None):
+    def __init__(self, models, weight, cache=None, samples=None, fit_noise=None):
         self.models, self.weight = models, float(weight)
+        self.fit_noise = fit_noise
         self.cache = {} if cache is None else cache
         self.samples = {} if samples is None else samples
 
@@ -188,9 +196,13 @@ def normal_weight(position_scale, normal_noise_deg):
     return float(2.0 ** (np.round(2 * np.log2(max(weight, 1e-300))) / 2))
 
 
-def oriented_evaluator(bank, models, position_scale, normal_noise_deg):
-    """An :class:`OrientedEvaluator` whose samples a prior bank keeps between steps."""
+def oriented_evaluator(bank, models, position_scale, normal_noise_deg, in_fits=False):
+    """An :class:`OrientedEvaluator` whose samples a prior bank keeps between steps; with
+    ``in_fits`` the pose fits weigh the contacts' normals too, with a noise of at least
+    ``FIT_NORMAL_NOISE_DEG``."""
     cache = bank.__dict__.setdefault("_oriented", {})
     samples = bank.__dict__.setdefault("_oriented_samples", {})
+    fit_noise = (float(position_scale),
+                 np.radians(max(float(normal_noise_deg), FIT_NORMAL_NOISE_DEG)))
     return OrientedEvaluator(models, normal_weight(position_scale, normal_noise_deg), cache,
-                             samples)
+                             samples, fit_noise if in_fits else None)

@@ -11,6 +11,17 @@ gradient ``n = R grad s(x)`` and ``a = p - c`` the residual's derivative is
 lower a pose's sum of squares is undone and its damping raised. With ``trim`` the
 ``ceil(trim m)`` contacts farthest from each pose are left out of its sum (trimmed least
 squares: a wrong reading cannot pull the pose).
+
+With ``normal_noise`` ``(s, sigma_n)`` each contact's measured normal ``n`` is a residual
+too, ``lambda (N - n)`` with ``N`` the pose's outward normal there (world frame), whose
+derivative in the turn is ``lambda N x e_j`` for its component ``j`` (a shift moves no
+normal), and ``lambda = s / sqrt(sigma_n^2 + c^2)`` weighs it as the joint Gaussian does:
+``c`` is how far the surface's normal turns across the position noise about the contact
+(0 on a flat face, ``s / rho`` on a ball of radius ``rho``; :func:`normal_weights`).
+A small object's turn is pinned by its flat faces' normals long before their positions
+pin it: a 2 cm block under 2 mm noise turns by a degree for each 0.35 mm its corners
+move. A contact whose normal lies farther than ``NORMAL_GATE_DEG`` from the pose's (an
+edge, a turned face) says nothing of the turn.
 """
 
 import numpy as np
@@ -24,11 +35,12 @@ _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 # Of the largest diagonal entry, added to all: a direction nothing constrains stays put.
 _FLOOR = 1e-12
 _FITTED = 1e-9  # a fit this far below its start is done (with a tolerance: rounding)
+NORMAL_GATE_DEG = 30.0  # three stds of the least normal noise the oriented match assumes
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
                  iterations=10, trim=0.0, normals=None, oriented=None, clearance=0.0,
-                 support=None, boxes=None, tolerance=0.0):
+                 support=None, boxes=None, tolerance=0.0, normal_noise=None):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -73,6 +85,9 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         A pose's fit ends early once a step taken lowers its sum of squares by less than
         this share, or it is below ``_FITTED`` of where it began (0: every pose takes every
         step; a refused step raises the damping and the fit goes on).
+    normal_noise : (float, float), optional
+        ``(s, sigma_n)``, the position noise (length units) and the normal noise (radians):
+        the measured ``normals`` are residuals too (None: positions alone).
 
     Returns
     -------
@@ -80,20 +95,25 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     translations : (k, 3) float
         The refined poses; a pose whose fit no step improved is returned unchanged.
     misfit : (k,) float, squared length units
-        Their sum of squared residuals.
+        Their sum of squared residuals (the positions' and the table's: not the normals',
+        which only pose the fit).
     """
     contacts = np.asarray(contacts, dtype=float)
     noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
     points = np.vstack([contacts, noncontacts])
     inside_only = np.arange(len(points)) >= len(contacts)
-    if oriented is not None and normals is None:
-        raise ValueError("refine_poses: oriented residuals need the contacts' normals")
+    if (oriented is not None or normal_noise is not None) and normals is None:
+        raise ValueError("refine_poses: oriented or normal residuals need the contacts' "
+                         "normals")
     measured = None if normals is None else np.asarray(normals, dtype=float)
     drop = int(np.ceil(trim * len(contacts)))
     centre = contacts.mean(axis=0)
     arm = points - centre  # a = p - c, (m + q, 3)
     classes = np.asarray(classes)
     rotations, translations = np.array(rotations, float), np.array(translations, float)
+    weights = None if normal_noise is None else normal_weights(
+        evaluate, classes, inverse_transform_points_batch(contacts, rotations, translations),
+        *normal_noise)  # at the starting poses: (k, m)
 
     def residuals(rotations, translations, which):
         classes_ = classes[which]
@@ -121,8 +141,13 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             heights = np.pad(heights, ((0, 0), (0, pad - heights.shape[1])))
             rows = np.pad(rows, ((0, 0), (0, pad - rows.shape[1]), (0, 0)))
             values, jacobian = np.hstack([values, heights]), np.hstack([jacobian, rows])
+        if weights is not None:
+            turns, rows = normal_residuals(normals[:, :len(contacts)], measured, weights[which])
+            values, jacobian = np.hstack([values, turns]), np.hstack([jacobian, rows])
         return values, jacobian
 
+    # The normals' rows are the last 3 m: the misfit returned is the rest's.
+    counted = slice(None, -3 * len(contacts) if weights is not None else None)
     values, jacobian = residuals(rotations, translations, np.arange(len(classes)))
     cost = np.square(values).sum(axis=1)
     damping = np.full(len(classes), _DAMPING)
@@ -154,7 +179,80 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         values[b], jacobian[b], cost[b] = (new_values[better], new_jacobian[better],
                                            new_cost[better])
         damping[k] = np.where(better, damping[k] / 3, damping[k] * 10)
-    return rotations, translations, cost
+    return rotations, translations, np.square(values[:, counted]).sum(axis=1)
+
+
+def normal_weights(evaluate, classes, local, scale, sigma):
+    """Each contact's ``lambda = s / sqrt(sigma^2 + c^2)`` (see the module docstring).
+
+    ``c^2`` is the mean squared turn of the unit gradient between ``x + s t`` and
+    ``x - s t``, halved, over two tangents ``t`` at ``x`` (``(s / rho)^2`` on a ball of
+    radius ``rho``): the normal's own spread under the position noise, large across an edge
+    or a thin rod and 0 on a flat face.
+
+    Parameters
+    ----------
+    evaluate : callable
+        As for :func:`refine_poses`.
+    classes : (k,) int
+    local : (k, m, 3) float
+        The contacts in each pose's object frame.
+    scale : float, length units
+        ``s``, the position noise.
+    sigma : float, radians
+        The normal noise.
+
+    Returns
+    -------
+    (k, m) float, length units
+    """
+    _, gradient = evaluate(classes, local)
+    unit = gradient / np.maximum(np.linalg.norm(gradient, axis=2, keepdims=True), 1e-300)
+    # Two tangents: the normal crossed with the axis it is least aligned with, and again.
+    axis = np.eye(3)[np.argmin(np.abs(unit), axis=2)]
+    first = np.cross(unit, axis)
+    first /= np.maximum(np.linalg.norm(first, axis=2, keepdims=True), 1e-300)
+    second = np.cross(unit, first)
+    offsets = scale * np.concatenate([first, -first, second, -second], axis=1)  # (k, 4m, 3)
+    _, around = evaluate(classes, np.tile(local, (1, 4, 1)) + offsets)
+    around = around / np.maximum(np.linalg.norm(around, axis=2, keepdims=True), 1e-300)
+    m = local.shape[1]
+    turn2 = (np.square(around[:, :m] - around[:, m:2 * m]).sum(axis=2)
+             + np.square(around[:, 2 * m:3 * m] - around[:, 3 * m:]).sum(axis=2)) / 8
+    return scale / np.sqrt(sigma**2 + turn2)
+
+
+def normal_residuals(posed, measured, weight):
+    """The contacts' normal residuals ``lambda (N - n)`` and their derivatives in
+    :func:`refine_poses`' parameters (see the module docstring).
+
+    Parameters
+    ----------
+    posed : (k, m, 3) float, world frame
+        Each pose's outward normal direction at each contact (any length; 0 for a contact
+        left out of the fit).
+    measured : (m, 3) float, world frame
+        The measured outward unit normals.
+    weight : (k, m) float, length units
+        ``lambda`` of each contact (:func:`normal_weights`).
+
+    Returns
+    -------
+    values : (k, 3 m) float, length units
+        0 for a contact whose normals lie farther apart than ``NORMAL_GATE_DEG``.
+    jacobian : (k, 3 m, 6) float
+    """
+    length = np.linalg.norm(posed, axis=2, keepdims=True)
+    unit = posed / np.maximum(length, np.finfo(float).tiny)
+    gate = (np.einsum("kmj,mj->km", unit, measured)
+            >= np.cos(np.radians(NORMAL_GATE_DEG))) & (length[..., 0] > 0)
+    weight = np.where(gate, weight, 0.0)
+    values = weight[..., None] * (unit - measured)  # (k, m, 3)
+    # d(N)_j / dw = N x e_j: the rows of -[N]_x, the turn's cross-product matrix.
+    turn = weight[..., None, None] * np.cross(unit[:, :, None, :], np.eye(3))
+    k, m = gate.shape
+    jacobian = np.concatenate([turn, np.zeros_like(turn)], axis=3)  # (k, m, 3, 6)
+    return values.reshape(k, 3 * m), jacobian.reshape(k, 3 * m, 6)
 
 
 def _evaluated(evaluate, classes, local, inside_only, boxes, clearance):
@@ -238,7 +336,8 @@ def refine_warm(evaluate, classes, rotations, translations, warm, iterations, wa
 
 
 def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, points,
-                        normals, scale2, free_turns=(), pivot=None, support=None):
+                        normals, scale2, free_turns=(), pivot=None, support=None,
+                        measured=None, normal_noise=None):
     """How far a refined pose may still be off: the standard deviation of each surface
     point's displacement along its normal (scene units).
 
@@ -269,6 +368,10 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
         The point the free turns' axes pass through.
     support : Support, optional
         A table the pose rests on: its resting vertices' heights pin it as contacts do.
+    measured : (m, 3) float, world frame, optional
+        The contacts' measured outward normals, which pin the turn when ``normal_noise``
+        is given (as in :func:`refine_poses`).
+    normal_noise : (float, float), optional
 
     Returns
     -------
@@ -284,6 +387,10 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
     if support is not None:
         _, rows = support_residuals(support, np.array([class_index]), rotation[None],
                                     np.asarray(translation, float)[None], centre)
+        jacobian = np.vstack([jacobian, rows[0]])
+    if normal_noise is not None:
+        weights = normal_weights(evaluate, np.array([class_index]), local, *normal_noise)
+        _, rows = normal_residuals(contact_normals[None], np.asarray(measured, float), weights)
         jacobian = np.vstack([jacobian, rows[0]])
     # A turn w about an axis through the pivot p is (w, w x (c - p)) in these parameters.
     free = np.reshape(free_turns, (-1, 3))

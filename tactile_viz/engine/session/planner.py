@@ -166,7 +166,7 @@ class Planner:
         if p.decision_hold and self.state.decided and self.state.hypotheses:
             held = held_decision(self.filter, belief, self.state.hypotheses[0],
                                  p.decision_confidence, floor, free_space,
-                                 self.sensor_noise[1])
+                                 self.sensor_noise[1], p.decision_normals)
             if held is not None:
                 return held
         return decide(self.filter, belief, p.decision_confidence, floor=floor,
@@ -175,7 +175,7 @@ class Planner:
                       pose_tolerance=p.decision_pose_error,
                       normal_noise_deg=self.sensor_noise[1],
                       refined=self.state.decision_refined, refresh=p.decision_refresh,
-                      budget=p.decision_budget)
+                      budget=p.decision_budget, normals=p.decision_normals)
 
     def _misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):
