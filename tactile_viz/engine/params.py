@@ -162,8 +162,7 @@ class FilterParams:
         3, "Under sensor noise, the steps of a contender's refinement that starts from its "
         "pose refined at the last step (0: every refinement starts afresh).", kind="int",
         valid=_AT_LEAST_0, notes="A particle that survived resampling was refined on all "
-        "but the newest contact; ten steps from its own pose, each looking every "
-        "turned-away contact up in the surface samples, were half of a noisy step.")
+        "but the newest contact: a few steps from that pose suffice.")
     contenders: int = _filter(
         4, "Classes whose heaviest particles are refined to tell near twins apart (beyond "
         "the paper; 0 off).", kind="int", valid=_AT_LEAST_0, control=(0, 50),
@@ -360,8 +359,7 @@ class SessionParams:
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
         "farther than eps from every contact (beyond the paper).", kind="bool",
-        notes="The paper's, the default: among all; restricting it stopped home_chair and "
-              "noisy_dino earlier with less of the object touched, seed 0.")
+        notes="The paper's, the default: among all the surface vertices.")
     target_noise_stds: float = _session(
         4.0, "Under position noise, the GPIS-DHD target and a check's surprise lie farther "
         "than this many noise standard deviations from every contact (beyond the paper; 0: "

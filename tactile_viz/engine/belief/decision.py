@@ -59,6 +59,7 @@ from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, reme
 from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
+from .posed import posed_by_normals
 from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
 from .support import table_support
 
@@ -367,30 +368,6 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p, memory)
-
-
-def posed_by_normals(pf, lead, outside, oriented, tolerance=0.0):
-    """The lead refitted with its contacts' normals beside their positions (the
-    evaluator's ``fit_noise``; the lead itself without it), its misfit the positions' there.
-
-    The hypotheses are weighed and tested on positions alone: at 2 mm a mug's contacts
-    lie 2.5 mm RMS off its surface at its true pose (its rim and handle fold the noise),
-    and a joint fit's slightly larger misfit failed the fit test for 200 touches. Only the
-    pose that is reported, and whose uncertainty decides, is the joint fit's."""
-    if oriented.fit_noise is None:
-        return lead
-    try:
-        rotations, translations, misfit = refine_poses(
-            pf.bank.evaluate, np.array([lead.class_index]), lead.rotation[None],
-            lead.translation[None], pf.contact_positions, outside,
-            pf.params.refine_iterations, trim=pf.params.outlier_probability,
-            normals=pf.contact_normals, oriented=oriented, clearance=pf.scene.tip_radius,
-            support=table_support(pf), boxes=pf.bank.boxes, tolerance=tolerance,
-            normal_noise=oriented.fit_noise)
-    except np.linalg.LinAlgError:
-        return lead
-    return replace(lead, rotation=rotations[0], translation=translations[0],
-                   misfit=float(misfit[0]))
 
 
 def _starts_at(hypothesis, classes, rotations, translations):

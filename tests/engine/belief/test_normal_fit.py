@@ -156,9 +156,9 @@ def box_library(tmp_path_factory):
 def test_the_lead_is_posed_by_its_normals_only_when_asked(box_library):
     """A lead 4 degrees off, refitted to noisy touches (5% of the box's length) with their
     normals, turns back within a degree; without ``fit_noise`` it is returned as it is."""
-    from tactile_viz.engine.belief.decision import posed_by_normals
     from tactile_viz.engine.belief.oriented import oriented_evaluator
     from tactile_viz.engine.belief.particle_filter import ParticleFilter
+    from tactile_viz.engine.belief.posed import posed_by_normals
     from tactile_viz.engine.explore.observations import Contact
     from tactile_viz.engine.params import FilterParams
 
