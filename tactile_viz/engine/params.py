@@ -448,24 +448,21 @@ class SessionParams:
     approach_clearance: float = _session(
         2.0, "How far outside a target the probe starts, along the estimated normal, at "
         "most.", valid=_POSITIVE, length=1,
-        notes="The approach stops short of where the estimate predicts the object again. A "
-              "long approach bumps into parts that nothing predicted (beyond the paper, "
-              "which leaves the start open; the paper preset starts 0.5 outside).")
+        notes="It stops short of where the estimate predicts the object again: a long "
+              "approach bumps into parts nothing predicted (the paper preset: 0.5).")
     follow_step: float = _session(
         0.1, "Length of one in-contact surface-following step of contact enforcement.",
         valid=_POSITIVE, length=1)
     contact_spacing: float = _session(
         0.3, "Surface following stops at a contact this far from every earlier one.",
-        valid=_POSITIVE, length=1,
-        notes="A target whose procedure ends nearer is given up.")
+        valid=_POSITIVE, length=1, notes="A target whose procedure ends nearer is given up.")
     max_follow: float = _session(
         3.0, "Longest surface-following path of one step.", valid=_POSITIVE, length=1)
     way_back_anchors: int = _session(
         3, "Contacts a missed target's way back tries in turn, nearest first (the paper: "
         "one).", kind="int", valid=_AT_LEAST_1, control=(1, 10),
         notes="A noisy reading can lie off a thin part (2 mm beside a fork's 3 mm tine): "
-              "the way back to it touches nothing, and every step after a miss adds no "
-              "contact.")
+              "the way back to it touches nothing, and the steps after add no contact.")
     rrt_step: float = _session(
         0.3, "Length of one step of the RRT strategy.", valid=_POSITIVE, length=1)
     metric_samples: int = _session(
@@ -509,6 +506,9 @@ class SessionParams:
     decision_normals: bool = _session(
         True, "The decided pose is fitted to the contacts' normals too, and a pose mode they "
         "refute is not open (beyond the paper).", kind="bool")
+    decision_any_class: bool = _session(
+        True, "The decision may be about a class its fits hold at the confidence, not the "
+        "filter's MAP; decided, that class is reported (beyond the paper).", kind="bool")
     decision_targets: bool = _session(
         True, "While a known object is not decided, touch where the plausible hypotheses' "
         "surfaces disagree most (beyond the paper).", kind="bool",

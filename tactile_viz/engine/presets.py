@@ -32,7 +32,7 @@ PRESET_TABLE = {
               "gpis_incremental": False, "gpis_refit_every": 1, "gpis_box_tolerance": 0.0,
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "decision_hold": False, "decision_refresh": 1,
-              "decision_normals": False,
+              "decision_normals": False, "decision_any_class": False,
               "sdf_max_resolution": 0,
               "final_candidates": 0, "variance_points": 1500, "way_back_anchors": 1,
               "misfit_novelty": 0.0, "gpis_agnostic": False, "target_noise_stds": 0.0,

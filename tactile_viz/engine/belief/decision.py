@@ -8,9 +8,11 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
 2. the classes weighed below hold at least ``decision_confidence`` of the filter's class
    posterior (its broad likelihood cannot tell near twins apart, but it does say which
    classes matter),
-3. among the distinct hypotheses that could explain the contacts, the MAP holds at least
+3. among the distinct hypotheses that could explain the contacts, the lead (the MAP, a
+   pose of its class the positions prefer, :func:`_lead`, or with ``any_class`` a
+   hypothesis of another class, :func:`_class_lead`) holds at least
    ``decision_confidence`` of their fit posterior,
-4. the MAP fits within the noise: its refined residuals pass a chi-squared test at
+4. the lead fits within the noise: its refined residuals pass a chi-squared test at
    ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
    (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
    residuals beyond the noise); when its grid's residuals fail, those on its mesh are
@@ -23,7 +25,8 @@ The hypotheses are the MAP particle, the heaviest particles of other pose modes 
 classes, the classes whose surfaces pass close to the contacts at the MAP's pose, and the
 MAP's pose turned half about each principal axis of its shape
 (:func:`~.round_turns.flips`: a mug upside down fits touches of its outside as well, and
-the particles may never have held it), and
+the particles may never have held it; with ``any_class`` the flips of the last touch's
+most probable hypothesis too, when it is of another class), and
 the plausible hypotheses of the step before (a mode the particles lost under noise is
 weighed until it no longer fits). Each
 is refined to its best pose (:func:`~.pose_refinement.refine_poses`), and one whose shape
@@ -165,7 +168,7 @@ UNDECIDED = Decision(False, 0.0)
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
            pose_tolerance=np.inf, normal_noise_deg=0.0, refined=NOTHING, refresh=1,
-           budget=np.inf, normals=False):
+           budget=np.inf, normals=False, any_class=False):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -216,6 +219,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         beside their positions (:func:`posed_by_normals`), the pose whose uncertainty
         decides and that is reported, and a pose mode whose normals cost it more than
         ``log(1 / (1 - confidence))`` nats over the lead's is not open.
+    any_class : bool
+        ``decision_any_class``: a hypothesis of another class than the filter's MAP may
+        lead (:func:`_class_lead`); decided, it comes first in ``hypotheses``.
 
     Returns
     -------
@@ -224,7 +230,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     options = dict(confidence=confidence, floor=floor, same_mode=same_mode, carried=carried,
                    free_space=free_space, pose_tolerance=pose_tolerance,
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget,
-                   normals=normals)
+                   normals=normals, any_class=any_class)
     if refresh <= 1:  # as before: afresh at each touch
         return _weigh(pf, belief, full=True, incremental=False, **options)
     full = full_search_due(refined, len(pf.contact_positions), refresh)
@@ -235,7 +241,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
 
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
-           normal_noise_deg, refined, budget, full, incremental, normals):
+           normal_noise_deg, refined, budget, full, incremental, normals, any_class):
     """:func:`decide`, a full search or not, with what the last touch refined or
     afresh (not ``incremental``: the decision as it was before :mod:`.incremental`)."""
     contacts = pf.contact_positions
@@ -250,9 +256,11 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # particle is weighed elsewhere (in another mode): a scaled twin fits best there.
     others = lookalikes(pf.bank, particles.rotations[chosen], particles.translations[chosen],
                         contacts, [map_class], OTHER_CLASSES, pf.params.sigma_d)
-    flipped_rotations, flipped_translations = flips(pf, map_class, particles.rotations[chosen],
-                                                    particles.translations[chosen])
-    classes = np.r_[classes, others, np.full(len(flipped_rotations), map_class)].astype(np.int64)
+    flipped_classes, flipped_rotations, flipped_translations = _flipped(
+        pf, [(map_class, particles.rotations[chosen], particles.translations[chosen])]
+        + ([_fit_leader([h for h in carried if h.class_index < len(pf.models)], map_class)]
+           if any_class else []))
+    classes = np.r_[classes, others, flipped_classes].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
                                 np.repeat(particles.rotations[chosen][None], len(others), 0),
                                 flipped_rotations])
@@ -291,8 +299,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                         len(contacts) if full else memory.searched)
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     best = float(misfit.min())
-    shape2 = pf.models[classes[0]].shape_error ** 2  # a learned shape's own error
-    floor2 = model_floor2(pf, classes[0], floor)  # the MAP's model too
+    floor2 = model_floor2(pf, classes[0], floor)  # the MAP's model, a learned one's error too
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
     turned = np.full(len(classes), np.inf)
     finite = np.flatnonzero(np.isfinite(misfit))
@@ -331,20 +338,25 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # process to the next, and so would the sum's last bit.
     weighed = sorted({belief.class_names[c] for c in np.r_[classes[keep], left_out]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
+    dof = len(contacts) - POSE_PARAMETERS
     lead = _lead(hypotheses, scale2, confidence)
+    if any_class:
+        lead = _class_lead(hypotheses, lead, scale2, confidence, belief.class_posterior,
+                           belief.class_names,
+                           lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
-    # The MAP must also fit within the noise: a rival that was never sampled cannot be
+    # The lead must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
     # A shape round but for small detail (a bumpy ball) is posed about its round axis
     # only by that detail, which the local refinement may not find: the MAP fits within
     # the noise and that detail.
-    roughness = symmetry_group(pf.models[classes[0]]).roughness
-    dof = len(contacts) - POSE_PARAMETERS
+    roughness = symmetry_group(pf.models[lead.class_index]).roughness
+    shape2 = pf.models[lead.class_index].shape_error ** 2
     quantile = chi2_quantile(confidence, dof) if dof > 0 else 0.0
     # The grid errs most inside thin parts, where noisy readings lie, and more than its
     # error at the surface says: where the grid's residuals fail, the mesh is asked, with
     # no grid error.
-    limit = fit_limit(pf, classes[0], floor, confidence, dof)
+    limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
     fits, fit_p = dof > 0 and lead.misfit <= limit, 1.0
     if dof > 0 and not fits:
         mesh2 = max(floor**2 + shape2 + roughness**2, 1e-300)
@@ -368,6 +380,25 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p, memory)
+
+
+def _fit_leader(carried, map_class):
+    """The last touch's most probable hypothesis, as ``(class, rotation, translation)``,
+    when it is of another class than ``map_class`` (else None): the decision may be
+    about it (:func:`_class_lead`), so its flips are weighed too."""
+    best = max(carried, key=lambda h: h.probability, default=None)
+    if best is None or best.class_index == map_class:
+        return None
+    return best.class_index, best.rotation, best.translation
+
+
+def _flipped(pf, poses):
+    """:func:`~.round_turns.flips` of each ``(class, rotation, translation)`` (None
+    skipped): classes (k,), rotations (k, 3, 3), translations (k, 3)."""
+    turned = [(c, *flips(pf, c, rotation, translation))
+              for c, rotation, translation in (p for p in poses if p is not None)]
+    return (np.concatenate([np.full(len(r), c) for c, r, _ in turned]),
+            np.concatenate([r for _, r, _ in turned]), np.concatenate([t for _, _, t in turned]))
 
 
 def _starts_at(hypothesis, classes, rotations, translations):
@@ -439,6 +470,27 @@ def _lead(hypotheses, scale2, confidence):
     better = [h for h in hypotheses[1:]
               if h.class_index == first.class_index and h.misfit <= first.misfit - margin]
     return max(better, key=lambda h: h.probability) if better else first
+
+
+def _class_lead(hypotheses, lead, scale2, confidence, posterior, names, limit):
+    """The hypothesis of another class than ``lead``'s that the decision is about instead,
+    or ``lead``: one whose fit posterior, positions and normals, holds ``confidence``,
+    that fits within the noise (its squared residuals within ``limit(class)``), whose
+    positions fit no worse than the lead's beyond the margin of :func:`_lead`, and whose
+    class the filter holds at least ``1 - confidence`` of (``posterior`` by ``names``).
+
+    The filter's likelihood is broad (``sigma_d``, 8% of the size): on a table a fork's
+    tines, out of a 5 mm tip's reach between them, fit a knife's blade, and its MAP turned
+    between the two from touch to touch, while the refined fits held the fork at 1.000 by
+    the normals of its tines. A lead that only its normals prefer while its positions fit
+    worse is refused (a knife 6 degrees off leading by its normals with seven times the
+    residuals was decided once)."""
+    margin = 2 * scale2 * np.log(1 / (1 - confidence))
+    better = [h for h in hypotheses if h.class_index != lead.class_index
+              and h.probability >= confidence and h.misfit <= lead.misfit + margin
+              and h.misfit <= limit(h.class_index)
+              and posterior.get(names[h.class_index], 0.0) >= 1 - confidence]
+    return better[0] if better else lead
 
 
 def _loosest(pf, hypothesis, scale2, confidence, tolerance, normal_noise=None):

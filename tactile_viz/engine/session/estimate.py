@@ -9,6 +9,7 @@ exploration state).
 
 import functools
 import time
+from dataclasses import replace
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -54,6 +55,18 @@ class Estimation:
         model = self.filter.models[self.filter.class_names.index(belief.map_class)]
         pose = belief.map_rotation, belief.map_translation
         return model, pose, transform_points(model.mesh.vertices, *pose)
+
+    def _decided_class(self, belief, decision, model, pose, map_vertices):
+        """The belief, prior, pose and vertices a step reports: a decided lead of another
+        class than the filter's MAP (``decision_any_class``) in place of the MAP's (beyond
+        the paper)."""
+        lead = decision.hypotheses[0] if decision.decided else None
+        if lead is None or belief.class_names[lead.class_index] == belief.map_class:
+            return belief, model, pose, map_vertices
+        model, pose = self.filter.models[lead.class_index], (lead.rotation, lead.translation)
+        self._use_lengths(model, belief.novel)
+        return (replace(belief, map_class=belief.class_names[lead.class_index]), model, pose,
+                transform_points(model.mesh.vertices, *pose))
 
     def _aimed_pose(self, decision, model, pose, map_vertices):
         """The pose and vertices that targets are aimed from and snapshots report: with

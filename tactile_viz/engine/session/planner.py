@@ -175,7 +175,8 @@ class Planner:
                       pose_tolerance=p.decision_pose_error,
                       normal_noise_deg=self.sensor_noise[1],
                       refined=self.state.decision_refined, refresh=p.decision_refresh,
-                      budget=p.decision_budget, normals=p.decision_normals)
+                      budget=p.decision_budget, normals=p.decision_normals,
+                      any_class=p.decision_any_class)
 
     def _misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):

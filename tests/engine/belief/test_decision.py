@@ -164,6 +164,33 @@ def test_a_pose_leads_only_where_positions_alone_refute_the_particles():
     assert _lead((first, hypothesis(1, 0.0, 1.0)), 0.01, 0.99) is first
 
 
+def test_another_class_leads_only_where_its_fit_holds_the_confidence():
+    """A class the fits hold at the confidence leads the filter's MAP class if it fits
+    within the noise, its positions fit no worse beyond the margin and the filter holds
+    it at all; otherwise the lead stays."""
+    from tactile_viz.engine.belief.decision import _class_lead
+
+    def hypothesis(class_index, misfit, probability):
+        return Hypothesis(class_index, np.eye(3), np.zeros(3), misfit, probability)
+
+    names = ("knife", "fork", "spoon")
+    posterior = {"knife": 0.7, "fork": 0.3, "spoon": 0.0}
+    margin = 2 * 0.01 * np.log(100)
+    lead = hypothesis(0, 1.0, 0.0)
+    fork = hypothesis(1, 1.0 + 0.9 * margin, 0.995)
+
+    def chosen(*hypotheses, limit=10.0, held=posterior):
+        return _class_lead((lead, *hypotheses), lead, 0.01, 0.99, held, names,
+                           lambda c: limit)
+
+    assert chosen(fork) is fork
+    assert chosen(hypothesis(1, 1.0 + 1.1 * margin, 0.995)) is lead  # positions refute it
+    assert chosen(hypothesis(1, 1.0, 0.98)) is lead  # its fit holds less than 0.99
+    assert chosen(fork, limit=1.0) is lead  # beyond the noise
+    assert chosen(hypothesis(2, 1.0, 0.995)) is lead  # a class the filter does not hold
+    assert chosen(hypothesis(0, 0.5, 0.995)) is lead  # the lead's own class: _lead's rule
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_decision_holds_at_any_size(tmp_path, scale):
     from tactile_viz.engine.io.cache import ArrayCache
@@ -245,6 +272,31 @@ def test_the_dhd_stop_waits_for_the_decisions_checks(shapes, monkeypatch):
     assert last.terminated and last.step < 39
     assert last.decided
     assert session.state.decision_checks >= params.decision_checks  # swept, nothing surprised
+
+
+def test_a_decided_lead_of_another_class_is_what_the_step_reports(shapes, monkeypatch):
+    """Decided about another class than the filter's MAP, the step reports that class, its
+    pose and its surface."""
+    from tactile_viz.engine.session import planner
+
+    turn = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    other = {}
+
+    def decided_otherwise(pf, belief, *args, **kwargs):
+        c = (shapes.names.index(belief.map_class) + 1) % len(shapes.names)
+        other["name"] = shapes.names[c]
+        lead = Hypothesis(c, turn, np.array([0.1, 0.0, 0.0]), 0.0, 1.0)
+        return Decision(True, 1.0, (lead,), True)
+
+    monkeypatch.setattr(planner, "decide", decided_otherwise)
+    params = session_preset("recognise", eps=12.0, decision_cover=12.0)
+    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    last = session.run(max_steps=40)
+    assert last.decided and last.map_class == other["name"]
+    np.testing.assert_allclose(last.map_rotation, turn)
+    np.testing.assert_allclose(last.map_vertices, transform_points(
+        shapes[other["name"]].mesh.vertices, turn, np.array([0.1, 0.0, 0.0])))
+    np.testing.assert_array_equal(last.map_faces, shapes[other["name"]].mesh.faces)
 
 
 def test_a_recognising_session_waits_while_its_map_does_not_fit(shapes, monkeypatch):
