@@ -9,8 +9,8 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
    posterior (its broad likelihood cannot tell near twins apart, but it does say which
    classes matter),
 3. among the distinct hypotheses that could explain the contacts, the lead (the MAP, a
-   pose of its class the positions prefer, :func:`_lead`, or with ``any_class`` a
-   hypothesis of another class, :func:`_class_lead`) holds at least
+   pose of its class the positions prefer, :func:`~.lead.particle_lead`, or with ``any_class`` a
+   hypothesis of another class, :func:`~.lead.class_lead`) holds at least
    ``decision_confidence`` of their fit posterior,
 4. the lead fits within the noise: its refined residuals pass a chi-squared test at
    ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
@@ -59,6 +59,7 @@ from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
+from .lead import class_lead, fit_leader, particle_lead
 from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
@@ -221,7 +222,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         ``log(1 / (1 - confidence))`` nats over the lead's is not open.
     any_class : bool
         ``decision_any_class``: a hypothesis of another class than the filter's MAP may
-        lead (:func:`_class_lead`); decided, it comes first in ``hypotheses``.
+        lead (:func:`~.lead.class_lead`); decided, it comes first in ``hypotheses``.
 
     Returns
     -------
@@ -258,7 +259,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                         contacts, [map_class], OTHER_CLASSES, pf.params.sigma_d)
     flipped_classes, flipped_rotations, flipped_translations = _flipped(
         pf, [(map_class, particles.rotations[chosen], particles.translations[chosen])]
-        + ([_fit_leader([h for h in carried if h.class_index < len(pf.models)], map_class)]
+        + ([fit_leader([h for h in carried if h.class_index < len(pf.models)], map_class)]
            if any_class else []))
     classes = np.r_[classes, others, flipped_classes].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
@@ -339,9 +340,9 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     weighed = sorted({belief.class_names[c] for c in np.r_[classes[keep], left_out]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
     dof = len(contacts) - POSE_PARAMETERS
-    lead = _lead(hypotheses, scale2, confidence)
+    lead = particle_lead(hypotheses, scale2, confidence)
     if any_class:
-        lead = _class_lead(hypotheses, lead, scale2, confidence, belief.class_posterior,
+        lead = class_lead(hypotheses, lead, scale2, confidence, belief.class_posterior,
                            belief.class_names,
                            lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
@@ -380,16 +381,6 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p, memory)
-
-
-def _fit_leader(carried, map_class):
-    """The last touch's most probable hypothesis, as ``(class, rotation, translation)``,
-    when it is of another class than ``map_class`` (else None): the decision may be
-    about it (:func:`_class_lead`), so its flips are weighed too."""
-    best = max(carried, key=lambda h: h.probability, default=None)
-    if best is None or best.class_index == map_class:
-        return None
-    return best.class_index, best.rotation, best.translation
 
 
 def _flipped(pf, poses):
@@ -454,43 +445,6 @@ def _open_modes(bank, hypotheses, lead, limit, tolerance, turned=np.inf):
                                np.array([h.rotation for h in modes]),
                                np.array([h.translation for h in modes])) > tolerance
     return tuple(h for h, far in zip(modes, apart) if far)
-
-
-def _lead(hypotheses, scale2, confidence):
-    """The hypothesis a decision is about: the MAP particle's, or a pose of its class that
-    the contacts' positions alone prefer to it at ``confidence`` (their squared residuals
-    lower by ``2 s^2 log(1 / (1 - confidence))``), the most probable such.
-
-    The filter's broad likelihood can leave the class's heaviest particle in a turn that
-    another of its poses fits far better (a bumpy ball's, 60-180 degrees off for 120
-    steps). Normals alone, or an equal fit, must not move the decision: a fork was decided
-    as a knife and a flat screwdriver as the cross so (docs/decision.md)."""
-    first = hypotheses[0]
-    margin = 2 * scale2 * np.log(1 / (1 - confidence))
-    better = [h for h in hypotheses[1:]
-              if h.class_index == first.class_index and h.misfit <= first.misfit - margin]
-    return max(better, key=lambda h: h.probability) if better else first
-
-
-def _class_lead(hypotheses, lead, scale2, confidence, posterior, names, limit):
-    """The hypothesis of another class than ``lead``'s that the decision is about instead,
-    or ``lead``: one whose fit posterior, positions and normals, holds ``confidence``,
-    that fits within the noise (its squared residuals within ``limit(class)``), whose
-    positions fit no worse than the lead's beyond the margin of :func:`_lead`, and whose
-    class the filter holds at least ``1 - confidence`` of (``posterior`` by ``names``).
-
-    The filter's likelihood is broad (``sigma_d``, 8% of the size): on a table a fork's
-    tines, out of a 5 mm tip's reach between them, fit a knife's blade, and its MAP turned
-    between the two from touch to touch, while the refined fits held the fork at 1.000 by
-    the normals of its tines. A lead that only its normals prefer while its positions fit
-    worse is refused (a knife 6 degrees off leading by its normals with seven times the
-    residuals was decided once)."""
-    margin = 2 * scale2 * np.log(1 / (1 - confidence))
-    better = [h for h in hypotheses if h.class_index != lead.class_index
-              and h.probability >= confidence and h.misfit <= lead.misfit + margin
-              and h.misfit <= limit(h.class_index)
-              and posterior.get(names[h.class_index], 0.0) >= 1 - confidence]
-    return better[0] if better else lead
 
 
 def _loosest(pf, hypothesis, scale2, confidence, tolerance, normal_noise=None):

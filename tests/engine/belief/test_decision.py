@@ -149,7 +149,7 @@ def test_the_decision_is_about_the_classs_most_probable_pose(shapes):
 def test_a_pose_leads_only_where_positions_alone_refute_the_particles():
     """Better normals alone, or residuals lower by less than the confidence's margin, do
     not move the decision off the particle's pose; another class never leads."""
-    from tactile_viz.engine.belief.decision import _lead
+    from tactile_viz.engine.belief.lead import particle_lead
 
     def hypothesis(class_index, misfit, probability):
         return Hypothesis(class_index, np.eye(3), np.zeros(3), misfit, probability)
@@ -157,18 +157,18 @@ def test_a_pose_leads_only_where_positions_alone_refute_the_particles():
     first = hypothesis(0, 1.0, 0.0)
     margin = 2 * 0.01 * np.log(100)
     close = hypothesis(0, 1.0 - 0.9 * margin, 1.0)
-    assert _lead((first, close), 0.01, 0.99) is first
+    assert particle_lead((first, close), 0.01, 0.99) is first
     far = hypothesis(0, 1.0 - 1.1 * margin, 0.7)
     likelier = hypothesis(0, 0.5, 0.2)
-    assert _lead((first, close, likelier, far), 0.01, 0.99) is far
-    assert _lead((first, hypothesis(1, 0.0, 1.0)), 0.01, 0.99) is first
+    assert particle_lead((first, close, likelier, far), 0.01, 0.99) is far
+    assert particle_lead((first, hypothesis(1, 0.0, 1.0)), 0.01, 0.99) is first
 
 
 def test_another_class_leads_only_where_its_fit_holds_the_confidence():
     """A class the fits hold at the confidence leads the filter's MAP class if it fits
     within the noise, its positions fit no worse beyond the margin and the filter holds
     it at all; otherwise the lead stays."""
-    from tactile_viz.engine.belief.decision import _class_lead
+    from tactile_viz.engine.belief.lead import class_lead
 
     def hypothesis(class_index, misfit, probability):
         return Hypothesis(class_index, np.eye(3), np.zeros(3), misfit, probability)
@@ -180,7 +180,7 @@ def test_another_class_leads_only_where_its_fit_holds_the_confidence():
     fork = hypothesis(1, 1.0 + 0.9 * margin, 0.995)
 
     def chosen(*hypotheses, limit=10.0, held=posterior):
-        return _class_lead((lead, *hypotheses), lead, 0.01, 0.99, held, names,
+        return class_lead((lead, *hypotheses), lead, 0.01, 0.99, held, names,
                            lambda c: limit)
 
     assert chosen(fork) is fork
@@ -188,7 +188,7 @@ def test_another_class_leads_only_where_its_fit_holds_the_confidence():
     assert chosen(hypothesis(1, 1.0, 0.98)) is lead  # its fit holds less than 0.99
     assert chosen(fork, limit=1.0) is lead  # beyond the noise
     assert chosen(hypothesis(2, 1.0, 0.995)) is lead  # a class the filter does not hold
-    assert chosen(hypothesis(0, 0.5, 0.995)) is lead  # the lead's own class: _lead's rule
+    assert chosen(hypothesis(0, 0.5, 0.995)) is lead  # the lead's own class: particle_lead's rule
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
