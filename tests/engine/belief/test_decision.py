@@ -191,6 +191,22 @@ def test_another_class_leads_only_where_its_fit_holds_the_confidence():
     assert chosen(hypothesis(0, 0.5, 0.995)) is lead  # the lead's own class: particle_lead's rule
 
 
+def test_the_flips_of_a_fit_leader_of_another_class_are_weighed():
+    """The last touch's most probable hypothesis is flipped too when it is of another class
+    than the MAP's; of the MAP's class, or with nothing carried, nothing more."""
+    from tactile_viz.engine.belief.lead import fit_leader
+
+    turn = Rotation.from_euler("x", 40, degrees=True).as_matrix()
+    carried = (Hypothesis(0, np.eye(3), np.zeros(3), 1.0, 0.1),
+               Hypothesis(2, turn, np.ones(3), 2.0, 0.9))
+    c, rotation, translation = fit_leader(carried, map_class=0)
+    assert c == 2
+    np.testing.assert_allclose(rotation, turn)
+    np.testing.assert_allclose(translation, np.ones(3))
+    assert fit_leader(carried, map_class=2) is None
+    assert fit_leader((), map_class=0) is None
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_decision_holds_at_any_size(tmp_path, scale):
     from tactile_viz.engine.io.cache import ArrayCache
