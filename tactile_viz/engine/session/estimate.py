@@ -59,12 +59,11 @@ class Estimation:
     def _decided_class(self, belief, decision, model, pose, map_vertices):
         """The belief, prior, pose and vertices a step reports: a decided lead of another
         class than the filter's MAP (``decision_any_class``) in place of the MAP's (beyond
-        the paper)."""
+        the paper). Changes nothing."""
         lead = decision.hypotheses[0] if decision.decided else None
         if lead is None or belief.class_names[lead.class_index] == belief.map_class:
             return belief, model, pose, map_vertices
         model, pose = self.filter.models[lead.class_index], (lead.rotation, lead.translation)
-        self._use_lengths(model, belief.novel)
         return (replace(belief, map_class=belief.class_names[lead.class_index]), model, pose,
                 transform_points(model.mesh.vertices, *pose))
 

@@ -517,8 +517,10 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
             recon = self._reconstruct(model, *pose, map_vertices, timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         self.state.decision_refined = decision.refined
-        belief, model, pose, map_vertices = self._decided_class(  # beyond the paper
-            belief, decision, model, pose, map_vertices)
+        reported = self._decided_class(belief, decision, model, pose, map_vertices)
+        if reported[1] is not model:                              # beyond the paper
+            belief, model, pose, map_vertices = reported
+            self._use_lengths(model, novel=False)                 # lengths in its size
         pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):
             coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
