@@ -257,10 +257,10 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # particle is weighed elsewhere (in another mode): a scaled twin fits best there.
     others = lookalikes(pf.bank, particles.rotations[chosen], particles.translations[chosen],
                         contacts, [map_class], OTHER_CLASSES, pf.params.sigma_d)
+    leader = fit_leader([h for h in carried if h.class_index < len(pf.models)],
+                        map_class) if any_class else None
     flipped_classes, flipped_rotations, flipped_translations = _flipped(
-        pf, [(map_class, particles.rotations[chosen], particles.translations[chosen])]
-        + ([fit_leader([h for h in carried if h.class_index < len(pf.models)], map_class)]
-           if any_class else []))
+        pf, [(map_class, particles.rotations[chosen], particles.translations[chosen]), leader])
     classes = np.r_[classes, others, flipped_classes].astype(np.int64)
     rotations = np.concatenate([particles.rotations[candidates],
                                 np.repeat(particles.rotations[chosen][None], len(others), 0),
@@ -341,10 +341,10 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
     dof = len(contacts) - POSE_PARAMETERS
     lead = particle_lead(hypotheses, scale2, confidence)
-    if any_class:
-        lead = class_lead(hypotheses, lead, scale2, confidence, belief.class_posterior,
-                           belief.class_names,
-                           lambda c: fit_limit(pf, c, floor, confidence, dof))
+    if leader is not None:  # only the class whose flips were weighed, as rival modes
+        lead = class_lead([h for h in hypotheses if h.class_index == leader[0]], lead, scale2,
+                          confidence, belief.class_posterior, belief.class_names,
+                          lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
     # The lead must also fit within the noise: a rival that was never sampled cannot be
     # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.

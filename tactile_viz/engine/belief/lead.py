@@ -49,8 +49,9 @@ def class_lead(hypotheses, lead, scale2, confidence, posterior, names, limit):
 
 def fit_leader(carried, map_class):
     """The last touch's most probable hypothesis, as ``(class, rotation, translation)``,
-    when it is of another class than ``map_class`` (else None): the decision may be
-    about it (:func:`class_lead`), so its flips are weighed too."""
+    when it is of another class than ``map_class`` (else None): its flips are weighed
+    too, and only its class may lead the decision (:func:`class_lead`), its upside-down
+    modes then open rivals."""
     best = max(carried, key=lambda h: h.probability, default=None)
     if best is None or best.class_index == map_class:
         return None
