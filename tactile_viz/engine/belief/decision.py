@@ -221,7 +221,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         decides and that is reported, and a pose mode whose normals cost it more than
         ``log(1 / (1 - confidence))`` nats over the lead's is not open.
     any_class : bool
-        ``decision_any_class``: a hypothesis of another class than the filter's MAP may
+        ``decision_any_class``: a hypothesis of another class than the filter's MAP, the
+        class of the last touch's most probable hypothesis (whose flips are weighed), may
         lead (:func:`~.lead.class_lead`); decided, it comes first in ``hypotheses``.
 
     Returns
