@@ -175,7 +175,7 @@ def place(name, seed, scene=None):
 
 def callback_style(library, robot, seed, steps, scene=None):
     """The robot as the session's sensor: ``step()`` asks it for each move."""
-    session = Session(None, library, seed=seed, sensor=robot, scene=scene)
+    session = Session(library, seed=seed, sensor=robot, scene=scene)
     session.run(max_steps=steps)
     return session
 
@@ -183,7 +183,7 @@ def callback_style(library, robot, seed, steps, scene=None):
 def ask_tell_style(library, robot, seed, steps, scene=None):
     """Event-driven robot software: ask for a move, carry it out, tell the result; at most
     ``steps`` steps (a step may take several moves)."""
-    session = Session(None, library, seed=seed, scene=scene)
+    session = Session(library, seed=seed, scene=scene)
     while session.step_count < steps and not session.terminated:
         move = session.propose()               # a guarded move: move.path, the tip's centre
         result = robot.probe(move.path)        # here the robot's own motion code
@@ -273,7 +273,7 @@ def main(argv=None, sessions=None):
           f"{args.seed}, at most {args.steps} steps")
     results = {}
     if not args.no_simulator:
-        reference = Session(truth, library, seed=args.seed, scene=scene)  # for comparison
+        reference = Session.simulated(truth, library, seed=args.seed, scene=scene)  # for comparison
         reference.run(max_steps=args.steps)
         if sessions is not None:
             sessions["simulator"] = reference

@@ -99,7 +99,7 @@ class BagLog:
 
 def record(library, robot, seed, steps, log):
     """Ask/tell with the robot; every completed step goes to the log."""
-    session = Session(None, library, seed=seed)
+    session = Session(library, seed=seed)
     while session.step_count < steps and not session.terminated:
         snapshot = session.observe(robot.probe(session.propose().path))
         if snapshot is not None:

@@ -99,7 +99,7 @@ def _loads(data, models):
 def _read_back(session):
     """How many of the newest snapshots a step reads: the latest, and the last
     ``final_candidates`` ones, whose MAP priors a stopping novel session fits again
-    (:meth:`~tactile_viz.engine.session.estimate.Estimation._recent_priors`)."""
+    (:meth:`~tactile_viz.engine.session.estimate.Estimator._recent_priors`)."""
     return 1 + max(0, int(getattr(session.params, "final_candidates", 0) or 0))
 
 

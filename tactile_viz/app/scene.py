@@ -420,7 +420,7 @@ class Scene:
                                                sensor_noise=self.sensor_noise,
                                                scene=self.robot_scene)
             else:
-                self.session = Session(self.truth, library, self.strategy, self.params,
+                self.session = Session.simulated(self.truth, library, self.strategy, self.params,
                                        self.seed, self.sensor_noise,
                                        sensor_outliers=self.sensor_outliers,
                                        scene=self.robot_scene)

@@ -136,7 +136,7 @@ def prepare(library, progress=False, preset=None):
     from ..engine.presets import DEFAULT_PRESET, session_preset
     from ..engine.session import Session
 
-    pf = Session(None, library, params=session_preset(preset or DEFAULT_PRESET)).filter
+    pf = Session(library, params=session_preset(preset or DEFAULT_PRESET)).filter
     build_missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg,
                   progress=prior_bar if progress else None)
 

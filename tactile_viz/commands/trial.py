@@ -198,7 +198,7 @@ def run_trial(truth_model, library, strategy="gpis-dhd", seed=0, preset="recomme
         raise ParameterError(f"max_steps must be at least 1, got {max_steps}")
     params = with_outliers(params or session_preset(preset), sensor["outlier_probability"])
     truth = make_truth(truth_model, rng=[seed, 0], scene=scene)
-    session = Session(truth, library, strategy, params, seed=seed,
+    session = Session.simulated(truth, library, strategy, params, seed=seed,
                       sensor_noise=(sensor["position_noise"], sensor["normal_noise_deg"]),
                       sensor_outliers=sensor["outliers"], scene=scene)
     # The priors' bank before the clock starts (built first if the disk cache lacks it),

@@ -39,7 +39,7 @@ def compile_kernels(steps=3):
 
     library = PriorLibrary.bundled("known")
     for name, preset in SESSIONS:
-        session = Session(make_truth(load_bundled(name), rng=0), library, "gpis-dhd",
+        session = Session.simulated(make_truth(load_bundled(name), rng=0), library, "gpis-dhd",
                           session_preset(preset), seed=0)
         session.run(max_steps=steps)
     return [kernel.__name__ for kernel in KERNELS if not kernel.signatures]

@@ -23,7 +23,7 @@ def engine():
 
 
 def _session(bundled, library, name="vase_2", seed=1):
-    return Session(make_truth(bundled[name], rng=seed), library, "gpis-dhd", seed=seed)
+    return Session.simulated(make_truth(bundled[name], rng=seed), library, "gpis-dhd", seed=seed)
 
 
 def _same(first, second):
@@ -123,11 +123,11 @@ def test_priors_no_session_uses_are_let_go(bundled, library, engine):
 
     list(engine.steps(_session(bundled, library), 1))
     fewer = library.subset(["mug_1", "vase_1"])
-    session = Session(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
+    session = Session.simulated(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
     list(engine.steps(session, 2))
     truth = model_key(bundled["vase_2"])  # the simulated object goes too
     assert set(engine._models) == {model_key(model) for model in fewer} | {truth}
-    local = Session(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
+    local = Session.simulated(make_truth(bundled["vase_2"], rng=1), fewer, "gpis-dhd", seed=1)
     local.run(max_steps=2)
     _same(session.snapshots, local.snapshots)
     list(engine.steps(_session(bundled, library), 1))  # sent again when used again
@@ -141,7 +141,7 @@ def test_a_session_in_a_robot_scene_keeps_it_in_the_process(bundled, library, en
 
     def session():
         truth = make_truth(bundled["vase_2"], rng=3, scene=robot)
-        return Session(truth, library, "gpis-dhd", seed=3, scene=robot)
+        return Session.simulated(truth, library, "gpis-dhd", seed=3, scene=robot)
 
     remote, local = session(), session()
     list(engine.steps(remote, 3))
@@ -159,7 +159,7 @@ def test_a_novel_session_stops_in_the_process(bundled, library, engine):
     assert params.final_candidates > 0
 
     def session():
-        return Session(make_truth(bundled["mug_2"], rng=[0, 0]), library, "gpis-dhd",
+        return Session.simulated(make_truth(bundled["mug_2"], rng=[0, 0]), library, "gpis-dhd",
                        params, seed=0)
 
     remote, local = session(), session()

@@ -74,7 +74,7 @@ def test_the_novel_picture_is_the_apps_own_session(launcher, novel_args):
 
 def test_the_novel_picture_ends_judged_novel_with_a_gpis_surface(novel_args):
     truth = make_truth(load_bundled(novel_args.object), rng=[novel_args.seed, 0])
-    session = Session(truth, PriorLibrary.bundled("known"), "gpis-dhd",
+    session = Session.simulated(truth, PriorLibrary.bundled("known"), "gpis-dhd",
                       session_preset("recommended"), seed=novel_args.seed)
     for _ in range(novel_args.steps):  # as app.py steps before its screenshot
         if session.terminated:

@@ -86,7 +86,7 @@ def test_a_library_is_built_for_the_presets_trials(scans, capsys, tmp_path, monk
     library = PriorLibrary.load("lib")
 
     def unbuilt(preset):
-        pf = Session(None, library, params=session_preset(preset)).filter
+        pf = Session(library, params=session_preset(preset)).filter
         return missing(pf.models, pf.params.distance_step, pf.params.angle_step_deg)
 
     assert unbuilt("recognise") == [] and len(unbuilt("recommended")) == 3

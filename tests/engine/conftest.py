@@ -35,3 +35,12 @@ def snapshot(folder):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def surface_at(session, snapshot, resolution):
+    """``snapshot``'s GPIS surface refitted at ``resolution`` cells, in the lengths of its
+    MAP prior (what learning it does)."""
+    from tactile_viz.engine.session.learning import surface_at as refitted
+
+    model = session.filter.models[session.filter.class_names.index(snapshot.map_class)]
+    return refitted(session.parts(model).estimator, snapshot, resolution)

@@ -188,7 +188,7 @@ def test_stable_poses_are_kept_on_disk_by_mesh_content(tmp_path, monkeypatch):
 def test_the_filter_weighs_down_a_hypothesis_off_the_table(tmp_path):
     model = _box_model(tmp_path)
     library = PriorLibrary([model])
-    session = Session(None, library, scene=Scene.on_table(0.0))
+    session = Session(library, scene=Scene.on_table(0.0))
     resting = np.array([0.0, 0.0, 1.0])
     particles = Particles(np.zeros(3, np.int64), np.repeat(np.eye(3)[None], 3, axis=0),
                           np.array([resting, resting + [0, 0, 1.0], resting - [0, 0, 0.5]]),
@@ -196,13 +196,13 @@ def test_the_filter_weighs_down_a_hypothesis_off_the_table(tmp_path):
     support = session.filter.log_support(particles)
     assert support[0] == pytest.approx(0.0, abs=1e-9)
     assert support[1] < support[2] < support[0]
-    free = Session(None, library)
+    free = Session(library)
     np.testing.assert_array_equal(free.filter.log_support(particles), np.zeros(3))
 
 
 def test_a_table_contact_is_a_miss_of_the_object(tmp_path):
     library = PriorLibrary([_box_model(tmp_path)])
-    session = Session(None, library, scene=Scene.on_table(0.0, 60.0, 0.1))
+    session = Session(library, scene=Scene.on_table(0.0, 60.0, 0.1))
     seen = session._seen(Contact([2.0, 3.0, 0.0], [0.0, 0.0, 1.0]))
     assert isinstance(seen, NonContact)
     np.testing.assert_allclose(seen.position, [2.0, 3.0, 0.1])
@@ -216,7 +216,7 @@ def test_a_session_on_a_table_keeps_to_the_scene_and_stops_by_itself(bundled, na
                                  ("armadillo", "elephant", "mug_1", "bottle_1", "vase_1"))
     scene = Scene.on_table(0.0, 60.0, 0.1)
     truth = make_truth(bundled[name], rng=[seed, 0], scene=scene)
-    session = Session(truth, known_library, params=session_preset("recognise"), seed=seed,
+    session = Session.simulated(truth, known_library, params=session_preset("recognise"), seed=seed,
                       scene=scene)
     last = session.run(max_steps=120)
     assert last.terminated and last.step < 120
@@ -233,7 +233,7 @@ def test_resting_seeds_hold_the_true_pose_and_rest_on_the_table(bundled):
     scene = Scene.on_table(0.3, 60.0, 0.0)
     truth = make_truth(model, rng=5, scene=scene)
     library = PriorLibrary([model])
-    session = Session(truth, library, scene=scene, seed=5)  # the bank of the one prior
+    session = Session.simulated(truth, library, scene=scene, seed=5)  # the bank of the one prior
     bank = session.filter.bank
     # A contact at a feature point of the truth, as the first touch would give it.
     point, normal = bank.points[0][17], bank.normals[0][17]

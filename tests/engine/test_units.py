@@ -37,7 +37,8 @@ def test_a_scaled_twin_is_another_class(metric_mugs, name):
     60, pose within 1% of the size)."""
     decided = 0
     for seed in (1, 2, 3):
-        session = Session(make_truth(metric_mugs[name], rng=[seed, 0]), metric_mugs, seed=seed,
+        session = Session.simulated(make_truth(metric_mugs[name], rng=[seed, 0]), metric_mugs,
+                                    seed=seed,
                           params=session_preset("recognise"))
         snapshot = session.run(max_steps=60)
         assert snapshot.map_class == name and not snapshot.novel
@@ -48,7 +49,7 @@ def test_a_scaled_twin_is_another_class(metric_mugs, name):
 
 
 def test_lengths_scale_with_the_objects(metric_mugs):
-    session = Session(make_truth(metric_mugs["mug_small"], rng=0), metric_mugs, seed=0)
+    session = Session.simulated(make_truth(metric_mugs["mug_small"], rng=0), metric_mugs, seed=0)
     assert metric_mugs.reference_size == pytest.approx(0.20)
     assert session.filter.params.sigma_d == pytest.approx(0.5 * 0.20 / 6)
     assert session.simulator.tolerance == pytest.approx(0.10 / 600)
@@ -56,13 +57,13 @@ def test_lengths_scale_with_the_objects(metric_mugs):
     unit = metric_mugs[session.latest.map_class].length / 6
     assert session._p.eps == pytest.approx(0.6 * unit)
     assert session._p.gpis_noise == pytest.approx(1e-4 * unit**2)
-    fixed = Session(None, metric_mugs, params=SessionParams(length_unit=1.0))
+    fixed = Session(metric_mugs, params=SessionParams(length_unit=1.0))
     assert fixed.filter.params.sigma_d == 0.5 and fixed._p.eps == 0.6
 
 
 def test_paper_objects_keep_the_paper_values():
     library = PriorLibrary.bundled("known")
-    session = Session(None, library)
+    session = Session(library)
     assert library.reference_size == 6.0
     assert session.filter.params == FilterParams() and session._p == SessionParams()
     assert error_threshold(6.0) == 0.6
@@ -95,7 +96,7 @@ def test_a_pose_maps_back_to_the_users_file(tmp_path):
     library = PriorLibrary([block, ObjectModel.from_arrays(ball.vertices, ball.faces, "ball",
                                                            cache=block.cache, scale=0.001)])
     truth = make_truth(block, rng=[2, 0])
-    session = Session(truth, library, seed=2)
+    session = Session.simulated(truth, library, seed=2)
     session.run(max_steps=20)
     assert session.latest.map_class == "block_mm"
     file_to_world = np.array(estimate_record(session, units="m")["file_to_world"])
@@ -127,7 +128,7 @@ def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
                                                     cache=ArrayCache(tmp_path))])
     truth_model = ObjectModel.from_arrays(sphere.vertices, sphere.faces, "ball",
                                           cache=library["box"].cache)
-    session = Session(make_truth(truth_model, rng=0), library, seed=0)
+    session = Session.simulated(make_truth(truth_model, rng=0), library, seed=0)
     session.run(max_steps=12)
     assert session.latest.novel
     export_session(session, tmp_path / "out", units="m")
@@ -144,7 +145,7 @@ def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
 def test_an_object_of_another_size_is_novel_and_reconstructed_at_its_size(metric_mugs):
     """mug_1 at 35 cm against priors of 10 to 25 cm: the same shape, but no prior's size."""
     big = load_bundled("mug_1", size=0.35).renamed("big_mug")
-    session = Session(make_truth(big, rng=[4, 0]), metric_mugs, seed=4)
+    session = Session.simulated(make_truth(big, rng=[4, 0]), metric_mugs, seed=4)
     snapshot = session.run(max_steps=20)
     assert snapshot.novel
     extent = snapshot.gpis_vertices.max(axis=0) - snapshot.gpis_vertices.min(axis=0)
@@ -292,7 +293,7 @@ def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(
     die = trimesh.creation.box([0.02, 0.02, 0.02])
     die = ObjectModel.from_arrays(die.vertices, die.faces, "die")
     for share in (0.5, 0.0):
-        session = Session(make_truth(die, rng=[2, 0]), metric_mugs, seed=2,
+        session = Session.simulated(make_truth(die, rng=[2, 0]), metric_mugs, seed=2,
                           params=SessionParams(own_size_share=share))
         for _ in range(60):  # novelty flickers for a die this small: any novel step will do
             snapshot = session.step()

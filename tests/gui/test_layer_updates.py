@@ -22,7 +22,7 @@ SIZE = 480
 @pytest.fixture(scope="module")
 def session():
     library = PriorLibrary(load_bundled(name) for name in ["mug_1", "vase_1", "bottle_1"])
-    session = Session(make_truth(load_bundled("vase_2"), rng=2), library, seed=2)
+    session = Session.simulated(make_truth(load_bundled("vase_2"), rng=2), library, seed=2)
     session.run(max_steps=6)
     return session
 

@@ -873,7 +873,7 @@ def test_a_step_failing_in_the_engine_process_is_shown_and_loses_nothing(
     from tactile_viz.engine.io.observation_file import RecordedStep
     from tactile_viz.engine.session import Session, make_truth
 
-    source = Session(make_truth(load_bundled("mug_1"), rng=0), known_library, seed=0)
+    source = Session.simulated(make_truth(load_bundled("mug_1"), rng=0), known_library, seed=0)
     source.run(max_steps=1)
     good = source.recorded_steps()[0]
     broken = RecordedStep(good.observations, np.array([[np.nan, 0.0, 0.0]]))

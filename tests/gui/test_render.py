@@ -15,7 +15,7 @@ pytestmark = pytest.mark.usefixtures("off_screen")
 @pytest.fixture(scope="module")
 def snapshot():
     library = PriorLibrary(load_bundled(name) for name in ["mug_1", "vase_1", "bottle_1"])
-    session = Session(make_truth(load_bundled("vase_1"), rng=2), library, seed=2)
+    session = Session.simulated(make_truth(load_bundled("vase_1"), rng=2), library, seed=2)
     session.run(max_steps=12)
     return session
 

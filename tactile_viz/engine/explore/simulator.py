@@ -95,7 +95,7 @@ class ContactSimulator:
     normal_noise_deg : float
         Standard deviation, in degrees, of the angle by which reported normals are tilted.
     outlier_fraction : float
-        The chance that a recorded contact is a wrong reading (:meth:`corrupted`): moved
+        The chance that a recorded contact is a wrong reading (:meth:`finish_step`): moved
         ``outlier_distance`` in a random direction, with a random normal.
     outlier_distance : float, optional
         Scene units; default a third of the object's longest side (3 cm on a 10 cm object).
@@ -238,10 +238,11 @@ class ContactSimulator:
     def _contact(self, position, normal):
         return Contact(self._noisy_position(position), self._noisy_normal(normal))
 
-    def corrupted(self, observations):
+    def finish_step(self, observations):
         """The observations a step records, each contact replaced by a wrong reading with
         probability ``outlier_fraction`` (the moves that led to them are not: a wrong
-        reading is what the sensor reports, not where it went)."""
+        reading is what the sensor reports, not where it went). A session calls it once a
+        step's guarded moves are done (the optional part of its sensor contract)."""
         if not self.outlier_fraction:
             return observations
         out = []

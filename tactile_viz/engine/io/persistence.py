@@ -7,7 +7,7 @@ of steps, the contacts, and for a session fed by its caller the recorded observa
 deterministic from the seed, and checks that the contacts come out the same.
 
 The session's set-up is what :meth:`Session.setup <tactile_viz.engine.session.Session.setup>`
-gives (its constructor's arguments). This module does not import the session (which
+gives (the arguments that made it). This module does not import the session (which
 imports it): :func:`load_session` is given the class to rebuild.
 """
 
@@ -117,8 +117,9 @@ def load_session(path, build, callback=None):
     ----------
     path : path-like
     build : callable
-        Makes the session from the saved constructor arguments (by keyword):
-        :class:`~tactile_viz.engine.session.Session`, as ``Session.load`` gives it.
+        Makes the session from the saved set-up (by keyword, with ``truth`` and
+        ``sensor_outliers`` for a simulated one): ``Session.from_setup``, as
+        ``Session.load`` gives it.
     callback : callable, optional
         Called with each replayed :class:`Snapshot` (progress, cancelling by raising).
 

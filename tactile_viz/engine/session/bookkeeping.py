@@ -1,10 +1,9 @@
 """What a step's observations leave in the exploration state besides the belief: the
 swept space, the check's count, the given-up target, the frontier, the free space and the
-missed probe. One path, :meth:`Bookkeeping._keep_observations`, for a step taken move by
-move (:meth:`Bookkeeping._after_moves`) and one given whole (:meth:`~.loop.Session.observe`).
+missed probe. One path, :meth:`Bookkeeper.keep_observations`, for a step taken move by
+move (:meth:`Bookkeeper.after_moves`) and one given whole (:meth:`~.loop.Session.observe`).
 
-A mixin of :class:`~.loop.Session`; the attributes it reads are listed on
-:class:`Bookkeeping`.
+A part of the step (:class:`~.context.Part`), built from its inputs without a session.
 """
 
 import numpy as np
@@ -13,48 +12,48 @@ from scipy.spatial import cKDTree
 from ..explore.exploration import path_until
 from ..explore.observations import Contact
 from ..shape.sdf import normalise_rows
+from .context import Part
 from .fields import free_approach, free_space_points, thin_points
+from .planner import beyond_noise, check_kind
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
 
 
-class Bookkeeping:
+class Bookkeeper(Part):
     """The exploration state's record of observations (see the module).
 
-    Reads the session's ``filter``, ``state``, ``latest``, ``_p``, ``_unit``,
-    ``_filter_unit``, ``strategy``, ``sensor_noise``, ``simulator``, ``_check_kind`` and
-    ``_beyond_noise`` (:class:`~.planner.Planner`); writes ``state``.
+    Reads its context, the filter and the snapshots; writes ``state``.
     """
 
-    def _after_moves(self, kind, done):
+    def after_moves(self, kind, done):
         """The paths and observations of a finished procedure, kept
-        (:meth:`_keep_observations`) with the free space of a missed target probe or check
+        (:meth:`keep_observations`) with the free space of a missed target probe or check
         and the approach's start."""
         paths, observations = done[:2]  # a target's procedure adds its own "reached"
-        missed, spacing = not isinstance(observations[0], Contact), self._p.contact_spacing
+        missed, spacing = not isinstance(observations[0], Contact), self.p.contact_spacing
         free, start = np.zeros((0, 3)), None
         if kind == "target":
             start = paths[0][0]
             if missed:
                 free = free_space_points(free, paths[0], spacing)
-            elif self._novel_on_table():
+            elif self.novel_on_table():
                 # The way to the touch is free too (a guarded move on a table goes past
                 # a reconstruction's phantom part): its end a radius and a spacing short.
                 free = path_until(paths[0], observations[0].position, spacing,
                                   self.scene.tip_radius + spacing)
         elif kind == "check" and missed:
-            free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self._unit)
-        self._keep_observations(observations, free, start, aimed=kind == "target")
+            free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self.unit)
+        self.keep_observations(observations, free, start, aimed=kind == "target")
         return paths, observations
 
-    def _novel_on_table(self):
+    def novel_on_table(self):
         """Whether the object stands on a table and the last step judged it novel: its
         guarded moves then go on to the table, and their way to a touch is free space."""
         return self.scene.has_table and bool(self.snapshots) and self.snapshots[-1].novel
 
-    def _keep_observations(self, observations, free_space, start, aimed):
+    def keep_observations(self, observations, free_space, start, aimed):
         """What a step's observations leave besides the belief, the same for a step taken
         move by move and one given whole: the swept space, the check's count, the given-up
         target, the frontier, the free space and the missed probe.
@@ -76,7 +75,7 @@ class Bookkeeping:
         state, first = self.state, observations[0]
         self._record_sweep(first, start)
         if state.check is not None:
-            self._count_check(first)
+            self.count_check(first)
         elif aimed:
             # A touch beside an earlier one still tells rivals apart (the noise averages).
             if not self._reached(observations):
@@ -85,7 +84,7 @@ class Bookkeeping:
         before = len(state.free_space)
         if len(free_space):
             state.free_space = thin_points(np.vstack([state.free_space, free_space]),
-                                           self._p.contact_spacing)
+                                           self.p.contact_spacing)
         if aimed and state.check is None and not isinstance(first, Contact):
             self._record_miss(before)
 
@@ -97,7 +96,7 @@ class Bookkeeping:
         if len(added) >= 2:
             self.state.missed = np.vstack([self.state.missed, added[[0, -1]][None]])
 
-    def _count_check(self, touched):
+    def count_check(self, touched):
         """Count the check as passed unless it touched the object farther than
         ``contact_spacing`` from the estimate and from every contact (a part nothing
         predicted: the count restarts and the frontier grows from the touch)."""
@@ -105,39 +104,39 @@ class Bookkeeping:
                  if len(points)]
         surprise = isinstance(touched, Contact) and min(
             cKDTree(points).query(touched.position)[0]
-            for points in known) > self._new_ground()
+            for points in known) > self.new_ground()
         if self.state.confirming:  # a check of a decision: a surprise starts it again
             self.state.decision_checks = 0 if surprise else self.state.decision_checks + 1
             return
         if surprise:
             self.state.checks_passed = 0
-            self._grow_frontier(touched)
-        elif self._check_kind(len(self.state.check_directions) - 1) != "weakest":
+            self.grow_frontier(touched)
+        elif check_kind(self.p, len(self.state.check_directions) - 1) != "weakest":
             # A sweep about the weakest support adds to the gap checks, never replaces one.
             self.state.checks_passed += 1
 
-    def _approach_start(self):
+    def approach_start(self):
         """Where the approach to the current target starts (None without a target, and
         with RRT)."""
-        if self.state.target is None or self.strategy == "rrt":
+        if self.state.target is None or self.context.strategy == "rrt":
             return None
         position, normal, estimate = self.state.target
         return position + free_approach(estimate, position, normal,
-                                        self._p.approach_clearance, self._unit) * normal
+                                        self.p.approach_clearance, self.unit) * normal
 
     def _record_sweep(self, touched, start=None):
         """Keep samples of the path the sensor swept up to its first touch: the planned
         check's path, else the straight approach from ``start`` (None: nothing to keep).
         Checks need not visit that space again."""
         if self.state.check is not None:
-            spacing = SWEPT_SPACING * self._unit
+            spacing = SWEPT_SPACING * self.unit
             samples = path_until(self.state.check.path, touched.position, spacing,
-                                 0.05 * self._unit)
+                                 0.05 * self.unit)
             self.state.swept = thin_points(np.vstack([self.state.swept, samples]), spacing)
         elif start is not None:
             self.state.swept = free_space_points(self.state.swept,
                                                  np.stack([start, touched.position]),
-                                                 SWEPT_SPACING * self._unit)
+                                                 SWEPT_SPACING * self.unit)
 
     def _follow_frontier(self, touched):
         """After a frontier target: a contact on new ground grows the frontier from it,
@@ -153,49 +152,49 @@ class Bookkeeping:
         known = [points for points in (contacts, estimate)
                  if points is not None and len(points)]
         if min(cKDTree(points).query(touched.position)[0]
-               for points in known) > self._new_ground():
-            self._grow_frontier(touched)
+               for points in known) > self.new_ground():
+            self.grow_frontier(touched)
 
-    def _new_ground(self):
+    def new_ground(self):
         """How far from the estimate and every contact a touch is on ground nothing
         predicted: ``contact_spacing``, at least ``eps / 2`` (equal at the paper's values;
         with a larger eps the estimate may lie farther off, and a frontier grown eps at a
         time in four directions would tile the surface ever finer) and at least what the
-        sensor's noise explains (:meth:`~.planner.Planner._beyond_noise`: at 2 mm a tenth
+        sensor's noise explains (:func:`~.planner.beyond_noise`: at 2 mm a tenth
         of the touches land 5 mm off, and 48 checks in a row never passed)."""
-        return max(self._p.contact_spacing, self._p.eps / 2, self._beyond_noise())
+        return max(self.p.contact_spacing, self.p.eps / 2, beyond_noise(self.p, self.sensor_noise))
 
-    def _grow_frontier(self, contact):
+    def grow_frontier(self, contact):
         """Queue targets ``eps`` from a contact on a part that nothing predicted, along
         four tangent directions: following them maps the part out, as a hand runs along a
-        rail it bumped into (beyond the paper). Places within :meth:`_new_ground` of a
+        rail it bumped into (beyond the paper). Places within :meth:`new_ground` of a
         contact, a given-up target or a queued target are skipped."""
         normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
         helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
         first = normalise_rows(np.cross(normal, helper)[None])[0]
         second = np.cross(normal, first)
         for tangent in (first, -first, second, -second):
-            point = contact.position + self._p.eps * tangent
+            point = contact.position + self.p.eps * tangent
             taken = np.vstack([self.filter.contact_positions, contact.position[None],
                                np.reshape(self.state.given_up, (-1, 3)),
                                np.reshape([p for p, _ in self.state.frontier], (-1, 3))])
-            if cKDTree(taken).query(point)[0] > self._new_ground():
+            if cKDTree(taken).query(point)[0] > self.new_ground():
                 self.state.frontier.append((point, normal))
 
     def _reached(self, observations):
         """Whether the touches of a step that reached for the target reached it: the
         ``reached`` of :func:`~..exploration.enforce_contact_moves`, and the last contact
-        does not repeat an earlier one (:meth:`_repeats_contact`) unless it tells rivals
+        does not repeat an earlier one (:meth:`repeats_contact`) unless it tells rivals
         apart."""
         contacts = [o for o in observations if isinstance(o, Contact)]
-        if not contacts or (self._repeats_contact(contacts[-1]) and not self.state.telling_apart):
+        if not contacts or (self.repeats_contact(contacts[-1]) and not self.state.telling_apart):
             return False
         if isinstance(observations[0], Contact) or len(self.filter.contact_positions) == 0:
             return True
         distance = cKDTree(self.filter.contact_positions).query(contacts[-1].position)[0]
-        return bool(distance >= self._p.contact_spacing)
+        return bool(distance >= self.p.contact_spacing)
 
-    def _repeats_contact(self, observation):
+    def repeats_contact(self, observation):
         """Whether a contact lands where an earlier one did (within the sensor noise, and at
         least the simulator's contact precision).
 
@@ -208,7 +207,7 @@ class Bookkeeping:
         contacts = self.filter.contact_positions
         if not isinstance(observation, Contact) or len(contacts) == 0:
             return False
-        precision = (self.simulator.tolerance if self.simulator is not None
-                     else CONTACT_PRECISION * self._filter_unit)
+        precision = (self.context.tolerance if self.context.tolerance is not None
+                     else CONTACT_PRECISION * self.context.filter_unit)
         tolerance = max(4.0 * self.sensor_noise[0], precision)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)

@@ -3,8 +3,7 @@ from), and for a novel object the GPIS fit on the contacts with the MAP shape,
 carved where probes found free space, as its prior mean (paper, Section III-E), and its
 zero level set with the variance at the vertices.
 
-A mixin of :class:`~.loop.Session` (reads its filter, parameters in scene units and
-exploration state).
+A part of the step (:class:`~.context.Part`), built from its inputs without a session.
 """
 
 import functools
@@ -29,6 +28,7 @@ from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import contact_balls, filled_prior, refuted_fit
 from ..shape.gpis_variance import lattice_low, lattice_variance
 from ..transforms import transform_points
+from .context import Part
 from .fields import PosedSDF, thin_points
 from .snapshot import Reconstruction
 
@@ -42,52 +42,35 @@ SHAPE_SHARE = 0.1
 SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
 
 
-class Estimation:
+class Estimator(Part):
     """MAP shape, GPIS fit and surface of a session (see the module).
 
-    Reads the session's ``filter``, ``state``, ``_p``, ``_unit``, ``rng`` and
-    ``sensor_noise``; writes ``state.gpis_scale`` (the kernel scale the fit found)."""
+    Reads its context, the filter and the snapshots; writes the GPIS's part of the
+    exploration state (``gpis_shape``, ``gpis_scale``, ``gpis_fits``, ``gpis_cache``,
+    ``gpis_spacing``, ``gpis_radius``, ``variance_cache``: what the next fit goes on from).
+    """
 
-    def _map_shape(self, belief):
-        """The MAP particle's prior, pose ``(rotation, translation)`` and surface vertices
-        (world frame). Changes nothing: the step makes the session's lengths follow the
-        prior's size (:meth:`_use_lengths`)."""
-        model = self.filter.models[self.filter.class_names.index(belief.map_class)]
-        pose = belief.map_rotation, belief.map_translation
-        return model, pose, transform_points(model.mesh.vertices, *pose)
-
-    def _decided_class(self, belief, decision, model, pose, map_vertices):
-        """The belief, prior, pose and vertices a step reports: a decided lead of another
-        class than the filter's MAP (``decision_any_class``) in place of the MAP's (beyond
-        the paper). Changes nothing."""
-        lead = decision.hypotheses[0] if decision.decided else None
-        if lead is None or belief.class_names[lead.class_index] == belief.map_class:
-            return belief, model, pose, map_vertices
-        model, pose = self.filter.models[lead.class_index], (lead.rotation, lead.translation)
-        return (replace(belief, map_class=belief.class_names[lead.class_index]), model, pose,
-                transform_points(model.mesh.vertices, *pose))
-
-    def _aimed_pose(self, decision, model, pose, map_vertices):
+    def aimed_pose(self, decision, model, pose, map_vertices):
         """The pose and vertices that targets are aimed from and snapshots report: with
         ``decision_targets`` the decision's refined MAP pose (beyond the paper)."""
-        if decision.hypotheses and self._p.decision_targets:
+        if decision.hypotheses and self.p.decision_targets:
             pose = decision.hypotheses[0].rotation, decision.hypotheses[0].translation
             map_vertices = transform_points(model.mesh.vertices, *pose)
         return pose, map_vertices
 
-    def _reconstruct(self, model, rotation, translation, map_vertices, timings):
-        p = self._p
+    def reconstruct(self, model, rotation, translation, map_vertices, timings):
+        p = self.p
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         shape = self.state.gpis_shape
-        low, high, kernel = self._gpis_box(map_vertices, contacts, shape)
+        low, high, kernel = self.gpis_box(map_vertices, contacts, shape)
         clock = time.perf_counter()
         fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
         if (self.state.gpis_shape is None) != (shape is None):
             # The prior mean switched between the MAP shape and a superquadric: fit again
             # in the box of the one now in force.
-            low, high, kernel = self._gpis_box(map_vertices, contacts, self.state.gpis_shape)
+            low, high, kernel = self.gpis_box(map_vertices, contacts, self.state.gpis_shape)
             fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
-        fit = self._cut_estimate(fit, contacts, self.filter.noncontact_positions,
+        fit = self.cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
@@ -105,12 +88,12 @@ class Estimation:
         with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
         (``state.gpis_shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN``
         nats and ``AGNOSTIC_SHARE`` of its own (beyond the paper)."""
-        p = self._p
+        p = self.p
         free = self.filter.noncontact_positions, self.state.free_space
-        prior = self._gpis_prior(model, rotation, translation, contacts, *free, normals)
+        prior = self.gpis_prior(model, rotation, translation, contacts, *free, normals)
         shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts))
                   if p.gpis_agnostic else [])
-        candidates = [prior] + [self._gpis_prior(model, rotation, translation, contacts, *free,
+        candidates = [prior] + [self.gpis_prior(model, rotation, translation, contacts, *free,
                                                  normals, shape=shape) for shape in shapes]
         kept = self.state.gpis_shape
         index = next((i + 1 for i, shape in enumerate(shapes)
@@ -129,37 +112,37 @@ class Estimation:
     def _step_fit(self, kernel, contacts, normals, prior):
         """A step's GPIS fit from ``prior``: extending the kept factor
         (``gpis_incremental``) or in full, with the scale's Newton step when due."""
-        if self._p.gpis_incremental:
+        if self.p.gpis_incremental:
             fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
-                                        self._noncontact_points(), prior)
+                                        self.noncontact_points(), prior)
         else:
             newton = self._newton_due(len(contacts))
-            fit = self._fit(kernel, contacts, normals, self._noncontact_points(), prior,
+            fit = self._fit(kernel, contacts, normals, self.noncontact_points(), prior,
                             self.state.gpis_scale, newton=newton)
             self.state.gpis_fits = 0 if newton else self.state.gpis_fits + 1
         self.state.gpis_scale = fit.scale
         return fit
 
-    def _final_surface(self, recon, map_vertices, contacts, timings, prior):
+    def final_surface(self, recon, map_vertices, contacts, timings, prior):
         """The reconstruction a stopping session reports: the same fit at
         ``final_resolution`` (thin parts between the exploration grid's samples appear),
         or, where part of it lies farther than ``eps`` from every contact, the newest
         reconstruction of a recent MAP prior that the contacts cover, else the best
-        supported (:meth:`_best_supported`; ``prior`` is the step's ``(class, rotation,
+        supported (:meth:`best_supported`; ``prior`` is the step's ``(class, rotation,
         translation)``); of that, the parts some contact comes within ``eps`` of
         (:func:`supported_parts`): a part no contact comes near is a phantom of the prior
         mean or the kernel (an 8 cm cup's ended with a blob 5 cm off every contact)."""
         if recon is None or recon.empty:
             return recon
-        p = self._p
+        p = self.p
         clock = time.perf_counter()
         final = recon
         if p.final_resolution != p.gpis_resolution:
-            low, high, _ = self._gpis_box(map_vertices, contacts, self.state.gpis_shape)
+            low, high, _ = self.gpis_box(map_vertices, contacts, self.state.gpis_shape)
             final = self._surface(recon.fit, (low, high), p.final_resolution)
             final = recon if final.empty else final
         if p.final_candidates:
-            final = self._best_supported(final, contacts, prior)
+            final = self.best_supported(final, contacts, prior)
             keep = supported_parts(final.vertices, final.faces, contacts, p.eps)
             if keep.any() and not keep.all():
                 final = final.restricted(keep)
@@ -167,22 +150,22 @@ class Estimation:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final
 
-    def _reported(self, recon, contacts, timings):
+    def reported(self, recon, contacts, timings):
         """The step's surface as a snapshot reports it: with ``final_candidates`` (as the
         final surface), only the parts some contact comes within ``eps`` of
         (:func:`supported_parts`); the planner keeps the whole estimate. A part no contact
         comes near is a phantom of the prior mean or the kernel, and it comes and goes from
         step to step (an 8 cm cup's error between 10 and 90 mm on consecutive touches)."""
-        if recon is None or recon.empty or not self._p.final_candidates:
+        if recon is None or recon.empty or not self.p.final_candidates:
             return recon
         clock = time.perf_counter()
-        keep = supported_parts(recon.vertices, recon.faces, contacts, self._p.eps)
+        keep = supported_parts(recon.vertices, recon.faces, contacts, self.p.eps)
         if keep.any() and not keep.all():
             recon = recon.restricted(keep)
         timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return recon
 
-    def _best_supported(self, final, contacts, prior):
+    def best_supported(self, final, contacts, prior):
         """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
         else the newest reconstruction they cover, else the best supported one (the least
         :func:`support`): the GPIS fitted to every observation with the MAP prior of this
@@ -193,7 +176,7 @@ class Estimation:
         from every contact (under noise, where the prior switches most, at the step cap
         too); a candidate's support bounds how far its surface can lie from the object.
         The state's ``gpis_shape`` follows the surface chosen."""
-        p = self._p
+        p = self.p
         tree = cKDTree(contacts)
         best_support = support(final.vertices, tree)
         if best_support <= p.eps:
@@ -214,11 +197,11 @@ class Estimation:
         return self._surface(best[0], best[1], p.final_resolution)
 
     def _final_candidates(self, final, contacts, prior):
-        """The fits :meth:`_best_supported` weighs, newest first, as ``(fit, (low, high),
+        """The fits :meth:`best_supported` weighs, newest first, as ``(fit, (low, high),
         superquadric or None)``."""
-        f, p = self.filter, self._p
+        f, p = self.filter, self.p
         free = np.vstack([f.noncontact_positions, self.state.free_space])
-        observed = self._noncontact_points()
+        observed = self.noncontact_points()
         cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
                                 radius=p.gpis_carve_radius, keep_within=p.eps)
         step_prior = None
@@ -226,14 +209,14 @@ class Estimation:
                 self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
             shape = self.state.gpis_shape if index == 0 else None
-            low, high, kernel = self._gpis_box(
+            low, high, kernel = self.gpis_box(
                 transform_points(model.mesh.vertices, rotation, translation), contacts, shape)
             if index == 0:
                 step_prior = model, rotation, translation
                 # This step's own: its uncut fit is final's, in its box.
                 yield cut(final.fit), (low, high), shape
                 continue
-            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+            prior_mean = self.gpis_prior(model, rotation, translation, contacts,
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
@@ -248,8 +231,8 @@ class Estimation:
                                        self._least_radius(contacts)):
             if shape.roundness == own:
                 continue  # the step's own
-            low, high, kernel = self._gpis_box(None, contacts, shape)
-            prior_mean = self._gpis_prior(model, rotation, translation, contacts,
+            low, high, kernel = self.gpis_box(None, contacts, shape)
+            prior_mean = self.gpis_prior(model, rotation, translation, contacts,
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals, shape=shape)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
@@ -279,10 +262,10 @@ class Estimation:
         vertex."""
         low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
         vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
-                                             spacing=spacing, fill_voids=self._p.gpis_fill_voids)
+                                             spacing=spacing, fill_voids=self.p.gpis_fill_voids)
         subset, candidates, everywhere = None, np.zeros(0), None
         if len(vertices):
-            count = min(self._p.variance_points, len(vertices))
+            count = min(self.p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             if spacing is not None:
                 everywhere, self.state.variance_cache = lattice_variance(
@@ -299,7 +282,7 @@ class Estimation:
         options = self._observation_options(noncontacts)
         fit = fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton, **options)
         return refuted_fit(
-            fit, noncontacts, self._p.gpis_noncontact_value, self._p.gpis_refute_rounds,
+            fit, noncontacts, self.p.gpis_noncontact_value, self.p.gpis_refute_rounds,
             lambda refuting: fit_gpis(contacts, normals, prior, kernel, scale=fit.scale,
                                       newton=False, refuting=refuting, **options))
 
@@ -307,14 +290,14 @@ class Estimation:
         """Whether a full fit takes the scale's Newton step: every ``gpis_refit_every``
         fits, and more often while there are few contacts (every ``contacts // 10`` fits:
         the data grow by at most a tenth between two steps)."""
-        every = min(self._p.gpis_refit_every, max(1, contacts // 10))
+        every = min(self.p.gpis_refit_every, max(1, contacts // 10))
         return self.state.gpis_fits + 1 >= every
 
     def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
         """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
         rolled-back or pickled session goes on identically), the scale's Newton step taken
         every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
-        p, state = self._p, self.state
+        p, state = self.p, self.state
         fit, state.gpis_cache, refitted = fit_gpis_incremental(
             contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale,
             refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
@@ -322,11 +305,11 @@ class Estimation:
         state.gpis_fits = 0 if refitted else state.gpis_fits + 1
         return fit
 
-    def _refit(self, kernel, contacts, normals, noncontacts, prior, scale):
+    def refit(self, kernel, contacts, normals, noncontacts, prior, scale):
         """The fit of a past step again, at its ``scale`` (no Newton step): the way the
         step fitted, from the state's factor where its content agrees (the last fit's is
         then reproduced exactly); the state is left as it is."""
-        if not self._p.gpis_incremental:
+        if not self.p.gpis_incremental:
             return self._fit(kernel, contacts, normals, noncontacts, prior, scale, newton=False)
         return fit_gpis_incremental(contacts, normals, prior, kernel, self.state.gpis_cache,
                                     scale, refit=False, refit_score=np.inf,
@@ -334,7 +317,7 @@ class Estimation:
 
     def _observation_options(self, noncontacts):
         """The fits' noise and non-contact keywords."""
-        p = self._p
+        p = self.p
         # The sensor's position noise adds to the GPIS's observation noise (variances).
         return {"noise_variance": p.gpis_noise + self.sensor_noise[0] ** 2,
                 "noncontacts": noncontacts if p.gpis_noncontacts else None,
@@ -344,7 +327,7 @@ class Estimation:
         """``spacing``, or the grid cell of the last surfaces while within
         ``gpis_box_tolerance`` of it (successive grids then share their nodes)."""
         kept = self.state.gpis_spacing
-        if kept is not None and abs(spacing / kept - 1) <= self._p.gpis_box_tolerance:
+        if kept is not None and abs(spacing / kept - 1) <= self.p.gpis_box_tolerance:
             return kept
         self.state.gpis_spacing = spacing
         return spacing
@@ -356,17 +339,17 @@ class Estimation:
         kept = self.state.gpis_radius
         if not isinstance(kernel, ThinPlateKernel):
             return kernel
-        if kept is not None and abs(kernel.radius / kept - 1) <= self._p.gpis_box_tolerance:
+        if kept is not None and abs(kernel.radius / kept - 1) <= self.p.gpis_box_tolerance:
             return ThinPlateKernel(kept)
         self.state.gpis_radius = kernel.radius
         return kernel
 
-    def _gpis_box(self, map_vertices, contacts, shape=None):
+    def gpis_box(self, map_vertices, contacts, shape=None):
         """The reconstruction box (low, high) and the GPIS kernel: about the contacts and
         the prior mean in force, the MAP surface ``map_vertices`` or a superquadric
         ``shape`` (its margin at most ``SHAPE_SHARE`` of the contacts' extent: a 2 cm
         block's superquadric in a 30 cm knife's box had 1 cm cells)."""
-        p = self._p
+        p = self.p
         margin = p.gpis_margin
         if shape is None:
             points = np.vstack([map_vertices, contacts])
@@ -382,19 +365,19 @@ class Estimation:
         """A superquadric's least semi-axis: ``eps / 2``, or less for contacts spanning
         less than ``eps / (2 SHAPE_SHARE)`` (an object much smaller than the MAP prior),
         but at least ``SHAPE_NOISE_STDS`` position-noise stds."""
-        return min(self._p.eps / 2, max(SHAPE_SHARE * _extent(contacts),
+        return min(self.p.eps / 2, max(SHAPE_SHARE * _extent(contacts),
                                         SHAPE_NOISE_STDS * self.sensor_noise[0], 1e-9))
 
-    def _gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
+    def gpis_prior(self, model, rotation, translation, contacts, noncontacts, free_space,
                     normals, shape=None):
         """The GPIS prior mean: the MAP shape with the solid behind the contacts it puts in
         its empty space added (``gpis_fill_radius``), or the object-agnostic ``shape``
         (a :class:`Superquadric`), with the refuted space cut out."""
-        p = self._p
+        p = self.p
         free = np.vstack([noncontacts, free_space])
         prior = self._prior(model, rotation, translation) if shape is None else shape
         if p.gpis_fill_radius > 0 and len(contacts) and shape is None:
-            slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self._unit
+            slack = FILL_NOISE_STDS * self.sensor_noise[0] + FILL_SLACK * self.unit
             # Only a contact the prior puts in its empty space is evidence against it.
             refuting = np.asarray(prior(contacts)[0], dtype=float) > slack
             prior = filled_prior(prior, contact_balls(
@@ -403,26 +386,47 @@ class Estimation:
         return carved_prior(prior, free, contacts, p.gpis_carve_radius,
                             inside_only=not p.gpis_carve_outside)
 
-    def _cut_estimate(self, fit, contacts, noncontacts, free_space):
+    def cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)
         where no contact is within ``eps`` (where the surface is not covered)."""
-        when = self._p.gpis_carve_estimate
+        when = self.p.gpis_carve_estimate
         if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
             return fit
         return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
-                              self._p.gpis_carve_radius, keep_within=self._p.eps)
+                              self.p.gpis_carve_radius, keep_within=self.p.eps)
 
     def _prior(self, model, rotation, translation):
         return PosedSDF(model, rotation, translation)
 
-    def _noncontact_points(self, noncontacts=None, free_space=None):
+    def noncontact_points(self, noncontacts=None, free_space=None):
         """Where the sensor found no object: the non-contacts and the points along missed
         probes, one per quarter of the kernel's reach (what the GPIS's non-contact switch
         constrains)."""
         noncontacts = self.filter.noncontact_positions if noncontacts is None else noncontacts
         free_space = self.state.free_space if free_space is None else free_space
-        reach = self._p.gpis_support if self._p.gpis_kernel == "wendland" else self._unit
+        reach = self.p.gpis_support if self.p.gpis_kernel == "wendland" else self.unit
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
+
+
+def map_shape(filter, belief):
+    """The MAP particle's prior, pose ``(rotation, translation)`` and surface vertices
+    (world frame) of ``belief`` (a :class:`~..belief.particle_filter.BeliefState` of
+    ``filter``)."""
+    model = filter.models[filter.class_names.index(belief.map_class)]
+    pose = belief.map_rotation, belief.map_translation
+    return model, pose, transform_points(model.mesh.vertices, *pose)
+
+
+def decided_class(filter, belief, decision, model, pose, map_vertices):
+    """The belief, prior, pose and vertices a step reports: a decided lead of another
+    class than the filter's MAP (``decision_any_class``) in place of the MAP's (beyond the
+    paper); else the MAP's, as given."""
+    lead = decision.hypotheses[0] if decision.decided else None
+    if lead is None or belief.class_names[lead.class_index] == belief.map_class:
+        return belief, model, pose, map_vertices
+    model, pose = filter.models[lead.class_index], (lead.rotation, lead.translation)
+    return (replace(belief, map_class=belief.class_names[lead.class_index]), model, pose,
+            transform_points(model.mesh.vertices, *pose))
 
 
 def support(vertices, contacts_tree):

@@ -11,73 +11,83 @@ from ..shape.gpis_variance import lattice_low
 from ..shape.objects import ObjectModel
 
 
-class Learning:
-    """The learned model of a session's snapshot (a mixin of :class:`~.loop.Session`)."""
+def learned_model(estimator, snapshot, name, resolution, library):
+    """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
 
-    def learned_model(self, name, snapshot=None, resolution=None):
-        """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
+    The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
+    extracted at ``resolution`` (``params.learned_resolution`` as a session asks; a stopped
+    session's last surface is already at ``params.final_resolution``); the largest connected
+    piece of the zero level set is kept, and the model is checked and normalised like any
+    loaded mesh. Its ``shape_error`` is the RMS of the fit's held-out errors at the contacts
+    (:func:`~..shape.gpis.held_out_errors`): how far a touch it has not seen may miss it.
 
-        The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
-        extracted at ``resolution`` (default ``params.learned_resolution``; a stopped
-        session's last surface is already at ``params.final_resolution``); the
-        largest connected piece of the zero level set is kept, and the model is checked and
-        normalised like any loaded mesh. Its ``shape_error`` is the RMS of the fit's
-        held-out errors at the contacts (:func:`~..shape.gpis.held_out_errors`): how far a
-        touch it has not seen may miss it.
-        """
-        snapshot = snapshot or self.latest
-        if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
-            raise SessionError("no reconstructed surface to learn from: the object was not "
-                               "judged novel in this step")
-        resolution = resolution or self._p.learned_resolution
-        fit, box = self._snapshot_fit(snapshot, resolution)
-        vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
-        if resolution != snapshot.gpis_resolution:
-            vertices, faces = self._level_set(fit, box, resolution)
-        errors = held_out_errors(fit)
-        return learned_model_from_surface(
-            vertices, faces, name, params=self.library[snapshot.map_class].params
-            if snapshot.map_class in self.library else None, contacts=snapshot.contacts,
-            reach=self._p.eps,
-            shape_error=float(np.sqrt(np.mean(errors**2))) if len(errors) else 0.0)
+    Parameters
+    ----------
+    estimator : Estimator
+        Built with the lengths of the snapshot's MAP prior.
+    snapshot : Snapshot
+        Novel, with a surface.
+    name : str
+    resolution : int
+    library : PriorLibrary
+        The MAP prior's parameters are the learned model's.
+    """
+    if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
+        raise SessionError("no reconstructed surface to learn from: the object was not "
+                           "judged novel in this step")
+    fit, box = snapshot_fit(estimator, snapshot, resolution)
+    vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
+    if resolution != snapshot.gpis_resolution:
+        vertices, faces = level_set(fit, box, resolution, estimator.p.gpis_fill_voids)
+    errors = held_out_errors(fit)
+    return learned_model_from_surface(
+        vertices, faces, name, params=library[snapshot.map_class].params
+        if snapshot.map_class in library else None, contacts=snapshot.contacts,
+        reach=estimator.p.eps,
+        shape_error=float(np.sqrt(np.mean(errors**2))) if len(errors) else 0.0)
 
-    def _snapshot_fit(self, snapshot, resolution):
-        """The snapshot's GPIS fit again, with the snapshot's MAP prior (a stopped session
-        may report the surface of a recent prior instead, ``final_candidates``; it is
-        learned as reported at ``final_resolution``, the default ``learned_resolution``),
-        and the box ``(low, high, spacing)`` of its surface at ``resolution``."""
-        model = self.filter.models[self.filter.class_names.index(snapshot.map_class)]
-        self._use_lengths(model)
-        prior = self._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
+
+def snapshot_fit(estimator, snapshot, resolution):
+    """The snapshot's GPIS fit again, with the snapshot's MAP prior (a stopped session may
+    report the surface of a recent prior instead, ``final_candidates``; it is learned as
+    reported at ``final_resolution``, the default ``learned_resolution``), and the box
+    ``(low, high, spacing)`` of its surface at ``resolution``. Changes no state."""
+    filter_ = estimator.filter
+    model = filter_.models[filter_.class_names.index(snapshot.map_class)]
+    prior = estimator.gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
                                  snapshot.normals, shape=snapshot.gpis_shape)
-        low, high, kernel = self._gpis_box(snapshot.map_vertices, snapshot.contacts,
+    low, high, kernel = estimator.gpis_box(snapshot.map_vertices, snapshot.contacts,
                                            snapshot.gpis_shape)
-        if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
-            kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
-        spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None
-        if spacing is not None:
-            low = lattice_low(low, spacing)
-        fit = self._refit(kernel, snapshot.contacts, snapshot.normals,
-                          self._noncontact_points(snapshot.noncontacts, snapshot.free_space),
+    if isinstance(kernel, ThinPlateKernel) and snapshot.gpis_radius is not None:
+        kernel = ThinPlateKernel(snapshot.gpis_radius)  # the step's, maybe kept
+    spacing = snapshot.gpis_spacing if resolution == snapshot.gpis_resolution else None
+    if spacing is not None:
+        low = lattice_low(low, spacing)
+    fit = estimator.refit(kernel, snapshot.contacts, snapshot.normals,
+                          estimator.noncontact_points(snapshot.noncontacts,
+                                                      snapshot.free_space),
                           prior, snapshot.gpis_scale)
-        fit = self._cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
+    fit = estimator.cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
                                  snapshot.free_space)
-        return fit, (low, high, spacing)
+    return fit, (low, high, spacing)
 
-    def _surface_at(self, snapshot, resolution):
-        """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
-        return self._level_set(*self._snapshot_fit(snapshot, resolution), resolution)
 
-    def _level_set(self, fit, box, resolution):
-        """The zero level set of a snapshot's fit (:meth:`_snapshot_fit`) on a grid of
-        ``resolution`` cells (``box``: its low and high corners and cell)."""
-        low, high, spacing = box
-        vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing,
-                                             fill_voids=self._p.gpis_fill_voids)
-        if len(faces) == 0:
-            raise SessionError("the reconstruction has no surface at the learned resolution")
-        return vertices, faces
+def surface_at(estimator, snapshot, resolution):
+    """The snapshot's GPIS zero level set on a grid of ``resolution`` cells."""
+    return level_set(*snapshot_fit(estimator, snapshot, resolution), resolution,
+                     estimator.p.gpis_fill_voids)
+
+
+def level_set(fit, box, resolution, fill_voids=False):
+    """The zero level set of a snapshot's fit (:func:`snapshot_fit`) on a grid of
+    ``resolution`` cells (``box``: its low and high corners and cell)."""
+    low, high, spacing = box
+    vertices, faces = zero_level_surface(fit, (low, high), resolution, spacing=spacing,
+                                         fill_voids=fill_voids)
+    if len(faces) == 0:
+        raise SessionError("the reconstruction has no surface at the learned resolution")
+    return vertices, faces
 
 
 def learned_model_from_surface(vertices, faces, name, params=None, contacts=None, reach=0.0,

@@ -5,9 +5,9 @@ exploration strategy with a sensor. A step asks the sensor for guarded moves unt
 procedure is done (the first touch, contact enforcement toward the target, a check, an RRT
 step), keeps what they found (:mod:`.bookkeeping`), then runs the rest of the algorithm's
 loop (:meth:`Session._iteration`) and returns an immutable :class:`Snapshot`. The planner,
-the bookkeeping, the estimate (GPIS) and learning are mixins in their own modules;
-everything a step changes besides the filter and the generators is one
-:class:`~.state.ExplorationState`.
+the bookkeeping and the estimate (GPIS) are parts built from explicit inputs
+(:meth:`Session.parts`, :mod:`.context`), each in its own module; everything a step
+changes besides the filter and the generators is one :class:`~.state.ExplorationState`.
 
 Algorithm 2's lines are tagged ``l.N``, counting its statements after the initialisation,
 end lines left out: l.1 while ``d_H(S*, X_c) > eps``; l.2 update the belief (PF), MAP
@@ -20,6 +20,7 @@ target, 35 DHD, 36 MAP-surface target.
 
 from __future__ import annotations
 
+import inspect
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -32,9 +33,8 @@ import numpy as np
 from ..belief.decision import UNDECIDED
 from ..belief.particle_filter import ParticleFilter
 from ..errors import SessionError
-from ..explore.exploration import STRATEGIES, enforce_contact_moves, first_contact_moves, rrt_moves
+from ..explore.exploration import STRATEGIES
 from ..explore.observations import Contact, NonContact
-from ..explore.scene_moves import first_moves, reach_moves, rrt_scene_moves
 from ..explore.simulator import ContactSimulator, GroundTruth
 from ..io.observation_file import RecordedStep
 from ..io.persistence import load_session, save_session
@@ -42,13 +42,15 @@ from ..params import PAPER_SIZE, SessionParams, scaled_lengths
 from ..presets import noise_matched
 from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
-from .bookkeeping import Bookkeeping
-from .estimate import Estimation
-from .fields import deepest_inside, free_approach
-from .learning import Learning
+from .bookkeeping import Bookkeeper
+from .context import Parts, StepContext
+from .estimate import Estimator, decided_class, map_shape
+from .learning import learned_model
+from .legacy import legacy_arguments
 from .lengths import own_unit, session_lengths
-from .planner import SWEEP_RADIUS, Planner
-from .snapshot import Move, Snapshot, frozen, hypotheses
+from .planner import Planner
+from .procedures import step_procedure
+from .snapshot import Move, Snapshot, frozen, step_snapshot
 from .state import Checkpoint, ExplorationState
 from .truth import TruthEvaluator, make_truth  # noqa: F401 (make_truth: public here too)
 
@@ -62,10 +64,11 @@ class Sensor(Protocol):
         """Move along ``path`` ((k, 3) world frame, scene units) until the first contact;
         the contact, or a non-contact at the path's end."""
 
+    # Optional, read when present: ``step`` and ``tolerance`` (scene units), how finely
+    # the sensor samples a path and places a contact; ``finish_step(observations)``, the
+    # step's observations as the sensor revises them once its moves are done (the
+    # simulator's wrong readings).
 
-# Lengths in size units (a sixth of the object's longest side; see ..params):
-RRT_MARGIN = 3.0  # the RRT's workspace: the contacts' box grown by this
-FIRST_LINE_REACH = 10.0  # the random first lines run this far on either side of the origin
 
 
 @contextmanager
@@ -75,13 +78,7 @@ def _timed(timings, name):
     timings[name] = timings.get(name, 0.0) + time.perf_counter() - clock
 
 
-def _one_move(path):
-    """A procedure of one guarded move: returns ``([path], [result])``."""
-    result = yield path
-    return [path], [result]
-
-
-class Session(Planner, Bookkeeping, Estimation, Learning):
+class Session:
     """Active exploration of one object with one prior library: Algorithm 2, step by step.
 
     The sensor contract is a guarded move (:class:`Move`): move along a path and stop at the
@@ -89,72 +86,66 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
     end. The session, not the sensor, carries out contact enforcement and surface
     following by asking for such moves. Two ways to drive it, one code path:
 
-    - callback: a ``sensor`` with ``probe(path) -> Contact | NonContact`` (the simulator
-      when ``truth`` is given, or a robot); :meth:`step` runs a whole step;
+    - callback: a ``sensor`` with ``probe(path) -> Contact | NonContact`` (a robot, or the
+      simulator of :meth:`simulated`); :meth:`step` runs a whole step;
     - ask/tell: ``move = session.propose()``, the robot carries it out,
       ``session.observe(result)``; ``observe`` returns the step's :class:`Snapshot` when the
       step is complete, else None (more moves are needed).
 
     :meth:`observe` also takes a whole step's observations (a list), as a recording gives
-    them. Misses before the first contact are kept until it comes. Without a truth the
-    error metrics of the snapshots are None.
+    them. Misses before the first contact are kept until it comes. The session knows no
+    ground truth: a simulated trial is :meth:`simulated`, whose sensor is the simulator and
+    whose ``evaluator`` fills the snapshots' error fields (None otherwise).
 
     Parameters
     ----------
-    truth : GroundTruth or None
-        The simulated object; None for a session fed by :meth:`observe`.
     library : PriorLibrary
     strategy : {"gpis-dhd", "rrt"}
     params : SessionParams, optional
     seed : int
-        Seeds the filter, the exploration and the simulator noise.
+        Seeds the filter and the exploration (and the simulator's noise, :meth:`simulated`).
     sensor_noise : tuple of float
-        ``(position std in scene units, normal std in degrees)`` of the sensor: the
-        simulator adds it, and the model assumes it (the likelihood's widths grow with it,
-        :func:`~..presets.noise_matched`, and so does the GPIS's observation noise).
-    sensor_outliers : float
-        The simulated sensor's chance of a wrong contact (``ContactSimulator``); the model's
-        is ``params.filter.outlier_probability``.
-    sensor : object, optional
-        A robot: ``sensor.probe(path)`` carries out one guarded move (ignored with a truth,
-        whose simulator is the sensor).
+        The sensor model: ``(position std in scene units, normal std in degrees)`` the
+        model assumes (the likelihood's widths grow with it,
+        :func:`~..presets.noise_matched`, and so does the GPIS's observation noise). The
+        chance of a wrong contact the model assumes is ``params.filter.outlier_probability``.
+    sensor : Sensor, optional
+        ``sensor.probe(path)`` carries out one guarded move (needed by :meth:`step`).
     scene : Scene, optional
         The robot's world: a table, the reach cone, the tip's radius (:mod:`..scene`);
         default the paper's free space. Paths are then the tip's centre's, straight and
         within the cone; table contacts are misses of the object; the DHD stop and the
         decision's coverage count only the part of the estimate a probe can reach.
+
+    The signature before 2026-12, the ground truth first, still works (:mod:`.legacy`).
     """
 
-    def __init__(self, truth: GroundTruth | None, library: PriorLibrary,
-                 strategy: str = "gpis-dhd", params: SessionParams | None = None,
-                 seed: int = 0, sensor_noise: tuple[float, float] = (0.0, 0.0),
-                 sensor: Sensor | None = None, sensor_outliers: float = 0.0,
-                 scene: Scene | None = None) -> None:
+    def __init__(self, *args, **kwargs) -> None:
+        truth, outliers, args, kwargs = legacy_arguments(args, kwargs)
+        self._build(*args, **kwargs)
+        if truth is not None:
+            self._simulate(truth, outliers)
+
+    def _build(self, library: PriorLibrary, strategy: str = "gpis-dhd",
+               params: SessionParams | None = None, seed: int = 0,
+               sensor_noise: tuple[float, float] = (0.0, 0.0), sensor: Sensor | None = None,
+               scene: Scene | None = None) -> None:
+        if not isinstance(library, PriorLibrary):
+            raise SessionError(f"a session needs a PriorLibrary, got {type(library).__name__}")
         if strategy not in STRATEGIES:
             raise SessionError(f"unknown strategy {strategy!r}; "
                                f"choose from {', '.join(STRATEGIES)}")
         if len(library) == 0:
             raise SessionError("the prior library is empty")
-        self.truth = truth
         self.library = library
         self.strategy = strategy
         self.params = params or SessionParams()
         self.seed = int(seed)
         self.sensor_noise = tuple(float(v) for v in sensor_noise)
-        self.sensor_outliers = float(sensor_outliers)
         self.scene = FREE if scene is None else scene
         self.rng = np.random.default_rng([self.seed, 1])
-        self.simulator = None
         self.sensor = sensor
-        self.evaluator = None  # errors against the truth, outside the timed step
-        if truth is not None:
-            self.simulator = ContactSimulator(truth, position_noise=self.sensor_noise[0],
-                                              normal_noise_deg=self.sensor_noise[1],
-                                              rng=np.random.default_rng([self.seed, 2]),
-                                              outlier_fraction=sensor_outliers,
-                                              scene=self.scene)
-            self.sensor = self.simulator
-            self.evaluator = TruthEvaluator(truth, self.params.metric_samples)
+        self.evaluator = None  # errors against a truth, outside the timed step
         # The filter's lengths scale with the library, which all classes share.
         self._filter_unit = self.params.length_unit or library.reference_size / PAPER_SIZE
         filter_params = scaled_lengths(self.params.filter, self._filter_unit)
@@ -169,13 +160,79 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
         self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
 
+    __init__.__signature__ = inspect.signature(_build)
+
+    @classmethod
+    def simulated(cls, truth: GroundTruth, library: PriorLibrary, strategy: str = "gpis-dhd",
+                  params: SessionParams | None = None, seed: int = 0,
+                  sensor_noise: tuple[float, float] = (0.0, 0.0), sensor_outliers: float = 0.0,
+                  scene: Scene | None = None) -> Session:
+        """A simulated trial: the sensor is a :class:`~..explore.simulator.ContactSimulator`
+        of ``truth`` that adds ``sensor_noise`` (the noise the model assumes too) and makes
+        a wrong contact with chance ``sensor_outliers``; a
+        :class:`~.truth.TruthEvaluator` fills the snapshots' error fields, untimed.
+
+        Parameters
+        ----------
+        truth : GroundTruth
+            The simulated object, placed in the world.
+        library, strategy, params, seed, sensor_noise, scene
+            As for :class:`Session`.
+        sensor_outliers : float
+            The simulated sensor's chance of a wrong contact, in [0, 1).
+
+        Returns
+        -------
+        Session
+        """
+        session = cls(library, strategy, params, seed, sensor_noise, scene=scene)
+        session._simulate(truth, sensor_outliers)
+        return session
+
+    def _simulate(self, truth, outliers):
+        """Make the simulator of ``truth`` the sensor and attach its evaluator."""
+        if not isinstance(truth, GroundTruth):
+            raise SessionError(f"the truth must be a GroundTruth, got {type(truth).__name__}")
+        self.sensor = ContactSimulator(truth, position_noise=self.sensor_noise[0],
+                                       normal_noise_deg=self.sensor_noise[1],
+                                       rng=np.random.default_rng([self.seed, 2]),
+                                       outlier_fraction=outliers, scene=self.scene)
+        self.evaluator = TruthEvaluator(truth, self.params.metric_samples)
+
+    @property
+    def simulator(self) -> ContactSimulator | None:
+        """The sensor when it is the simulator (:meth:`simulated`), else None."""
+        return self.sensor if isinstance(self.sensor, ContactSimulator) else None
+
+    @property
+    def truth(self) -> GroundTruth | None:
+        """The simulated object (:meth:`simulated`), else None."""
+        return None if self.simulator is None else self.simulator.truth
+
+    @property
+    def sensor_outliers(self) -> float:
+        """The simulated sensor's chance of a wrong contact (0 without a simulator)."""
+        return 0.0 if self.simulator is None else self.simulator.outlier_fraction
+
     def setup(self) -> dict:
-        """The constructor's arguments that made this session (by keyword): what a
-        pickle, the engine process and a saved file rebuild it from."""
-        return {"truth": self.truth, "library": self.library, "strategy": self.strategy,
-                "params": self.params, "seed": self.seed, "sensor_noise": self.sensor_noise,
-                "sensor": None if self.simulator is not None else self.sensor,
-                "sensor_outliers": self.sensor_outliers, "scene": self.scene}
+        """The arguments that made this session (by keyword; with ``truth`` and
+        ``sensor_outliers`` those of :meth:`simulated`): what a pickle, the engine process
+        and a saved file rebuild it from (:meth:`from_setup`)."""
+        setup = {"library": self.library, "strategy": self.strategy, "params": self.params,
+                 "seed": self.seed, "sensor_noise": self.sensor_noise, "scene": self.scene}
+        if self.simulator is not None:
+            return {**setup, "truth": self.truth, "sensor_outliers": self.sensor_outliers}
+        return {**setup, "sensor": self.sensor}
+
+    @classmethod
+    def from_setup(cls, **setup) -> Session:
+        """The session :meth:`setup` describes, with no steps: :meth:`simulated` when it
+        holds a ``truth`` (None: not simulated)."""
+        truth = setup.pop("truth", None)
+        outliers = setup.pop("sensor_outliers", 0.0)
+        if truth is None:
+            return cls(**setup)
+        return cls.simulated(truth, **setup, sensor_outliers=outliers)
 
     def __getstate__(self):
         # The filter goes whole: its models then travel as references in the engine
@@ -185,7 +242,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
                 "snapshots": list(self.snapshots), "checkpoint": self.checkpoint()}
 
     def __setstate__(self, state):
-        type(self).__init__(self, **state["setup"])
+        self.__dict__.update(type(self).from_setup(**state["setup"]).__dict__)
         self.filter, self.snapshots = state["filter"], list(state["snapshots"])
         self.restore(state["checkpoint"])
 
@@ -266,72 +323,12 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
             self.state.moves_rng = self.rng.bit_generator.state
         rng = np.random.Generator(type(self.rng.bit_generator)())
         rng.bit_generator.state = self.state.moves_rng
-        kind, procedure = self._procedure(rng)
+        kind, procedure = step_procedure(self.parts(), rng, getattr(self.sensor, "step", None))
         path = next(procedure)
         for result in self.state.results:
             path = procedure.send(result)
         self._live = (kind, procedure, rng, path)
         return self._live
-
-    def _procedure(self, rng):
-        """``(kind, generator of guarded moves)`` for the step: l.7 of Algorithm 2 (reach
-        for the target chosen last step) or the first touch, a check, an RRT step."""
-        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        p, unit = self._p, self._unit
-        if not self.scene.is_free:
-            return self._scene_procedure(rng)
-        if len(contacts) == 0 or (self.state.target is None and self.state.check is None
-                                  and self.strategy != "rrt"):
-            return "first", first_contact_moves(
-                np.zeros(3), rng, radius=FIRST_LINE_REACH * self._filter_unit,
-                unit=self._filter_unit)
-        if self.strategy == "rrt":
-            low = contacts.min(axis=0) - RRT_MARGIN * unit
-            high = contacts.max(axis=0) + RRT_MARGIN * unit
-            return "rrt", rrt_moves(contacts, normals, (low, high), rng, p.rrt_step,
-                                    p.probe_depth, 0.5 * unit, unit)
-        if self.state.check is not None:
-            return "check", _one_move(self.state.check.path)
-        target, normal, estimate = self.state.target
-        depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        clearance = free_approach(estimate, target, normal, p.approach_clearance, unit)
-        # The way back ends two simulator steps inside the anchor (1/150 of the size), and
-        # three position-noise stds more with a noisy sensor.
-        back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
-                + 3 * self.sensor_noise[0])
-        return "target", enforce_contact_moves(
-            target, normal, contacts, normals, depth, clearance, p.follow_step,
-            p.contact_spacing, p.max_follow, back, p.way_back_anchors)
-
-    def _scene_procedure(self, rng):
-        """:meth:`_procedure` in a robot's scene: the same steps, each path a straight line
-        of the tip's centre within the reach cone, ended at the table
-        (:mod:`..explore.scene_moves`)."""
-        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        p, unit, scene = self._p, self._unit, self.scene
-        if len(contacts) == 0 or (self.state.target is None and self.state.check is None
-                                  and self.strategy != "rrt"):
-            centre = scene.table_point if scene.has_table else np.zeros(3)
-            return "first", first_moves(scene, centre, rng, FIRST_LINE_REACH * self._filter_unit,
-                                        unit=self._filter_unit)
-        if self.strategy == "rrt":
-            low = contacts.min(axis=0) - RRT_MARGIN * unit
-            high = contacts.max(axis=0) + RRT_MARGIN * unit
-            return "rrt", rrt_scene_moves(scene, contacts, normals, (low, high), rng,
-                                          p.rrt_step, p.probe_depth, p.approach_clearance, unit)
-        if self.state.check is not None:
-            return "check", _one_move(self.state.check.path)
-        target, normal, estimate = self.state.target
-        depth = deepest_inside(estimate, target, normal, p.probe_depth)
-        if self._novel_on_table():
-            # A guarded move goes on to the table: past a part the reconstruction holds
-            # but the object lacks (a GPIS's phantom handle), to what lies beyond it.
-            depth = max(depth, SWEEP_RADIUS * unit)
-        back = (2 * getattr(self.sensor, "step", unit * PAPER_SIZE / 300)
-                + 3 * self.sensor_noise[0])
-        return "target", reach_moves(scene, target, normal, contacts, normals, depth,
-                                     p.approach_clearance, p.follow_step, p.contact_spacing,
-                                     p.max_follow, back, p.way_back_anchors, estimate, unit)
 
     def _seen(self, observation):
         """A result as the object's belief takes it: a contact with the scene's table is
@@ -364,9 +361,10 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
         except StopIteration as done:
             self.rng.bit_generator.state = rng.bit_generator.state
             self.state.moves_rng, self.state.results, self._live = None, [], None
-            paths, observations = self._after_moves(kind, done.value)
-            if self.simulator is not None:  # the simulated sensor's wrong readings, if any
-                observations = self.simulator.corrupted(observations)
+            paths, observations = self.parts().bookkeeper.after_moves(kind, done.value)
+            finish = getattr(self.sensor, "finish_step", None)
+            if finish is not None:  # the simulated sensor's wrong readings, if any
+                observations = finish(observations)
             return self._iteration(paths, observations, timings)
         self._live = (kind, procedure, rng, path)
         return None
@@ -390,7 +388,7 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
         Notes
         -----
         The proposed target is given up by the rule of a step taken move by move
-        (:meth:`~.bookkeeping.Bookkeeping._reached`). After a proposed check the first
+        (:meth:`~.bookkeeping.Bookkeeper._reached`). After a proposed check the first
         observation is where its sweep first touched. The session keeps accepting
         observations after it would have stopped (``terminated``).
         A step that fails leaves the session exactly as it was before it.
@@ -429,8 +427,9 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
             if not contacts and len(self.filter.contact_positions) == 0:
                 self.state.held = (observations, points)  # no estimate before a contact
                 return None
-            self._keep_observations(observations, points, self._approach_start(),
-                                    aimed=self.state.target is not None)
+            bookkeeper = self.parts().bookkeeper
+            bookkeeper.keep_observations(observations, points, bookkeeper.approach_start(),
+                                         aimed=self.state.target is not None)
             return self._iteration([], observations, {})
         except BaseException:
             self.restore(saved)
@@ -470,12 +469,18 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
 
     def _use_lengths(self, model=None, novel=None):
         """Set ``self._p``, the parameters with their lengths in scene units, and
-        ``self._unit``, the scene units of a size unit: a sixth of the longest side of
-        ``model``, default the latest MAP object (the library's reference size before the
-        first step), or ``params.length_unit``; a ``novel`` object (default: as the latest
-        step judged it) much smaller than ``model`` is explored at its own size
-        (:func:`~.lengths.own_unit`). Derived from the snapshots and the filter's contacts, so
-        rollbacks and copies of a session need not keep it."""
+        ``self._unit``, the scene units of a size unit (:meth:`_lengths_of`). Derived from
+        the snapshots and the filter's contacts, so rollbacks and copies of a session need
+        not keep it."""
+        self._p, self._unit, self._lengths = self._lengths_of(model, novel)
+        return self._p
+
+    def _lengths_of(self, model=None, novel=None):
+        """``(parameters in scene units, size unit, (unit, own unit))`` for ``model``: a
+        sixth of its longest side, default the latest MAP object (the library's reference
+        size before the first step), or ``params.length_unit``; a ``novel`` object
+        (default: as the latest step judged it) much smaller than ``model`` is explored at
+        its own size (:func:`~.lengths.own_unit`). Changes nothing."""
         if model is None and self.snapshots:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
         if novel is None:
@@ -485,10 +490,38 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
         own = None
         if novel and not self.params.length_unit:
             own = own_unit(self.filter.contact_positions, unit, self.params.own_size_share)
-        if (unit, own) != self._lengths:
-            self._p, self._unit = self._scene_lengths(unit, own), unit
-            self._lengths = unit, own
-        return self._p
+        if (unit, own) == self._lengths:
+            return self._p, self._unit, self._lengths
+        return self._scene_lengths(unit, own), unit, (unit, own)
+
+    def parts(self, model=None, novel=None) -> Parts:
+        """The parts of a step (estimator, planner, bookkeeper) built from the session's
+        current lengths, or from those of ``model`` (:meth:`_lengths_of`) without
+        changing the session's; they share its filter, exploration state, generator and
+        snapshots.
+
+        Returns
+        -------
+        Parts
+        """
+        p, unit = (self._p, self._unit) if model is None else self._lengths_of(model, novel)[:2]
+        simulator = self.simulator
+        context = StepContext(p, unit, self._filter_unit, self.sensor_noise, self.scene,
+                              self.strategy, None if simulator is None else simulator.tolerance)
+        inputs = (context, self.filter, self.state, self.rng, self.snapshots)
+        return Parts(Estimator(*inputs), Planner(*inputs), Bookkeeper(*inputs))
+
+    def learned_model(self, name: str, snapshot: Snapshot | None = None,
+                      resolution: int | None = None):
+        """The reconstructed surface of a novel snapshot (default the latest) as a new
+        :class:`~..shape.objects.ObjectModel` (:func:`~.learning.learned_model`), at
+        ``resolution`` (default ``params.learned_resolution``). Changes nothing."""
+        snapshot = snapshot or self.latest
+        model = None if snapshot is None else self.filter.models[
+            self.filter.class_names.index(snapshot.map_class)]
+        estimator = self.parts(model).estimator
+        return learned_model(estimator, snapshot, name,
+                             resolution or self.params.learned_resolution, self.library)
 
     def _scene_lengths(self, unit, own=None):
         """The parameters in scene units (:func:`~.lengths.session_lengths`)."""
@@ -496,7 +529,8 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
                                self.scene.tip_radius)
 
     def _generators(self):
-        return (self.rng,) if self.simulator is None else (self.rng, self.simulator.rng)
+        simulator = self.simulator
+        return (self.rng,) if simulator is None else (self.rng, simulator.rng)
 
     def _iteration(self, paths, observations, timings):
         """One pass of Algorithm 2's loop after the step's guarded moves (l.7, which reach
@@ -504,74 +538,51 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
         returns what it decides; the plan enters the exploration state in one place."""
         with _timed(timings, "filter"):
             belief = self.filter.update(observations)             # l.2: PF, eqs. 19-20
-        model, pose, map_vertices = self._map_shape(belief)       # l.2: z*, eq. 14
+        model, pose, map_vertices = map_shape(self.filter, belief)  # l.2: z*, eq. 14
         self._use_lengths(model, belief.novel)                    # lengths in its size
+        estimator, planner, _ = self.parts()
         contacts, recon = self.filter.contact_positions, None
         if belief.novel:                                          # l.3: below eq. 24
-            recon = self._reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
+            recon = estimator.reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                         # beyond the paper
-            decision = self._decide(belief)
-        if self._misfits(belief, decision):                       # beyond the paper
+            decision = planner.decide(belief)
+        if planner.misfits(belief, decision):                     # beyond the paper
             belief, decision = replace(belief, novel=True), UNDECIDED
             self._use_lengths(model, novel=True)
-            recon = self._reconstruct(model, *pose, map_vertices, timings)
+            estimator, planner, _ = self.parts()
+            recon = estimator.reconstruct(model, *pose, map_vertices, timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         self.state.decision_refined = decision.refined
-        reported = self._decided_class(belief, decision, model, pose, map_vertices)
+        reported = decided_class(self.filter, belief, decision, model, pose, map_vertices)
         if reported[1] is not model:                              # beyond the paper
             belief, model, pose, map_vertices = reported
             self._use_lengths(model, novel=False)                 # lengths in its size
-        pose, map_vertices = self._aimed_pose(decision, model, pose, map_vertices)
+            estimator, planner, _ = self.parts()
+        pose, map_vertices = estimator.aimed_pose(decision, model, pose, map_vertices)
         with _timed(timings, "target"):
-            coverage = self._coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
-                                      model, pose)
-            stop = self._stop_test(coverage, belief, decision)        # l.1: d_H <= eps
-            plan = self._choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
-                                       map_vertices, recon, contacts, decision)  # l.6: 36
+            coverage = planner.coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
+                                        model, pose)
+            stop = planner.stop_test(coverage, belief, decision)        # l.1: d_H <= eps
+            plan = planner.choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
+                                         map_vertices, recon, contacts, decision)  # l.6: 36
         self.state.adopt(plan)
         self.state.estimate_vertices = None if recon is None else recon.vertices
         if plan.terminated:
-            recon = self._final_surface(recon, map_vertices, contacts, timings,
-                                        (model.name, *pose))
+            recon = estimator.final_surface(recon, map_vertices, contacts, timings,
+                                            (model.name, *pose))
         else:
-            recon = self._reported(recon, contacts, timings)
+            recon = estimator.reported(recon, contacts, timings)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
                               observations, timings, decision)
 
     def _snapshot(self, belief, model, pose, map_vertices, recon, plan, paths,
                   observations, timings, decision):
         """Record the step's :class:`Snapshot`, with the evaluator's errors (untimed)."""
-        (rotation, translation) = pose
-        contacts, normals = self.filter.contact_positions, self.filter.contact_normals
         errors = {} if self.evaluator is None else self.evaluator.errors(
-            model, rotation, translation, recon, contacts, plan.terminated)
-        snapshot = Snapshot(
-            step=self.step_count + 1, new_observations=tuple(observations),
-            paths=tuple(frozen(p) for p in paths), contacts=frozen(contacts),
-            normals=frozen(normals), noncontacts=frozen(self.filter.noncontact_positions),
-            free_space=frozen(self.state.free_space),
-            map_class=belief.map_class, map_rotation=frozen(rotation),
-            map_translation=frozen(translation), map_vertices=frozen(map_vertices),
-            map_faces=model.mesh.faces, class_posterior=dict(belief.class_posterior),
-            n_particles=belief.n_particles, log_evidence=float(belief.log_evidence),
-            log_threshold=float(belief.log_threshold), novel=bool(belief.novel),
-            gpis_vertices=None if recon is None else frozen(recon.vertices),
-            gpis_faces=None if recon is None else frozen(recon.faces),
-            gpis_variance=None if recon is None else recon.deferred_variance(),
-            gpis_scale=float(self.state.gpis_scale) if recon is not None else None,
-            target=None if self.state.target is None else frozen(self.state.target.position),
-            dhd=float(plan.dhd), truth_coverage=errors.get("truth_coverage"),
-            pose_error=errors.get("pose_error"), recon_error=errors.get("recon_error"),
-            recon_surface_error=errors.get("recon_surface_error"),
-            terminated=plan.terminated, timings=timings,
-            hypotheses=hypotheses(belief),
-            gpis_resolution=None if recon is None else recon.resolution,
-            gpis_radius=None if recon is None else float(recon.fit.radius),
-            gpis_spacing=None if recon is None else recon.spacing,
-            gpis_shape=None if recon is None else self.state.gpis_shape,
-            decided=bool(plan.decided), decision_confidence=decision.confidence,
-            rotation_error_deg=errors.get("rotation_error_deg"),
-            translation_error=errors.get("translation_error"))
+            model, *pose, recon, self.filter.contact_positions, plan.terminated)
+        snapshot = step_snapshot(self.step_count + 1, self.filter, self.state, belief,
+                                 (model, pose, map_vertices), recon, plan, decision,
+                                 (paths, observations, timings), errors)
         self.snapshots.append(snapshot)
         return snapshot
 
@@ -585,4 +596,4 @@ class Session(Planner, Bookkeeping, Estimation, Learning):
              callback: Callable[[Snapshot], object] | None = None) -> Session:
         """Rebuild a saved session by replaying its steps; see
         :func:`tactile_viz.engine.io.persistence.load_session`."""
-        return load_session(path, cls, callback)
+        return load_session(path, cls.from_setup, callback)

@@ -1,9 +1,9 @@
 """Where a session touches next and when it stops.
 
 The paper's rules (Algorithm 2; lines and equations as tagged in :mod:`.loop`): the DHD of
-the estimate (l.8, eq. 35, :meth:`Planner._coverage`), the stop ``d_H <= eps`` (l.1,
-:mod:`.stop`, gathered by :meth:`Planner._stop_test`) and the next target
-(:meth:`Planner._choose_target`): the GPIS vertex of largest variance while novel (l.4,
+the estimate (l.8, eq. 35, :meth:`Planner.coverage`), the stop ``d_H <= eps`` (l.1,
+:mod:`.stop`, gathered by :meth:`Planner.stop_test`) and the next target
+(:meth:`Planner.choose_target`): the GPIS vertex of largest variance while novel (l.4,
 eq. 32), the MAP surface's vertex farthest from the contacts while known (l.6, eq. 36).
 Each returns what it decides; the step assigns the
 :class:`Plan` into the exploration state (:meth:`~.state.ExplorationState.adopt`).
@@ -33,7 +33,7 @@ telling apart      targets where rival hypotheses disagree          ``decision_t
 confirm checks     sweeps just outside a decided MAP                ``decision_targets=False``
 =================  ===============================================  ==========================
 
-A mixin of :class:`~.loop.Session`; the attributes it reads are listed on :class:`Planner`.
+A part of the step (:class:`~.context.Part`), built from its inputs without a session.
 """
 
 import functools
@@ -58,7 +58,8 @@ from ..explore.scene_moves import check_line
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
-from .fields import BelowTangentPlane, ValueOf
+from .context import Part
+from .fields import BelowTangentPlane, PosedSDF, ValueOf
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -145,24 +146,23 @@ class Plan:
     confirming: bool = False
 
 
-class Planner:
+class Planner(Part):
     """Targets, checks, frontier and the stop rule of a session (see the module).
 
-    Reads the session's ``filter``, ``state`` (:class:`~.state.ExplorationState`), ``_p``
-    and ``_unit`` (parameters and size unit in scene units), ``_filter_unit``, ``rng``,
-    ``strategy``, ``sensor_noise``, ``step_count`` and ``_prior``
-    (:class:`~.estimate.Estimation`). It writes nothing: the step adopts the
+    Built from a :class:`~.context.StepContext`, the filter, the exploration state, the
+    session's generator and its snapshots (:class:`~.context.Part`). It writes only
+    ``state.misfit_steps`` (:meth:`misfits`): the step adopts the
     :class:`~..belief.decision.Decision` and the :class:`Plan` into the exploration state.
     """
 
-    def _decide(self, belief):
+    def decide(self, belief):
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
         the object is judged novel)."""
         if belief.novel:
             return UNDECIDED
-        p, noise = self._p, self.sensor_noise[0]
+        p, noise = self.p, self.sensor_noise[0]
         floor = float(np.hypot(p.decision_floor, noise))
-        free_space = segment_points(self.state.missed, MISSED_SPACING * self._unit)
+        free_space = segment_points(self.state.missed, MISSED_SPACING * self.unit)
         if p.decision_hold and self.state.decided and self.state.hypotheses:
             held = held_decision(self.filter, belief, self.state.hypotheses[0],
                                  p.decision_confidence, floor, free_space,
@@ -178,7 +178,7 @@ class Planner:
                       budget=p.decision_budget, normals=p.decision_normals,
                       any_class=p.decision_any_class)
 
-    def _misfits(self, belief, decision):
+    def misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):
         its MAP's refined residuals fail the chi-squared test (``decision.fit_p`` below
         ``misfit_novelty``) for ``MISFIT_STEPS`` steps in a row with contacts all around
@@ -186,11 +186,11 @@ class Planner:
         failing it. The paper's test passes a look-alike of equal size that misfits by a
         few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
         decision's test asks for the sensor's noise. Counts in ``state.misfit_steps``."""
-        p, state = self._p, self.state
+        p, state = self.p, self.state
         if p.misfit_novelty <= 0 or belief.novel or not decision.hypotheses:
             state.misfit_steps = 0
             return False
-        last = self.latest if self.snapshots else None
+        last = self.snapshots[-1] if self.snapshots else None
         around = (last is not None and last.dhd <= p.decision_cover
                   and last.map_class == belief.map_class)
         held = state.misfit_steps >= MISFIT_STEPS
@@ -198,7 +198,7 @@ class Planner:
         state.misfit_steps = state.misfit_steps + 1 if misfit and (around or held) else 0
         return state.misfit_steps >= MISFIT_STEPS
 
-    def _coverage(self, recon, map_vertices, contacts, model=None, pose=None):
+    def coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
         surface) by the contacts: l.8, eq. 35, over the vertices still to visit; with
         ``cover_prior`` a novel object's MAP prior counts too, unless the GPIS started from
@@ -209,19 +209,19 @@ class Planner:
         reachable = self._reachable(surface)
         in_scene = not self.scene.is_free and model is not None
         map_reach = None  # the MAP's reachable vertices, only where they are asked for
-        if in_scene and (not reconstructed or self._p.cover_prior):
+        if in_scene and (not reconstructed or self.p.cover_prior):
             map_reach = self._in_scene(map_vertices, vertex_normals(model) @ pose[0].T,
-                                       ValueOf(self._prior(model, *pose)), contacts)
+                                       ValueOf(PosedSDF(model, *pose)), contacts)
         if in_scene:
             reachable = _both(reachable, map_reach if not reconstructed else self._in_scene(
                 surface, mesh_vertex_normals(recon.vertices, recon.faces),
                 recon.fit.mean_value, contacts))
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if recon is not None and self._p.cover_prior and self.state.gpis_shape is None:
+        if recon is not None and self.p.cover_prior and self.state.gpis_shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
-            prior_open = self._reachable(map_vertices, max(self._p.contact_spacing,
-                                                           self._p.gpis_carve_radius))
+            prior_open = self._reachable(map_vertices, max(self.p.contact_spacing,
+                                                           self.p.gpis_carve_radius))
             if map_reach is not None:
                 prior_open = _both(prior_open, map_reach)
             prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
@@ -234,28 +234,28 @@ class Planner:
         ``approach_clearance``. The estimate (``outside``) is evaluated only at vertices
         farther than ``eps / 2`` from every contact: nearer ones neither hold the stop
         nor become targets."""
-        p = self._p
-        keep = self.scene.reachable(vertices, normals, margin=SCENE_MARGIN * self._unit)
+        p = self.p
+        keep = self.scene.reachable(vertices, normals, margin=SCENE_MARGIN * self.unit)
         far = keep.copy()
         if len(contacts):
             far[keep] = cKDTree(contacts).query(vertices[keep])[0] > p.eps / 2
         if far.any():
             keep[far] = self.scene.reachable(vertices[far], normals[far], outside,
-                                             margin=SCENE_MARGIN * self._unit,
+                                             margin=SCENE_MARGIN * self.unit,
                                              clear=p.approach_clearance)
         return keep
 
-    def _stop_test(self, coverage, belief, decision=UNDECIDED):
+    def stop_test(self, coverage, belief, decision=UNDECIDED):
         """The :class:`~.stop.Stop` of the step: :func:`~.stop.stop_rule` on its
         coverage, belief and decision and the exploration state's progress."""
         state = self.state
-        progress = Progress(self.step_count, bool(state.frontier), state.checks_passed,
+        progress = Progress(len(self.snapshots), bool(state.frontier), state.checks_passed,
                             state.decision_checks, state.telling_steps)
-        return stop_rule(self._p, coverage.value, coverage.dhd, belief.novel,
-                         belief.novel and self.strategy != "rrt", decision, progress,
+        return stop_rule(self.p, coverage.value, coverage.dhd, belief.novel,
+                         belief.novel and self.context.strategy != "rrt", decision, progress,
                          self.sensor_noise[0])
 
-    def _choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
+    def choose_target(self, stop, coverage, model, rotation, translation, map_vertices,
                        recon, contacts, decision=UNDECIDED):
         """The step's :class:`Plan`: the next target (l.4, eq. 32 while novel; l.6, eq. 36
         while known) or, beyond the paper, the frontier's next target, a check line, a
@@ -265,7 +265,7 @@ class Planner:
         if recon is not None and not recon.empty:
             outside = recon.fit.mean_value
         else:
-            outside = ValueOf(self._prior(model, rotation, translation))
+            outside = ValueOf(PosedSDF(model, rotation, translation))
         if stop.terminated:
             return Plan(None, None, **keep)
         if stop.frontier:
@@ -275,11 +275,11 @@ class Planner:
             aim = Aim(position, normal, BelowTangentPlane(position, normal, outside))
             return Plan(aim, None, frontier=True, **keep)
         if stop.checking:
-            return Plan(None, self._plan_check_line(coverage.surface, contacts, outside), **keep)
+            return Plan(None, self.plan_check_line(coverage.surface, contacts, outside), **keep)
         if stop.confirm:
-            return Plan(None, self._plan_check_line(map_vertices, contacts, outside),
+            return Plan(None, self.plan_check_line(map_vertices, contacts, outside),
                         confirming=True, **keep)
-        if stop.rivals and (aim := self._telling_apart(decision, contacts)) is not None:
+        if stop.rivals and (aim := self.telling_apart(decision, contacts)) is not None:
             return Plan(aim, None, telling_apart=True, **keep)
         if stop.posing and decision.loosest is None:
             # The filter's posterior settles with touches anywhere: the paper's target.
@@ -290,9 +290,9 @@ class Planner:
             # Where the pose is least certain (the fit's covariance), on the MAP surface.
             position, normal = decision.loosest
             aim = Aim(position, normalise_rows(normal[None])[0],
-                      ValueOf(self._prior(model, rotation, translation)))
+                      ValueOf(PosedSDF(model, rotation, translation)))
             return Plan(aim, None, telling_apart=True, **keep)
-        if coverage.dhd <= self._p.eps < coverage.prior_dhd:
+        if coverage.dhd <= self.p.eps < coverage.prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
             return Plan(self._next_target(map_vertices, coverage.prior_open, None, model,
@@ -300,34 +300,34 @@ class Planner:
         return Plan(self._next_target(coverage.surface, coverage.reachable, recon, model,
                                       rotation, translation, contacts), None, **keep)
 
-    def _telling_apart(self, decision, contacts):
+    def telling_apart(self, decision, contacts):
         """The :class:`Aim` where the plausible hypotheses disagree most (None: nowhere)."""
         hypotheses = (decision.hypotheses[0],) + decision.rivals
         # Touches are spread over the parts that differ (each earlier one within half the
         # contact spacing halves a place's worth), but may come back to the one part that
         # tells the hypotheses apart while noise leaves them plausible.
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
-        spread = max(2 * self.sensor_noise[0], self._p.decision_floor,
-                     TELL_SPACING * self._p.contact_spacing)
+        spread = max(2 * self.sensor_noise[0], self.p.decision_floor,
+                     TELL_SPACING * self.p.contact_spacing)
         told = np.reshape(self.state.told, (-1, 3))
         if len(told) and len(contacts):  # a touch that landed counts once, as its contact
             told = told[cKDTree(contacts).query(told)[0] > spread]
         found = disagreement_target(
             self.filter.bank, hypotheses, decision.scale,
-            avoid=((refuted, self._p.contact_spacing),),
+            avoid=((refuted, self.p.contact_spacing),),
             crowd=((contacts, spread), (told, spread)), candidates=self._telling_candidates)
         if found is None:
             return None
         position, normal, owner = found
         hypothesis = hypotheses[owner]
         prior = self.filter.models[hypothesis.class_index]
-        estimate = ValueOf(self._prior(prior, hypothesis.rotation, hypothesis.translation))
+        estimate = ValueOf(PosedSDF(prior, hypothesis.rotation, hypothesis.translation))
         return Aim(position, normalise_rows(normal[None])[0], estimate)
 
     def _telling_candidates(self, class_index):
         """The surface points a class offers as telling targets (``decision_candidates``;
         0: its feature points), object frame."""
-        count = self._p.decision_candidates
+        count = self.p.decision_candidates
         if count == 0:
             return self.filter.bank.points[class_index], self.filter.bank.normals[class_index]
         return oriented_samples(self.filter.models[class_index], count)
@@ -344,25 +344,23 @@ class Planner:
         if self.scene.has_table and 0 < len(contacts) < FIRST_CONTACTS:
             # A probe aimed far from the few touches lands on the table beside an object
             # lying flat (a fork: 300 misses after one touch): search around them first.
-            near = cKDTree(contacts).query(surface)[0] <= FIRST_SEARCH * self._unit
+            near = cKDTree(contacts).query(surface)[0] <= FIRST_SEARCH * self.unit
             if (near & reachable).any():
                 reachable = near & reachable
         index = np.flatnonzero(reachable)[farthest_vertex(surface[reachable], contacts)]
         normal = vertex_normals(model)[index] @ rotation.T
-        estimate = ValueOf(self._prior(model, rotation, translation))
+        estimate = ValueOf(PosedSDF(model, rotation, translation))
         return Aim(surface[index], normalise_rows(normal[None])[0], estimate)
 
     def _uncovered_beyond(self):
         """How far from every contact the novel target is looked for first (None: the
         paper's, anywhere): ``eps`` with ``target_uncovered``, and at least the sensor's
         noise times ``target_noise_stds`` (:meth:`_beyond_noise`)."""
-        beyond = max(self._p.eps if self._p.target_uncovered else 0.0, self._beyond_noise())
+        beyond = max(self.p.eps if self.p.target_uncovered else 0.0, self._beyond_noise())
         return beyond or None
 
     def _beyond_noise(self):
-        """``target_noise_stds`` position-noise standard deviations (scene units): nearer a
-        contact a touch only repeats it within the noise."""
-        return self._p.target_noise_stds * self.sensor_noise[0]
+        return beyond_noise(self.p, self.sensor_noise)
 
     def _reachable(self, vertices, radius=None):
         """Mask of the vertices that exploration may still have to visit: away from every
@@ -376,13 +374,13 @@ class Planner:
         refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
         if len(refuted) == 0:
             return np.ones(len(vertices), bool)
-        radius = self._p.contact_spacing if radius is None else radius
+        radius = self.p.contact_spacing if radius is None else radius
         distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
             vertices, distance_upper_bound=radius)[0]
         far = distance >= radius
         return far if far.any() else np.ones(len(vertices), bool)
 
-    def _plan_check_line(self, estimate, contacts, outside=None):
+    def plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
         path to sweep (its direction joins ``check_directions`` when the step adopts it).
 
@@ -397,7 +395,7 @@ class Planner:
         about ``eps``, from the least used of the spread directions.
         """
         through = None
-        kind = self._check_kind(len(self.state.check_directions))
+        kind = check_kind(self.p, len(self.state.check_directions))
         if kind == "weakest" and outside is not None:
             through, gap = self._weakest_support(estimate, contacts)
         elif kind in ("hull", "shell") and outside is not None:
@@ -405,19 +403,19 @@ class Planner:
                                   self.state.free_space, self.state.swept])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
-            shell = 2 * self._p.eps if kind == "shell" else 0.0
+            shell = 2 * self.p.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
-                                      unit=self._unit)
+                                      unit=self.unit)
         if not self.scene.is_free:
             return self._scene_check(estimate, contacts, through)
         if through is None:
             direction = next_sweep_direction(self.state.check_directions, self.rng)
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
-                0.0, self._p.eps, size=3)
-            path = np.stack([through + SWEEP_RADIUS * self._unit * direction,
-                             through - SWEEP_RADIUS * self._unit * direction])
+                0.0, self.p.eps, size=3)
+            path = np.stack([through + SWEEP_RADIUS * self.unit * direction,
+                             through - SWEEP_RADIUS * self.unit * direction])
         else:
-            unit = self._unit
+            unit = self.unit
             direction = clearest_direction(through, estimate, self.state.check_directions,
                                            reach=SWEEP_RADIUS * unit, unit=unit)
             path = raster_path(through, min(gap, MAX_RASTER_RADIUS * unit), direction,
@@ -427,10 +425,10 @@ class Planner:
     def _scene_check(self, estimate, contacts, through):
         """A check of a robot's scene: one straight line through the gap (else a contact
         moved by about ``eps``) from the clearest direction of the cone, to the table."""
-        scene, unit = self.scene, self._unit
+        scene, unit = self.scene, self.unit
         if through is None:
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(
-                0.0, self._p.eps, size=3)
+                0.0, self.p.eps, size=3)
         if scene.has_table:  # a gap below the tip's reach is looked for just above it
             low = scene.tip_radius + SCENE_MARGIN * unit - scene.height(through[None])[0]
             through = through + max(0.0, low) * scene.up
@@ -448,17 +446,24 @@ class Planner:
             return None, 0.0
         distance = cKDTree(contacts).query(estimate[reachable])[0]
         best = int(np.argmax(distance))
-        return estimate[reachable[best]], max(float(distance[best]), self._p.contact_spacing)
+        return estimate[reachable[best]], max(float(distance[best]), self.p.contact_spacing)
 
-    def _check_kind(self, index):
-        """What check number ``index`` (0 first) of the session aims at: ``"hull"`` and
-        ``"shell"`` gaps in turn, with ``"gap-weakest"`` a ``"weakest"`` support after each
-        pair; ``"contact"`` with ``check_line_aim = "contact"``."""
-        aim = self._p.check_line_aim
-        if aim == "contact":
-            return "contact"
-        kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
-        return kinds[index % len(kinds)]
+
+def check_kind(p, index):
+    """What check number ``index`` (0 first) of a session with parameters ``p`` aims at:
+    ``"hull"`` and ``"shell"`` gaps in turn, with ``"gap-weakest"`` a ``"weakest"`` support
+    after each pair; ``"contact"`` with ``check_line_aim = "contact"``."""
+    aim = p.check_line_aim
+    if aim == "contact":
+        return "contact"
+    kinds = ("hull", "shell", "weakest") if aim == "gap-weakest" else ("hull", "shell")
+    return kinds[index % len(kinds)]
+
+
+def beyond_noise(p, sensor_noise):
+    """``target_noise_stds`` position-noise standard deviations (scene units): nearer a
+    contact a touch only repeats it within the noise."""
+    return p.target_noise_stds * sensor_noise[0]
 
 
 

@@ -24,7 +24,7 @@ class RecordedSession(Session):
 
     def __init__(self, steps, library, strategy="gpis-dhd", params=None, seed=0, source=None,
                  sensor_noise=(0.0, 0.0), scene=None):
-        super().__init__(None, library, strategy, params, seed, sensor_noise, scene=scene)
+        super().__init__(library, strategy, params, seed, sensor_noise, scene=scene)
         self.recording = list(steps)
         self.source = source
 

@@ -266,3 +266,59 @@ class Move:
     kind: str
     number: int
     target: object = None
+
+
+def step_snapshot(step, filter, state, belief, estimate, recon, plan, decision, moves, errors):
+    """The :class:`Snapshot` of a step.
+
+    Parameters
+    ----------
+    step : int
+        Its number (1 first).
+    filter : ParticleFilter
+        After the step's update (its contacts, normals and non-contacts).
+    state : ExplorationState
+        After the step adopted its plan.
+    belief : BeliefState
+        What the step reports (its MAP class, or a decided lead's).
+    estimate : tuple
+        ``(model, (rotation, translation), map_vertices)`` reported.
+    recon : Reconstruction or None
+        The reported surface.
+    plan : Plan
+    decision : Decision
+    moves : tuple
+        ``(paths, observations, timings)`` of the step.
+    errors : dict
+        The evaluator's fields (empty without a truth).
+    """
+    model, (rotation, translation), map_vertices = estimate
+    paths, observations, timings = moves
+    contacts, normals = filter.contact_positions, filter.contact_normals
+    return Snapshot(
+        step=step, new_observations=tuple(observations),
+        paths=tuple(frozen(p) for p in paths), contacts=frozen(contacts),
+        normals=frozen(normals), noncontacts=frozen(filter.noncontact_positions),
+        free_space=frozen(state.free_space),
+        map_class=belief.map_class, map_rotation=frozen(rotation),
+        map_translation=frozen(translation), map_vertices=frozen(map_vertices),
+        map_faces=model.mesh.faces, class_posterior=dict(belief.class_posterior),
+        n_particles=belief.n_particles, log_evidence=float(belief.log_evidence),
+        log_threshold=float(belief.log_threshold), novel=bool(belief.novel),
+        gpis_vertices=None if recon is None else frozen(recon.vertices),
+        gpis_faces=None if recon is None else frozen(recon.faces),
+        gpis_variance=None if recon is None else recon.deferred_variance(),
+        gpis_scale=float(state.gpis_scale) if recon is not None else None,
+        target=None if state.target is None else frozen(state.target.position),
+        dhd=float(plan.dhd), truth_coverage=errors.get("truth_coverage"),
+        pose_error=errors.get("pose_error"), recon_error=errors.get("recon_error"),
+        recon_surface_error=errors.get("recon_surface_error"),
+        terminated=plan.terminated, timings=timings,
+        hypotheses=hypotheses(belief),
+        gpis_resolution=None if recon is None else recon.resolution,
+        gpis_radius=None if recon is None else float(recon.fit.radius),
+        gpis_spacing=None if recon is None else recon.spacing,
+        gpis_shape=None if recon is None else state.gpis_shape,
+        decided=bool(plan.decided), decision_confidence=decision.confidence,
+        rotation_error_deg=errors.get("rotation_error_deg"),
+        translation_error=errors.get("translation_error"))

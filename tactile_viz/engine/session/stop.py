@@ -6,7 +6,7 @@ apart, for the one hypothesis left to be posed, and for the decision's confirm c
 known object); a decision can stop a session by itself (``stop_at_decision``); the step
 cap always does. Every rule is here, as plain functions of the step's figures and the
 parameters in scene units, so that changing the stop means editing this module only;
-:meth:`~.planner.Planner._stop_test` gathers their inputs.
+:meth:`~.planner.Planner.stop_test` gathers their inputs.
 """
 
 from typing import NamedTuple

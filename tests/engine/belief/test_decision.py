@@ -234,7 +234,7 @@ def test_hypotheses_are_normalised_and_the_map_leads(shapes):
 
 def test_a_recognising_session_stops_at_its_decision(shapes):
     truth = make_truth(shapes["cylinder"], rng=[5, 0])
-    session = Session(truth, shapes, params=session_preset("recognise"), seed=5)
+    session = Session.simulated(truth, shapes, params=session_preset("recognise"), seed=5)
     last = session.run(max_steps=80)
     decided = [s.step for s in session.snapshots if s.decided]
     if last.terminated and last.step < 80:  # stopped by the decision or the DHD stop
@@ -249,7 +249,8 @@ def test_the_paper_preset_ignores_the_decision_parameters(shapes):
     """The decision is reported in every preset, but the paper's steps do not depend on it."""
     def run(**changes):
         params = session_preset("paper", **changes)
-        session = Session(make_truth(shapes["box"], rng=[6, 0]), shapes, params=params, seed=6)
+        session = Session.simulated(make_truth(shapes["box"], rng=[6, 0]), shapes, params=params,
+                                    seed=6)
         session.run(max_steps=12)
         return session.snapshots
 
@@ -283,7 +284,8 @@ def test_the_dhd_stop_waits_for_the_decisions_checks(shapes, monkeypatch):
 
     monkeypatch.setattr(planner, "decide", always_decided)
     params = session_preset("recognise", eps=12.0, decision_cover=12.0)
-    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
     last = session.run(max_steps=40)
     assert last.terminated and last.step < 39
     assert last.decided
@@ -306,7 +308,8 @@ def test_a_decided_lead_of_another_class_is_what_the_step_reports(shapes, monkey
 
     monkeypatch.setattr(planner, "decide", decided_otherwise)
     params = session_preset("recognise", eps=12.0, decision_cover=12.0)
-    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
     last = session.run(max_steps=40)
     assert last.decided and last.map_class == other["name"]
     np.testing.assert_allclose(last.map_rotation, turn)
@@ -330,7 +333,8 @@ def test_a_recognising_session_waits_while_its_map_does_not_fit(shapes, monkeypa
     def last(stop):
         params = session_preset("recognise", eps=12.0, decision_cover=12.0,
                                 decision_patience=6, stop_at_decision=stop)
-        session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+        session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                    seed=7)
         return session.run(max_steps=40), session
 
     (waited, session), (plain, _) = last(True), last(False)
@@ -344,15 +348,16 @@ def test_telling_touches_are_spread_over_the_parts_that_differ(shapes):
     from tactile_viz.engine.session.planner import TELL_SPACING
 
     params = session_preset("recognise", contact_spacing=2.0)  # wider than feature spacing
-    session = Session(make_truth(shapes["knobbed"], rng=[3, 0]), shapes, params=params, seed=3)
+    session = Session.simulated(make_truth(shapes["knobbed"], rng=[3, 0]), shapes, params=params,
+                                seed=3)
     session.run(max_steps=8)
     last = session.latest
     hypotheses = tuple(Hypothesis(shapes.names.index(name), last.map_rotation,
                                   last.map_translation, 0.0, 0.5) for name in ("knobbed", "box"))
     decision = Decision(False, 0.5, hypotheses, True, scale=0.01)  # noiseless
-    first = session._telling_apart(decision, last.contacts)
+    first = session.parts().planner.telling_apart(decision, last.contacts)
     touched = np.vstack([last.contacts, first.position])  # the best spot, touched
-    second = session._telling_apart(decision, touched)
+    second = session.parts().planner.telling_apart(decision, touched)
     assert second is not None
     nearest = np.linalg.norm(touched - second.position, axis=1).min()
     assert nearest >= TELL_SPACING * session._p.contact_spacing
@@ -769,7 +774,8 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
     monkeypatch.setattr(planner, "decide", misfitting)
     params = session_preset("recommended", decision_cover=12.0, misfit_novelty=1e-6,
                             max_steps_known=14)
-    session = Session(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params, seed=7)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
     session.run(max_steps=14)
     assessed = [s for s in session.snapshots if len(s.contacts) >= 3]
     novel = [s.step for s in assessed if s.novel]

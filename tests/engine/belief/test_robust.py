@@ -53,14 +53,14 @@ def test_the_simulated_sensor_makes_wrong_contacts(known):
     rng = np.random.default_rng(1)
     touches = [simulator.probe(random_touch(truth, rng)) for _ in range(40)]
     assert all(abs(truth.signed_distance(t.position[None])[0]) < 0.02 for t in touches)
-    recorded = simulator.corrupted(touches)
+    recorded = simulator.finish_step(touches)
     distances = np.abs([truth.signed_distance(t.position[None])[0] for t in recorded])
     assert 5 < np.sum(distances > 0.5) < 35 and np.sum(distances < 0.02) > 5
 
 
 @pytest.mark.slow
 def test_a_noisy_sensor_widens_the_model(known):
-    session = Session(make_truth(known["mug_1"], rng=0), known, seed=0,
+    session = Session.simulated(make_truth(known["mug_1"], rng=0), known, seed=0,
                       sensor_noise=(0.3, 5.0), sensor_outliers=0.05)
     assert session.filter.params.sigma_d == pytest.approx(np.hypot(0.5, 0.3))
     assert session.filter.params.neighbour_bins == 1

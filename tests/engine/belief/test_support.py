@@ -28,7 +28,7 @@ def box(tmp_path):
 
 
 def _filter(box, scene):
-    return Session(None, PriorLibrary([box]), scene=scene).filter
+    return Session(PriorLibrary([box]), scene=scene).filter
 
 
 def _resting(box):
@@ -111,13 +111,13 @@ def test_on_a_table_the_first_known_targets_stay_near_the_contacts(tmp_path):
     vertices, faces = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, 0.2)
     box = ObjectModel.from_arrays(vertices, faces, "fine box", cache=ArrayCache(tmp_path),
                                   longest_side=6.0)
-    session = Session(None, PriorLibrary([box]), seed=0, scene=Scene.on_table(0.0, 60.0, 0.05))
+    session = Session(PriorLibrary([box]), seed=0, scene=Scene.on_table(0.0, 60.0, 0.05))
     touch = np.array([1.0, 0.5, 2.0])
     snapshot = session.observe([Contact(touch, [0.0, 0.0, 1.0])])
     assert not snapshot.novel and session.state.target is not None
     distance = np.linalg.norm(session.state.target.position - touch)
     assert distance <= FIRST_SEARCH * session._unit + 1e-9
-    free = Session(None, PriorLibrary([box]), seed=0)
+    free = Session(PriorLibrary([box]), seed=0)
     free.observe([Contact(touch, [0.0, 0.0, 1.0])])
     assert np.linalg.norm(free.state.target.position - touch) > FIRST_SEARCH * free._unit
 

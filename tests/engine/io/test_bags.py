@@ -49,7 +49,7 @@ def trial():
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=3.0)
     truth = ObjectModel.from_arrays(sphere.vertices, sphere.faces, "sphere", longest_side=6.0)
     library = tiny_library()
-    session = Session(make_truth(truth, rng=[0, 0]), library, seed=0)
+    session = Session.simulated(make_truth(truth, rng=[0, 0]), library, seed=0)
     session.run(max_steps=6)
     steps = session.recorded_steps()
     assert any(not isinstance(o, Contact) for s in steps for o in s.observations)

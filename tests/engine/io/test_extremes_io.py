@@ -42,7 +42,7 @@ def shapes():
 @pytest.fixture(scope="module")
 def saved_session(shapes, tmp_path_factory):
     """A two-step session on the cylinder, saved; and its arrays and config."""
-    session = Session(make_truth(shapes["cylinder"], rng=0), shapes, seed=0)
+    session = Session.simulated(make_truth(shapes["cylinder"], rng=0), shapes, seed=0)
     session.run(max_steps=2)
     path = session.save(tmp_path_factory.mktemp("session") / "good.npz")
     with np.load(path) as stored:
@@ -241,7 +241,7 @@ def test_session_save_failing_midway_keeps_the_last_good_file(saved_session, sha
     good, _, _ = saved_session
     path = tmp_path / "trial.npz"
     path.write_bytes(good.read_bytes())
-    session = Session(make_truth(shapes["box"], rng=1), shapes, seed=1)
+    session = Session.simulated(make_truth(shapes["box"], rng=1), shapes, seed=1)
     session.run(max_steps=1)
 
     def fail(*args):
@@ -290,7 +290,7 @@ WRITER = textwrap.dedent("""
     ball = trimesh.creation.icosphere(subdivisions=6, radius=2.0)  # 82k faces, a 2 MB PLY
     big = PriorLibrary(list(base) + [ObjectModel.from_arrays(ball.vertices, ball.faces, "ball")])
     sessions = [Session.load(session_path)]
-    sessions.append(Session(sessions[0].truth, big, seed=5))
+    sessions.append(Session.simulated(sessions[0].truth, big, seed=5))
     print("ready", flush=True)
     while True:  # alternate between two good states of each file until killed
         for library, session in zip((big, base), sessions):

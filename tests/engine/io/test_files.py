@@ -86,7 +86,7 @@ def test_saved_library_and_session_are_readable_by_others(tmp_path, umask_022):
     model = library.add_arrays(box.vertices, box.faces, "box")
     folder = library.save(tmp_path / "library")
     assert {mode(p) for p in folder.iterdir()} == {0o644}
-    session = Session(make_truth(model, rng=1), library, seed=1)
+    session = Session.simulated(make_truth(model, rng=1), library, seed=1)
     path = session.save(tmp_path / "trial.npz")
     assert mode(path) == 0o644
 

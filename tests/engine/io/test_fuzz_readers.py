@@ -182,7 +182,7 @@ def session_file(tmp_path_factory):
     library = PriorLibrary([ObjectModel.from_arrays(box.vertices, box.faces, "box"),
                             ObjectModel.from_arrays(cylinder.vertices, cylinder.faces,
                                                     "cylinder")])
-    session = Session(make_truth(library["box"], rng=0), library, seed=0)
+    session = Session.simulated(make_truth(library["box"], rng=0), library, seed=0)
     session.run(max_steps=1)
     path = session.save(tmp_path_factory.mktemp("fuzz") / "session.npz")
     with np.load(path) as stored:

@@ -10,24 +10,22 @@ import trimesh
 
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.presets import session_preset
-from tactile_viz.engine.session.bookkeeping import Bookkeeping
-from tactile_viz.engine.session.planner import Planner
+from tactile_viz.engine.session.bookkeeping import Bookkeeper
+from tactile_viz.engine.session.context import StepContext
 from tactile_viz.engine.session.state import ExplorationState
 
 
-class _Keeper(Bookkeeping, Planner):
+def _keeper(scale, contacts, estimate):
     """What following the frontier reads: parameters in scene units, the contacts, the
     exploration state after a frontier target with the whole estimate the last step
     planned on (its snapshot reports only supported parts: here none, to show it is not
     read)."""
-
-    def __init__(self, scale, contacts, estimate):
-        p = session_preset("recommended")
-        self._p = dataclasses.replace(p, eps=0.2 * scale, contact_spacing=0.1 * scale)
-        self.sensor_noise = (0.0, 0.0)
-        self.filter = types.SimpleNamespace(contact_positions=contacts)
-        self.state = ExplorationState(frontier_target=True, estimate_vertices=estimate)
-        self.latest = types.SimpleNamespace(gpis_vertices=None)
+    p = session_preset("recommended")
+    p = dataclasses.replace(p, eps=0.2 * scale, contact_spacing=0.1 * scale)
+    return Bookkeeper(StepContext(p, scale, scale),
+                      types.SimpleNamespace(contact_positions=contacts),
+                      ExplorationState(frontier_target=True, estimate_vertices=estimate),
+                      snapshots=[types.SimpleNamespace(gpis_vertices=None)])
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
@@ -40,7 +38,7 @@ def test_the_frontier_follows_only_ground_the_estimate_did_not_predict(scale):
     contacts = ball[ball[:, 2] > 0.3 * scale][::4]
     touch = Contact(np.array([0.0, 0.0, -scale]), np.array([0.0, 0.0, -1.0]))
     for estimate, grows in ((ball, False), (ball[ball[:, 2] > 0], True), (None, True)):
-        keeper = _Keeper(scale, contacts, estimate)
+        keeper = _keeper(scale, contacts, estimate)
         keeper._follow_frontier(touch)
         assert bool(keeper.state.frontier) == grows
         queued = np.reshape([position for position, _ in keeper.state.frontier], (-1, 3))

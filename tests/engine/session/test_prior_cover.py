@@ -10,6 +10,7 @@ import trimesh
 
 from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.scene import FREE
+from tactile_viz.engine.session.context import StepContext
 from tactile_viz.engine.session.planner import Planner
 from tactile_viz.engine.session.state import ExplorationState
 
@@ -18,16 +19,13 @@ def _ball(radius, subdivisions=3):
     return trimesh.creation.icosphere(subdivisions, radius).vertices
 
 
-class _Planner(Planner):
-    """The planner's coverage with what it reads: parameters in scene units, the
-    exploration state and the scene."""
-
-    def __init__(self, scale):
-        p = session_preset("recommended")
-        self._p = dataclasses.replace(p, eps=0.1 * scale, contact_spacing=0.05 * scale,
-                                      gpis_carve_radius=0.1 * scale)
-        self.state = ExplorationState()
-        self.scene = FREE
+def _planner(scale):
+    """A planner with what its coverage reads: parameters in scene units, the exploration
+    state and the scene (the paper's free space); no filter."""
+    p = session_preset("recommended")
+    p = dataclasses.replace(p, eps=0.1 * scale, contact_spacing=0.05 * scale,
+                            gpis_carve_radius=0.1 * scale)
+    return Planner(StepContext(p, scale, scale, scene=FREE), None, ExplorationState())
 
 
 def _estimate(radius):
@@ -41,16 +39,16 @@ def _estimate(radius):
 def test_missed_probes_refute_the_prior_where_they_passed(scale):
     # The prior stands 0.3 off the object: no contact comes within eps of it; missed
     # probes through it refute it where they passed, and only there.
-    planner, recon = _Planner(scale), _estimate(scale)
+    planner, recon = _planner(scale), _estimate(scale)
     contacts = _ball(scale, 2)
     prior = _ball(1.3 * scale)
-    assert planner._coverage(recon, prior, contacts).prior_dhd > 0.25 * scale
+    assert planner.coverage(recon, prior, contacts).prior_dhd > 0.25 * scale
     directions = prior / np.linalg.norm(prior, axis=1, keepdims=True)
     upper = directions[:, 2] >= 0  # probes missed through the upper half only
     way = np.concatenate([d * scale * np.linspace(1.0, 2.0, 21)[:, None]
                           for d in directions[upper]])
     planner.state.free_space = way
-    coverage = planner._coverage(recon, prior, contacts)
+    coverage = planner.coverage(recon, prior, contacts)
     assert coverage.prior_open is not None
     assert not coverage.prior_open[upper].any()
     assert coverage.prior_open[directions[:, 2] < -0.2].all()

@@ -18,10 +18,15 @@ from tactile_viz.engine.session import (
     SessionParams,
     free_space_points,
     learned_model_from_surface,
+    learning,
     make_truth,
     session_preset,
 )
+from tactile_viz.engine.session.estimate import Estimator
+from tactile_viz.engine.session.planner import Planner
 from tactile_viz.engine.shape.objects import ObjectModel
+
+from ..conftest import surface_at
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +43,7 @@ def novel_session(bundled, known):
     known in most trials (as in the paper) and its last reconstruction may come from its
     first steps."""
     library = PriorLibrary([model for model in known if model.name not in ("vase_1", "bottle_1")])
-    session = Session(make_truth(bundled["vase_2"], rng=0), library, "gpis-dhd", seed=0)
+    session = Session.simulated(make_truth(bundled["vase_2"], rng=0), library, "gpis-dhd", seed=0)
     session.run()
     return session
 
@@ -47,13 +52,13 @@ def novel_session(bundled, known):
 def creature_session(bundled, known):
     """noisy_dino (no known creature is close) explored for 150 steps (with prior coverage
     its phantom prior parts keep it going to the 400-step cap, docs/journal/bench-novel.md)."""
-    session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", seed=0)
+    session = Session.simulated(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", seed=0)
     session.run(max_steps=150)
     return session
 
 
 def test_known_object_recognised_and_terminates_by_dhd(bundled, known):
-    session = Session(make_truth(bundled["guitar_1"], rng=3), known, "gpis-dhd", seed=3)
+    session = Session.simulated(make_truth(bundled["guitar_1"], rng=3), known, "gpis-dhd", seed=3)
     last = session.run()
     assert last.terminated and last.step < session.params.max_steps_known
     assert last.dhd <= session.params.eps
@@ -66,7 +71,8 @@ def test_unreachable_target_is_given_up(bundled, known):
     # In this trial the farthest MAP vertex is one the probe cannot reach: every touch aimed
     # at it ends on the same earlier contact. Before such targets were given up, the trial
     # touched that one point about 200 times and ran to the 300-step cap.
-    session = Session(make_truth(bundled["sofa_1"], rng=[0, 0]), known, "gpis-dhd", seed=0)
+    session = Session.simulated(make_truth(bundled["sofa_1"], rng=[0, 0]), known, "gpis-dhd",
+                                seed=0)
     last = session.run()
     assert last.terminated and last.dhd <= session.params.eps and last.step < 200
     repeats = len(last.contacts) - len(np.unique(last.contacts, axis=0))
@@ -75,14 +81,14 @@ def test_unreachable_target_is_given_up(bundled, known):
 
 
 def test_a_repeat_is_judged_within_the_sensor_noise(bundled, known):
-    noisy = Session(make_truth(bundled["bottle_1"], rng=1), known, seed=1,
+    noisy = Session.simulated(make_truth(bundled["bottle_1"], rng=1), known, seed=1,
                     sensor_noise=(0.01, 0.0))
     noisy.run(max_steps=3)
     first = noisy.filter.contact_positions[0]
     normal = noisy.filter.contact_normals[0]
-    assert noisy._repeats_contact(Contact(first + 0.02, normal))
-    assert not noisy._repeats_contact(Contact(first + 0.2, normal))
-    assert not noisy._repeats_contact(NonContact(first))
+    assert noisy.parts().bookkeeper.repeats_contact(Contact(first + 0.02, normal))
+    assert not noisy.parts().bookkeeper.repeats_contact(Contact(first + 0.2, normal))
+    assert not noisy.parts().bookkeeper.repeats_contact(NonContact(first))
 
 
 def test_noisy_targets_and_surprises_lie_beyond_the_noise(sphere_model, monkeypatch):
@@ -101,20 +107,20 @@ def test_noisy_targets_and_surprises_lie_beyond_the_noise(sphere_model, monkeypa
     variance_target = planner.variance_target
     monkeypatch.setattr(planner, "variance_target", spy)
     noise = 0.06
-    session = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
+    session = Session.simulated(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
                       sensor_noise=(noise, 2.0))
     session.run(max_steps=15)
     assert session.latest.novel and asked
     np.testing.assert_allclose(asked, 4 * noise)
-    assert session._new_ground() >= 4 * noise
+    assert session.parts().bookkeeper.new_ground() >= 4 * noise
     # Where the noise is the largest of the three lengths, it sets the surprise's distance.
     session.sensor_noise = (1.0, 2.0)
-    assert session._new_ground() == pytest.approx(4.0)
-    quiet = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0)
-    assert quiet._uncovered_beyond() is None
-    paper = Session(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
+    assert session.parts().bookkeeper.new_ground() == pytest.approx(4.0)
+    quiet = Session.simulated(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0)
+    assert quiet.parts().planner._uncovered_beyond() is None
+    paper = Session.simulated(make_truth(sphere_model, rng=0), _box_library(sphere_model), seed=0,
                     sensor_noise=(noise, 2.0), params=session_preset("paper"))
-    assert paper._uncovered_beyond() is None
+    assert paper.parts().planner._uncovered_beyond() is None
 
 
 @pytest.mark.slow
@@ -124,7 +130,7 @@ def test_refined_preset_keeps_a_thin_known_object_known(bundled, known):
     # The refined preset polishes the MAP pose on all observations before the novelty test.
     params = session_preset("refined")
     assert params.filter == FilterParams(refine_map=True)
-    session = Session(make_truth(bundled["asian_dragon"], rng=[9, 0]), known, "gpis-dhd",
+    session = Session.simulated(make_truth(bundled["asian_dragon"], rng=[9, 0]), known, "gpis-dhd",
                       params, seed=9)
     last = session.run()
     assert last.terminated and last.map_class == "asian_dragon" and not last.novel
@@ -182,7 +188,7 @@ def _last_reconstruction(session):
 def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     last, params = _last_reconstruction(novel_session), novel_session.params
     # Refitting from the snapshot (contacts, MAP prior, kernel scale) gives the step's surface.
-    vertices, faces = novel_session._surface_at(last, last.gpis_resolution)
+    vertices, faces = surface_at(novel_session, last, last.gpis_resolution)
     np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
     np.testing.assert_array_equal(faces, last.gpis_faces)
     fine = novel_session.learned_model("fine", last, resolution=2 * params.gpis_resolution)
@@ -198,19 +204,19 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
 def test_stopping_session_reports_the_surface_sampled_finer(bundled, known, monkeypatch):
     # At the 40-step cap the surface is not covered: no other prior's fit may replace it.
     params = session_preset("recommended", max_steps_novel=40, final_candidates=0)
-    session = Session(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", params,
+    session = Session.simulated(make_truth(bundled["noisy_dino"], rng=0), known, "gpis-dhd", params,
                       seed=0)
     last = session.run()
     before = session.snapshots[-2]
     assert last.terminated and last.novel and before.novel and not before.terminated
     # The same posterior mean as the steps', on the finer grid.
-    vertices, faces = session._surface_at(last, params.final_resolution)
+    vertices, faces = surface_at(session, last, params.final_resolution)
     np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
     np.testing.assert_array_equal(faces, last.gpis_faces)
     assert len(last.gpis_vertices) > 2 * len(before.gpis_vertices)
     assert len(last.gpis_variance) == len(last.gpis_vertices)
     # Learning from it takes that surface as it is.
-    monkeypatch.setattr(session, "_level_set", lambda *args: pytest.fail("extracted again"))
+    monkeypatch.setattr(learning, "level_set", lambda *args: pytest.fail("extracted again"))
     learned = session.learned_model("dino_learned", last)
     assert len(learned.mesh.vertices) <= len(last.gpis_vertices)
 
@@ -223,7 +229,7 @@ def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tm
     library = PriorLibrary(list(novel_session.library) + [learned])
     library.save(tmp_path / "priors")
     library = PriorLibrary.load(tmp_path / "priors")
-    again = Session(make_truth(bundled["vase_2"], rng=1), library, "gpis-dhd", seed=1)
+    again = Session.simulated(make_truth(bundled["vase_2"], rng=1), library, "gpis-dhd", seed=1)
     last = again.run()
     assert last.map_class == "vase_2_learned" and not last.novel
     # Placed at the new pose, the learned shape is no farther from the truth than the
@@ -234,7 +240,7 @@ def test_learned_prior_is_recognised_next_time(novel_session, bundled, known, tm
 
 
 def test_snapshot_is_complete_and_immutable(bundled, known):
-    session = Session(make_truth(bundled["mug_1"], rng=0), known, "gpis-dhd", seed=0)
+    session = Session.simulated(make_truth(bundled["mug_1"], rng=0), known, "gpis-dhd", seed=0)
     first = session.step()
     second = session.step()
     assert first.step == 1 and second.step == 2
@@ -277,9 +283,10 @@ def test_what_a_snapshot_reports_does_not_steer_the_exploration(bundled, known, 
     library = PriorLibrary([model for model in known if model.name not in ("vase_1", "bottle_1")])
 
     def contacts(report):
-        monkeypatch.setattr(Session, "_reported", lambda self, recon, contacts, timings:
+        monkeypatch.setattr(Estimator, "reported", lambda self, recon, contacts, timings:
                             report(recon))
-        session = Session(make_truth(bundled["vase_2"], rng=2), library, "gpis-dhd", seed=2)
+        session = Session.simulated(make_truth(bundled["vase_2"], rng=2), library, "gpis-dhd",
+                                    seed=2)
         session.run(max_steps=40)
         return session.latest.contacts, [s for s in session.snapshots if s.gpis_faces is not None]
 
@@ -318,7 +325,7 @@ def test_the_drawn_variance_is_spread_when_first_read_and_pickled_as_values(nove
 
 
 def test_rrt_strategy_runs(bundled, known):
-    session = Session(make_truth(bundled["sofa_1"], rng=2), known, "rrt", seed=2)
+    session = Session.simulated(make_truth(bundled["sofa_1"], rng=2), known, "rrt", seed=2)
     session.run(max_steps=25)
     assert 1 <= session.step_count <= 25
     assert session.step_count == 25 or session.terminated  # it stops early only when done
@@ -328,14 +335,16 @@ def test_rrt_strategy_runs(bundled, known):
 def test_same_seed_same_trial(bundled, known):
     runs = []
     for _ in range(2):
-        session = Session(make_truth(bundled["bottle_1"], rng=5), known, "gpis-dhd", seed=5)
+        session = Session.simulated(make_truth(bundled["bottle_1"], rng=5), known, "gpis-dhd",
+                                    seed=5)
         session.run(max_steps=15)
         runs.append(session.latest.contacts.copy())
     np.testing.assert_array_equal(*runs)
 
 
 def test_save_and_load_replays_the_session(bundled, known, tmp_path):
-    session = Session(make_truth(bundled["ice_cream_1"], rng=4), known, "gpis-dhd", seed=4)
+    session = Session.simulated(make_truth(bundled["ice_cream_1"], rng=4), known, "gpis-dhd",
+                                seed=4)
     session.run(max_steps=12)
     path = session.save(tmp_path / "trial.npz")
     loaded = Session.load(path)
@@ -347,7 +356,8 @@ def test_save_and_load_replays_the_session(bundled, known, tmp_path):
 def test_a_learned_prior_stays_learned_in_a_saved_session(bundled, known, tmp_path):
     learned = learned_model_from_surface(*_box_surface(), "box_learned")
     assert learned.learned and not known["bottle_1"].learned
-    session = Session(make_truth(bundled["bottle_1"], rng=4), PriorLibrary(list(known) + [learned]),
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=4),
+                                PriorLibrary(list(known) + [learned]),
                       "gpis-dhd", seed=4)
     session.run(max_steps=2)
     loaded = Session.load(session.save(tmp_path / "learned.npz"))
@@ -363,7 +373,7 @@ def _box_surface():
                                     lambda p: p.write_bytes(b"garbage"),
                                     lambda p: p.unlink()])
 def test_corrupt_session_file_is_a_clear_error(bundled, known, tmp_path, damage):
-    session = Session(make_truth(bundled["bottle_1"], rng=4), known, seed=4)
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=4), known, seed=4)
     session.run(max_steps=2)
     path = session.save(tmp_path / "trial.npz")
     damage(path)
@@ -374,9 +384,9 @@ def test_corrupt_session_file_is_a_clear_error(bundled, known, tmp_path, damage)
 def test_bad_session_arguments(bundled, known):
     truth = make_truth(bundled["bottle_1"], rng=0)
     with pytest.raises(SessionError, match="strategy"):
-        Session(truth, known, "random-walk")
+        Session.simulated(truth, known, "random-walk")
     with pytest.raises(SessionError, match="empty"):
-        Session(truth, PriorLibrary())
+        Session.simulated(truth, PriorLibrary())
     with pytest.raises(ValueError):
         SessionParams(eps=0.0)
     with pytest.raises(ValueError, match="unknown preset"):
@@ -423,16 +433,16 @@ def test_trial_command_reports_bad_mesh(tmp_path, capsys):
 
 
 def test_failed_step_leaves_session_unchanged(bundled, known, monkeypatch):
-    session = Session(make_truth(bundled["mug_1"], rng=1), known, seed=1)
+    session = Session.simulated(make_truth(bundled["mug_1"], rng=1), known, seed=1)
     session.run(max_steps=3)
     contacts = session.filter.contact_positions
-    reference = Session(make_truth(bundled["mug_1"], rng=1), known, seed=1)
+    reference = Session.simulated(make_truth(bundled["mug_1"], rng=1), known, seed=1)
     reference.run(max_steps=4)
 
     def broken(*args, **kwargs):
         raise RuntimeError("simulated failure")
 
-    monkeypatch.setattr(session, "_stop_test", broken)  # after the filter update
+    monkeypatch.setattr(Planner, "stop_test", broken)  # after the filter update
     with pytest.raises(RuntimeError, match="simulated"):
         session.step()
     assert session.step_count == 3 and session.filter.contact_positions is contacts
@@ -475,7 +485,7 @@ def test_paper_preset_is_the_papers_gpis():
 
 def _plan_check(session, *args):
     """Plan a check and adopt it as a step does (its direction joins the used ones)."""
-    check = session._plan_check_line(*args)
+    check = session.parts().planner.plan_check_line(*args)
     session.state.check = check
     session.state.check_directions.append(check.direction)
     return check
@@ -484,7 +494,8 @@ def _plan_check(session, *args):
 def _sweep_check(session):
     """Sweep the planned check with the simulator and count it, as a step does."""
     path = session.state.check.path
-    return session._after_moves("check", ([path], [session.simulator.probe(path)]))
+    touched = session.simulator.probe(path)
+    return session.parts().bookkeeper.after_moves("check", ([path], [touched]))
 
 
 def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known,
@@ -493,7 +504,8 @@ def test_check_lines_restart_when_one_touches_an_unpredicted_part(bundled, known
     # first, which nothing predicted, and restarts the count; a line from above touches the
     # top, confirming the estimate.
     params = session_preset("recommended", check_lines=3, eps=0.3)
-    session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=0), known, seed=0,
+                                params=params)
     rotation, translation = session.truth.rotation, session.truth.translation
     axis = rotation[:, 2]
     surface = session.truth.model.mesh.vertices @ rotation.T + translation
@@ -517,7 +529,8 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     # unseen: "gap-weakest" sends every third check through the estimate's vertex farthest
     # from every contact, on top of the gap checks.
     params = session_preset("recommended", check_line_aim="gap-weakest")
-    session = Session(make_truth(bundled["bottle_1"], rng=0), known, seed=0, params=params)
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=0), known, seed=0,
+                                params=params)
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
     session.state.check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
@@ -525,7 +538,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     _, through, _, path = session.state.check
     np.testing.assert_allclose(through, [1.5, 0.0, 0.0], atol=1e-9)
     # It comes on top of the gap checks: passing it does not count toward check_lines.
-    session._count_check(NonContact(path[-1]))
+    session.parts().bookkeeper.count_check(NonContact(path[-1]))
     assert session.state.checks_passed == 0
     from tactile_viz.engine.explore.simulator import sample_path
 
@@ -536,7 +549,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     _plan_check(session, estimate, contacts, lambda p: p[:, 2])
     assert len(session.state.check_directions) == 4
     assert not np.allclose(session.state.check.through, through)
-    session._count_check(NonContact(session.state.check.path[-1]))
+    session.parts().bookkeeper.count_check(NonContact(session.state.check.path[-1]))
     assert session.state.checks_passed == 1
 
 
@@ -546,12 +559,12 @@ def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     session, _ = _sphere_against_a_box(sphere_model, 4)
     session.run(max_steps=3)
     contact = Contact(np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, 1.0]))
-    session._grow_frontier(contact)
+    session.parts().bookkeeper.grow_frontier(contact)
     queued = np.array([position for position, _ in session.state.frontier])
     assert len(queued) == 4
     np.testing.assert_allclose(np.linalg.norm(queued - contact.position, axis=1), 2.0)
     np.testing.assert_allclose(queued[:, 2], 3.0)
-    session._grow_frontier(contact)  # the same places again: nothing new
+    session.parts().bookkeeper.grow_frontier(contact)  # the same places again: nothing new
     assert len(session.state.frontier) == 4
     targets = []
     for _ in range(12):
@@ -574,7 +587,7 @@ def test_check_lines_delay_the_stop_of_a_novel_object(sphere_model):
     runs = {}
     for lines in (0, 4):
         params = session_preset("recommended", check_lines=lines, eps=2.0)
-        session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+        session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params)
         runs[lines] = session.run(max_steps=60), session.snapshots
     (plain, _), (checked, snapshots) = runs[0], runs[4]
     assert plain.terminated and plain.novel and plain.dhd <= 2.0
@@ -595,7 +608,7 @@ def test_exported_trial_replays_to_the_same_estimate(bundled, known, tmp_path):
     # variance subsets, targets and given-up points (the DHD skips those) differ once a
     # subset is not the whole surface; the estimate does not depend on them.
     params = session_preset("recommended", variance_points=10**6)
-    novel_session = Session(make_truth(bundled["dragon"], rng=[1, 0]), known, seed=1,
+    novel_session = Session.simulated(make_truth(bundled["dragon"], rng=[1, 0]), known, seed=1,
                             params=params)
     novel_session.run(max_steps=30)
     written = export_session(novel_session, tmp_path / "export")
@@ -668,7 +681,7 @@ class MissingFirst:
 
 @pytest.mark.slow
 def test_a_session_driven_by_its_caller(bundled, known):
-    session = Session(None, known, seed=5)
+    session = Session(known, seed=5)
     with pytest.raises(SessionError, match="sensor"):
         session.step()
     robot = ContactSimulator(make_truth(bundled["guitar_1"], rng=5))
@@ -690,11 +703,11 @@ def test_a_session_driven_by_its_caller(bundled, known):
 
 def test_ask_tell_and_callback_give_the_same_trajectory(bundled, known):
     truth = make_truth(bundled["mug_1"], rng=3)
-    simulated = Session(truth, known, seed=3)
+    simulated = Session.simulated(truth, known, seed=3)
     simulated.run(max_steps=12)
-    callback = Session(None, known, seed=3, sensor=ContactSimulator(truth))
+    callback = Session(known, seed=3, sensor=ContactSimulator(truth))
     callback.run(max_steps=12)
-    asked = Session(None, known, seed=3)
+    asked = Session(known, seed=3)
     _ask_and_tell(asked, ContactSimulator(truth), 12)
     for other in (callback, asked):
         assert _same_steps(simulated.snapshots, other.snapshots)
@@ -705,7 +718,7 @@ def test_a_first_miss_is_held_until_the_first_contact(bundled, known, tmp_path):
     from tactile_viz.commands.replay import replay
     from tactile_viz.engine.io.observation_file import read_observations, write_observations
 
-    session = Session(None, known, seed=1)
+    session = Session(known, seed=1)
     assert session.observe([NonContact([0.0, 0.0, 9.0])]) is None  # a whole step: held
     snapshot = session.observe([Contact([0.0, 0.0, 1.0], [0.0, 0.0, 1.0])])
     assert snapshot.step == 1 and len(snapshot.new_observations) == 2
@@ -719,7 +732,7 @@ def test_a_first_miss_is_held_until_the_first_contact(bundled, known, tmp_path):
 
 def test_a_session_driven_by_misses_for_a_while(bundled, known):
     truth = make_truth(bundled["bottle_1"], rng=6)
-    session = Session(None, known, seed=6, sensor=MissingFirst(ContactSimulator(truth), 12))
+    session = Session(known, seed=6, sensor=MissingFirst(ContactSimulator(truth), 12))
     first = session.step()
     assert len(first.noncontacts) >= 12 and len(first.contacts) == 1
     session.run(max_steps=25)
@@ -741,14 +754,15 @@ def _sphere_against_a_box(sphere_model, check_lines):
     estimate is covered early and the check lines decide the stop."""
     library = _box_library(sphere_model)
     params = session_preset("recommended", check_lines=check_lines, eps=2.0)
-    return Session(make_truth(sphere_model, rng=0), library, seed=0, params=params), library
+    session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+    return session, library
 
 
 @pytest.mark.slow
 def test_a_caller_is_proposed_the_check_lines_and_the_session_stops(sphere_model):
     simulated, library = _sphere_against_a_box(sphere_model, 4)
     simulated.run(max_steps=60)
-    session = Session(None, library, seed=0, params=simulated.params)
+    session = Session(library, seed=0, params=simulated.params)
     snapshots, moves = _ask_and_tell(session, ContactSimulator(simulated.truth), 60)
     assert simulated.terminated and session.terminated
     assert sum(m.kind == "check" for m in moves) >= 4
@@ -778,7 +792,7 @@ def test_a_replayed_novel_trial_stops_where_the_trial_did(sphere_model, tmp_path
     ([NonContact([0.0, 0.0, 9.0])], [[0.0, np.nan, 0.0]], "free_space"),
 ])
 def test_bad_observations_leave_the_session_unchanged(known, observations, free_space, fault):
-    session = Session(None, known, seed=1)
+    session = Session(known, seed=1)
     session.observe([Contact([0.0, 0.0, 1.0], [0.0, 0.0, 1.0])])
     before = session.filter.checkpoint()
     with pytest.raises(SessionError, match=fault):
@@ -788,7 +802,7 @@ def test_bad_observations_leave_the_session_unchanged(known, observations, free_
 
 
 def test_a_session_without_truth_saves_and_loads(bundled, known, tmp_path):
-    session = Session(None, known, seed=2)
+    session = Session(known, seed=2)
     robot = ContactSimulator(make_truth(bundled["bottle_1"], rng=2))
     _ask_and_tell(session, robot, 5)
     if not session.terminated:
@@ -805,11 +819,11 @@ def test_a_noiseless_touch_of_the_same_spot_is_a_repeat(bundled, known):
     """Without sensor noise, a contact within the simulator's precision of an earlier one is
     the same touch (the approach moves with the estimate, so it is never bit for bit equal);
     a blocked target is then given up instead of aimed at until the step cap."""
-    session = Session(make_truth(bundled["bottle_1"], rng=4), known, "gpis-dhd", seed=4)
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=4), known, "gpis-dhd", seed=4)
     session.run(max_steps=3)
     position, normal = session.filter.contact_positions[-1], session.filter.contact_normals[-1]
-    assert session._repeats_contact(Contact(position + 1e-4, normal))
-    assert not session._repeats_contact(Contact(position + [0.05, 0, 0], normal))
+    assert session.parts().bookkeeper.repeats_contact(Contact(position + 1e-4, normal))
+    assert not session.parts().bookkeeper.repeats_contact(Contact(position + [0.05, 0, 0], normal))
 
 
 def _same_steps(first, second):
@@ -828,7 +842,7 @@ def test_a_pickled_session_steps_on_as_the_original(bundled, known, truth, strat
     # estimate, a GPIS fit with a carved prior) must pickle and continue identically.
     import pickle
 
-    session = Session(make_truth(bundled[truth], rng=2), known, strategy, seed=2)
+    session = Session.simulated(make_truth(bundled[truth], rng=2), known, strategy, seed=2)
     session.run(max_steps=steps)
     copy = pickle.loads(pickle.dumps(session))
     assert copy.step_count == session.step_count
@@ -856,7 +870,7 @@ def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model
     # The decision afresh at every touch: the trajectory this phantom was found on.
     params = session_preset("recommended", gpis_carve_estimate=when, gpis_carve_outside=True,
                             gpis_agnostic=False, decision_refresh=1)
-    session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params,
+    session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))
     session.run(max_steps=30)
     depth = _inside_balls(session, _last_reconstruction(session))
@@ -876,7 +890,7 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     # The candidates are the MAP priors' fits: the box's, not a fitted ellipsoid.
     params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25,
                             gpis_agnostic=False)
-    session = Session(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+    session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params)
     session.run()
     last = session.latest
     assert last.terminated and last.novel
@@ -887,8 +901,9 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     contacts = session.filter.contact_positions
     far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
     final = _with_phantom(_recon_of(session, last), far)
-    recon = session._best_supported(final, contacts, (last.map_class, last.map_rotation,
-                                                     last.map_translation))
+    estimator = session.parts().estimator
+    step_prior = (last.map_class, last.map_rotation, last.map_translation)
+    recon = estimator.best_supported(final, contacts, step_prior)
     # Covered: every vertex within eps of a contact. Where no candidate is covered (eps
     # 0.01), the best supported one: the phantom 40 units off is gone either way.
     support = cKDTree(contacts).query(recon.vertices)[0].max()
@@ -898,8 +913,7 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
     assert reported <= session._p.eps or not covered
     # A surface no candidate is better supported than stands.
-    best = session._best_supported(recon, contacts, (last.map_class, last.map_rotation,
-                                                    last.map_translation))
+    best = estimator.best_supported(recon, contacts, step_prior)
     assert cKDTree(contacts).query(best.vertices)[0].max() <= support
 
 
@@ -908,13 +922,14 @@ def _recon_of(session, snapshot):
     from tactile_viz.engine.session.snapshot import Reconstruction
 
     model = session.filter.models[session.filter.class_names.index(snapshot.map_class)]
-    prior = session._gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
-                                snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
-                                snapshot.normals)
-    low, high, kernel = session._gpis_box(snapshot.map_vertices, snapshot.contacts)
-    fit = session._refit(kernel, snapshot.contacts, snapshot.normals,
-                         session._noncontact_points(snapshot.noncontacts, snapshot.free_space),
-                         prior, snapshot.gpis_scale)
+    estimator = session.parts().estimator
+    prior = estimator.gpis_prior(model, snapshot.map_rotation, snapshot.map_translation,
+                                  snapshot.contacts, snapshot.noncontacts, snapshot.free_space,
+                                  snapshot.normals)
+    low, high, kernel = estimator.gpis_box(snapshot.map_vertices, snapshot.contacts)
+    fit = estimator.refit(kernel, snapshot.contacts, snapshot.normals,
+                          estimator.noncontact_points(snapshot.noncontacts, snapshot.free_space),
+                          prior, snapshot.gpis_scale)
     return Reconstruction(snapshot.gpis_vertices, snapshot.gpis_faces, None, np.zeros(0), fit,
                           snapshot.gpis_resolution, vertex_variance=snapshot.gpis_variance)
 

@@ -14,6 +14,8 @@ from tactile_viz.engine.shape.gpis_evidence import (
     fit_superquadrics,
 )
 
+from ..conftest import surface_at
+
 
 def _ellipsoid(points, normals, min_radius):
     shapes = fit_superquadrics(points, normals, min_radius, roundness=(1.0,))
@@ -100,7 +102,8 @@ def test_a_ball_against_unlike_priors_takes_the_ellipsoid_and_learns_what_it_rep
     library = PriorLibrary(bundled[name] for name in ("mug_1", "guitar_1", "office_chair"))
     params = session_preset("recommended", max_steps_novel=40, final_candidates=0)
     assert params.gpis_agnostic and not session_preset("paper").gpis_agnostic
-    session = Session(make_truth(sphere_model, rng=2), library, "gpis-dhd", params, seed=2)
+    session = Session.simulated(make_truth(sphere_model, rng=2), library, "gpis-dhd", params,
+                                seed=2)
     session.run()
     novel = [s for s in session.snapshots if s.gpis_faces is not None]
     assert novel and all(s.novel for s in novel)
@@ -112,10 +115,10 @@ def test_a_ball_against_unlike_priors_takes_the_ellipsoid_and_learns_what_it_rep
         library.names)
     # Refitting from the snapshot (its ellipsoid prior included) gives the step's surface.
     last = held[-1]
-    vertices, faces = session._surface_at(last, last.gpis_resolution)
+    vertices, faces = surface_at(session, last, last.gpis_resolution)
     np.testing.assert_allclose(vertices, last.gpis_vertices, atol=1e-9)
     np.testing.assert_array_equal(faces, last.gpis_faces)
-    off = Session(make_truth(sphere_model, rng=2), library, "gpis-dhd",
+    off = Session.simulated(make_truth(sphere_model, rng=2), library, "gpis-dhd",
                   session_preset("recommended", max_steps_novel=5, gpis_agnostic=False), seed=2)
     off.run()
     assert all(s.gpis_shape is None for s in off.snapshots)

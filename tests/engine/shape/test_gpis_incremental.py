@@ -139,7 +139,7 @@ def test_compiled_correction_matches_numpy(rng, kernel):
 
 def _novel_session(bundled, preset):
     library = PriorLibrary(bundled[name] for name in ("mug_1", "bottle_1", "vase_1"))
-    return Session(make_truth(bundled["mug_2"], rng=1), library, "gpis-dhd",
+    return Session.simulated(make_truth(bundled["mug_2"], rng=1), library, "gpis-dhd",
                    params=session_preset(preset), seed=1)
 
 

@@ -93,7 +93,7 @@ def test_a_session_refutes_only_when_asked(bundled, monkeypatch, rounds):
         kwargs.get("refuting") is not None and refuting.append(len(kwargs["refuting"]))
     ) or fit_gpis(*args, **kwargs))
     library = PriorLibrary(bundled[name] for name in ("mug_1", "bottle_1", "vase_1"))
-    session = Session(make_truth(bundled["mug_2"], rng=1), library, "gpis-dhd",
+    session = Session.simulated(make_truth(bundled["mug_2"], rng=1), library, "gpis-dhd",
                       params=session_preset("recommended", gpis_refute_rounds=rounds), seed=1)
     session.run(max_steps=30)
     assert any(s.gpis_faces is not None for s in session.snapshots)

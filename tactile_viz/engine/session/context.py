@@ -1,0 +1,80 @@
+"""What the parts of a step are given: a :class:`StepContext` (the parameters with their
+lengths in scene units, the size unit, the sensor model, the scene), the filter, the
+exploration state, the session's generator and its snapshots.
+
+The parts (:class:`~.estimate.Estimator`, :class:`~.planner.Planner`,
+:class:`~.bookkeeping.Bookkeeper`) are plain objects built from these inputs, so each is
+tested without a :class:`~.loop.Session`; a session builds them afresh whenever its
+lengths change (:meth:`~.loop.Session.parts`).
+"""
+
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..scene import FREE, Scene
+
+
+@dataclass(frozen=True)
+class StepContext:
+    """The lengths and the sensor model a step's parts work with.
+
+    Attributes
+    ----------
+    p : SessionParams
+        The session's parameters with their lengths in scene units
+        (:func:`~.lengths.session_lengths`).
+    unit : float
+        Scene units of a size unit (a sixth of the MAP object's longest side).
+    filter_unit : float
+        The library's size unit (what the filter's lengths are in).
+    sensor_noise : tuple of float
+        ``(position std in scene units, normal std in degrees)`` the model assumes.
+    scene : Scene
+        The robot's world (:data:`~..scene.FREE`: the paper's free space).
+    strategy : str
+        ``"gpis-dhd"`` or ``"rrt"``.
+    tolerance : float or None
+        How precisely the sensor places a contact (scene units; None: unknown).
+    """
+
+    p: Any
+    unit: float
+    filter_unit: float
+    sensor_noise: tuple = (0.0, 0.0)
+    scene: Scene = FREE
+    strategy: str = "gpis-dhd"
+    tolerance: float | None = None
+
+
+class Part:
+    """A part of a step: its inputs, held as named attributes.
+
+    Parameters
+    ----------
+    context : StepContext
+    filter : ParticleFilter
+        The belief: its contacts, non-contacts, models and bank are read, never changed.
+    state : ExplorationState
+        What the step changes besides the filter (each part's docstring says what it
+        writes).
+    rng : numpy.random.Generator
+        The session's exploration generator (draws in the step's order).
+    snapshots : sequence of Snapshot
+        The steps so far.
+    """
+
+    def __init__(self, context, filter, state, rng=None, snapshots=()):
+        self.context, self.p, self.unit = context, context.p, context.unit
+        self.sensor_noise, self.scene = context.sensor_noise, context.scene
+        self.filter, self.state, self.snapshots = filter, state, snapshots
+        self.rng = np.random.default_rng(0) if rng is None else rng
+
+
+class Parts(NamedTuple):
+    """The parts of a step, built from one context (:meth:`~.loop.Session.parts`)."""
+
+    estimator: Any
+    planner: Any
+    bookkeeper: Any
