@@ -18,7 +18,7 @@ from .planner import beyond_noise, check_kind
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
-CONTACT_PRECISION = 0.01  # without a simulator: contacts closer than this are one touch
+CONTACT_PRECISION = 0.01  # a sensor without a tolerance: contacts closer than this are one touch
 
 
 class Bookkeeper(Part):
@@ -196,7 +196,7 @@ class Bookkeeper(Part):
 
     def repeats_contact(self, observation):
         """Whether a contact lands where an earlier one did (within the sensor noise, and at
-        least the simulator's contact precision).
+        least the sensor's contact precision, its ``tolerance``).
 
         Such a touch taught nothing: something in front of the target (or a crevice the
         probe cannot enter) took it, and aiming at the same target again would repeat it.

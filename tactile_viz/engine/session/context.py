@@ -11,8 +11,6 @@ lengths change (:meth:`~.loop.Session.parts`).
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-import numpy as np
-
 from ..scene import FREE, Scene
 
 
@@ -59,8 +57,9 @@ class Part:
     state : ExplorationState
         What the step changes besides the filter (each part's docstring says what it
         writes).
-    rng : numpy.random.Generator
-        The session's exploration generator (draws in the step's order).
+    rng : numpy.random.Generator, optional
+        The session's exploration generator (draws in the step's order); a part built
+        without one must not draw.
     snapshots : sequence of Snapshot
         The steps so far.
     """
@@ -69,7 +68,7 @@ class Part:
         self.context, self.p, self.unit = context, context.p, context.unit
         self.sensor_noise, self.scene = context.sensor_noise, context.scene
         self.filter, self.state, self.snapshots = filter, state, snapshots
-        self.rng = np.random.default_rng(0) if rng is None else rng
+        self.rng = rng
 
 
 class Parts(NamedTuple):

@@ -323,7 +323,8 @@ class Session:
             self.state.moves_rng = self.rng.bit_generator.state
         rng = np.random.Generator(type(self.rng.bit_generator)())
         rng.bit_generator.state = self.state.moves_rng
-        kind, procedure = step_procedure(self.parts(), rng, getattr(self.sensor, "step", None))
+        kind, procedure = step_procedure(self.parts().bookkeeper, rng,
+                                         getattr(self.sensor, "step", None))
         path = next(procedure)
         for result in self.state.results:
             path = procedure.send(result)
@@ -505,9 +506,8 @@ class Session:
         Parts
         """
         p, unit = (self._p, self._unit) if model is None else self._lengths_of(model, novel)[:2]
-        simulator = self.simulator
         context = StepContext(p, unit, self._filter_unit, self.sensor_noise, self.scene,
-                              self.strategy, None if simulator is None else simulator.tolerance)
+                              self.strategy, getattr(self.sensor, "tolerance", None))
         inputs = (context, self.filter, self.state, self.rng, self.snapshots)
         return Parts(Estimator(*inputs), Planner(*inputs), Bookkeeper(*inputs))
 

@@ -21,13 +21,13 @@ def one_move(path):
     return [path], [result]
 
 
-def step_procedure(parts, rng, sensor_step=None):
+def step_procedure(part, rng, sensor_step=None):
     """``(kind, generator of guarded moves)`` for the step.
 
     Parameters
     ----------
-    parts : Parts
-        The step's parts (:meth:`~.loop.Session.parts`): their context, filter and
+    part : Bookkeeper
+        The step's bookkeeper (:meth:`~.loop.Session.parts`): its context, filter and
         exploration state say what the step does.
     rng : numpy.random.Generator
         The step's own generator (replayed from the state at the step's start).
@@ -39,8 +39,7 @@ def step_procedure(parts, rng, sensor_step=None):
     kind : {"first", "rrt", "check", "target"}
     procedure : generator
     """
-    context, bookkeeper = parts.bookkeeper.context, parts.bookkeeper
-    filter_, state = bookkeeper.filter, bookkeeper.state
+    context, filter_, state = part.context, part.filter, part.state
     contacts, normals = filter_.contact_positions, filter_.contact_normals
     p, unit, scene, strategy = context.p, context.unit, context.scene, context.strategy
     if len(contacts) == 0 or (state.target is None and state.check is None
@@ -71,7 +70,7 @@ def step_procedure(parts, rng, sensor_step=None):
         return "target", enforce_contact_moves(
             target, normal, contacts, normals, depth, clearance, p.follow_step,
             p.contact_spacing, p.max_follow, back, p.way_back_anchors)
-    if bookkeeper.novel_on_table():
+    if part.novel_on_table():
         # A guarded move goes on to the table: past a part the reconstruction holds but
         # the object lacks (a GPIS's phantom handle), to what lies beyond it.
         depth = max(depth, SWEEP_RADIUS * unit)
