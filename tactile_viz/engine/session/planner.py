@@ -355,7 +355,7 @@ class Planner(Part):
     def _uncovered_beyond(self):
         """How far from every contact the novel target is looked for first (None: the
         paper's, anywhere): ``eps`` with ``target_uncovered``, and at least the sensor's
-        noise times ``target_noise_stds`` (:meth:`_beyond_noise`)."""
+        noise times ``target_noise_stds`` (:func:`beyond_noise`)."""
         beyond = max(self.p.eps if self.p.target_uncovered else 0.0, self._beyond_noise())
         return beyond or None
 
