@@ -40,7 +40,7 @@ from .session import (
     make_truth,
     session_preset,
 )
-from .session.loop import Sensor
+from .session.context import Sensor
 from .shape.library import PriorLibrary
 from .shape.meshes import LONGEST_SIDE, load_mesh, prepare_mesh
 from .shape.objects import ModelParams, ObjectModel, bundled_names, load_bundled

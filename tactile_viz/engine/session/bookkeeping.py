@@ -46,7 +46,6 @@ class Bookkeeper(Part):
         elif kind == "check" and missed:
             free = path_until(paths[0], paths[0][-1], spacing, 0.05 * self.unit)
         self.keep_observations(observations, free, start, aimed=kind == "target")
-        return paths, observations
 
     def novel_on_table(self):
         """Whether the object stands on a table and the last step judged it novel: its

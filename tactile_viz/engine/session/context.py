@@ -5,12 +5,16 @@ exploration state, the session's generator and its snapshots.
 The parts (:class:`~.estimate.Estimator`, :class:`~.planner.Planner`,
 :class:`~.bookkeeping.Bookkeeper`) are plain objects built from these inputs, so each is
 tested without a :class:`~.loop.Session`; a session builds them afresh whenever its
-lengths change (:meth:`~.loop.Session.parts`).
+lengths change (:meth:`~.loop.Session.parts`). And what a session asks of its sensor
+(:class:`Sensor`).
 """
 
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol, Union
 
+import numpy as np
+
+from ..explore.observations import Contact, NonContact
 from ..scene import FREE, Scene
 
 
@@ -77,3 +81,19 @@ class Parts(NamedTuple):
     estimator: Any
     planner: Any
     bookkeeper: Any
+
+
+Observation = Union[Contact, NonContact]
+
+
+class Sensor(Protocol):
+    """What a session asks of a sensor: one guarded move (see :class:`~.snapshot.Move`)."""
+
+    def probe(self, path: np.ndarray) -> Observation:
+        """Move along ``path`` ((k, 3) world frame, scene units) until the first contact;
+        the contact, or a non-contact at the path's end."""
+
+    # Optional, read when present: ``step`` and ``tolerance`` (scene units), how finely
+    # the sensor samples a path and places a contact; ``finish_step(observations)``, the
+    # step's observations as the sensor revises them once its moves are done (the
+    # simulator's wrong readings).

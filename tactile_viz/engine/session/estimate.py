@@ -45,9 +45,9 @@ SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-no
 class Estimator(Part):
     """MAP shape, GPIS fit and surface of a session (see the module).
 
-    Reads its context, the filter and the snapshots; writes the GPIS's part of the
-    exploration state (``gpis_shape``, ``gpis_scale``, ``gpis_fits``, ``gpis_cache``,
-    ``gpis_spacing``, ``gpis_radius``, ``variance_cache``: what the next fit goes on from).
+    Reads its context, the filter, the exploration state and the snapshots; writes
+    nothing. What the next fit goes on from (:class:`~.state.GpisState`) is returned
+    beside the surface, and the step keeps it (``state.gpis``).
     """
 
     def aimed_pose(self, decision, model, pose, map_vertices):
@@ -59,17 +59,29 @@ class Estimator(Part):
         return pose, map_vertices
 
     def reconstruct(self, model, rotation, translation, map_vertices, timings):
-        p = self.p
+        """The step's GPIS surface from the MAP prior ``model`` posed at ``(rotation,
+        translation)`` (vertices ``map_vertices``): l.4, with ``timings`` given its
+        ``"gpis"`` and ``"surface"`` seconds.
+
+        Returns
+        -------
+        Reconstruction
+        GpisState
+            What the next fit goes on from (``state.gpis`` is left as it is).
+        """
+        p, gpis = self.p, self.state.gpis
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        shape = self.state.gpis_shape
-        low, high, kernel = self.gpis_box(map_vertices, contacts, shape)
+        low, high, kernel = self.gpis_box(map_vertices, contacts, gpis.shape)
         clock = time.perf_counter()
-        fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
-        if (self.state.gpis_shape is None) != (shape is None):
+        fit, fitted = self._prior_fit(kernel, model, rotation, translation, contacts,
+                                      normals, gpis)
+        if (fitted.shape is None) != (gpis.shape is None):
             # The prior mean switched between the MAP shape and a superquadric: fit again
             # in the box of the one now in force.
-            low, high, kernel = self.gpis_box(map_vertices, contacts, self.state.gpis_shape)
-            fit = self._prior_fit(kernel, model, rotation, translation, contacts, normals)
+            low, high, kernel = self.gpis_box(map_vertices, contacts, fitted.shape)
+            fit, fitted = self._prior_fit(kernel, model, rotation, translation, contacts,
+                                          normals, fitted)
+        gpis = fitted
         fit = self.cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
@@ -78,16 +90,19 @@ class Estimator(Part):
         if p.gpis_incremental and not p.gpis_noncontacts:
             # Non-contact rows follow the contacts' and change every step: the lattice's
             # reductions could not be extended, so those fits keep the exact variance.
-            spacing = self._kept_spacing(float((high - low).max()) / p.gpis_resolution)
-        recon = self._surface(fit, (low, high), p.gpis_resolution, spacing)
+            spacing, gpis = self._kept_spacing(float((high - low).max()) / p.gpis_resolution,
+                                               gpis)
+        recon, variance = self._surface(fit, (low, high), p.gpis_resolution, spacing,
+                                        gpis.variance)
         timings["surface"] = time.perf_counter() - clock
-        return recon
+        return recon, replace(gpis, variance=variance)
 
-    def _prior_fit(self, kernel, model, rotation, translation, contacts, normals):
+    def _prior_fit(self, kernel, model, rotation, translation, contacts, normals, gpis):
         """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's or,
         with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
-        (``state.gpis_shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN``
-        nats and ``AGNOSTIC_SHARE`` of its own (beyond the paper)."""
+        (``gpis.shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN`` nats
+        and ``AGNOSTIC_SHARE`` of its own (beyond the paper). Returns the fit and the
+        next :class:`~.state.GpisState`."""
         p = self.p
         free = self.filter.noncontact_positions, self.state.free_space
         prior = self.gpis_prior(model, rotation, translation, contacts, *free, normals)
@@ -95,33 +110,33 @@ class Estimator(Part):
                   if p.gpis_agnostic else [])
         candidates = [prior] + [self.gpis_prior(model, rotation, translation, contacts, *free,
                                                  normals, shape=shape) for shape in shapes]
-        kept = self.state.gpis_shape
+        kept = gpis.shape
         index = next((i + 1 for i, shape in enumerate(shapes)
                       if kept is not None and shape.roundness == kept.roundness), 0)
-        fit = self._step_fit(kernel, contacts, normals, candidates[index])
+        fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
         if len(candidates) > 1:
             evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
             best = int(np.argmax(evidence))
             margin = max(AGNOSTIC_MARGIN, AGNOSTIC_SHARE * abs(evidence[index]))
             if evidence[best] > evidence[index] + margin:  # another explains more
                 index = best
-                fit = self._step_fit(kernel, contacts, normals, candidates[index])
-        self.state.gpis_shape = shapes[index - 1] if index else None
-        return fit
+                fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
+        return fit, replace(gpis, shape=shapes[index - 1] if index else None)
 
-    def _step_fit(self, kernel, contacts, normals, prior):
+    def _step_fit(self, kernel, contacts, normals, prior, gpis):
         """A step's GPIS fit from ``prior``: extending the kept factor
-        (``gpis_incremental``) or in full, with the scale's Newton step when due."""
+        (``gpis_incremental``) or in full, with the scale's Newton step when due; and the
+        next :class:`~.state.GpisState`."""
         if self.p.gpis_incremental:
-            fit = self._fit_incremental(self._kept_kernel(kernel), contacts, normals,
-                                        self.noncontact_points(), prior)
+            kernel, gpis = self._kept_kernel(kernel, gpis)
+            fit, gpis = self._fit_incremental(kernel, contacts, normals,
+                                              self.noncontact_points(), prior, gpis)
         else:
-            newton = self._newton_due(len(contacts))
+            newton = self._newton_due(len(contacts), gpis.fits)
             fit = self._fit(kernel, contacts, normals, self.noncontact_points(), prior,
-                            self.state.gpis_scale, newton=newton)
-            self.state.gpis_fits = 0 if newton else self.state.gpis_fits + 1
-        self.state.gpis_scale = fit.scale
-        return fit
+                            gpis.scale, newton=newton)
+            gpis = replace(gpis, fits=0 if newton else gpis.fits + 1)
+        return fit, replace(gpis, scale=fit.scale)
 
     def final_surface(self, recon, map_vertices, contacts, timings, prior):
         """The reconstruction a stopping session reports: the same fit at
@@ -131,24 +146,33 @@ class Estimator(Part):
         supported (:meth:`best_supported`; ``prior`` is the step's ``(class, rotation,
         translation)``); of that, the parts some contact comes within ``eps`` of
         (:func:`supported_parts`): a part no contact comes near is a phantom of the prior
-        mean or the kernel (an 8 cm cup's ended with a blob 5 cm off every contact)."""
+        mean or the kernel (an 8 cm cup's ended with a blob 5 cm off every contact).
+
+        Returns
+        -------
+        Reconstruction or None
+        GpisState
+            ``state.gpis`` with the shape of the prior mean the surface comes from.
+        """
+        gpis = self.state.gpis
         if recon is None or recon.empty:
-            return recon
+            return recon, gpis
         p = self.p
         clock = time.perf_counter()
         final = recon
         if p.final_resolution != p.gpis_resolution:
-            low, high, _ = self.gpis_box(map_vertices, contacts, self.state.gpis_shape)
-            final = self._surface(recon.fit, (low, high), p.final_resolution)
+            low, high, _ = self.gpis_box(map_vertices, contacts, gpis.shape)
+            final = self._surface(recon.fit, (low, high), p.final_resolution)[0]
             final = recon if final.empty else final
         if p.final_candidates:
-            final = self.best_supported(final, contacts, prior)
+            final, shape = self.best_supported(final, contacts, prior)
+            gpis = replace(gpis, shape=shape)
             keep = supported_parts(final.vertices, final.faces, contacts, p.eps)
             if keep.any() and not keep.all():
                 final = final.restricted(keep)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
-        return final
+        return final, gpis
 
     def reported(self, recon, contacts, timings):
         """The step's surface as a snapshot reports it: with ``final_candidates`` (as the
@@ -175,26 +199,25 @@ class Estimator(Part):
         switches from step to step, and a switch at the last step can leave surface far
         from every contact (under noise, where the prior switches most, at the step cap
         too); a candidate's support bounds how far its surface can lie from the object.
-        The state's ``gpis_shape`` follows the surface chosen."""
+        Returns the surface and the superquadric its prior mean was (None: a MAP
+        prior's)."""
         p = self.p
         tree = cKDTree(contacts)
         best_support = support(final.vertices, tree)
         if best_support <= p.eps:
-            return final
+            return final, self.state.gpis.shape
         best = None
         for candidate, box, shape in self._final_candidates(final, contacts, prior):
             vertices, faces = zero_level_surface(candidate, box, p.final_resolution,
                                                  fill_voids=p.gpis_fill_voids)
             candidate_support = support(vertices, tree) if len(faces) else np.inf
             if candidate_support <= p.eps:
-                self.state.gpis_shape = shape
-                return self._surface(candidate, box, p.final_resolution)
+                return self._surface(candidate, box, p.final_resolution)[0], shape
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape)
         if best is None:
-            return final
-        self.state.gpis_shape = best[2]
-        return self._surface(best[0], best[1], p.final_resolution)
+            return final, self.state.gpis.shape
+        return self._surface(best[0], best[1], p.final_resolution)[0], best[2]
 
     def _final_candidates(self, final, contacts, prior):
         """The fits :meth:`best_supported` weighs, newest first, as ``(fit, (low, high),
@@ -208,7 +231,7 @@ class Estimator(Part):
         for index, (class_name, rotation, translation) in enumerate(
                 self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
-            shape = self.state.gpis_shape if index == 0 else None
+            shape = self.state.gpis.shape if index == 0 else None
             low, high, kernel = self.gpis_box(
                 transform_points(model.mesh.vertices, rotation, translation), contacts, shape)
             if index == 0:
@@ -220,13 +243,13 @@ class Estimator(Part):
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                            self.state.gpis_scale, newton=False)
+                            self.state.gpis.scale, newton=False)
             yield fit, (low, high), None
             yield cut(fit), (low, high), None
         if not p.gpis_agnostic or step_prior is None:
             return
         model, rotation, translation = step_prior
-        own = getattr(self.state.gpis_shape, "roundness", None)
+        own = getattr(self.state.gpis.shape, "roundness", None)
         for shape in fit_superquadrics(contacts, f.contact_normals,
                                        self._least_radius(contacts)):
             if shape.roundness == own:
@@ -236,7 +259,7 @@ class Estimator(Part):
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals, shape=shape)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                            self.state.gpis_scale, newton=False)
+                            self.state.gpis.scale, newton=False)
             yield fit, (low, high), shape
             yield cut(fit), (low, high), shape
 
@@ -254,12 +277,13 @@ class Estimator(Part):
                 priors.append(prior)
         return priors
 
-    def _surface(self, fit, bounds, resolution, spacing=None):
+    def _surface(self, fit, bounds, resolution, spacing=None, variance=None):
         """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
         cells of the box ``bounds``, with the variance at up to ``variance_points``
         vertices; with a ``spacing``, on the lattice of that cell (the box's low corner
         moved down onto it) with the variance interpolated from its nodes at every
-        vertex."""
+        vertex, from the nodes' ``variance`` kept (a ``NodeVariance``). Returns the
+        surface and the nodes' variance to keep."""
         low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
         vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
                                              spacing=spacing, fill_voids=self.p.gpis_fill_voids)
@@ -268,13 +292,13 @@ class Estimator(Part):
             count = min(self.p.variance_points, len(vertices))
             subset = self.rng.choice(len(vertices), count, replace=False)
             if spacing is not None:
-                everywhere, self.state.variance_cache = lattice_variance(
-                    fit, vertices, low, spacing, self.state.variance_cache)
+                everywhere, variance = lattice_variance(fit, vertices, low, spacing,
+                                                        variance)
                 candidates = everywhere[subset]
             else:
                 candidates = fit.variance(vertices[subset])
         return Reconstruction(vertices, faces, subset, candidates, fit, resolution, spacing,
-                              everywhere)
+                              everywhere), variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         """A full fit, then refitted while it puts a non-contact inside (beyond the
@@ -286,24 +310,25 @@ class Estimator(Part):
             lambda refuting: fit_gpis(contacts, normals, prior, kernel, scale=fit.scale,
                                       newton=False, refuting=refuting, **options))
 
-    def _newton_due(self, contacts):
-        """Whether a full fit takes the scale's Newton step: every ``gpis_refit_every``
-        fits, and more often while there are few contacts (every ``contacts // 10`` fits:
-        the data grow by at most a tenth between two steps)."""
+    def _newton_due(self, contacts, fits):
+        """Whether a full fit takes the scale's Newton step, ``fits`` fits after the last:
+        every ``gpis_refit_every`` fits, and more often while there are few contacts
+        (every ``contacts // 10`` fits: the data grow by at most a tenth between two
+        steps)."""
         every = min(self.p.gpis_refit_every, max(1, contacts // 10))
-        return self.state.gpis_fits + 1 >= every
+        return fits + 1 >= every
 
-    def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior):
+    def _fit_incremental(self, kernel, contacts, normals, noncontacts, prior, gpis):
         """:meth:`_fit` extending the last fit's factor (kept in the state, so that a
         rolled-back or pickled session goes on identically), the scale's Newton step taken
-        every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks."""
-        p, state = self.p, self.state
-        fit, state.gpis_cache, refitted = fit_gpis_incremental(
-            contacts, normals, prior, kernel, state.gpis_cache, state.gpis_scale,
-            refit=state.gpis_fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
+        every ``gpis_refit_every`` fits or when ``gpis_refit_score`` asks; and the next
+        :class:`~.state.GpisState`."""
+        p = self.p
+        fit, cache, refitted = fit_gpis_incremental(
+            contacts, normals, prior, kernel, gpis.cache, gpis.scale,
+            refit=gpis.fits + 1 >= p.gpis_refit_every, refit_score=p.gpis_refit_score,
             **self._observation_options(noncontacts))
-        state.gpis_fits = 0 if refitted else state.gpis_fits + 1
-        return fit
+        return fit, replace(gpis, cache=cache, fits=0 if refitted else gpis.fits + 1)
 
     def refit(self, kernel, contacts, normals, noncontacts, prior, scale):
         """The fit of a past step again, at its ``scale`` (no Newton step): the way the
@@ -311,7 +336,7 @@ class Estimator(Part):
         then reproduced exactly); the state is left as it is."""
         if not self.p.gpis_incremental:
             return self._fit(kernel, contacts, normals, noncontacts, prior, scale, newton=False)
-        return fit_gpis_incremental(contacts, normals, prior, kernel, self.state.gpis_cache,
+        return fit_gpis_incremental(contacts, normals, prior, kernel, self.state.gpis.cache,
                                     scale, refit=False, refit_score=np.inf,
                                     **self._observation_options(noncontacts))[0]
 
@@ -323,26 +348,26 @@ class Estimator(Part):
                 "noncontacts": noncontacts if p.gpis_noncontacts else None,
                 "noncontact_value": p.gpis_noncontact_value}
 
-    def _kept_spacing(self, spacing):
-        """``spacing``, or the grid cell of the last surfaces while within
-        ``gpis_box_tolerance`` of it (successive grids then share their nodes)."""
-        kept = self.state.gpis_spacing
+    def _kept_spacing(self, spacing, gpis):
+        """``spacing``, or the grid cell of the last surfaces (``gpis.spacing``) while
+        within ``gpis_box_tolerance`` of it (successive grids then share their nodes);
+        and the next :class:`~.state.GpisState`."""
+        kept = gpis.spacing
         if kept is not None and abs(spacing / kept - 1) <= self.p.gpis_box_tolerance:
-            return kept
-        self.state.gpis_spacing = spacing
-        return spacing
+            return kept, gpis
+        return spacing, replace(gpis, spacing=spacing)
 
-    def _kept_kernel(self, kernel):
-        """``kernel``, or the thin-plate kernel of the last fits while its ``R`` is within
-        ``gpis_box_tolerance`` of ``kernel``'s (a changed ``R`` changes every entry of
-        the Gram matrix, which then is refactored in full)."""
-        kept = self.state.gpis_radius
+    def _kept_kernel(self, kernel, gpis):
+        """``kernel``, or the thin-plate kernel of the last fits (``gpis.radius``) while
+        its ``R`` is within ``gpis_box_tolerance`` of ``kernel``'s (a changed ``R``
+        changes every entry of the Gram matrix, which then is refactored in full); and the
+        next :class:`~.state.GpisState`."""
+        kept = gpis.radius
         if not isinstance(kernel, ThinPlateKernel):
-            return kernel
+            return kernel, gpis
         if kept is not None and abs(kernel.radius / kept - 1) <= self.p.gpis_box_tolerance:
-            return ThinPlateKernel(kept)
-        self.state.gpis_radius = kernel.radius
-        return kernel
+            return ThinPlateKernel(kept), gpis
+        return kernel, replace(gpis, radius=kernel.radius)
 
     def gpis_box(self, map_vertices, contacts, shape=None):
         """The reconstruction box (low, high) and the GPIS kernel: about the contacts and

@@ -26,7 +26,6 @@ import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import Protocol, Union
 
 import numpy as np
 
@@ -43,7 +42,7 @@ from ..presets import noise_matched
 from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
 from .bookkeeping import Bookkeeper
-from .context import Parts, StepContext
+from .context import Observation, Parts, Sensor, StepContext  # noqa: F401 (Sensor: public)
 from .estimate import Estimator, decided_class, map_shape
 from .learning import learned_model
 from .legacy import legacy_arguments
@@ -51,24 +50,8 @@ from .lengths import own_unit, session_lengths
 from .planner import Planner
 from .procedures import step_procedure
 from .snapshot import Move, Snapshot, frozen, step_snapshot
-from .state import Checkpoint, ExplorationState
+from .state import Checkpoint, ExplorationState, GpisState
 from .truth import TruthEvaluator, make_truth  # noqa: F401 (make_truth: public here too)
-
-Observation = Union[Contact, NonContact]
-
-
-class Sensor(Protocol):
-    """What a session asks of a sensor: one guarded move (see :class:`Move`)."""
-
-    def probe(self, path: np.ndarray) -> Observation:
-        """Move along ``path`` ((k, 3) world frame, scene units) until the first contact;
-        the contact, or a non-contact at the path's end."""
-
-    # Optional, read when present: ``step`` and ``tolerance`` (scene units), how finely
-    # the sensor samples a path and places a contact; ``finish_step(observations)``, the
-    # step's observations as the sensor revises them once its moves are done (the
-    # simulator's wrong readings).
-
 
 
 @contextmanager
@@ -158,7 +141,7 @@ class Session:
         self._p, self._unit = self._scene_lengths(self._filter_unit), self._filter_unit
         self._lengths = self._filter_unit, None  # (size unit, own size unit): _use_lengths
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
-        self.state = ExplorationState(gpis_scale=self._p.gpis_scale)
+        self.state = ExplorationState(gpis=GpisState(scale=self._p.gpis_scale))
 
     __init__.__signature__ = inspect.signature(_build)
 
@@ -362,7 +345,8 @@ class Session:
         except StopIteration as done:
             self.rng.bit_generator.state = rng.bit_generator.state
             self.state.moves_rng, self.state.results, self._live = None, [], None
-            paths, observations = self.parts().bookkeeper.after_moves(kind, done.value)
+            self.parts().bookkeeper.after_moves(kind, done.value)
+            paths, observations = done.value[:2]  # a target's adds its own "reached"
             finish = getattr(self.sensor, "finish_step", None)
             if finish is not None:  # the simulated sensor's wrong readings, if any
                 observations = finish(observations)
@@ -543,14 +527,17 @@ class Session:
         estimator, planner, _ = self.parts()
         contacts, recon = self.filter.contact_positions, None
         if belief.novel:                                          # l.3: below eq. 24
-            recon = estimator.reconstruct(model, *pose, map_vertices, timings)  # l.4: GPIS
+            recon, self.state.gpis = estimator.reconstruct(       # l.4: GPIS
+                model, *pose, map_vertices, timings)
         with _timed(timings, "decision"):                         # beyond the paper
             decision = planner.decide(belief)
-        if planner.misfits(belief, decision):                     # beyond the paper
+        misfit, self.state.misfit_steps = planner.misfits(belief, decision)
+        if misfit:                                                # beyond the paper
             belief, decision = replace(belief, novel=True), UNDECIDED
             self._use_lengths(model, novel=True)
             estimator, planner, _ = self.parts()
-            recon = estimator.reconstruct(model, *pose, map_vertices, timings)
+            recon, self.state.gpis = estimator.reconstruct(model, *pose, map_vertices,
+                                                           timings)
         self.state.hypotheses, self.state.decided = decision.carried, decision.decided
         self.state.decision_refined = decision.refined
         reported = decided_class(self.filter, belief, decision, model, pose, map_vertices)
@@ -568,8 +555,8 @@ class Session:
         self.state.adopt(plan)
         self.state.estimate_vertices = None if recon is None else recon.vertices
         if plan.terminated:
-            recon = estimator.final_surface(recon, map_vertices, contacts, timings,
-                                            (model.name, *pose))
+            recon, self.state.gpis = estimator.final_surface(
+                recon, map_vertices, contacts, timings, (model.name, *pose))
         else:
             recon = estimator.reported(recon, contacts, timings)
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,

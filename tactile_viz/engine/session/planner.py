@@ -150,9 +150,9 @@ class Planner(Part):
     """Targets, checks, frontier and the stop rule of a session (see the module).
 
     Built from a :class:`~.context.StepContext`, the filter, the exploration state, the
-    session's generator and its snapshots (:class:`~.context.Part`). It writes only
-    ``state.misfit_steps`` (:meth:`misfits`): the step adopts the
-    :class:`~..belief.decision.Decision` and the :class:`Plan` into the exploration state.
+    session's generator and its snapshots (:class:`~.context.Part`). It writes nothing:
+    the step adopts the :class:`~..belief.decision.Decision`, the misfit count and the
+    :class:`Plan` into the exploration state.
     """
 
     def decide(self, belief):
@@ -185,18 +185,24 @@ class Planner(Part):
         it (the last DHD within ``decision_cover``) and the same MAP class, and go on
         failing it. The paper's test passes a look-alike of equal size that misfits by a
         few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
-        decision's test asks for the sensor's noise. Counts in ``state.misfit_steps``."""
-        p, state = self.p, self.state
+        decision's test asks for the sensor's noise.
+
+        Returns
+        -------
+        novel : bool
+        steps : int
+            The steps in a row that misfit, this one included (the next
+            ``state.misfit_steps``).
+        """
+        p, before = self.p, self.state.misfit_steps
         if p.misfit_novelty <= 0 or belief.novel or not decision.hypotheses:
-            state.misfit_steps = 0
-            return False
+            return False, 0
         last = self.snapshots[-1] if self.snapshots else None
         around = (last is not None and last.dhd <= p.decision_cover
                   and last.map_class == belief.map_class)
-        held = state.misfit_steps >= MISFIT_STEPS
         misfit = decision.fit_p < p.misfit_novelty
-        state.misfit_steps = state.misfit_steps + 1 if misfit and (around or held) else 0
-        return state.misfit_steps >= MISFIT_STEPS
+        steps = before + 1 if misfit and (around or before >= MISFIT_STEPS) else 0
+        return steps >= MISFIT_STEPS, steps
 
     def coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP
@@ -218,7 +224,7 @@ class Planner(Part):
                 recon.fit.mean_value, contacts))
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
-        if recon is not None and self.p.cover_prior and self.state.gpis_shape is None:
+        if recon is not None and self.p.cover_prior and self.state.gpis.shape is None:
             # The prior is cut out around missed probes as far as the carve reaches.
             prior_open = self._reachable(map_vertices, max(self.p.contact_spacing,
                                                            self.p.gpis_carve_radius))

@@ -37,28 +37,48 @@ def _points():
     return np.zeros((0, 3))
 
 
+@dataclass(frozen=True)
+class GpisState:
+    """What the next GPIS fit goes on from: the estimator
+    (:class:`~.estimate.Estimator`) takes one and returns the next, never changes one.
+
+    Attributes
+    ----------
+    scale : float
+        The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
+    radius : float or None
+        The thin-plate ``R`` kept from fit to fit (``gpis_box_tolerance``).
+    spacing : float or None
+        The surface grid's cell kept from step to step (``gpis_box_tolerance``).
+    fits : int
+        Fits since the scale's last Newton step (``gpis_refit_every``).
+    shape : Superquadric or None
+        The object-agnostic prior mean the last fit started from (``gpis_agnostic``;
+        None: the MAP shape's).
+    cache : GramCache or None
+        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.shape.gpis_incremental`;
+        immutable, keyed by content: a fit extends it only where the content agrees).
+    variance : NodeVariance or None
+        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.shape.gpis_variance`).
+    """
+
+    scale: float = 1.0
+    radius: Any = None
+    spacing: Any = None
+    fits: int = 0
+    shape: Any = None
+    cache: Any = None
+    variance: Any = None
+
+
 @dataclass
 class ExplorationState:
     """What exploration remembers from step to step.
 
     Attributes
     ----------
-    gpis_scale : float
-        The GPIS kernel scale ``a`` of the last fit (its Newton update starts there).
-    gpis_radius : float or None
-        The thin-plate ``R`` kept from fit to fit (``gpis_box_tolerance``).
-    gpis_spacing : float or None
-        The surface grid's cell kept from step to step (``gpis_box_tolerance``).
-    gpis_fits : int
-        Fits since the scale's last Newton step (``gpis_refit_every``).
-    gpis_shape : Superquadric or None
-        The object-agnostic prior mean the last fit started from (``gpis_agnostic``;
-        None: the MAP shape's).
-    gpis_cache : GramCache or None
-        The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.shape.gpis_incremental`;
-        immutable, keyed by content: a fit extends it only where the content agrees).
-    variance_cache : NodeVariance or None
-        The last surface's lattice-node variances (:mod:`~tactile_viz.engine.shape.gpis_variance`).
+    gpis : GpisState
+        What the next GPIS fit goes on from (the estimator's, replaced by each step).
     target : Aim or None
         Where the next step reaches (None: terminated, a check, or the first touch).
     given_up : list of (3,) float
@@ -117,13 +137,7 @@ class ExplorationState:
         first contact are held, so it can run ahead of the snapshots).
     """
 
-    gpis_scale: float = 1.0
-    gpis_radius: Any = None
-    gpis_spacing: Any = None
-    gpis_fits: int = 0
-    gpis_shape: Any = None
-    gpis_cache: Any = None
-    variance_cache: Any = None
+    gpis: GpisState = field(default_factory=GpisState)
     target: Any = None
     given_up: list = field(default_factory=list)
     free_space: np.ndarray = field(default_factory=_points)
@@ -167,12 +181,10 @@ class ExplorationState:
     def copy(self):
         """A deep copy: changing any list, dict or array of the copy leaves this state as
         it is. The estimates (callables of points, such as ``target.estimate``) are shared:
-        they hold priors and GPIS fits, and a step replaces them, never changes them. So are
-        the GPIS caches (frozen, tens of MB: a fit replaces them too)."""
-        memo = {}
+        they hold priors and GPIS fits, and a step replaces them, never changes them. So is
+        ``gpis`` (frozen, its caches tens of MB: a step replaces it too)."""
+        memo = {id(self.gpis): self.gpis}
         _shared_callables([getattr(self, item.name) for item in fields(self)], memo)
-        for shared in (self.gpis_cache, self.variance_cache):
-            memo[id(shared)] = shared
         return copy.deepcopy(self, memo)
 
 

@@ -903,7 +903,7 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     final = _with_phantom(_recon_of(session, last), far)
     estimator = session.parts().estimator
     step_prior = (last.map_class, last.map_rotation, last.map_translation)
-    recon = estimator.best_supported(final, contacts, step_prior)
+    recon = estimator.best_supported(final, contacts, step_prior)[0]
     # Covered: every vertex within eps of a contact. Where no candidate is covered (eps
     # 0.01), the best supported one: the phantom 40 units off is gone either way.
     support = cKDTree(contacts).query(recon.vertices)[0].max()
@@ -913,7 +913,7 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
     assert reported <= session._p.eps or not covered
     # A surface no candidate is better supported than stands.
-    best = estimator.best_supported(recon, contacts, step_prior)
+    best = estimator.best_supported(recon, contacts, step_prior)[0]
     assert cKDTree(contacts).query(best.vertices)[0].max() <= support
 
 

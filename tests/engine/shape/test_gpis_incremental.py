@@ -188,8 +188,8 @@ def test_fast_session_extends_its_fit_and_goes_on_identically(bundled):
     session.run(max_steps=14)
     assert sum(s.gpis_faces is not None for s in session.snapshots) > 3
     contacts = session.filter.contact_positions
-    np.testing.assert_array_equal(session.state.gpis_cache.rows[::4, :3], contacts)
-    assert session.state.variance_cache is not None
+    np.testing.assert_array_equal(session.state.gpis.cache.rows[::4, :3], contacts)
+    assert session.state.gpis.variance is not None
     restored = pickle.loads(pickle.dumps(session))
     for _ in range(3):
         ours, theirs = session.step(), restored.step()
