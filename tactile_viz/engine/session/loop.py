@@ -532,14 +532,16 @@ class Session:
         with _timed(timings, "decision"):                         # beyond the paper
             decision = planner.decide(belief)
         misfit, self.state.misfit_steps = planner.misfits(belief, decision)
+        # What the decision weighed is carried to the next step's, misfit or not (a
+        # misfit is assessed again at every step: afresh, it refined three poses in full).
+        self.state.hypotheses, self.state.decision_refined = decision.carried, decision.refined
         if misfit:                                                # beyond the paper
             belief, decision = replace(belief, novel=True), UNDECIDED
             self._use_lengths(model, novel=True)
             estimator, planner, _ = self.parts()
             recon, self.state.gpis = estimator.reconstruct(model, *pose, map_vertices,
                                                            timings)
-        self.state.hypotheses, self.state.decided = decision.carried, decision.decided
-        self.state.decision_refined = decision.refined
+        self.state.decided = decision.decided
         reported = decided_class(self.filter, belief, decision, model, pose, map_vertices)
         if reported[1] is not model:                              # beyond the paper
             belief, model, pose, map_vertices = reported

@@ -763,10 +763,14 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
                                                                    fit_p, novel_from):
     """``misfit_novelty``: five assessed steps in a row whose MAP fails the fit test at
     the p-value, with contacts all around it, judge a known object novel; it stays novel
-    while the misfit goes on."""
+    while the misfit goes on, and each decision is given what the last one weighed (a
+    misfit step's too: afresh, every step of a misfit object refined its poses in full)."""
     from tactile_viz.engine.session import planner
 
+    carried = {}
+
     def misfitting(pf, belief, *args, **kwargs):
+        carried[pf.step_count] = kwargs["carried"]
         first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
                            belief.map_translation, 1.0, 1.0)
         return Decision(False, 1.0, (first,), False, fit_p=fit_p)
@@ -787,6 +791,9 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
         assert novel and novel == list(range(novel[0], session.latest.step + 1))
         assert len(known) >= novel_from
         assert all(s.gpis_vertices is not None for s in session.snapshots if s.novel)
+        after = [carried[s.step + 1] for s in session.snapshots
+                 if s.novel and s.step + 1 in carried]
+        assert after and all(len(given) == 1 for given in after)
 
 
 def test_the_chi2_quantile_is_scipy_stats_own():
