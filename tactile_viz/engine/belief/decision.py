@@ -348,11 +348,9 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                           lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
     # The lead must also fit within the noise: a rival that was never sampled cannot be
-    # weighed, but a MAP in a wrong mode leaves residuals beyond the noise.
-    # A shape round but for small detail (a bumpy ball) is posed about its round axis
-    # only by that detail, which the local refinement may not find: the MAP fits within
-    # the noise and that detail.
-    roughness = symmetry_group(pf.models[lead.class_index]).roughness
+    # weighed, but a MAP in a wrong mode leaves residuals beyond the noise. A round
+    # shape's detail (a bumpy ball's bumps) is not granted: its turns are searched all
+    # round (round_turns), and granted, a smooth ball fitted a bumpy one within it.
     shape2 = pf.models[lead.class_index].shape_error ** 2
     quantile = chi2_quantile(confidence, dof) if dof > 0 else 0.0
     # The grid errs most inside thin parts, where noisy readings lie, and more than its
@@ -361,7 +359,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
     fits, fit_p = dof > 0 and lead.misfit <= limit, 1.0
     if dof > 0 and not fits:
-        mesh2 = max(floor**2 + shape2 + roughness**2, 1e-300)
+        mesh2 = max(floor**2 + shape2, 1e-300)
         on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
                               oriented, tolerance)
         fits = on_mesh <= quantile * mesh2
@@ -419,12 +417,10 @@ def model_floor2(pf, class_index, floor):
 def fit_limit(pf, class_index, floor, confidence, dof):
     """The largest sum of squared residuals a right hypothesis of a class passes at
     ``confidence`` (chi-squared with ``dof`` degrees of freedom; 0 without any): its
-    :func:`model_floor2` and its shape's roughness (a bumpy ball posed by its bumps)."""
+    :func:`model_floor2`."""
     if dof <= 0:
         return 0.0
-    roughness = symmetry_group(pf.models[class_index]).roughness
-    return chi2_quantile(confidence, dof) * max(model_floor2(pf, class_index, floor)
-                                           + roughness**2, 1e-300)
+    return chi2_quantile(confidence, dof) * max(model_floor2(pf, class_index, floor), 1e-300)
 
 
 def _open_modes(bank, hypotheses, lead, limit, tolerance, turned=np.inf):

@@ -597,16 +597,13 @@ def test_every_class_the_filter_holds_is_weighed(tmp_path):
 
 
 def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
-    """Exact touches of the cylinder, and neither the grid's error nor the facets'
-    roughness allowed: the grid's interpolation of the curved side fails the chi-squared
-    test, the mesh passes it; a mesh that does not fit either leaves it undecided."""
+    """Exact touches of the cylinder, and the grid's error not allowed: the grid's
+    interpolation of the curved side fails the chi-squared test, the mesh passes it; a
+    mesh that does not fit either leaves it undecided."""
     from tactile_viz.engine.belief import decision as module
 
     pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
     monkeypatch.setattr(module, "grid_error", lambda bank, class_index: 0.0)
-    group = module.symmetry_group
-    monkeypatch.setattr(module, "symmetry_group",
-                        lambda model: dataclasses.replace(group(model), roughness=0.0))
     lead = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1).hypotheses[0]
     limit = module.chi2_quantile(0.99, 40 - module.POSE_PARAMETERS) * 1e-10
     assert lead.misfit > limit  # the grid alone would refuse it
@@ -869,3 +866,29 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
                                       axis=1) <= clearance).sum()) for p in looked_at]
     assert len(asked) == len(by_box) > 1
     assert sum(asked) <= sum(by_box) - (len(asked) - 1) * len(beside) // 2
+
+
+def test_a_smooth_ball_is_no_bumpy_ball_at_its_fit(tmp_path):
+    """A round shape's detail is not granted as noise: exact touches all round a smooth
+    ball lie about the bumps' depth (2% of the radius) off a bumpy ball of the same size,
+    and the decision's fit test refuses the bumpy ball (granted, it passed); the bumpy
+    ball's own touches fit it at its true pose."""
+    from tactile_viz.engine.belief.decision import fit_limit
+    from tactile_viz.engine.belief.mesh_fit import mesh_misfit
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path)
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=3.0)
+    unit = sphere.vertices / 3.0
+    bumps = 1 + 0.02 * np.sin(5 * unit[:, 0]) * np.cos(4 * unit[:, 1])
+    smooth, bumpy = (ObjectModel.from_arrays(v, sphere.faces, name, cache=cache)
+                     for v, name in ((sphere.vertices, "smooth"),
+                                     (sphere.vertices * bumps[:, None], "bumpy")))
+    library = PriorLibrary([bumpy])
+    pf, state = _filter(library, _touches(smooth, 60, seed=5))
+    refused = decide(pf, state, 0.99, floor=0.01, same_mode=0.1, normal_noise_deg=2.0,
+                     normals=True)
+    assert not refused.fits and not refused.decided and refused.fit_p < 1e-6
+    pf, _ = _filter(library, _touches(bumpy, 60, seed=5))
+    at_truth = mesh_misfit(pf, 0, np.eye(3), np.zeros(3), pf.noncontact_positions, None)
+    assert at_truth <= fit_limit(pf, 0, 0.01, 0.99, 60 - 6)
