@@ -104,14 +104,13 @@ class FilterParams:
         unit="degrees")
     neighbour_bins: int = _filter(
         0, "0 looks up a pair's own key bin; 1 also the nearest neighbouring bins (24 bins, "
-        "noise tolerance); 2 all neighbouring bins (81).",
-        kind="int", valid="[0, 2]",
+        "noise tolerance); 2 all neighbouring bins (81).", kind="int", valid="[0, 2]",
         notes="1 finds every model pair within one key step of the observed one in distance "
-              "(which carries two positions' noise) and half a step in each angle; 2 within "
-              "one step in every component, at over three times the look-ups.")
+              "(two positions' noise) and half a step in each angle; 2 within one step in "
+              "every component, at over three times the look-ups.")
     init_rotations: int = _filter(
-        1, "Rotations about the contact normal per feature point when initialising.",
-        kind="int", valid=_AT_LEAST_1)
+        1, "Rotations about the contact normal per feature point when initialising.", kind="int",
+        valid=_AT_LEAST_1)
     max_new_per_class: int = _filter(
         2000, "Cap on particles sampled per class and step (a random subset beyond it).",
         kind="int", valid=_AT_LEAST_1)
@@ -144,18 +143,19 @@ class FilterParams:
         "translations share a cell of this size and whose rotation vectors share a cell of "
         "merge_angle_deg become one, with their summed weight.")
     merge_angle_deg: float = _filter(
-        1.0, "Particle merging: the rotation-vector cell size.", valid=_POSITIVE,
-        unit="degrees")
+        1.0, "Particle merging: the rotation-vector cell size.", valid=_POSITIVE, unit="degrees")
     refine_map: bool = _filter(
-        False, "Add a Gauss-Newton refinement of the MAP pose as a particle (beyond the "
-        "paper).", kind="bool")
+        False, "Add a Gauss-Newton refinement of the MAP pose as a particle (beyond the paper).",
+        kind="bool")
     refine_learned: int = _filter(
         3, "The same refinement of this many of the heaviest particles of each learned prior "
         "(beyond the paper; 0 off).", kind="int", valid=_AT_LEAST_0,
-        notes="A learned shape's feature normals come from a reconstruction, so its "
-              "point-pair poses are coarser than a given mesh's (on the learned home chair "
-              "the MAP's normals missed the contacts' by a median 33-39 degrees, against 8.5 "
-              "on the bundled chair), and the novelty test failed at them.")
+        notes="A learned shape's feature normals come from a reconstruction: its point-pair "
+              "poses are coarser than a mesh's (on the learned home chair the MAP's normals "
+              "missed the contacts' by 33-39 degrees) and the novelty test failed at them.")
+    learned_noise: bool = _filter(
+        True, "The novelty test grants a learned MAP its own error (shape_error) as position "
+        "noise (beyond the paper).", kind="bool", notes="docs/novel.md: a learned fork.")
     refine_iterations: int = _filter(
         10, "Gauss-Newton steps of each pose refinement.", kind="int", valid=_AT_LEAST_1)
     refine_warm_iterations: int = _filter(

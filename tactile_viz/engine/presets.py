@@ -27,7 +27,8 @@ PRESET_TABLE = {
     # learned prior's refinement, which are beyond it), its GPIS as written (thin-plate
     # kernel with R the largest distance, contacts only), the stop as soon as the estimate
     # is covered.
-    "paper": {"contenders": 0, "refine_learned": 0, "gpis_kernel": "thin-plate",
+    "paper": {"contenders": 0, "refine_learned": 0, "learned_noise": False,
+              "gpis_kernel": "thin-plate",
               "gpis_radius_factor": 1.0, "gpis_noncontacts": False, "gpis_carve_radius": 0.0,
               "gpis_incremental": False, "gpis_refit_every": 1, "gpis_box_tolerance": 0.0,
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,

@@ -85,10 +85,12 @@ def test_a_preset_names_declared_parameters_with_values_in_their_ranges(name):
 
 
 def test_presets_keep_their_values():
-    assert PRESETS["paper"] == FilterParams(contenders=0, sdf_max_resolution=0)
+    assert PRESETS["paper"] == FilterParams(contenders=0, sdf_max_resolution=0,
+                                            learned_noise=False)
     assert SESSION_PRESETS["recommended"] == SessionParams()
     assert SESSION_PRESETS["paper"].filter == FilterParams(contenders=0, refine_learned=0,
-                                                           sdf_max_resolution=0)
+                                                           sdf_max_resolution=0,
+                                                           learned_noise=False)
     assert SESSION_PRESETS["recognise"].filter.sdf_exact_band == 4.0
     assert SESSION_PRESETS["fast"].filter == PRESETS["fast"]
     assert SESSION_PRESETS["accurate"].gpis_resolution == 48

@@ -313,7 +313,8 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
     keep = _distinct(pf.bank, classes, rotations, translations,
-                     misfit / (2 * scale2) + turned, same_mode)
+                     misfit / (2 * scale2) + turned,
+                     [mode_tolerance(model, same_mode) for model in pf.models])
     for turn in (turn_round_hypotheses, turn_near_spheres):
         rotations, translations, misfit, turned = turn(
             pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
@@ -531,9 +532,21 @@ def _apart(bank, particles, a, b, tolerance):
                                 particles.translations[[a, b]]) > tolerance
 
 
+def mode_tolerance(model, same_mode):
+    """How far two poses of a class's surface may lie apart and be one hypothesis (scene
+    units, as :func:`surface_disagreement`): ``same_mode``, or for a learned shape as far
+    as its own error (``shape_error``, an RMS) puts two copies of it apart at the
+    ``AGREE_PERCENTILE`` percentile. Touches cannot tell apart poses of a shape that
+    differ by less than the shape is known to (a learned cross screwdriver's turns about
+    its shaft, 4 mm apart on its blob of a tip, split the decision for 150 touches)."""
+    spread = np.sqrt(2) * model.shape_error * ndtri(0.5 + AGREE_PERCENTILE / 200)
+    return float(max(same_mode, spread))
+
+
 def _distinct(bank, classes, rotations, translations, cost, tolerance):
     """Indices of the refined hypotheses that are distinct, each kept once (the least
-    ``cost`` of a mode; the MAP candidate, index 0, always)."""
+    ``cost`` of a mode; the MAP candidate, index 0, always). ``tolerance``: (classes,)
+    float, scene units, by class index (:func:`mode_tolerance`)."""
     kept = [0]
     for index in np.argsort(cost, kind="stable"):
         if index == 0 or not np.isfinite(cost[index]):
@@ -541,7 +554,7 @@ def _distinct(bank, classes, rotations, translations, cost, tolerance):
         same = [k for k in kept if classes[k] == classes[index]]
         if not same or np.all(pose_disagreements(
                 bank, classes[index], rotations[index], translations[index],
-                rotations[same], translations[same]) > tolerance):
+                rotations[same], translations[same]) > tolerance[classes[index]]):
             kept.append(int(index))
     return np.array(kept, dtype=np.int64)
 

@@ -476,7 +476,7 @@ class ParticleFilter:
         walls need it closer to tell a noisy touch from a wrong shape; on a table, touched
         from one side, it is off by more than the touches allow (a 30 cm dragon's sat 7%
         off, every touch fitting its refined pose, and it was judged novel)."""
-        if (self.params.position_noise > 0 or self.scene.has_table) and len(
+        if (self.allowed_noise(int(best.classes[0])) > 0 or self.scene.has_table) and len(
                 self.contact_positions) >= 3:
             return self._refined_map(best)
         return best.rotations[0], best.translations[0]
@@ -506,7 +506,8 @@ class ParticleFilter:
         rotation, translation = self._tested_pose(best) if pose is None else pose
         normals = self.contact_normals @ rotation  # object frame
         local = (self.contact_positions - translation) @ rotation
-        offsets = params.position_noise * NOISE_OFFSETS[1:] if params.position_noise else ()
+        noise = self.allowed_noise(int(best.classes[0]))
+        offsets = noise * NOISE_OFFSETS[1:] if noise else ()
         exact = self.exact_distance(int(best.classes[0]))
         # One look-up for the readings and their offsets; the likelihood needs no sign.
         distance, faces = exact.nearest_face(
@@ -531,6 +532,15 @@ class ParticleFilter:
         total, kept = _trimmed(terms, params.outlier_probability)
         return total, kept * (np.log(params.known_fraction)
                               - log_normaliser(params.sigma_d, params.sigma_n))
+
+    def allowed_noise(self, class_index):
+        """The position noise the novelty test grants a class's contacts, scene units: the
+        sensor's and a learned shape's own error (``shape_error``), in quadrature. A
+        learned fork is a blob where its tines were: met again, a touch on a tine's side
+        met the blob's other side (normals 130-170 degrees apart) and the fork was judged
+        novel at touch 26. Only the sensor's without ``learned_noise``."""
+        own = self.models[class_index].shape_error if self.params.learned_noise else 0.0
+        return float(np.hypot(self.params.position_noise, own))
 
     def exact_distance(self, class_index):
         """The exact distance of a class's mesh (:class:`~..shape.sdf.ExactDistance`),
@@ -558,7 +568,7 @@ class ParticleFilter:
             pose = self._tested_pose(best)  # refined once for both parts
             on_noncontacts = self._noncontact_test(best, pose)
             tested, tested_threshold = on_contacts, contact_threshold
-            if (params.outlier_probability > 0 or params.position_noise > 0
+            if (params.outlier_probability > 0 or self.allowed_noise(int(best.classes[0])) > 0
                     or self.scene.has_table) and n_pos:
                 tested, tested_threshold = self._contact_test(best, pose)
             # Each kind must pass on its own: non-contacts far outside the MAP shape (likelihood

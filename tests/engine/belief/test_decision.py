@@ -114,11 +114,32 @@ def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
     rotations = np.stack([np.eye(3), np.eye(3), nudged, nudged])
     classes = np.array([1, 0, 0, 2])
     kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
-                     np.array([3.0, 2.0, 1.0, 5.0]), tolerance=0.3)
+                     np.array([3.0, 2.0, 1.0, 5.0]), tolerance=[0.3] * 3)
     np.testing.assert_array_equal(kept, [0, 2, 3])  # the MAP candidate always leads
     kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
-                     np.array([3.0, 1.0, 2.0, np.inf]), tolerance=0.3)
+                     np.array([3.0, 1.0, 2.0, np.inf]), tolerance=[0.3] * 3)
     np.testing.assert_array_equal(kept, [0, 1])
+
+
+def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
+    """A shape learned to within 0.05 RMS cannot tell two poses apart whose surfaces lie
+    0.1 apart (the box turned 2 degrees): one mode, while the box scanned keeps both."""
+    from tactile_viz.engine.belief.decision import _distinct, mode_tolerance
+
+    box = shapes["box"]
+    learned = ObjectModel.from_arrays(box.mesh.vertices, box.mesh.faces, "learned",
+                                      learned=True, shape_error=0.05)
+    library = PriorLibrary([box, learned])
+    pf = ParticleFilter(library, FilterParams(), rng=0)
+    nudged = Rotation.from_euler("z", 2, degrees=True).as_matrix()
+    apart = surface_disagreement(pf.bank, 0, np.stack([np.eye(3), nudged]), np.zeros((2, 3)))
+    tolerance = [mode_tolerance(model, 0.02) for model in library]
+    assert tolerance[0] == 0.02 and tolerance[1] > apart > 0.02
+    rotations = np.stack([np.eye(3), nudged])
+    for index, expected in ((0, [0, 1]), (1, [0])):
+        kept = _distinct(pf.bank, np.array([index, index]), rotations, np.zeros((2, 3)),
+                         np.array([1.0, 0.5]), tolerance)
+        np.testing.assert_array_equal(kept, expected)
 
 
 def test_the_decision_is_about_the_classs_most_probable_pose(shapes):

@@ -131,7 +131,8 @@ def test_contact_normal_is_renormalised():
 
 
 def test_presets_and_parameter_validation():
-    assert PRESETS["paper"] == FilterParams(contenders=0, sdf_max_resolution=0)
+    assert PRESETS["paper"] == FilterParams(contenders=0, sdf_max_resolution=0,
+                                            learned_noise=False)
     assert preset("fast").n_features < FilterParams().n_features
     assert preset("accurate").refine_map
     with pytest.raises(ValueError, match="unknown preset"):

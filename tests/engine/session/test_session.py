@@ -474,7 +474,7 @@ def test_paper_preset_is_the_papers_gpis():
     assert params.gpis_kernel == "thin-plate" and params.gpis_radius_factor == 1.0
     assert not params.gpis_noncontacts and not params.filter.refine_learned
     assert params.filter == replace(session_preset("recommended").filter, refine_learned=0,
-                                    contenders=0, sdf_max_resolution=0)
+                                    contenders=0, sdf_max_resolution=0, learned_noise=False)
     with pytest.warns(FutureWarning, match="now called 'paper'"):
         assert session_preset("faithful") == params  # its old name
     assert params.gpis_carve_radius == 0 and not params.cover_prior
