@@ -141,7 +141,7 @@ def learn_summary(result):
             "surface_share": None if surface is None or not last["novel"] else surface / size,
             "touches": len(steps),
             "stopped": result["terminated_at"] is not None and len(steps) < cap,
-            "seconds": result["seconds"],
+            "seconds": result["seconds"], "slowest_touch": _slowest(steps),
             "learned": "vertices" in (result.get("learned") or {})}
 
 
@@ -155,12 +155,23 @@ def again_summary(result):
             "decided_at": None if decided is None else decided["t"],
             "decided_learned": bool(decided is not None and decided["map_class"] == learned),
             "pose_share": None if at["pose_error"] is None else at["pose_error"] / size,
-            "again_touches": len(steps), "again_seconds": result["seconds"]}
+            "again_touches": len(steps), "again_seconds": result["seconds"],
+            "again_slowest_touch": _slowest(steps)}
+
+
+def _slowest(steps):
+    """The longest step of a trial, seconds (None without step timings)."""
+    return max((s["step_seconds"] for s in steps if s.get("step_seconds") is not None),
+               default=None)
 
 
 def _mean(values):
     values = [v for v in values if v is not None]
     return float(np.mean(values)) if values else None
+
+
+def _largest(values):
+    return max((v for v in values if v is not None), default=None)
 
 
 def _fmt(value, spec=".1f", scale=1.0):
@@ -186,7 +197,8 @@ def markdown(rows):
     lines = ["| library | noise (m, deg) | judged novel | recon. error, mean (max) % of "
              "size | to surface, mean (max) % | stopped by itself | learned, MAP met again | "
              "decided met again | median touches to it | pose error at it, mean % of size | "
-             "pose within recon. + 10% | median s (learn, again) |", "|" + "---|" * 12]
+             "pose within recon. + 10% | median s (learn, again) | slowest touch s (learn, "
+             "again) |", "|" + "---|" * 13]
     for which in sorted({r["library"] for r in rows}):
         for noise in sorted({tuple(r["noise"]) for r in rows}):
             mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
@@ -204,9 +216,12 @@ def markdown(rows):
                 f"{_fmt(_mean([r['pose_share'] for r in again]), scale=100)} | "
                 f"{sum(_pose_within(r) for r in again)}/{len(again)} | "
                 f"{_fmt(_median([r['seconds'] for r in mine]), '.0f')}, "
-                f"{_fmt(_median([r['again_seconds'] for r in again]), '.0f')} |")
+                f"{_fmt(_median([r['again_seconds'] for r in again]), '.0f')} | "
+                f"{_fmt(_largest([r.get('slowest_touch') for r in mine]), '.2f')}, "
+                f"{_fmt(_largest([r.get('again_slowest_touch') for r in again]), '.2f')} |")
     lines += ["", "| object | size (cm) | library | noise | novel | recon. % | to surface % | "
-              "touches | stopped | MAP again | decided at | pose % |", "|" + "---|" * 12]
+              "touches | stopped | MAP again | decided at | pose % | s | slowest touch s |",
+              "|" + "---|" * 14]
     for r in rows:
         lines.append(
             f"| {r['object']} | {100 * r['size']:.0f} | {r['library']} | "
@@ -215,7 +230,8 @@ def markdown(rows):
             f"{r['touches']} | "
             f"{'yes' if r['stopped'] else 'cap'} | "
             f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
-            f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} |")
+            f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} | "
+            f"{_fmt(r.get('seconds'), '.0f')} | {_fmt(r.get('slowest_touch'), '.2f')} |")
     return "\n".join(lines) + "\n"
 
 

@@ -44,7 +44,7 @@ def test_a_bundled_prior_of_a_task_has_its_size():
 def _result(name, steps, novel=True, learned=True, terminated=True, kind="learn"):
     records = [{"t": t, "novel": novel, "map_class": f"{name}_learned" if kind == "again"
                 else "knife", "recon_error": 0.005, "recon_surface_error": 0.003,
-                "pose_error": 0.004,
+                "pose_error": 0.004, "step_seconds": 0.01 * t,
                 "decided": kind == "again" and t >= 9} for t in range(1, steps + 1)]
     result = {"object": name, "object_size": 0.1, "seed": 3, "seconds": 4.0, "steps": records,
               "terminated_at": steps if terminated else None,
@@ -79,9 +79,11 @@ def test_summaries_and_tables():
     row.update(learn.again_summary(_result("cup", 20, kind="again")))
     assert row["decided_learned"] and row["decided_at"] == 9
     assert np.isclose(row["pose_share"], 0.04)
+    assert np.isclose(row["slowest_touch"], 0.3) and np.isclose(row["again_slowest_touch"], 0.2)
     text = learn.markdown([row, capped])
-    assert "| few | 0, 0 | 1/2 | 5.0 (5.0) | 3.0 (3.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 |" in text
-    assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - |" in text
+    assert ("| few | 0, 0 | 1/2 | 5.0 (5.0) | 3.0 (3.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 | "
+            "4, 4 | 0.30, 0.20 |") in text
+    assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - | 4 | 0.30 |" in text
 
 
 @pytest.mark.parametrize("argv", [["--objects", "teapot"], ["--libraries", "all"],
