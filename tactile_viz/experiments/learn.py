@@ -161,8 +161,7 @@ def again_summary(result):
 
 def _slowest(steps):
     """The longest step of a trial, seconds (None without step timings)."""
-    return max((s["step_seconds"] for s in steps if s.get("step_seconds") is not None),
-               default=None)
+    return _largest(s.get("step_seconds") for s in steps)
 
 
 def _mean(values):
