@@ -19,7 +19,8 @@ KERNELS = (sdf._interpolate, kernels.contact_log_likelihoods, kernels.distances,
            gpis_compiled._kernel_blocks)
 """The compiled kernels Python calls."""
 
-HELPERS = (sdf.grid_lookup, gpis_compiled._profile, gpis_compiled._kernel_terms)
+HELPERS = (sdf.grid_lookup, gpis_compiled._profile, gpis_compiled._term,
+           gpis_compiled._kernel_terms)
 """Compiled functions only kernels call: compiled into their callers."""
 
 SESSIONS = (("mug_1", "recommended"), ("mug_1", "recognise"), ("vase_2", "recommended"))
