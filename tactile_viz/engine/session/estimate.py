@@ -208,16 +208,16 @@ class Estimator(Part):
             return final, self.state.gpis.shape
         best = None
         for candidate, box, shape in self._final_candidates(final, contacts, prior):
-            vertices, faces = zero_level_surface(candidate, box, p.final_resolution,
-                                                 fill_voids=p.gpis_fill_voids)
-            candidate_support = support(vertices, tree) if len(faces) else np.inf
+            level = zero_level_surface(candidate, box, p.final_resolution,
+                                       fill_voids=p.gpis_fill_voids)
+            candidate_support = support(level[0], tree) if len(level[1]) else np.inf
             if candidate_support <= p.eps:
-                return self._surface(candidate, box, p.final_resolution)[0], shape
+                return self._surface(candidate, box, p.final_resolution, level=level)[0], shape
             if candidate_support < best_support:
-                best_support, best = candidate_support, (candidate, box, shape)
+                best_support, best = candidate_support, (candidate, box, shape, level)
         if best is None:
             return final, self.state.gpis.shape
-        return self._surface(best[0], best[1], p.final_resolution)[0], best[2]
+        return self._surface(best[0], best[1], p.final_resolution, level=best[3])[0], best[2]
 
     def _final_candidates(self, final, contacts, prior):
         """The fits :meth:`best_supported` weighs, newest first, as ``(fit, (low, high),
@@ -277,16 +277,18 @@ class Estimator(Part):
                 priors.append(prior)
         return priors
 
-    def _surface(self, fit, bounds, resolution, spacing=None, variance=None):
+    def _surface(self, fit, bounds, resolution, spacing=None, variance=None, level=None):
         """The :class:`Reconstruction` of ``fit``: its zero level set on ``resolution``
-        cells of the box ``bounds``, with the variance at up to ``variance_points``
-        vertices; with a ``spacing``, on the lattice of that cell (the box's low corner
-        moved down onto it) with the variance interpolated from its nodes at every
-        vertex, from the nodes' ``variance`` kept (a ``NodeVariance``). Returns the
-        surface and the nodes' variance to keep."""
+        cells of the box ``bounds`` (``level``: that set's ``(vertices, faces)``, already
+        extracted), with the variance at up to ``variance_points`` vertices; with a
+        ``spacing``, on the lattice of that cell (the box's low corner moved down onto
+        it) with the variance interpolated from its nodes at every vertex, from the
+        nodes' ``variance`` kept (a ``NodeVariance``). Returns the surface and the nodes'
+        variance to keep."""
         low = bounds[0] if spacing is None else lattice_low(bounds[0], spacing)
-        vertices, faces = zero_level_surface(fit, (low, bounds[1]), resolution,
-                                             spacing=spacing, fill_voids=self.p.gpis_fill_voids)
+        vertices, faces = level or zero_level_surface(
+            fit, (low, bounds[1]), resolution, spacing=spacing,
+            fill_voids=self.p.gpis_fill_voids)
         subset, candidates, everywhere = None, np.zeros(0), None
         if len(vertices):
             count = min(self.p.variance_points, len(vertices))
