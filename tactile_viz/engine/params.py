@@ -333,10 +333,8 @@ class SessionParams:
     gpis_incremental: bool = _gpis(
         False, "Extend the GPIS factor by a block per new contact and sum its mean by a "
         "compiled loop (beyond the paper; False: refit in full each step).", kind="bool",
-        notes="On in the fast preset. Off by default: the kept factor, radius and grid "
-              "change the trajectories (a dragon stopped before its thin parts were "
-              "touched), and beside the full fit's Newton step every few fits and 400 "
-              "variance points it is no faster (docs/gpis.md).")
+        notes="On in the fast preset; off by default: it changes the trajectories and is "
+              "no faster beside 400 variance points (docs/gpis.md).")
     gpis_refit_every: int = _gpis(
         10, "The kernel scale's Newton step every this many fits (1: all, the paper's).",
         kind="int", valid="[1, 100]",
@@ -353,13 +351,16 @@ class SessionParams:
     cover_prior: bool = _session(
         True, "A novel object's exploration also has to cover the MAP prior's surface "
         "(beyond the paper).", kind="bool",
-        notes="Within eps of a contact, or refuted by a missed probe, so that a "
-              "reconstruction that shrank away from the untouched prior cannot pass the "
-              "stop.")
+        notes="Within eps of a contact, or refuted by a missed probe: a reconstruction "
+              "that shrank away from the untouched prior cannot pass the stop.")
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
-        "farther than eps from every contact (beyond the paper).", kind="bool",
-        notes="The paper's, the default: among all the surface vertices.")
+        "farther than eps from every contact (beyond the paper).", kind="bool")
+    target_farthest: bool = _session(
+        True, "Where the GPIS variance does not grow away from the contacts, the novel target "
+        "is the candidate farthest from them (beyond the paper).", kind="bool",
+        notes="Once the fitted scale falls to the noise's order, the largest variance lies "
+              "beside the contacts (engine/explore/exploration.py, grows_away).")
     target_noise_stds: float = _session(
         4.0, "Under position noise, the GPIS-DHD target and a check's surprise lie farther "
         "than this many noise standard deviations from every contact (beyond the paper; 0: "
@@ -393,9 +394,8 @@ class SessionParams:
               "before the session stops; a check that does restarts the count (part of the "
               "object was never predicted) and grows a frontier from the contact: targets "
               "eps along four tangents, each contact on ground neither a contact nor the "
-              "estimate predicted growing it again; no stop while one is queued. 48: a "
-              "part beside the touched body that nothing predicted is the commonest error "
-              "left; more checks reach it, at 16% more steps (docs/bench-novel.md).")
+              "estimate predicted growing it again; no stop while one is queued "
+              "(docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,

@@ -20,6 +20,8 @@ prior cover        a novel object's MAP prior must be covered too   ``cover_prio
 uncovered target   the variance target among uncovered vertices     ``target_uncovered=False``
 noisy target       under noise, the variance target and a check's   ``target_noise_stds=0``
                    surprise beyond the noise of every contact
+flat variance      where the variance does not grow away from the   ``target_farthest=False``
+                   contacts, the candidate farthest from them
 noisy cover        under noise, a known object is covered within    ``cover_noise_stds=0``
                    its noise as well as eps
 own size           a novel object much smaller than its MAP prior   ``own_size_share=0``
@@ -77,6 +79,7 @@ MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is 
 EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
               ("uncovered target", ("target_uncovered", False)),
               ("noisy target", ("target_noise_stds", 0.0)),
+              ("flat variance", ("target_farthest", False)),
               ("noisy cover", ("cover_noise_stds", 0.0)),
               ("own size", ("own_size_share", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
@@ -343,7 +346,8 @@ class Planner(Part):
         :mod:`.exploration`, with the estimate whose inside the probe depth is taken from."""
         if recon is not None and not recon.empty:
             index = variance_target(recon.vertices, recon.subset, recon.candidate_variance,
-                                    reachable, contacts, self._uncovered_beyond())
+                                    reachable, contacts, self._uncovered_beyond(),
+                                    self.p.target_farthest)
             target = recon.vertices[index]
             _, gradient = recon.fit.mean(target[None])
             return Aim(target, normalise_rows(gradient)[0], recon.fit.mean_value)

@@ -10,6 +10,7 @@ from tactile_viz.engine.explore.exploration import (
     farthest_vertex,
     first_contact,
     follow_surface,
+    grows_away,
     next_sweep_direction,
     path_until,
     raster_path,
@@ -280,3 +281,27 @@ def test_the_variance_target_looks_beyond_a_distance_first():
     assert variance_target(vertices, subset, variance, reachable, contacts, 2.5) == 3
     # Nothing beyond it: the paper's target among all.
     assert variance_target(vertices, subset, variance, reachable, contacts, 5.0) == 0
+
+
+def test_a_variance_that_does_not_grow_away_from_the_contacts_gives_the_farthest_target():
+    # The same line: beside the contact the variance is largest (as once the fitted scale
+    # falls to the noise's order); with the flag the farthest candidate is the target.
+    vertices = np.array([[0.1, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [3.0, 0, 0]])
+    subset, contacts = np.arange(4), np.zeros((1, 3))
+    falling, reachable = np.array([1.0, 0.9, 0.8, 0.7]), np.ones(4, bool)
+    assert not grows_away(falling, np.arange(4.0))
+    assert variance_target(vertices, subset, falling, reachable, contacts) == 0
+    assert variance_target(vertices, subset, falling, reachable, contacts,
+                           farthest_when_flat=True) == 3
+    # Out of reach, or nearer than uncovered_beyond, still comes after the rest.
+    reachable[3] = False
+    assert variance_target(vertices, subset, falling, reachable, contacts,
+                           farthest_when_flat=True) == 2
+    # A variance that grows away from the contacts keeps the paper's target, the largest.
+    rising = np.array([0.1, 0.5, 0.9, 0.7])
+    assert grows_away(rising, np.arange(4.0))
+    assert variance_target(vertices, subset, rising, np.ones(4, bool), contacts,
+                           farthest_when_flat=True) == 2
+    # A flat variance (a compact kernel's prior everywhere), or too few candidates to tell.
+    assert not grows_away(np.ones(4), np.arange(4.0))
+    assert grows_away(np.ones(2), np.arange(2.0))

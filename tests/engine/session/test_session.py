@@ -479,6 +479,7 @@ def test_paper_preset_is_the_papers_gpis():
         assert session_preset("faithful") == params  # its old name
     assert params.gpis_carve_radius == 0 and not params.cover_prior
     assert not params.target_uncovered and params.check_lines == 0
+    assert not params.target_farthest  # the largest variance, wherever it lies
     assert params.approach_clearance == 0.5
     assert params.final_candidates == 0  # the last step's MAP prior, whatever it leaves
 
