@@ -39,7 +39,6 @@ from .gpis_prior import (  # noqa: F401
     noncontact_observations,
     observations,
 )
-from .threads import map_chunks
 
 _CHUNK = 4096  # query points per kernel block
 _LOG_2PI = np.log(2 * np.pi)
@@ -284,12 +283,9 @@ class GPISFit:
         """Posterior mean value only (cheaper): (k,)."""
         query = np.atleast_2d(query)
         values = np.array(self.prior(query)[0], dtype=float)
-        if len(self.points):
-            # Chunk by chunk, as many at once as evaluation_threads() allows.
-            parts = map_chunks(lambda start: self._correction(query[start:start + _CHUNK]),
-                               len(query), _CHUNK)
-            for start, part in zip(range(0, len(query), _CHUNK), parts):
-                values[start:start + _CHUNK] += self.scale * part
+        for start in range(0, len(query) if len(self.points) else 0, _CHUNK):
+            part = query[start:start + _CHUNK]
+            values[start:start + _CHUNK] += self.scale * self._correction(part)
         if self.cut is not None:
             self.cut(query, values)
         return values

@@ -30,7 +30,7 @@ def _profile(x, y, reach, wendland, dx, dy, dz, value, g):
             value[j], g[j] = (2.0 * r - 3.0 * reach) * r * r + big3, 6.0 * (reach - r)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _corrections(x, y, weights, reach, wendland):
     count, columns = y.shape[1], weights.shape[0]
     out = np.empty((len(x), columns))

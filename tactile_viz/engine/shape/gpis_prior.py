@@ -5,8 +5,6 @@ space, the solid behind the contacts added, and the value observations of non-co
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .threads import tree_workers
-
 SHRINK_STEPS = 32  # shrinking-ball iterations (each a look-up of every ball still shrinking)
 
 
@@ -187,8 +185,7 @@ class FreeSpaceCut:
         candidates = np.flatnonzero(values < self.radii.max())  # a cut never exceeds its radius
         if self.kept is not None and len(candidates):
             tree, within = self.kept
-            near = tree.query(points[candidates], distance_upper_bound=within,
-                              workers=tree_workers(len(candidates)))[0] <= within
+            near = tree.query(points[candidates], distance_upper_bound=within)[0] <= within
             candidates = candidates[~near]
         if len(candidates) == 0:
             return values, gradients
@@ -221,8 +218,7 @@ class FreeSpaceCut:
             chosen = step == level
             if chosen.any():
                 found = self.tree.query(points[chosen], k=self.neighbours,
-                                        distance_upper_bound=bound,
-                                        workers=tree_workers(int(chosen.sum())))
+                                        distance_upper_bound=bound)
                 distance[chosen] = found[0].reshape(chosen.sum(), -1)
                 index[chosen] = found[1].reshape(chosen.sum(), -1)
         return distance, index

@@ -20,7 +20,6 @@ from tactile_viz.engine.shape.gpis import (
     zero_level_surface,
 )
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
-from tactile_viz.engine.shape.threads import evaluation_threads
 
 
 def _kernel(x, y, radius):
@@ -344,19 +343,3 @@ def test_banded_surface_matches_the_full_grid(mug_data):
     spacing = 7.2 / 31
     assert directed_hausdorff(band_vertices, full_vertices) < 0.05 * spacing
     assert directed_hausdorff(full_vertices, band_vertices) < 0.05 * spacing
-
-
-def test_a_large_query_gives_the_same_numbers_on_one_thread_or_several(mug_data, monkeypatch):
-    # Its chunks run on several threads at once; each chunk's numbers are the same.
-    points, normals, prior, _ = mug_data
-    plain = fit_gpis(points, normals, prior, WendlandKernel(2.5))
-    cut = cut_free_space(plain, np.random.default_rng(2).uniform(-3, 3, size=(40, 3)),
-                         points, 0.6)
-    query = np.random.default_rng(3).uniform(-3, 3, size=(3 * 4096 + 17, 3))
-    values = {}
-    for threads in ("1", "3"):
-        monkeypatch.setenv("OMP_NUM_THREADS", threads)
-        assert evaluation_threads() == int(threads)
-        values[threads] = cut.mean_value(query)
-    np.testing.assert_array_equal(values["1"], values["3"])
-    assert values["1"].shape == (len(query),)
