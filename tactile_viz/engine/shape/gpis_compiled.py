@@ -5,7 +5,7 @@ No kernel here uses ``fastmath``: with it, the order in which LLVM summed the co
 depended on whether numba compiled the kernel in this process or loaded it from its disk
 cache, and a trial's numbers with them (an 8 cm cup's reconstruction 18.4% of its size in
 a fresh checkout, 15.9% once cached). The sum runs in :data:`LANES` fixed partial sums
-instead, as fast and the same however the kernel was compiled.
+instead (within about 15% of the old speed), the same however the kernel was compiled.
 """
 
 import numpy as np
