@@ -293,7 +293,7 @@ def test_a_variance_that_does_not_grow_away_from_the_contacts_gives_the_farthest
     assert variance_target(vertices, subset, falling, reachable, contacts) == 0
     assert variance_target(vertices, subset, falling, reachable, contacts,
                            farthest_when_flat=True) == 3
-    # Out of reach, or nearer than uncovered_beyond, still comes after the rest.
+    # A candidate out of reach still comes after the rest.
     reachable[3] = False
     assert variance_target(vertices, subset, falling, reachable, contacts,
                            farthest_when_flat=True) == 2
