@@ -188,7 +188,9 @@ class Planner(Part):
         it (the last DHD within ``decision_cover``) and the same MAP class, and go on
         failing it. The paper's test passes a look-alike of equal size that misfits by a
         few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
-        decision's test asks for the sensor's noise.
+        decision's test asks for the sensor's noise. A step the paper's test judges novel
+        keeps the count (nothing is assessed there): a misfitting look-alike whose paper
+        test flips now and then stays novel instead of counting its five steps afresh.
 
         Returns
         -------
@@ -198,7 +200,11 @@ class Planner(Part):
             ``state.misfit_steps``).
         """
         p, before = self.p, self.state.misfit_steps
-        if p.misfit_novelty <= 0 or belief.novel or not decision.hypotheses:
+        if p.misfit_novelty <= 0:
+            return False, 0
+        if belief.novel:
+            return False, before
+        if not decision.hypotheses:
             return False, 0
         last = self.snapshots[-1] if self.snapshots else None
         around = (last is not None and last.dhd <= p.decision_cover

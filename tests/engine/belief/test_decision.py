@@ -814,6 +814,40 @@ def test_a_known_map_that_keeps_misfitting_makes_the_object_novel(shapes, monkey
         assert after and all(len(given) == 1 for given in after)
 
 
+def test_a_step_the_papers_test_judges_novel_keeps_the_misfit_count(shapes, monkeypatch):
+    """A misfitting look-alike whose paper test flips to novel now and then (a cup against
+    a larger mug under noise) stays novel from its misfit on: the flipped steps assess
+    nothing and keep the count, instead of starting its five steps afresh."""
+    from tactile_viz.engine.session import planner
+
+    def misfitting(pf, belief, *args, **kwargs):
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        return Decision(False, 1.0, (first,), False, fit_p=1e-9)
+
+    monkeypatch.setattr(planner, "decide", misfitting)
+    params = session_preset("recommended", decision_cover=12.0, misfit_novelty=1e-6,
+                            max_steps_known=18)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
+    update, flipped = session.filter.update, []
+
+    def flipping(observations):
+        belief = update(observations)
+        if session.state.misfit_steps >= planner.MISFIT_STEPS:
+            flipped.append(session.filter.step_count)
+            if len(flipped) in (1, 3):
+                return dataclasses.replace(belief, novel=True)
+        return belief
+
+    monkeypatch.setattr(session.filter, "update", flipping)
+    session.run(max_steps=18)
+    novel = [s.step for s in session.snapshots if s.novel]
+    assert len(flipped) >= 4
+    assert novel and novel == list(range(novel[0], session.latest.step + 1))
+    assert novel[0] < flipped[0]
+
+
 def test_the_chi2_quantile_is_scipy_stats_own():
     """The decision's quantile is scipy.stats's chi2.ppf to the bit (without importing
     scipy.stats), from one degree of freedom to thousands, at every confidence."""
