@@ -874,9 +874,19 @@ def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model
     session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))
     session.run(max_steps=30)
-    depth = _inside_balls(session, _last_reconstruction(session))
-    cell = session.latest.gpis_spacing or 6.0 / params.gpis_resolution
-    assert (depth.max() <= cell) == cut
+    last = _last_reconstruction(session)
+    depth = _inside_balls(session, last)
+    assert (depth.max() <= _cell(session, last)) == cut
+
+
+def _cell(session, snapshot):
+    """The marching-cubes cell of ``snapshot``'s surface: its own, or the reconstruction
+    box's longest side (about the MAP surface and the contacts) over the resolution."""
+    if snapshot.gpis_spacing is not None:
+        return snapshot.gpis_spacing
+    points = np.vstack([snapshot.map_vertices, snapshot.contacts])
+    extent = points.max(axis=0) - points.min(axis=0) + 2 * session.params.gpis_margin
+    return float(extent.max()) / snapshot.gpis_resolution
 
 
 def _with_phantom(recon, far):
