@@ -884,9 +884,8 @@ def _cell(session, snapshot):
     box's longest side (about the MAP surface and the contacts) over the resolution."""
     if snapshot.gpis_spacing is not None:
         return snapshot.gpis_spacing
-    points = np.vstack([snapshot.map_vertices, snapshot.contacts])
-    extent = points.max(axis=0) - points.min(axis=0) + 2 * session.params.gpis_margin
-    return float(extent.max()) / snapshot.gpis_resolution
+    low, high, _ = session.parts()[0].gpis_box(snapshot.map_vertices, snapshot.contacts)
+    return float((high - low).max()) / snapshot.gpis_resolution
 
 
 def _with_phantom(recon, far):
