@@ -894,12 +894,15 @@ def _with_phantom(recon, far):
                    vertex_variance=np.append(recon.variance, recon.variance.max()))
 
 
-@pytest.mark.parametrize("eps, covered", [(2.5, True), (0.01, False)])
-def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps, covered):
+@pytest.mark.parametrize("eps, covered, screen", [(2.5, True, 32), (0.01, False, 32),
+                                                  (0.01, False, 0)])
+def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps, covered,
+                                                               screen):
     library = _box_library(sphere_model)
-    # The candidates are the MAP priors' fits: the box's, not a fitted ellipsoid.
+    # The candidates are the MAP priors' fits: the box's, not a fitted ellipsoid; compared
+    # on coarser surfaces (screen 32) or on the final ones (0).
     params = session_preset("recommended", eps=eps, check_lines=0, max_steps_novel=25,
-                            gpis_agnostic=False)
+                            gpis_agnostic=False, final_screen_resolution=screen)
     session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params)
     session.run()
     last = session.latest
@@ -919,6 +922,7 @@ def test_a_stopping_session_reports_its_best_supported_surface(sphere_model, eps
     support = cKDTree(contacts).query(recon.vertices)[0].max()
     assert (support <= session._p.eps) == covered
     assert recon is not final and support < 20.0
+    assert recon.resolution == params.final_resolution
     # The session reported such a surface itself where its last one was not covered.
     reported = cKDTree(contacts).query(last.gpis_vertices)[0].max()
     assert reported <= session._p.eps or not covered

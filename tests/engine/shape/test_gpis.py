@@ -247,8 +247,10 @@ def test_inverse_from_cholesky_matches_a_solve(rng):
     points = rng.normal(size=(6, 3))
     gram = kernel_blocks(points, points, 10.0) + 1e-4 * np.eye(24)
     factor, _ = stable_cholesky(gram)
-    np.testing.assert_allclose(_inverse_from_cholesky(factor),
-                               cho_solve((factor, True), np.eye(24)), rtol=1e-8, atol=1e-12)
+    inverse = _inverse_from_cholesky(factor)
+    np.testing.assert_allclose(inverse, cho_solve((factor, True), np.eye(24)), rtol=1e-8,
+                               atol=1e-12)
+    np.testing.assert_array_equal(inverse, inverse.T)  # exactly symmetric
 
 
 def test_kernel_at_zero_distance_is_finite():
