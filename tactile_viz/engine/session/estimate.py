@@ -216,17 +216,13 @@ class Estimator(Part):
         screen = p.final_screen_resolution or p.final_resolution
         best, screened = None, []
         for candidate, box, shape in self._final_candidates(final, contacts, prior):
-            level, slack = None, 0.0
             if screen != p.final_resolution:
                 slack = float(np.ptp(np.asarray(box), axis=0).max()) / screen
-                coarse = zero_level_surface(candidate, box, screen, fill_voids=p.gpis_fill_voids)
-                coarse_support = support(coarse[0], tree) if len(coarse[1]) else np.inf
+                coarse_support = self._level(candidate, box, screen, tree)[1]
                 if coarse_support > p.eps + slack:
                     screened.append((coarse_support - slack, candidate, box, shape))
                     continue
-            level = zero_level_surface(candidate, box, p.final_resolution,
-                                       fill_voids=p.gpis_fill_voids)
-            candidate_support = support(level[0], tree) if len(level[1]) else np.inf
+            level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
             if candidate_support <= p.eps:
                 return self._surface(candidate, box, p.final_resolution, level=level)[0], shape
             if candidate_support < best_support:
@@ -235,14 +231,18 @@ class Estimator(Part):
         for least, candidate, box, shape in screened[:FINE_CANDIDATES]:
             if least >= best_support:
                 break
-            level = zero_level_surface(candidate, box, p.final_resolution,
-                                       fill_voids=p.gpis_fill_voids)
-            candidate_support = support(level[0], tree) if len(level[1]) else np.inf
+            level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape, level)
         if best is None:
             return final, self.state.gpis.shape
         return self._surface(best[0], best[1], p.final_resolution, level=best[3])[0], best[2]
+
+    def _level(self, fit, box, resolution, contacts_tree):
+        """``fit``'s zero level set ``(vertices, faces)`` on ``resolution`` cells of ``box``
+        and its :func:`support` (``inf`` without a surface)."""
+        level = zero_level_surface(fit, box, resolution, fill_voids=self.p.gpis_fill_voids)
+        return level, support(level[0], contacts_tree) if len(level[1]) else np.inf
 
     def _final_candidates(self, final, contacts, prior):
         """The fits :meth:`best_supported` weighs, newest first, as ``(fit, (low, high),
