@@ -383,9 +383,10 @@ class SessionParams:
         "size explores at its own size: eps and the probes' lengths follow the contacts' "
         "diameter (beyond the paper; 0, the default: the MAP prior's size).",
         valid="[0, 1]", control=(0.0, 1.0),
-        notes="At 0.5 a 2 cm block beside a 25 cm knife was reconstructed 9% of its size "
-              "off, not 23% (20%, not 48%, at 2 mm), but fewer noisy sessions stopped by "
-              "themselves: off by default (docs/novel.md, engine/session/lengths.py).")
+        notes="At 0.5 a 2 cm block beside a 25 cm knife is reconstructed closer (15% of its "
+              "size off, not 19%; 22%, not 43%, at 2 mm), but a 20 cm fork's lengths switch "
+              "while its first contacts span less than half its prior (3.7% -> 9.9% "
+              "noiseless): off by default (docs/journal/novel.md, engine/session/lengths.py).")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
