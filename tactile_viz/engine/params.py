@@ -374,19 +374,17 @@ class SessionParams:
         2.0, "Under position noise, a known object's surface counts as covered within "
         "hypot(eps, this many noise standard deviations) of a contact (beyond the paper; 0: "
         "within eps).", valid="[0, 20]",
-        notes="A small object's eps (10% of its size) can be the noise itself (a 2 cm block "
-              "at 2 mm): contacts never come nearer its far corners than the noise allows, "
-              "and the session ran to its cap. A novel object keeps eps (its estimate is "
-              "what the touches make it). Noiseless it changes nothing.")
+        notes="A small object's eps (10% of its size) can be the noise itself: contacts "
+              "never come nearer its far corners than the noise allows. A novel object "
+              "keeps eps (its estimate is what the touches make it).")
     own_size_share: float = _session(
         0.0, "A novel object whose contacts span less than this share of its MAP prior's "
         "size explores at its own size: eps and the probes' lengths follow the contacts' "
         "diameter (beyond the paper; 0, the default: the MAP prior's size).",
         valid="[0, 1]", control=(0.0, 1.0),
-        notes="At 0.5 a 2 cm block beside a 25 cm knife is reconstructed closer (15% of its "
-              "size off, not 19%; 22%, not 43%, at 2 mm), but a 20 cm fork's lengths switch "
-              "while its first contacts span less than half its prior (3.7% -> 9.9% "
-              "noiseless): off by default (docs/journal/novel.md, engine/session/lengths.py).")
+        notes="Better for a 2 cm block beside 20-25 cm priors, but a 20 cm fork's lengths "
+              "switch while its first contacts span less than half its prior: off by "
+              "default (docs/novel.md, engine/session/lengths.py).")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
@@ -432,19 +430,13 @@ class SessionParams:
         "else the best supported of them, without parts no contact comes within eps of "
         "(beyond the paper; 0: the step's own prior, whole).", kind="int", valid="[0, 100]",
         notes="A novel object's MAP prior switches from step to step, and a switch at the "
-              "last step can leave surface 2 units from every contact (mug_2 at seed 12201: "
-              "0.39 at step 394, 2.29 at the cap). Covered: every vertex within eps of a "
-              "contact, the stop's own test. Where no candidate is covered, the one whose "
-              "farthest vertex lies nearest a contact, if nearer than the last surface's; "
-              "a part no contact comes near is a phantom (an 8 cm cup at the cap: a blob 5 "
-              "cm off every contact); the exploration never changes (docs/gpis.md).")
+              "last step can leave surface far from every contact. Covered: every vertex "
+              "within eps of a contact, the stop's own test; the exploration never changes "
+              "(docs/gpis.md).")
     final_screen_resolution: int = _gpis(
-        32, "Marching-cubes cells along the longest side of the surfaces on which the final "
-        "candidates (final_candidates) are screened; only those that could be covered or "
-        "win are extracted at final_resolution (0: every candidate at final_resolution).",
-        kind="int", valid="[0, inf)",
-        notes="Fifteen candidates at 64 cells took 2.4 s of a capped 8 cm cup's last step, "
-              "1.4 s screened, the same surface chosen.")
+        32, "Marching-cubes cells along the longest side of the surfaces the final candidates "
+        "are screened on; only those that could be covered or win are extracted at "
+        "final_resolution (0: all of them, docs/gpis.md).", kind="int", valid="[0, inf)")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
         "new prior.", kind="int", valid="[8, inf)",
