@@ -220,15 +220,17 @@ class Estimator(Part):
                 slack = float(np.ptp(np.asarray(box), axis=0).max()) / screen
                 coarse_support = self._level(candidate, box, screen, tree)[1]
                 if coarse_support > p.eps + slack:
+                    # Only the few best are kept: each fit holds a factor of 4 rows a contact.
                     screened.append((coarse_support - slack, candidate, box, shape))
+                    screened.sort(key=lambda item: item[0])
+                    del screened[FINE_CANDIDATES:]
                     continue
             level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
             if candidate_support <= p.eps:
                 return self._surface(candidate, box, p.final_resolution, level=level)[0], shape
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape, level)
-        screened.sort(key=lambda item: item[0])
-        for least, candidate, box, shape in screened[:FINE_CANDIDATES]:
+        for least, candidate, box, shape in screened:
             if least >= best_support:
                 break
             level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
