@@ -378,13 +378,13 @@ class SessionParams:
               "never come nearer its far corners than the noise allows. A novel object "
               "keeps eps (its estimate is what the touches make it).")
     own_size_share: float = _session(
-        0.0, "A novel object whose contacts span less than this share of its MAP prior's "
+        0.5, "A novel object whose contacts span less than this share of its MAP prior's "
         "size explores at its own size: eps and the probes' lengths follow the contacts' "
-        "diameter (beyond the paper; 0, the default: the MAP prior's size).",
+        "diameter (beyond the paper; 0: the MAP prior's size).",
         valid="[0, 1]", control=(0.0, 1.0),
-        notes="Better for a 2 cm block beside 20-25 cm priors, but a 20 cm fork's lengths "
-              "switch while its first contacts span less than half its prior: off by "
-              "default (docs/novel.md, engine/session/lengths.py).")
+        notes="Once judged novel ten steps in a row and the span stopped growing (the "
+              "last ten contacts widened it by at most a tenth): a thin object's first "
+              "contacts span less than it (docs/novel.md, engine/session/lengths.py).")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,

@@ -16,7 +16,13 @@ from tactile_viz.engine.io.export import estimate_record, export_session
 from tactile_viz.engine.io.observation_file import format_observations, read_observations
 from tactile_viz.engine.params import FilterParams, SessionParams, length_fields, scaled_lengths
 from tactile_viz.engine.session import RecordedSession, Session, make_truth, session_preset
-from tactile_viz.engine.session.lengths import OWN_CONTACTS, own_unit, session_lengths
+from tactile_viz.engine.session.lengths import (
+    OWN_CONTACTS,
+    OWN_STEPS,
+    novel_for_long,
+    own_unit,
+    session_lengths,
+)
 from tactile_viz.engine.shape.metrics import error_threshold
 from tactile_viz.engine.shape.objects import is_learned_file, load_bundled
 
@@ -282,8 +288,23 @@ def test_own_unit_is_the_contacts_diameter_when_much_smaller_than_the_prior():
                                                                 rel=1e-12)
         assert own_unit(points, 0.3 * scale, 0.5) is None  # not under half the prior's
         assert own_unit(points, 10 * scale, 0.0) is None  # own_size_share 0: never
-    assert own_unit(ball[:OWN_CONTACTS - 1], 10.0, 0.5) is None  # too few to tell
-    assert own_unit(np.zeros((OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
+    assert own_unit(ball[:OWN_CONTACTS], 10.0, 0.5) is None  # too few to tell
+    assert own_unit(np.zeros((2 * OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
+
+
+def test_own_unit_waits_until_the_contacts_span_stops_growing():
+    """Contacts creeping along a thin object (each farther than the last) are not its
+    size yet; the same contacts touched ends first are; a span that grows again turns
+    the object's own unit off until it settles."""
+    along = np.zeros((40, 3))
+    along[:, 0] = np.linspace(0.0, 1.0, 40)
+    assert own_unit(along, 10.0, 0.5) is None
+    ends_first = along[np.r_[0, 39, 1:39]]
+    assert own_unit(ends_first, 10.0, 0.5) == pytest.approx(1 / 6)
+    grown = np.vstack([ends_first, [[1.5, 0.0, 0.0]]])
+    assert own_unit(grown, 10.0, 0.5) is None
+    settled = np.vstack([grown, np.repeat(grown[:1], OWN_CONTACTS, axis=0)])
+    assert own_unit(settled, 10.0, 0.5) == pytest.approx(1.5 / 6)
 
 
 def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(metric_mugs):
@@ -295,12 +316,13 @@ def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(
     for share in (0.5, 0.0):
         session = Session.simulated(make_truth(die, rng=[2, 0]), metric_mugs, seed=2,
                           params=SessionParams(own_size_share=share))
-        for _ in range(60):  # novelty flickers for a die this small: any novel step will do
+        for _ in range(120):  # until judged novel for long, its contacts' span settled
             snapshot = session.step()
-            if snapshot.novel and len(snapshot.contacts) >= OWN_CONTACTS:
+            unit = metric_mugs[snapshot.map_class].size_unit
+            if (novel_for_long(s.novel for s in session.snapshots)
+                    and own_unit(snapshot.contacts, unit, 0.5) is not None):
                 break
-        assert snapshot.novel and len(snapshot.contacts) >= OWN_CONTACTS
-        unit = metric_mugs[snapshot.map_class].size_unit
+        assert novel_for_long(s.novel for s in session.snapshots)
         p = session._p
         assert p.gpis_margin == pytest.approx(SessionParams().gpis_margin * unit)
         assert p.decision_cover == pytest.approx(SessionParams().decision_cover * unit)
@@ -323,3 +345,14 @@ def test_an_own_eps_under_noise_is_at_least_the_noise_and_at_most_the_priors():
     assert session_lengths(params, unit, 0.02 / 6).eps == pytest.approx(0.002)  # noiseless
     tipped = session_lengths(params, unit, 0.02 / 6, tip_radius=0.005)
     assert tipped.gpis_carve_radius == pytest.approx(params.gpis_carve_radius * unit + 0.005)
+
+
+def test_own_lengths_wait_for_a_steady_novel_judgement():
+    """Only :data:`OWN_STEPS` novel judgements in a row count: a flicker, or too few
+    steps, leave the prior's lengths."""
+    assert novel_for_long([True] * OWN_STEPS)
+    assert novel_for_long([False] + [True] * OWN_STEPS)
+    assert not novel_for_long([True] * (OWN_STEPS - 1))
+    assert not novel_for_long([True] * OWN_STEPS + [False])
+    assert not novel_for_long([True] * (OWN_STEPS - 1) + [False] + [True])
+    assert not novel_for_long([])

@@ -2,11 +2,11 @@
 
 Each length parameter is in size units, a sixth of an object's longest side
 (:mod:`..params`). A session measures them in its MAP object's (docs/units.md); with
-``own_size_share`` (off by default) a novel object much smaller than its MAP prior is
-explored at its own size, since the prior's eps and contact spacing can be larger than the
-object (a 2 cm block beside a 25 cm knife was stopped by the knife's 25 mm eps, and every
-touch after the first few was given up within its 12.5 mm spacing). Plain functions, so
-that the rule is tested without a session.
+``own_size_share`` (0.5 by default, 0 in ``paper``) a novel object much smaller than its
+MAP prior is explored at its own size, since the prior's eps and contact spacing can be
+larger than the object (a 2 cm block beside a 25 cm knife was stopped by the knife's 25 mm
+eps, and every touch after the first few was given up within its 12.5 mm spacing). Plain
+functions, so that the rule is tested without a session.
 """
 
 import functools
@@ -26,12 +26,28 @@ OWN_LENGTHS = ("eps", "probe_depth", "approach_clearance", "follow_step", "conta
 # Fewer contacts span less than the object: a 10 cm mug judged novel at its third touch
 # beside a 20 cm prior spanned 4.5 cm.
 OWN_CONTACTS = 10
+# A span still growing is not yet the object's: a 20 cm fork's first contacts spanned 3 to
+# 8 cm over five touches, and its lengths switched to theirs. The span counts once the
+# last OWN_CONTACTS contacts widened it by at most this share.
+OWN_GROWTH = 0.1
+# A judgement that flickers is not the object's: a learned 20 cm fork met again was judged
+# novel at single steps among known ones, its few contacts spanning 3 cm, and its lengths
+# switched there. Own lengths wait until this many steps in a row judged it novel.
+OWN_STEPS = 10
+
+
+def novel_for_long(judgements):
+    """Whether the last :data:`OWN_STEPS` of the steps' novelty ``judgements`` (oldest
+    first) all judged the object novel."""
+    recent = list(judgements)[-OWN_STEPS:]
+    return len(recent) == OWN_STEPS and all(recent)
 
 
 def own_unit(contacts, unit, share):
     """A novel object's own size unit: a sixth of its contacts' diameter (the largest
-    distance between two of them), when that is under ``share`` of ``unit`` and there are
-    at least :data:`OWN_CONTACTS` contacts; else None.
+    distance between two of them), when that is under ``share`` of ``unit``, there are
+    more than :data:`OWN_CONTACTS` contacts and the last :data:`OWN_CONTACTS` of them
+    widened the diameter by at most :data:`OWN_GROWTH`; else None.
 
     The diameter, not a box's longest side: it does not depend on axes (a cube's principal
     axes are any three, and its box along them was 5-50% longer from one touch to the
@@ -41,6 +57,7 @@ def own_unit(contacts, unit, share):
     Parameters
     ----------
     contacts : (m, 3) float, scene units
+        In the order they were touched.
     unit : float, scene units
         The MAP prior's size unit.
     share : float
@@ -51,10 +68,13 @@ def own_unit(contacts, unit, share):
     float or None, scene units
     """
     contacts = np.ascontiguousarray(contacts, dtype=float)
-    if share <= 0 or len(contacts) < OWN_CONTACTS:
+    if share <= 0 or len(contacts) <= OWN_CONTACTS:
         return None
-    own = _diameter(contacts.tobytes()) / PAPER_SIZE
-    return own if 0.0 < own < share * unit else None
+    span = _diameter(contacts.tobytes())
+    if not 0.0 < span < share * unit * PAPER_SIZE:
+        return None
+    before = _diameter(contacts[:-OWN_CONTACTS].tobytes())
+    return span / PAPER_SIZE if before >= (1.0 - OWN_GROWTH) * span else None
 
 
 @functools.lru_cache(maxsize=8)
@@ -62,6 +82,8 @@ def _diameter(data):
     # A step asks it several times of the same contacts. The farthest pair are corners of
     # their hull: its few vertices, not the m^2 / 2 pairs of a long session.
     points = np.frombuffer(data, dtype=float).reshape(-1, 3)
+    if len(points) < 2:
+        return 0.0
     try:
         points = points[ConvexHull(points).vertices]
     except QhullError:  # flat or on a line: every pair

@@ -46,7 +46,7 @@ from .context import Observation, Parts, Sensor, StepContext  # noqa: F401 (Sens
 from .estimate import Estimator, decided_class, map_shape
 from .learning import learned_model
 from .legacy import legacy_arguments
-from .lengths import own_unit, session_lengths
+from .lengths import OWN_STEPS, novel_for_long, own_unit, session_lengths
 from .planner import Planner
 from .procedures import step_procedure
 from .snapshot import Move, Snapshot, frozen, step_snapshot
@@ -463,17 +463,19 @@ class Session:
     def _lengths_of(self, model=None, novel=None):
         """``(parameters in scene units, size unit, (unit, own unit))`` for ``model``: a
         sixth of its longest side, default the latest MAP object (the library's reference
-        size before the first step), or ``params.length_unit``; a ``novel`` object
-        (default: as the latest step judged it) much smaller than ``model`` is explored at
-        its own size (:func:`~.lengths.own_unit`). Changes nothing."""
+        size before the first step), or ``params.length_unit``; an object judged novel
+        at this step (``novel``; default: the latest step's judgement) and the steps
+        before (:func:`~.lengths.novel_for_long`), much smaller than ``model``, is explored
+        at its own size (:func:`~.lengths.own_unit`). Changes nothing."""
         if model is None and self.snapshots:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
-        if novel is None:
-            novel = bool(self.snapshots) and self.latest.novel
+        judged = [s.novel for s in self.snapshots[-OWN_STEPS:]]
+        if novel is not None:  # this step's judgement, not yet a snapshot
+            judged = judged[len(judged) == OWN_STEPS:] + [novel]
         unit = self.params.length_unit or (model.size_unit if model is not None
                                            else self._filter_unit)
         own = None
-        if novel and not self.params.length_unit:
+        if novel_for_long(judged) and not self.params.length_unit:
             own = own_unit(self.filter.contact_positions, unit, self.params.own_size_share)
         if (unit, own) == self._lengths:
             return self._p, self._unit, self._lengths
