@@ -471,7 +471,7 @@ class Session:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
         judged = [s.novel for s in self.snapshots[-OWN_STEPS:]]
         if novel is not None:  # this step's judgement, not yet a snapshot
-            judged = judged[len(judged) == OWN_STEPS:] + [novel]
+            judged.append(novel)
         unit = self.params.length_unit or (model.size_unit if model is not None
                                            else self._filter_unit)
         own = None
