@@ -19,6 +19,7 @@ from tactile_viz.engine.shape.gpis import (
     value_rows,
     zero_level_surface,
 )
+from tactile_viz.engine.shape.gpis_prior import CARVE_CLEARANCE
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 
@@ -174,8 +175,8 @@ def test_carved_prior_cuts_balls_and_keeps_the_rest(mug_data):
     free = candidates[np.argsort(prior(candidates)[0])[:3]]  # deep inside the prior
     carved = carved_prior(prior, free, points, radius=0.6)
     values, gradients = carved(free)
-    allowed = np.minimum(0.6, np.min(np.linalg.norm(free[:, None] - points[None], axis=-1), 1))
-    np.testing.assert_allclose(values, allowed)
+    nearest = np.min(np.linalg.norm(free[:, None] - points[None], axis=-1), 1)
+    np.testing.assert_allclose(values, np.minimum(0.6, nearest - CARVE_CLEARANCE * 0.6))
     # CSG: the cut reaches |m| beyond its ball into the prior's inside, no farther.
     reach = 0.6 + np.abs(prior(candidates)[0])
     far = np.min(np.linalg.norm(candidates[:, None] - free[None], axis=-1), axis=1) > reach
@@ -193,6 +194,25 @@ def test_carved_prior_cuts_balls_and_keeps_the_rest(mug_data):
     assert np.all(carved(points)[0] <= np.maximum(prior(points)[0], 0) + 1e-12)
     assert carved_prior(prior, free, points, radius=0.0) is prior
     assert carved_prior(prior, np.zeros((0, 3)), points, radius=0.6) is prior
+
+
+def test_a_contact_never_takes_a_carved_balls_gradient():
+    # A probe that missed close beside a contact: the contact would sit on its ball's rim,
+    # where a rounding error picks the ball's gradient (90 degrees off here) or the
+    # prior's, and two touches of one spot would disagree. The ball stops short of it.
+    class Sphere:
+        def __call__(self, points):
+            length = np.linalg.norm(points, axis=1)
+            return length - 1.001, points / length[:, None]
+
+    contacts = np.array([[1.0, 0.0, 0.0], [1.0, 1e-13, 0.0]])
+    carved = carved_prior(Sphere(), np.array([[1.0, 0.5, 0.0]]), contacts, radius=0.6)
+    values, gradients = carved(contacts)
+    np.testing.assert_allclose(values, Sphere()(contacts)[0])
+    np.testing.assert_allclose(gradients, [[1.0, 0.0, 0.0]] * 2, atol=1e-12)
+    # The ball is still cut, up to its clearance from the contact.
+    np.testing.assert_allclose(carved(np.array([[1.0, 0.5, 0.0]]))[0],
+                               0.5 - CARVE_CLEARANCE * 0.6)
 
 
 def test_carving_corrects_a_refuted_part_and_keeps_the_prior_elsewhere(mug_data):
