@@ -6,11 +6,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 SHRINK_STEPS = 32  # shrinking-ball iterations (each a look-up of every ball still shrinking)
-# A carved ball stops this share of the largest radius short of every contact: on its rim a
-# contact takes the ball's gradient or the prior's by a rounding error, and two touches of
-# one spot could then disagree by up to 90 degrees, which a fit with little noise explains
-# only by huge weights (a noiseless 10 cm ball's ellipsoid lost its evidence by 80,000 nats).
-CARVE_CLEARANCE = 0.02
+# Values within this share of the largest radius of the cut's tie: there the gradient is
+# the prior's if it ties, else the mean of the tied balls'. A contact lies on the rim of
+# every ball it bounds, where a rounding error gave it one ball's gradient, another's or
+# the prior's: two touches of one spot (a noiseless probe's lie microns apart) disagreed
+# by up to 90 degrees, which a fit with little noise explains only by huge weights (a
+# 10 cm ball's ellipsoid prior lost its evidence by 80,000 nats).
+CUT_TIE = 1e-3
 
 
 def noncontact_observations(prior, noncontacts, value):
@@ -108,9 +110,9 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only
     A ball around each free-space point (where a probe passed without touching) is removed
     from the prior's solid, a CSG difference on signed distances:
     ``m'(x) = max(m(x), r_i - |x - f_i|)``. A ball never reaches a contact:
-    ``r_i = min(radius, d_i - CARVE_CLEARANCE radius)``, ``d_i`` the distance from ``f_i``
-    to the nearest contact (a contact on a ball's rim would take its gradient or the
-    prior's by a rounding error). Unlike a value
+    ``r_i = min(radius, distance from f_i to the nearest contact)``; where values tie (a
+    contact on the rims of the balls it bounds) the gradient is the prior's if it ties,
+    else the tied balls' mean. Unlike a value
     observation, which moves the field within a kernel's reach of the point only as far as
     the other data allow, the cut removes a phantom part of a wrong-class prior wherever a
     probe refuted it. With ``inside_only`` only the free points inside the prior's solid
@@ -153,7 +155,7 @@ def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0)
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
     tree = cKDTree(contacts) if len(contacts) else None
     if tree is not None:
-        radii = np.minimum(radii, tree.query(free_points)[0] - CARVE_CLEARANCE * radius)
+        radii = np.minimum(radii, tree.query(free_points)[0])
     keep = radii > 0
     if not keep.any():
         return None
@@ -178,7 +180,10 @@ class CarvedPrior:
 class FreeSpaceCut:
     """Balls of ``radii`` about ``free_points`` removed from a field's solid:
     ``f'(x) = max(f(x), r_i - |x - f_i|)`` over the ``neighbours`` nearest centres, except
-    within ``kept = (contacts' tree, distance)`` of a contact (None: everywhere)."""
+    within ``kept = (contacts' tree, distance)`` of a contact (None: everywhere); where
+    values tie within ``CUT_TIE`` of the largest radius (a contact lies on the rims of
+    the balls it bounds) the gradient is the field's if it ties, else the tied balls'
+    normalised mean."""
 
     def __init__(self, free_points, radii, neighbours, kept=None):
         self.free_points, self.radii = free_points, radii
@@ -197,19 +202,41 @@ class FreeSpaceCut:
         if len(candidates) == 0:
             return values, gradients
         distance, index = self._nearest(points[candidates], values[candidates])
-        cut = np.append(self.radii, 0.0)[index] - distance  # -inf where none is near
-        best = np.argmax(cut, axis=1)
+        balls = np.append(self.radii, 0.0)[index] - distance  # -inf where none is near
+        best = np.argmax(balls, axis=1)
         rows = np.arange(len(candidates))
-        cut, centre = cut[rows, best], self.free_points[np.minimum(index[rows, best],
-                                                                 len(self.free_points) - 1)]
-        wins = cut > values[candidates]
+        cut, centre = balls[rows, best], self.free_points[np.minimum(index[rows, best],
+                                                                   len(self.free_points) - 1)]
+        before = values[candidates]
+        own = None if gradients is None else gradients[candidates]
+        wins = cut > before
         changed = candidates[wins]
         values[changed] = cut[wins]
         if gradients is not None:
             offset = points[changed] - centre[wins]
             length = np.linalg.norm(offset, axis=1, keepdims=True)
             gradients[changed] = -offset / np.maximum(length, 1e-12)
+            self._tied(points[candidates], balls, index, before, own, gradients, candidates)
         return values, gradients
+
+    def _tied(self, points, balls, index, values, own, gradients, rows):
+        """Where the field (``values``, ``own`` gradients at ``points``) or balls
+        (``balls``, ``index``: their values and centres there) tie within ``CUT_TIE`` of the
+        largest radius, ``gradients[rows]`` become the field's, else the normalised mean of
+        the tied balls'."""
+        top = np.maximum(balls.max(axis=1), values)
+        tolerance = CUT_TIE * self.radii.max()
+        tied = balls >= (top - tolerance)[:, None]
+        field = values >= top - tolerance
+        many = tied.sum(axis=1) + field > 1
+        if not many.any():
+            return
+        centres = self.free_points[np.minimum(index[many], len(self.free_points) - 1)]
+        away = centres - points[many][:, None]
+        units = away / np.maximum(np.linalg.norm(away, axis=2, keepdims=True), 1e-12)
+        total = np.einsum("kn,knd->kd", tied[many].astype(float), units)
+        mean = total / np.maximum(np.linalg.norm(total, axis=1, keepdims=True), 1e-12)
+        gradients[rows[many]] = np.where(field[many][:, None], own[many], mean)
 
     def _nearest(self, points, values):
         """Distances and indices (k, neighbours) of the nearest ball centres that could cut

@@ -19,7 +19,7 @@ from tactile_viz.engine.shape.gpis import (
     value_rows,
     zero_level_surface,
 )
-from tactile_viz.engine.shape.gpis_prior import CARVE_CLEARANCE
+from tactile_viz.engine.shape.gpis_prior import CUT_TIE
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 
@@ -175,8 +175,8 @@ def test_carved_prior_cuts_balls_and_keeps_the_rest(mug_data):
     free = candidates[np.argsort(prior(candidates)[0])[:3]]  # deep inside the prior
     carved = carved_prior(prior, free, points, radius=0.6)
     values, gradients = carved(free)
-    nearest = np.min(np.linalg.norm(free[:, None] - points[None], axis=-1), 1)
-    np.testing.assert_allclose(values, np.minimum(0.6, nearest - CARVE_CLEARANCE * 0.6))
+    allowed = np.minimum(0.6, np.min(np.linalg.norm(free[:, None] - points[None], axis=-1), 1))
+    np.testing.assert_allclose(values, allowed)
     # CSG: the cut reaches |m| beyond its ball into the prior's inside, no farther.
     reach = 0.6 + np.abs(prior(candidates)[0])
     far = np.min(np.linalg.norm(candidates[:, None] - free[None], axis=-1), axis=1) > reach
@@ -196,23 +196,30 @@ def test_carved_prior_cuts_balls_and_keeps_the_rest(mug_data):
     assert carved_prior(prior, np.zeros((0, 3)), points, radius=0.6) is prior
 
 
-def test_a_contact_never_takes_a_carved_balls_gradient():
-    # A probe that missed close beside a contact: the contact would sit on its ball's rim,
-    # where a rounding error picks the ball's gradient (90 degrees off here) or the
-    # prior's, and two touches of one spot would disagree. The ball stops short of it.
-    class Sphere:
-        def __call__(self, points):
+def test_touches_of_one_spot_take_one_gradient_from_the_carve():
+    # Probes that missed beside a contact from two sides: the contact lies on the rim of
+    # both balls, where a rounding error would pick either's gradient (or the prior's),
+    # and two touches a micron apart would disagree by 90 degrees. Tied values give one
+    # gradient: the prior's if it ties, else the tied balls' mean.
+    def sphere(radius):
+        def field(points):
             length = np.linalg.norm(points, axis=1)
-            return length - 1.001, points / length[:, None]
+            return length - radius, points / length[:, None]
+        return field
 
-    contacts = np.array([[1.0, 0.0, 0.0], [1.0, 1e-13, 0.0]])
-    carved = carved_prior(Sphere(), np.array([[1.0, 0.5, 0.0]]), contacts, radius=0.6)
-    values, gradients = carved(contacts)
-    np.testing.assert_allclose(values, Sphere()(contacts)[0])
-    np.testing.assert_allclose(gradients, [[1.0, 0.0, 0.0]] * 2, atol=1e-12)
-    # The ball is still cut, up to its clearance from the contact.
-    np.testing.assert_allclose(carved(np.array([[1.0, 0.5, 0.0]]))[0],
-                               0.5 - CARVE_CLEARANCE * 0.6)
+    contacts = np.array([[1.0, 0.0, 0.0], [1.0, -1e-6, -1e-6]])
+    free = np.array([[1.0, 0.3, 0.0], [1.0, 0.0, -0.5]])
+    deep = carved_prior(sphere(1.1), free, contacts, radius=0.6)  # the prior 0.1 inside
+    values, gradients = deep(contacts)
+    np.testing.assert_allclose(values, 0.0, atol=1e-5)
+    np.testing.assert_allclose(gradients, [[0.0, 0.5**0.5, -(0.5**0.5)]] * 2, atol=1e-4)
+    on = carved_prior(sphere(1.0), free, contacts, radius=0.6)  # the prior through them
+    np.testing.assert_allclose(on(contacts)[1], [[1.0, 0.0, 0.0]] * 2, atol=1e-5)
+    # Off the ties the cut is the CSG difference, its gradient the winning ball's.
+    inside = np.array([[1.0, 0.2, 0.0]])
+    np.testing.assert_allclose(deep(inside)[0], 0.2, atol=1e-9)
+    np.testing.assert_allclose(deep(inside)[1], [[0.0, 1.0, 0.0]], atol=1e-9)
+    assert CUT_TIE * 0.5 < 1e-3
 
 
 def test_carving_corrects_a_refuted_part_and_keeps_the_prior_elsewhere(mug_data):
