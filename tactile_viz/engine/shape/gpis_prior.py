@@ -6,8 +6,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 SHRINK_STEPS = 32  # shrinking-ball iterations (each a look-up of every ball still shrinking)
-# Values within this share of the largest radius of the cut's tie: there the gradient is
-# the prior's if it ties, else the mean of the tied balls'. A contact lies on the rim of
+# The cut's values within this share of its largest radius tie: there the gradient is the
+# prior's if it ties, else the mean of the tied balls'. A contact lies on the rim of
 # every ball it bounds, where a rounding error gave it one ball's gradient, another's or
 # the prior's: two touches of one spot (a noiseless probe's lie microns apart) disagreed
 # by up to 90 degrees, which a fit with little noise explains only by huge weights (a
