@@ -216,15 +216,16 @@ class FreeSpaceCut:
             offset = points[changed] - centre[wins]
             length = np.linalg.norm(offset, axis=1, keepdims=True)
             gradients[changed] = -offset / np.maximum(length, 1e-12)
-            self._tied(points[candidates], balls, index, before, own, gradients, candidates)
+            self._tied(points[candidates], balls, cut, index, before, own, gradients,
+                       candidates)
         return values, gradients
 
-    def _tied(self, points, balls, index, values, own, gradients, rows):
+    def _tied(self, points, balls, cut, index, values, own, gradients, rows):
         """Where the field (``values``, ``own`` gradients at ``points``) or balls
-        (``balls``, ``index``: their values and centres there) tie within ``CUT_TIE`` of the
-        largest radius, ``gradients[rows]`` become the field's, else the normalised mean of
-        the tied balls'."""
-        top = np.maximum(balls.max(axis=1), values)
+        (``balls``, ``index``: their values and centres there; ``cut`` the largest) tie
+        within ``CUT_TIE`` of the largest radius, ``gradients[rows]`` become the field's,
+        else the normalised mean of the tied balls'."""
+        top = np.maximum(cut, values)
         tolerance = CUT_TIE * self.radii.max()
         tied = balls >= (top - tolerance)[:, None]
         field = values >= top - tolerance
