@@ -334,6 +334,8 @@ def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(
         else:
             assert p.eps == pytest.approx(0.6 * unit)
             assert p.contact_spacing == pytest.approx(0.3 * unit)
+        # Its planner leaves the prior out of the coverage (test_prior_cover.py).
+        assert session.parts().planner.context.own_size == bool(share)
 
 
 def test_an_own_eps_under_noise_is_at_least_the_noise_and_at_most_the_priors():

@@ -39,6 +39,9 @@ class StepContext:
         ``"gpis-dhd"`` or ``"rrt"``.
     tolerance : float or None
         How precisely the sensor places a contact (scene units; None: unknown).
+    own_size : bool
+        The object is explored at its own size, much smaller than its MAP prior
+        (``own_size_share``; :func:`~.lengths.own_unit`).
     """
 
     p: Any
@@ -48,6 +51,7 @@ class StepContext:
     scene: Scene = FREE
     strategy: str = "gpis-dhd"
     tolerance: float | None = None
+    own_size: bool = False
 
 
 class Part:

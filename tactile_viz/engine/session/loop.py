@@ -491,9 +491,11 @@ class Session:
         -------
         Parts
         """
-        p, unit = (self._p, self._unit) if model is None else self._lengths_of(model, novel)[:2]
+        p, unit, lengths = ((self._p, self._unit, self._lengths) if model is None
+                            else self._lengths_of(model, novel))
         context = StepContext(p, unit, self._filter_unit, self.sensor_noise, self.scene,
-                              self.strategy, getattr(self.sensor, "tolerance", None))
+                              self.strategy, getattr(self.sensor, "tolerance", None),
+                              own_size=lengths is not None and lengths[1] is not None)
         inputs = (context, self.filter, self.state, self.rng, self.snapshots)
         return Parts(Estimator(*inputs), Planner(*inputs), Bookkeeper(*inputs))
 

@@ -53,3 +53,18 @@ def test_missed_probes_refute_the_prior_where_they_passed(scale):
     assert not coverage.prior_open[upper].any()
     assert coverage.prior_open[directions[:, 2] < -0.2].all()
     assert coverage.prior_dhd > 0.25 * scale  # the lower half is still open
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_prior_many_times_the_objects_size_is_not_covered(scale):
+    # A 2 cm block's 25 cm knife prior held its stop 15-23 cm off the block: explored at
+    # its own size, the object's coverage is its reconstruction's alone.
+    planner, recon = _planner(scale), _estimate(0.1 * scale)
+    contacts = _ball(0.1 * scale, 2)
+    prior = _ball(1.3 * scale)
+    assert planner.coverage(recon, prior, contacts).prior_dhd > scale
+    own = dataclasses.replace(planner.context, own_size=True)
+    coverage = Planner(own, None, planner.state).coverage(recon, prior, contacts)
+    assert coverage.prior_open is None
+    assert coverage.prior_dhd == 0.0
+    assert coverage.value == pytest.approx(coverage.dhd)
