@@ -59,6 +59,23 @@ def test_a_long_box_gives_its_axes_and_few_contacts_give_none():
     assert np.isfinite(flat.radii).all() and (flat.radii >= 0.05).all()  # one face only
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_spot_touched_again_and_again_gives_one_normal_line(scale):
+    # A thin plate touched all over, then at one corner again and again with a tilted
+    # normal (a fork's tip at each given-up target): the centre is the plate's.
+    plate = trimesh.creation.box(np.array([0.2, 0.04, 2.0]) * scale)
+    points, normals = _surface_samples(plate, 60)
+    tip, tilted = np.array([0.0, 0.02, 1.0]) * scale, np.array([0.0, 0.6, 0.8])
+    once = fit_superquadrics(np.vstack([points, tip]), np.vstack([normals, tilted]),
+                             0.05 * scale)
+    again = fit_superquadrics(np.vstack([points, np.repeat(tip[None], 40, axis=0)]),
+                              np.vstack([normals, np.repeat(tilted[None], 40, axis=0)]),
+                              0.05 * scale)
+    for first, second in zip(once, again, strict=True):
+        np.testing.assert_allclose(second.centre, first.centre, atol=1e-9 * scale)
+        assert abs(second.centre[1]) < 0.05 * scale  # within the least radius of the plate
+
+
 def test_a_boxs_contacts_fit_the_sharp_superquadric_best():
     mesh = trimesh.creation.box((2.0, 3.0, 4.0))
     points, normals = _surface_samples(mesh, 150)
