@@ -8,6 +8,7 @@ import numpy as np
 
 from ..belief.prior_bank import grid_of
 from ..explore.exploration import free_approach  # noqa: F401 (re-exported: the session's)
+from ..shape.metrics import first_per_cell
 
 
 class PosedSDF:
@@ -63,8 +64,7 @@ def thin_points(points, spacing):
     """The first of ``points`` in each grid cell of size ``spacing`` (order kept)."""
     if len(points) == 0:
         return points
-    _, first = np.unique(np.floor(points / spacing).astype(np.int64), axis=0, return_index=True)
-    return points[np.sort(first)]
+    return points[first_per_cell(points, spacing)]
 
 
 def deepest_inside(estimate, target, normal, max_depth, samples=21):

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.optimize import nnls
 
+from .metrics import first_per_cell
+
 SHRINK_TOWARD_CENTROID = 0.05  # weight (per contact) pulling the centre to the centroid
 MAX_RADIUS_FACTOR = 2.0  # a radius is at most this many times the contacts' extent
 TINY = 1e-12
@@ -132,8 +134,7 @@ def one_per_place(points, normals, cell):
     size ``cell``: a probe that comes back to one spot (a 20 cm fork's tip, touched again
     at each given-up target) adds no surface, and its normal line, repeated, pulled a
     box's centre 3 cm off the fork's plane (a phantom 15 cm off it for 130 touches)."""
-    _, first = np.unique(np.floor(points / cell).astype(np.int64), axis=0, return_index=True)
-    first = np.sort(first)
+    first = first_per_cell(points, cell)
     return points[first], normals[first]
 
 

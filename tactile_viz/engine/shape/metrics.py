@@ -33,6 +33,13 @@ def error_threshold(size=PAPER_SIZE):
     return ERROR_THRESHOLD * (float(size) / PAPER_SIZE)
 
 
+def first_per_cell(points, cell):
+    """Indices (ascending) of the first of ``points`` (n, 3) in each grid cell of size
+    ``cell`` (same units)."""
+    _, first = np.unique(np.floor(points / cell).astype(np.int64), axis=0, return_index=True)
+    return np.sort(first)
+
+
 def directed_hausdorff(from_points, to_points, tree=None):
     """``max_a min_b |a - b|`` for (n, 3) and (m, 3) point sets (``inf`` if ``to`` is empty).
 
