@@ -495,7 +495,7 @@ class Session:
                             else self._lengths_of(model, novel))
         context = StepContext(p, unit, self._filter_unit, self.sensor_noise, self.scene,
                               self.strategy, getattr(self.sensor, "tolerance", None),
-                              own_size=lengths is not None and lengths[1] is not None)
+                              own_size=lengths[1] is not None)
         inputs = (context, self.filter, self.state, self.rng, self.snapshots)
         return Parts(Estimator(*inputs), Planner(*inputs), Bookkeeper(*inputs))
 
