@@ -437,6 +437,11 @@ class SessionParams:
         32, "Marching-cubes cells along the longest side of the surfaces the final candidates "
         "are screened on; only those that could be covered or win are extracted at "
         "final_resolution (0: all of them, docs/gpis.md).", kind="int", valid="[0, inf)")
+    final_wall_cells: float = _gpis(
+        2.0, "The final and learned surfaces take at least this many cells across the median "
+        "wall touched on both sides, up to twice their resolution (beyond the paper; 0: off).",
+        valid="[0, 10]", notes="At 64 cells a 20 cm fork's 4 mm tines were one cell across: "
+        "its learned normals missed its own contacts' by 45 degrees (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
         "new prior.", kind="int", valid="[8, inf)",

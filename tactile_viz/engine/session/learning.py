@@ -15,8 +15,10 @@ def learned_model(estimator, snapshot, name, resolution, library):
     """The reconstructed surface of a novel snapshot as a new :class:`ObjectModel`.
 
     The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
-    extracted at ``resolution`` (``params.learned_resolution`` as a session asks; a stopped
-    session's last surface is already at ``params.final_resolution``); the largest connected
+    extracted at ``resolution`` (``params.learned_resolution`` as a session asks), finer
+    where the contacts measure thin walls (:meth:`~.estimate.Estimator.wall_resolution`);
+    a stopped session's last surface, asked at ``params.final_resolution``, is learned as
+    reported (the final surface, finer where walls are thin); the largest connected
     piece of the zero level set is kept, and the model is checked and normalised like any
     loaded mesh. Its ``shape_error`` is the RMS of the fit's held-out errors at the contacts
     (:func:`~..shape.gpis.held_out_errors`): how far a touch it has not seen may miss it.
@@ -35,6 +37,13 @@ def learned_model(estimator, snapshot, name, resolution, library):
     if snapshot is None or snapshot.gpis_faces is None or len(snapshot.gpis_faces) == 0:
         raise SessionError("no reconstructed surface to learn from: the object was not "
                            "judged novel in this step")
+    if snapshot.terminated and resolution == estimator.p.final_resolution:
+        resolution = snapshot.gpis_resolution  # the last surface, learned as reported
+    else:
+        low, high, _ = estimator.gpis_box(snapshot.map_vertices, snapshot.contacts,
+                                          snapshot.gpis_shape)
+        resolution = estimator.wall_resolution((low, high), resolution, snapshot.contacts,
+                                               snapshot.normals)
     fit, box = snapshot_fit(estimator, snapshot, resolution)
     vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
     if resolution != snapshot.gpis_resolution:

@@ -40,6 +40,46 @@ def first_per_cell(points, cell):
     return np.sort(first)
 
 
+def wall_thickness(points, normals, reach, opposed=-0.5, least=5):
+    """The median thickness of the walls touched on both sides: for each contact, the
+    nearest contact within ``reach`` behind it whose normal opposes its own (cosine below
+    ``opposed``), measured along its own normal.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Contacts, any frame and length unit.
+    normals : (n, 3) float, unit, outward
+    reach : float
+        How far apart two sides of a wall may be touched (same unit).
+    opposed : float
+        Largest cosine between the two sides' normals.
+    least : int
+        Contacts with a side behind them needed for a thickness.
+
+    Returns
+    -------
+    float or None
+        Same unit as ``points``; None where fewer than ``least`` contacts have one (a ball,
+        a block larger than ``reach``).
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+    if len(points) < 2 or not reach > 0:
+        return None
+    pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        return None
+    pairs = pairs[np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) < opposed]
+    front, back = np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]]
+    depth = np.einsum("ij,ij->i", points[front] - points[back], normals[front])
+    behind = depth > 0
+    nearest = np.full(len(points), np.inf)
+    np.minimum.at(nearest, front[behind], depth[behind])
+    found = nearest[np.isfinite(nearest)]
+    return float(np.median(found)) if len(found) >= least else None
+
+
 def directed_hausdorff(from_points, to_points, tree=None):
     """``max_a min_b |a - b|`` for (n, 3) and (m, 3) point sets (``inf`` if ``to`` is empty).
 

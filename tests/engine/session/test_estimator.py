@@ -56,3 +56,30 @@ def test_an_estimator_reconstructs_a_ball_from_a_box_prior(scale, tmp_path):
     # Reported, the surface keeps only parts a contact comes within eps of.
     reported = estimator.reported(recon, contacts, {})
     assert len(reported.vertices) <= len(recon.vertices)
+
+
+@pytest.mark.parametrize("scale", [1e-2, 1.0, 1e2])
+def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
+    # Both faces of a plate touched: the final surface takes final_wall_cells cells across
+    # it, at most WALL_MOST times final_resolution; a ball's contacts raise nothing.
+    from dataclasses import replace
+
+    from tactile_viz.engine.session.estimate import WALL_MOST
+
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-scale, scale, size=(40, 2))
+    side = np.where(np.arange(40) % 2 == 0, 1.0, -1.0)
+    box = (np.full(3, -scale), np.full(3, scale))  # longest side 2 scale
+    for thickness, wanted in ((0.01, None), (0.05, 80), (0.2, 64)):
+        contacts = np.column_stack([xy, side * thickness * scale / 2])
+        normals = np.column_stack([np.zeros((40, 2)), side])
+        estimator, _ = _estimator(scale, contacts, normals, tmp_path)
+        base = estimator.p.final_resolution
+        assert base == 64
+        got = estimator.wall_resolution(box, base, contacts)
+        assert got == (WALL_MOST * base if wanted is None else wanted)
+        estimator.p = replace(estimator.p, final_wall_cells=0.0)
+        assert estimator.wall_resolution(box, base, contacts) == base
+    directions = trimesh.creation.icosphere(1).vertices
+    estimator, _ = _estimator(scale, scale * directions, directions, tmp_path)
+    assert estimator.wall_resolution(box, 64, scale * directions) == 64

@@ -6,6 +6,7 @@ from tactile_viz.engine.shape.metrics import (
     directed_hausdorff,
     surface_hausdorff,
     two_way_hausdorff,
+    wall_thickness,
 )
 
 
@@ -80,3 +81,31 @@ def test_the_truth_evaluator_measures_a_step_without_a_session(scale, rng):
     elsewhere = evaluator.errors(other, truth.rotation, truth.translation, None,
                                  evaluator.points)
     assert elsewhere["rotation_error_deg"] is None and elsewhere["pose_error"] > 0
+
+
+def _plate(rng, thickness, scale, count=60):
+    """Contacts on both faces of a plate ``thickness`` thick, ``scale`` across (z up)."""
+    xy = rng.uniform(-scale / 2, scale / 2, size=(count, 2))
+    side = np.where(np.arange(count) % 2 == 0, 1.0, -1.0)
+    points = np.column_stack([xy, side * thickness / 2])
+    normals = np.column_stack([np.zeros((count, 2)), side])
+    return points, normals
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_wall_touched_on_both_sides_is_measured(scale, rng):
+    points, normals = _plate(rng, 0.04 * scale, scale)
+    assert wall_thickness(points, normals, 0.3 * scale) == pytest.approx(0.04 * scale)
+    # Beyond reach of each other the sides are not one wall (a block, a ball).
+    assert wall_thickness(points, normals, 0.02 * scale) is None
+    sphere = rng.normal(size=(200, 3))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    assert wall_thickness(scale * sphere, sphere, 0.3 * scale) is None
+
+
+def test_a_wall_needs_several_contacts_on_its_far_side(rng):
+    points, normals = _plate(rng, 0.04, 1.0, count=8)
+    assert wall_thickness(points[:1], normals[:1], 1.0) is None
+    assert wall_thickness(points[:4], normals[:4], 2.0) is None  # 4 contacts, fewer than 5
+    assert wall_thickness(points, normals, 2.0) == pytest.approx(0.04)
+    assert wall_thickness(np.zeros((0, 3)), np.zeros((0, 3)), 1.0) is None
