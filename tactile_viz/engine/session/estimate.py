@@ -42,7 +42,7 @@ AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in fo
 # extent (longest side of their box); the MAP prior's lengths cap them (eps / 2, the margin).
 SHAPE_SHARE = 0.1
 SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
-WALL_MOST = 2  # a thin wall's final surface takes at most this many times the resolution
+WALL_MOST = 1.5  # a thin wall's final surface takes at most this many times the resolution
 
 
 class Estimator(Part):
@@ -163,14 +163,15 @@ class Estimator(Part):
         p = self.p
         clock = time.perf_counter()
         final = recon
-        low, high, _ = self.gpis_box(map_vertices, contacts, gpis.shape)
-        resolution = self.wall_resolution((low, high), p.final_resolution, contacts)
-        if resolution != p.gpis_resolution:
-            final = self._surface(recon.fit, (low, high), resolution)[0]
+        if p.final_resolution != p.gpis_resolution:
+            low, high, _ = self.gpis_box(map_vertices, contacts, gpis.shape)
+            final = self._surface(recon.fit, (low, high), p.final_resolution)[0]
             final = recon if final.empty else final
         if p.final_candidates:
             final, shape = self.best_supported(final, contacts, prior)
             gpis = replace(gpis, shape=shape)
+        final = self._thin_walls(final, contacts)
+        if p.final_candidates:
             keep = supported_parts(final.vertices, final.faces, contacts, p.eps)
             if keep.any() and not keep.all():
                 final = final.restricted(keep)
@@ -230,7 +231,7 @@ class Estimator(Part):
                     continue
             level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
             if candidate_support <= p.eps:
-                return self._final_level(candidate, box, level, tree), shape
+                return self._surface(candidate, box, p.final_resolution, level=level)[0], shape
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape, level)
         for least, candidate, box, shape in screened:
@@ -241,18 +242,18 @@ class Estimator(Part):
                 best_support, best = candidate_support, (candidate, box, shape, level)
         if best is None:
             return final, self.state.gpis.shape
-        return self._final_level(best[0], best[1], best[3], tree), best[2]
+        return self._surface(best[0], best[1], p.final_resolution, level=best[3])[0], best[2]
 
-    def _final_level(self, fit, box, level, contacts_tree):
-        """The :class:`Reconstruction` of a final candidate ``fit`` whose zero level set
-        ``level`` was extracted at ``final_resolution``: again on finer cells where the
-        contacts measure thin walls (:meth:`wall_resolution`)."""
-        resolution = self.wall_resolution(box, self.p.final_resolution, contacts_tree.data)
-        if resolution != self.p.final_resolution:
-            finer = zero_level_surface(fit, box, resolution, fill_voids=self.p.gpis_fill_voids)
-            if len(finer[1]):
-                return self._surface(fit, box, resolution, level=finer)[0]
-        return self._surface(fit, box, self.p.final_resolution, level=level)[0]
+    def _thin_walls(self, final, contacts):
+        """``final`` extracted again on finer cells where the contacts measure thin walls
+        (:meth:`wall_resolution`); the surface was chosen at its own resolution."""
+        if final.bounds is None or final.spacing is not None:
+            return final
+        resolution = self.wall_resolution(final.bounds, final.resolution, contacts)
+        if resolution == final.resolution:
+            return final
+        finer = self._surface(final.fit, final.bounds, resolution)[0]
+        return final if finer.empty else finer
 
     def wall_resolution(self, box, resolution, contacts, normals=None):
         """``resolution`` (cells along the longest side of ``box``), or more where the
@@ -272,7 +273,7 @@ class Estimator(Part):
             return resolution
         longest = float(np.max(np.asarray(box[1]) - np.asarray(box[0])))
         wanted = int(np.ceil(cells * longest / max(wall, 1e-12)))
-        return int(min(max(resolution, wanted), WALL_MOST * resolution))
+        return int(min(max(resolution, wanted), int(WALL_MOST * resolution)))
 
     def _level(self, fit, box, resolution, contacts_tree):
         """``fit``'s zero level set ``(vertices, faces)`` on ``resolution`` cells of ``box``
@@ -361,7 +362,7 @@ class Estimator(Part):
             else:
                 candidates = fit.variance(vertices[subset])
         return Reconstruction(vertices, faces, subset, candidates, fit, resolution, spacing,
-                              everywhere), variance
+                              everywhere, bounds), variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
         """A full fit, then refitted while it puts a non-contact inside (beyond the

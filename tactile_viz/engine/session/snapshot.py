@@ -166,6 +166,8 @@ class Reconstruction:
     vertex_variance : (v,) float or None
         The variance at every vertex where it was interpolated along the grid's edges
         (with ``spacing``); None: :attr:`variance` spreads the candidates'.
+    bounds : ((3,) float, (3,) float) or None
+        The box the surface was extracted in (world frame).
     """
 
     vertices: np.ndarray
@@ -176,6 +178,7 @@ class Reconstruction:
     resolution: int
     spacing: object = None
     vertex_variance: object = None
+    bounds: object = None
 
     @property
     def empty(self):

@@ -196,7 +196,7 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     coarse = novel_session.learned_model("coarse", last)
     if last.terminated:
         assert len(coarse.mesh.faces) <= len(last.gpis_faces)
-    finer = 2 * WALL_MOST * max(params.final_resolution, params.learned_resolution)
+    finer = int(2 * WALL_MOST * max(params.final_resolution, params.learned_resolution))
     fine = novel_session.learned_model("fine", last, resolution=finer)
     assert len(fine.mesh.vertices) > 2 * len(coarse.mesh.vertices)
     # The same zero level set: the fine surface stays within a coarse cell of the coarse one.
