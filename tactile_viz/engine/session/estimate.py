@@ -42,7 +42,10 @@ AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in fo
 # extent (longest side of their box); the MAP prior's lengths cap them (eps / 2, the margin).
 SHAPE_SHARE = 0.1
 SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
-WALL_MOST = 1.5  # a thin wall's final surface takes at most this many times the resolution
+WALL_MOST = 4  # a thin wall's final surface takes at most this many times the resolution
+# and about this many vertices: a 20 cm fork's at 64 cells has 800, an 8 cm cup's 3,300
+# (0.26 s; 0.51 s at 96 cells, 1.1 s at 121)
+WALL_VERTICES = 8000
 
 
 class Estimator(Part):
@@ -249,19 +252,21 @@ class Estimator(Part):
         (:meth:`wall_resolution`); the surface was chosen at its own resolution."""
         if final.bounds is None or final.spacing is not None:
             return final
-        resolution = self.wall_resolution(final.bounds, final.resolution, contacts)
+        resolution = self.wall_resolution(final.bounds, final.resolution, contacts,
+                                          vertices=len(final.vertices))
         if resolution == final.resolution:
             return final
         finer = self._surface(final.fit, final.bounds, resolution)[0]
         return final if finer.empty else finer
 
-    def wall_resolution(self, box, resolution, contacts, normals=None):
+    def wall_resolution(self, box, resolution, contacts, normals=None, vertices=None):
         """``resolution`` (cells along the longest side of ``box``), or more where the
         contacts measure walls touched on both sides: ``final_wall_cells`` cells across their
         median thickness (:func:`~..shape.metrics.wall_thickness` within ``eps``), at most
-        :data:`WALL_MOST` times ``resolution`` (beyond the paper). At 64 cells a 20 cm
-        fork's 4 mm tines were one cell across, and the learned fork's normals missed its
-        own contacts' by 45 degrees (median): met again, it was judged novel."""
+        :data:`WALL_MOST` times ``resolution`` and, for a surface of ``vertices`` at
+        ``resolution``, about :data:`WALL_VERTICES` vertices (beyond the paper). At 64 cells
+        a 20 cm fork's 4 mm tines were one cell across, and the learned fork's normals
+        missed its own contacts' by 45 degrees (median): met again, it was judged novel."""
         cells = self.p.final_wall_cells
         if cells <= 0 or len(contacts) < 2:
             return resolution
@@ -273,7 +278,10 @@ class Estimator(Part):
             return resolution
         longest = float(np.max(np.asarray(box[1]) - np.asarray(box[0])))
         wanted = int(np.ceil(cells * longest / max(wall, 1e-12)))
-        return int(min(max(resolution, wanted), int(WALL_MOST * resolution)))
+        most = WALL_MOST * resolution
+        if vertices:  # a surface's vertices, and its cost, grow as the cells' square
+            most = min(most, resolution * np.sqrt(WALL_VERTICES / vertices))
+        return int(min(max(resolution, wanted), max(resolution, int(most))))
 
     def _level(self, fit, box, resolution, contacts_tree):
         """``fit``'s zero level set ``(vertices, faces)`` on ``resolution`` cells of ``box``

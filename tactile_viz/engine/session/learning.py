@@ -42,8 +42,9 @@ def learned_model(estimator, snapshot, name, resolution, library):
     else:
         low, high, _ = estimator.gpis_box(snapshot.map_vertices, snapshot.contacts,
                                           snapshot.gpis_shape)
+        at = len(snapshot.gpis_vertices) * (resolution / snapshot.gpis_resolution) ** 2
         resolution = estimator.wall_resolution((low, high), resolution, snapshot.contacts,
-                                               snapshot.normals)
+                                               snapshot.normals, vertices=at)
     fit, box = snapshot_fit(estimator, snapshot, resolution)
     vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
     if resolution != snapshot.gpis_resolution:

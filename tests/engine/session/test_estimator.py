@@ -64,7 +64,7 @@ def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
     # it, at most WALL_MOST times final_resolution; a ball's contacts raise nothing.
     from dataclasses import replace
 
-    from tactile_viz.engine.session.estimate import WALL_MOST
+    from tactile_viz.engine.session.estimate import WALL_MOST, WALL_VERTICES
 
     rng = np.random.default_rng(0)
     xy = rng.uniform(-scale, scale, size=(40, 2))
@@ -78,6 +78,10 @@ def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
         assert base == 64
         got = estimator.wall_resolution(box, base, contacts)
         assert got == (int(WALL_MOST * base) if wanted is None else wanted)
+        # A surface of many vertices at the base resolution is refined less (its cost).
+        assert estimator.wall_resolution(box, base, contacts, vertices=WALL_VERTICES) == base
+        budget = estimator.wall_resolution(box, base, contacts, vertices=WALL_VERTICES / 4)
+        assert budget == min(2 * base, got)
         estimator.p = replace(estimator.p, final_wall_cells=0.0)
         assert estimator.wall_resolution(box, base, contacts) == base
     directions = trimesh.creation.icosphere(1).vertices

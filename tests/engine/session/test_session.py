@@ -22,7 +22,7 @@ from tactile_viz.engine.session import (
     make_truth,
     session_preset,
 )
-from tactile_viz.engine.session.estimate import WALL_MOST, Estimator
+from tactile_viz.engine.session.estimate import Estimator
 from tactile_viz.engine.session.planner import Planner
 from tactile_viz.engine.shape.objects import ObjectModel
 
@@ -194,11 +194,12 @@ def test_learned_shape_is_the_step_surface_sampled_finer(novel_session):
     # Asked at the final resolution, a stopped session's last surface is learned as
     # reported (its largest pieces); asked finer than thin walls can raise it, again.
     coarse = novel_session.learned_model("coarse", last)
+    finer = 2 * max(last.gpis_resolution, params.learned_resolution)
+    fine = novel_session.learned_model("fine", last, resolution=finer)
     if last.terminated:
         assert len(coarse.mesh.faces) <= len(last.gpis_faces)
-    finer = int(2 * WALL_MOST * max(params.final_resolution, params.learned_resolution))
-    fine = novel_session.learned_model("fine", last, resolution=finer)
-    assert len(fine.mesh.vertices) > 2 * len(coarse.mesh.vertices)
+        assert len(fine.mesh.vertices) > 2 * len(coarse.mesh.vertices)
+    assert len(fine.mesh.vertices) > len(coarse.mesh.vertices)
     # The same zero level set: the fine surface stays within a coarse cell of the coarse one.
     spacing = float(np.ptp(last.gpis_vertices, axis=0).max()) / params.gpis_resolution
     gap = trimesh.proximity.closest_point(coarse.mesh, fine.mesh.vertices[::10])[1]
