@@ -263,8 +263,9 @@ class Estimator(Part):
         """``resolution`` (cells along the longest side of ``box``), or more where the
         contacts measure walls touched on both sides: ``final_wall_cells`` cells across their
         median thickness (:func:`~..shape.metrics.wall_thickness` within ``eps``), at most
-        :data:`WALL_MOST` times ``resolution`` and, for a surface of ``vertices`` at
-        ``resolution``, about :data:`WALL_VERTICES` vertices (beyond the paper). At 64 cells
+        :data:`WALL_MOST` times ``resolution``, no finer than the sensor's position noise
+        and, for a surface of ``vertices`` at ``resolution``, about :data:`WALL_VERTICES`
+        vertices (beyond the paper). At 64 cells
         a 20 cm fork's 4 mm tines were one cell across, and the learned fork's normals
         missed its own contacts' by 45 degrees (median): met again, it was judged novel."""
         cells = self.p.final_wall_cells
@@ -277,7 +278,9 @@ class Estimator(Part):
         if wall is None:
             return resolution
         longest = float(np.max(np.asarray(box[1]) - np.asarray(box[0])))
-        wanted = int(np.ceil(cells * longest / max(wall, 1e-12)))
+        # Cells finer than the sensor's position noise would draw the noise.
+        cell = max(wall / cells, self.sensor_noise[0], 1e-12)
+        wanted = int(np.ceil(longest / cell))
         most = WALL_MOST * resolution
         if vertices:  # a surface's vertices, and its cost, grow as the cells' square
             most = min(most, resolution * np.sqrt(WALL_VERTICES / vertices))

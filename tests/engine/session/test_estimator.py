@@ -82,6 +82,9 @@ def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
         assert estimator.wall_resolution(box, base, contacts, vertices=WALL_VERTICES) == base
         budget = estimator.wall_resolution(box, base, contacts, vertices=WALL_VERTICES / 4)
         assert budget == min(2 * base, got)
+        # Cells no finer than the sensor's position noise (the noise would be drawn).
+        estimator.sensor_noise = (0.025 * scale, 0.0)
+        assert estimator.wall_resolution(box, base, contacts) == max(base, min(got, 80))
         estimator.p = replace(estimator.p, final_wall_cells=0.0)
         assert estimator.wall_resolution(box, base, contacts) == base
     directions = trimesh.creation.icosphere(1).vertices
