@@ -43,9 +43,9 @@ AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in fo
 SHAPE_SHARE = 0.1
 SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
 WALL_MOST = 4  # a thin wall's final surface takes at most this many times the resolution
-# and about this many vertices: a 20 cm fork's at 64 cells has 800, an 8 cm cup's 3,300
-# (0.26 s; 0.51 s at 96 cells, 1.1 s at 121)
-WALL_VERTICES = 8000
+# and about this many vertices: a 20 cm fork's at 64 cells has 800 (its last step 0.17 s,
+# 1.45 s at 194 cells), an 8 cm cup's 3,300 (0.26 s; 0.51 s at 96 cells, 1.1 s at 121)
+WALL_VERTICES = 3000
 
 
 class Estimator(Part):
