@@ -439,7 +439,7 @@ class SessionParams:
         "final_resolution (0: all of them, docs/gpis.md).", kind="int", valid="[0, inf)")
     final_wall_cells: float = _gpis(
         2.0, "The final and learned surfaces take at least this many cells across the median "
-        "wall touched on both sides, up to about 8,000 vertices (beyond the paper; 0: off).",
+        "wall touched on both sides, up to about 3,000 vertices (beyond the paper; 0: off).",
         valid="[0, 10]", notes="At 64 cells a 20 cm fork's 4 mm tines were one cell across: "
         "its learned normals missed its own contacts' by 45 degrees (docs/gpis.md).")
     learned_resolution: int = _gpis(
