@@ -125,8 +125,8 @@ class FilterParams:
         "subset's contacts and only the best this many go on.")
     max_new_particles: int = _filter(
         0, "Particle budget (beyond the paper): at most this many of a step's new point-pair "
-        "particles are kept, the heaviest; 0 keeps all.", kind="int", valid=_AT_LEAST_0,
-        notes="The heaviest are those resampling would keep anyway.")
+        "particles are kept, the heaviest (those resampling would keep anyway); 0 keeps "
+        "all.", kind="int", valid=_AT_LEAST_0)
     support_sigma: float = _filter(
         0.15, "With a table (beyond the paper): std of a hypothesis' lowest point off the "
         "plane.", valid=_POSITIVE, length=1, control=(1e-3, 10.0),
@@ -410,11 +410,8 @@ class SessionParams:
     variance_points: int = _gpis(
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
-        notes="The target is the largest variance among them; other vertices show the "
-              "inverse-distance mean of the 4 nearest. Each costs a solve against the "
-              "whole factor (O(m^2)): at 250 contacts 1,500 of them took 76 ms a step. "
-              "400 (the paper's configuration kept 1,500) sample a size-6 surface about "
-              "every 0.4, within eps.")
+        notes="The target is their largest variance; other vertices show the 4 nearest's "
+              "inverse-distance mean. Each costs a solve against the whole factor (O(m^2)).")
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",
@@ -438,18 +435,16 @@ class SessionParams:
         "are screened on; only those that could be covered or win are extracted at "
         "final_resolution (0: all of them, docs/gpis.md).", kind="int", valid="[0, inf)")
     final_wall_cells: float = _gpis(
-        2.0, "The final and learned surfaces take at least this many cells across the median "
-        "wall touched on both sides, up to about 3,000 vertices (beyond the paper; 0: off).",
-        valid="[0, 10]", notes="At 64 cells a 20 cm fork's 4 mm tines were one cell across: "
-        "its learned normals missed its own contacts' by 45 degrees (docs/gpis.md).")
+        2.0, "Cells at least across the median wall touched on both sides in the final and "
+        "learned surfaces, up to about 3,000 vertices (beyond the paper; 0: off).",
+        valid="[0, 10]", notes="A 4 mm tine one cell across is a blob (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "
-        "new prior.", kind="int", valid="[8, inf)",
-        notes="The same posterior mean as the step's surface, sampled finer, since a learned "
-              "shape is extracted once and matched against every later contact.")
+        "new prior (at final_resolution a stopped session's last surface, as reported).",
+        kind="int", valid="[8, inf)")
     probe_depth: float = _session(
-        1.0, "How deep contact enforcement reaches at most.", valid=_POSITIVE, length=1,
-        notes="The estimate's deepest point within it is probed.")
+        1.0, "How deep contact enforcement reaches at most (the estimate's deepest point "
+        "within it is probed).", valid=_POSITIVE, length=1)
     approach_clearance: float = _session(
         2.0, "How far outside a target the probe starts, along the estimated normal, at "
         "most.", valid=_POSITIVE, length=1,
