@@ -43,8 +43,8 @@ AGNOSTIC_SHARE = 0.1  # and at least this share of the evidence of the one in fo
 SHAPE_SHARE = 0.1
 SHAPE_NOISE_STDS = 2.0  # and the least radius is at least this many position-noise stds
 WALL_MOST = 4  # a thin wall's final surface takes at most this many times the resolution
-# and about this many vertices: a 20 cm fork's at 64 cells has 800 (its last step 0.17 s,
-# 1.45 s at 194 cells), an 8 cm cup's 3,300 (0.26 s; 0.51 s at 96 cells, 1.1 s at 121)
+# and about this many vertices: its extraction's time grows faster than its vertices (a 20
+# cm fork has 800 at 64 cells; an 8 cm cup 3,300, whose two-sided walls are not refined)
 WALL_VERTICES = 3000
 
 
@@ -265,16 +265,15 @@ class Estimator(Part):
         median thickness (:func:`~..shape.metrics.wall_thickness` within ``eps``), at most
         :data:`WALL_MOST` times ``resolution``, no finer than the sensor's position noise
         and, for a surface of ``vertices`` at ``resolution``, about :data:`WALL_VERTICES`
-        vertices (beyond the paper). At 64 cells
-        a 20 cm fork's 4 mm tines were one cell across, and the learned fork's normals
-        missed its own contacts' by 45 degrees (median): met again, it was judged novel."""
+        vertices (beyond the paper). At 64 cells a 20 cm fork's 4 mm tines were one cell
+        across, and the learned fork's normals missed its own contacts' by 45 degrees
+        (median): met again, it was judged novel."""
         cells = self.p.final_wall_cells
         if cells <= 0 or len(contacts) < 2:
             return resolution
         if normals is None:
             normals = self.filter.contact_normals
-        wall = _wall(np.ascontiguousarray(contacts, dtype=float).tobytes(),
-                     np.ascontiguousarray(normals, dtype=float).tobytes(), float(self.p.eps))
+        wall = wall_thickness(contacts, normals, self.p.eps)
         if wall is None:
             return resolution
         longest = float(np.max(np.asarray(box[1]) - np.asarray(box[0])))
@@ -506,13 +505,6 @@ class Estimator(Part):
         free_space = self.state.free_space if free_space is None else free_space
         reach = self.p.gpis_support if self.p.gpis_kernel == "wendland" else self.unit
         return np.vstack([noncontacts, thin_points(free_space, reach / 4)])
-
-
-@functools.lru_cache(maxsize=4)
-def _wall(contacts, normals, reach):
-    # A stopping step asks it for each candidate's box, of the same contacts.
-    return wall_thickness(np.frombuffer(contacts).reshape(-1, 3),
-                          np.frombuffer(normals).reshape(-1, 3), reach)
 
 
 def map_shape(filter, belief):
