@@ -269,7 +269,7 @@ class Estimator(Part):
         across, and the learned fork's normals missed its own contacts' by 45 degrees
         (median): met again, it was judged novel."""
         cells = self.p.final_wall_cells
-        if cells <= 0 or len(contacts) < 2:
+        if cells <= 0:
             return resolution
         if normals is None:
             normals = self.filter.contact_normals
