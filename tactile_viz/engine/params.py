@@ -151,8 +151,7 @@ class FilterParams:
         3, "The same refinement of this many of the heaviest particles of each learned prior "
         "(beyond the paper; 0 off).", kind="int", valid=_AT_LEAST_0,
         notes="A learned shape's feature normals come from a reconstruction: its point-pair "
-              "poses are coarser than a mesh's (on the learned home chair the MAP's normals "
-              "missed the contacts' by 33-39 degrees) and the novelty test failed at them.")
+              "poses are coarser than a mesh's, and the novelty test failed at them.")
     learned_noise: bool = _filter(
         True, "The novelty test grants a learned MAP its own error (shape_error) as position "
         "noise (beyond the paper).", kind="bool", notes="docs/novel.md: a learned fork.")
@@ -204,11 +203,9 @@ class FilterParams:
         0.0, "Voxels from the surface within which a prior's SDF grid is exact; farther "
         "nodes are interpolated from coarser grids (0: exact at every node).",
         valid="[0, inf)",
-        notes="4 in the recognise preset. Far nodes cost the exact distance the most: a "
-              "library of 16,000-face priors builds 2-3x faster; beyond the band a value is "
-              "off by up to some 15-25% of the distance, never in sign. A known object's "
-              "contacts lie near its surface; a novel object's lie far from every prior's, "
-              "and its reconstruction is worse with a band.")
+        notes="4 in the recognise preset: 16,000-face priors build 2-3x faster; beyond the "
+              "band a value is off by up to 15-25% of the distance, never in sign. A novel "
+              "object's contacts lie far from every prior's: worse with a band.")
 
     def __post_init__(self):
         check_fields(self)
@@ -262,18 +259,14 @@ class SessionParams:
     gpis_kernel: str = _gpis(
         "thin-plate", "The GPIS kernel: the paper's thin-plate, or the compact Wendland.",
         kind="choice", choices=GPIS_KERNELS,
-        notes="thin-plate: the paper's kernel, whose correction reaches the whole box (the "
-              "default: with the carved prior and prior coverage it reconstructs as well as "
-              "the Wendland kernel, fails less badly and takes half the time, "
-              "docs/bench-novel.md); wendland: compactly supported, a contact corrects the "
-              "prior only within gpis_support.")
+        notes="thin-plate corrects the whole box (as accurate, fails less badly, half the "
+              "time: docs/bench-novel.md); wendland only within gpis_support.")
     gpis_support: float = _gpis(
         4.0, "Support radius c of the Wendland kernel.", valid=_POSITIVE, length=1)
     gpis_radius_factor: float = _gpis(
         1.2, "Thin-plate R over the reconstruction box's diagonal.", valid=_POSITIVE,
-        notes="The diagonal bounds every distance involved: 1.0 is the paper's \"largest "
-              "distance\" (the indefinite Gram matrix is projected on the PSD cone), 1.2 "
-              "makes it positive definite.")
+        notes="1.0 is the paper's \"largest distance\" (its indefinite Gram matrix is "
+              "projected on the PSD cone); 1.2 makes it positive definite.")
     gpis_noncontacts: bool = _gpis(
         False, "Non-contacts inside the prior observe f = gpis_noncontact_value (beyond the "
         "paper).", kind="bool", notes="Value only, which removes the prior's surface where "
@@ -289,31 +282,25 @@ class SessionParams:
         0.6, "Radius of the balls cut out of the GPIS prior mean around non-contacts (beyond "
         "the paper; 0 keeps the prior whole).", valid=_AT_LEAST_0, length=1,
         notes="At most the distance to the nearest contact, around every non-contact and "
-              "every sample of a missed probe's path, so a probe through a phantom part of a "
-              "wrong prior removes it there.")
+              "missed probe's sample: a probe through a wrong prior's phantom removes it.")
     gpis_fill_radius: float = _gpis(
         0.0, "Largest solid ball added to the GPIS prior mean behind a contact that the prior "
         "puts in its empty space (beyond the paper; 0 keeps the prior as it is).",
         valid=_AT_LEAST_0, length=1, control=(0.0, 6.0),
-        notes="The ball tangent at the contact, inside it, as large as no other contact and "
-              "no free-space point lies in it. It mends a prior unlike the object (a ball "
-              "against a mug's cavity) but fills a thin wall's cavity before its inside is "
-              "touched, which made the bundled protocol's novel objects worse: off by "
-              "default (docs/novel.md).")
+        notes="The ball tangent at the contact holding no other contact or free point. It "
+              "mends a ball against a mug's cavity but fills a thin wall's cavity before "
+              "its inside is touched (the protocol worse): off (docs/novel.md).")
     gpis_carve_outside: bool = _gpis(
         True, "Free-space points outside the prior's solid cut their balls out of it too "
         "(beyond the paper; False: only those a probe found inside it).", kind="bool",
-        notes="A probe that passed 0.2 beside a real part the prior has (a sofa's foot) "
-              "refutes nothing of it, but its ball cuts the part away; on by default, "
-              "because off, a novel object whose priors are of the wrong class (the dragon) "
-              "keeps their phantom surface and was worse noiseless (docs/gpis.md).")
+        notes="Off, a probe beside a real part (a sofa's foot) spares it, but priors of the "
+              "wrong class keep their phantoms (the dragon, worse): docs/gpis.md.")
     gpis_fill_voids: bool = _gpis(
         False, "Fill the GPIS estimate's voids, outside regions enclosed by its solid, before "
         "its surface is extracted (beyond the paper): the surface is the one a probe could "
         "reach if the estimate were right.", kind="bool",
-        notes="A void of the estimate can be an opening it closed too early (the bundled "
-              "dragon was worse with it), and alone it does not mend a ball against a mug "
-              "prior: off by default (docs/novel.md).")
+        notes="A void can be an opening closed too early (the dragon was worse with it): "
+              "off by default (docs/novel.md).")
     gpis_agnostic: bool = _gpis(
         True, "The GPIS prior mean is a superquadric fitted to the contacts (an ellipsoid, a "
         "rounded or a sharp box) while their GP evidence favours it over the MAP shape's "
@@ -412,6 +399,9 @@ class SessionParams:
         kind="int", valid=_AT_LEAST_1,
         notes="The target is their largest variance; other vertices show the 4 nearest's "
               "inverse-distance mean. Each costs a solve against the whole factor (O(m^2)).")
+    final_support_open: bool = _gpis(
+        True, "The reported surface's support (final_candidates) leaves out the vertices "
+        "the stop does: near given-up targets and missed probes.", kind="bool")
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",

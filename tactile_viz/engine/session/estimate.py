@@ -31,6 +31,7 @@ from ..shape.metrics import wall_thickness
 from ..transforms import transform_points
 from .context import Part
 from .fields import PosedSDF, thin_points
+from .planner import open_vertices
 from .snapshot import Reconstruction
 
 FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
@@ -217,7 +218,7 @@ class Estimator(Part):
         MAP prior's)."""
         p = self.p
         tree = cKDTree(contacts)
-        best_support = support(final.vertices, tree)
+        best_support = self._support(final.vertices, tree)
         if best_support <= p.eps:
             return final, self.state.gpis.shape
         screen = p.final_screen_resolution or p.final_resolution
@@ -289,7 +290,17 @@ class Estimator(Part):
         """``fit``'s zero level set ``(vertices, faces)`` on ``resolution`` cells of ``box``
         and its :func:`support` (``inf`` without a surface)."""
         level = zero_level_surface(fit, box, resolution, fill_voids=self.p.gpis_fill_voids)
-        return level, support(level[0], contacts_tree) if len(level[1]) else np.inf
+        return level, self._support(level[0], contacts_tree) if len(level[1]) else np.inf
+
+    def _support(self, vertices, contacts_tree):
+        """:func:`support` over the vertices the stop counts (``final_support_open``): not
+        near a given-up target or a missed probe's path (the planner's reachable mask). A
+        session stopped with its estimate covered there had every surface weighed again
+        for vertices no probe could reach: a 10 cm ball's last step 2.8 s, 2.2 of them
+        fifteen candidate surfaces."""
+        if self.p.final_support_open:
+            vertices = vertices[open_vertices(vertices, self.state, self.p.contact_spacing)]
+        return support(vertices, contacts_tree)
 
     def _final_candidates(self, final, contacts, prior):
         """The fits :meth:`best_supported` weighs, newest first, as ``(fit, (low, high),

@@ -397,14 +397,8 @@ class Planner(Part):
         left): probing there again cannot change the estimate, so the trial would only run
         to its step cap.
         """
-        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
-        if len(refuted) == 0:
-            return np.ones(len(vertices), bool)
-        radius = self.p.contact_spacing if radius is None else radius
-        distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
-            vertices, distance_upper_bound=radius)[0]
-        far = distance >= radius
-        return far if far.any() else np.ones(len(vertices), bool)
+        return open_vertices(vertices, self.state,
+                             self.p.contact_spacing if radius is None else radius)
 
     def plan_check_line(self, estimate, contacts, outside=None):
         """The next :class:`Check`: the estimate's vertices, its point, its direction and the
@@ -540,6 +534,18 @@ def segment_points(segments, spacing):
     starts = np.repeat(segments[:, 0], counts, axis=0)
     ends = np.repeat(segments[:, 1], counts, axis=0)
     return starts + fractions[:, None] * (ends - starts)
+
+
+def open_vertices(vertices, state, radius):
+    """Mask of ``vertices`` farther than ``radius`` from every given-up target and every
+    free-space point of the exploration ``state`` (all of them if none is)."""
+    refuted = np.vstack([np.reshape(state.given_up, (-1, 3)), state.free_space])
+    if len(refuted) == 0 or len(vertices) == 0:
+        return np.ones(len(vertices), bool)
+    distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
+        vertices, distance_upper_bound=radius)[0]
+    far = distance >= radius
+    return far if far.any() else np.ones(len(vertices), bool)
 
 
 @functools.lru_cache(maxsize=4)

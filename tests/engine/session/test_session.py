@@ -970,3 +970,24 @@ def test_the_variance_between_its_samples_is_a_mean_of_the_nearest():
     assert np.abs(variance - exact).max() < 0.1 * np.ptp(exact)
     every = np.random.default_rng(1).permutation(len(vertices))
     np.testing.assert_allclose(spread_variance(vertices, every, exact[every]), exact)
+
+
+@pytest.mark.parametrize("open_only", [True, False])
+def test_the_reported_surface_is_judged_where_the_stop_judges_it(sphere_model, open_only):
+    # A vertex beside a given-up target no probe could reach does not hold the stop; with
+    # final_support_open it does not send the reported surface on a search of the
+    # candidates either (a stopped 10 cm ball's last step: 2.2 s of fifteen surfaces).
+    library = _box_library(sphere_model)
+    params = session_preset("recommended", eps=2.5, check_lines=0, max_steps_novel=25,
+                            gpis_agnostic=False, final_support_open=open_only)
+    session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params)
+    session.run()
+    last = session.latest
+    contacts = session.filter.contact_positions
+    far = contacts.mean(axis=0) + [40.0, 0.0, 0.0]
+    final = _with_phantom(_recon_of(session, last), far)
+    estimator = session.parts().estimator
+    estimator.state.given_up.append(far)
+    step_prior = (last.map_class, last.map_rotation, last.map_translation)
+    recon = estimator.best_supported(final, contacts, step_prior)[0]
+    assert (recon is final) == open_only
