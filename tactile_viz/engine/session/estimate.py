@@ -296,8 +296,8 @@ class Estimator(Part):
         """:func:`support` over the vertices the stop counts (``final_support_open``): not
         near a given-up target or a missed probe's path (the planner's reachable mask). A
         session stopped with its estimate covered there had every surface weighed again
-        for vertices no probe could reach: a 10 cm ball's last step 2.8 s, 2.2 of them
-        fifteen candidate surfaces."""
+        for vertices no probe could reach: a 20 cm fork's last step at 2 mm noise took
+        2.1 s, 1.8 of them candidate surfaces (0.8 s without)."""
         if self.p.final_support_open:
             vertices = vertices[open_vertices(vertices, self.state, self.p.contact_spacing)]
         return support(vertices, contacts_tree)
