@@ -386,14 +386,16 @@ class Estimator(Part):
                               everywhere, bounds), variance
 
     def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
-        """A full fit, then refitted while it puts a non-contact inside (beyond the
-        paper: ``gpis_refute_rounds``, at the scale the first fit took)."""
+        """A full fit, then refitted while it puts a non-contact farther than ``eps`` from
+        every contact inside (beyond the paper: ``gpis_refute_rounds``, at the scale the
+        first fit took)."""
         options = self._observation_options(noncontacts)
         fit = fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton, **options)
         return refuted_fit(
             fit, noncontacts, self.p.gpis_noncontact_value, self.p.gpis_refute_rounds,
             lambda refuting: fit_gpis(contacts, normals, prior, kernel, scale=fit.scale,
-                                      newton=False, refuting=refuting, **options))
+                                      newton=False, refuting=refuting, **options),
+            contacts, self.p.eps)
 
     def _newton_due(self, contacts, fits):
         """Whether a full fit takes the scale's Newton step, ``fits`` fits after the last:

@@ -19,7 +19,7 @@ from tactile_viz.engine.shape.gpis import (
     value_rows,
     zero_level_surface,
 )
-from tactile_viz.engine.shape.gpis_prior import CUT_TIE
+from tactile_viz.engine.shape.gpis_prior import CUT_TIE, REFUTE_MOST, refuted_fit
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 
@@ -269,6 +269,47 @@ def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
     kept = cut_free_space(plain, refuted, points, 0.6, keep_within=1.3)
     assert len(near)
     np.testing.assert_array_equal(kept.mean_value(near), plain.mean_value(near))
+
+
+def test_a_miss_refutes_the_fit_only_away_from_the_contacts(mug_data):
+    # Free points the fit puts inside observe f = value and push its surface out, round by
+    # round; those within keep_within of a contact (a probe beside a thin part) never do.
+    points, normals, prior, _ = mug_data
+    kernel = ThinPlateKernel(12.0)
+    plain = fit_gpis(points, normals, prior, kernel)
+    candidates = np.random.default_rng(6).uniform(-3, 3, size=(6000, 3))
+    distance = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=-1), 1)
+    inside = plain.mean_value(candidates) < -0.05
+    far = candidates[inside & (distance > 1.0)][:15]
+    near = candidates[inside & (distance < 0.5)][:15]
+    assert len(far) == 15 and len(near) == 15
+    given = []
+
+    def refit(refuting):
+        given.append(refuting)
+        return fit_gpis(points, normals, prior, kernel, scale=plain.scale, newton=False,
+                        refuting=refuting)
+
+    fit = refuted_fit(plain, np.vstack([far, near]), 0.1, 3, refit, points, keep_within=0.75)
+    assert given and all(np.min(np.linalg.norm(g[:, None] - points[None], axis=-1), 1).min() > 0.75
+                         for g in given)
+    assert np.mean(fit.mean_value(far) > 0) > np.mean(plain.mean_value(far) > 0)
+    assert refuted_fit(plain, near, 0.1, 3, refit, points, keep_within=0.75) is plain
+    assert refuted_fit(plain, np.zeros((0, 3)), 0.1, 3, refit) is plain
+
+
+def test_each_refuting_round_adds_the_deepest_few(rng):
+    # A fit that puts every free point inside, deeper the farther from the origin.
+    class Inside:
+        def mean_value(self, points):
+            return -np.linalg.norm(points, axis=1)
+
+    free = rng.normal(size=(3 * REFUTE_MOST, 3))
+    given = []
+    refuted_fit(Inside(), free, 0.1, 2, lambda refuting: given.append(refuting) or Inside())
+    assert [len(g) for g in given] == [REFUTE_MOST, 2 * REFUTE_MOST]
+    depth = np.linalg.norm(free, axis=1)
+    assert np.linalg.norm(given[0], axis=1).min() >= np.sort(depth)[-REFUTE_MOST]
 
 
 def test_inverse_from_cholesky_matches_a_solve(rng):
