@@ -277,7 +277,7 @@ class SessionParams:
     gpis_refute_rounds: int = _gpis(
         0, "Refits, at most, with the non-contacts the fit puts inside observing f = "
         "gpis_noncontact_value (beyond the paper; 0: none).", kind="int", valid="[0, 10]",
-        notes="A miss removes a bulge of the fit itself; not yet measured whole (docs/gpis.md).")
+        notes="A miss far from every contact removes a bulge of the fit; mixed (docs/gpis.md).")
     gpis_carve_radius: float = _gpis(
         0.6, "Radius of the balls cut out of the GPIS prior mean around non-contacts (beyond "
         "the paper; 0 keeps the prior whole).", valid=_AT_LEAST_0, length=1,
