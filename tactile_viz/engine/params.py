@@ -394,6 +394,10 @@ class SessionParams:
               "up to eps off the estimate unseen); it does not count toward check_lines "
               "unless it surprises; contact: a straight line through a random contact moved "
               "by about eps, from the least used direction.")
+    check_shell_observed: bool = _session(
+        False, "A check in the shell outside the estimate sweeps the place farthest from "
+        "what was observed, not also from the estimated surface (beyond the paper).",
+        kind="bool", notes="The surface is no observation: a mug's handle beside it hid.")
     variance_points: int = _gpis(
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,

@@ -174,7 +174,7 @@ def next_sweep_direction(used, rng, count=64):
 
 
 def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max_points=8000,
-               unit=1.0):
+               unit=1.0, observed_only=False):
     """The point inside the contacts' convex hull or in a shell just outside the estimated
     surface that lies farthest from everything observed and from the estimated surface:
     where a part that nothing predicted could still hide (between touched parts, or
@@ -197,6 +197,10 @@ def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max
         (0: the hull alone).
     max_points : int
         Grid points over the bounding box at most.
+    observed_only : bool
+        A shell point's width is its distance to ``explored`` alone: the estimated surface
+        is no observation, and a part just beside it (a mug's handle 25 mm off the
+        estimate of its body) was never wider than the shell's far rim.
 
     Returns
     -------
@@ -216,12 +220,14 @@ def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max
     except (QhullError, ValueError):  # fewer than 4 contacts, or all in a plane
         in_hull = np.zeros(len(grid), bool)
     distance = np.full(len(grid), np.inf)
+    width = distance
     if len(surface):
         distance = cKDTree(surface).query(grid)[0]
+        width = np.where(in_hull | (not observed_only), distance, np.inf)
         if shell > 0:
             in_hull |= distance <= shell
     keep = in_hull & (distance > margin)
-    grid, distance = grid[keep], distance[keep]
+    grid, distance = grid[keep], width[keep]
     if len(grid):
         free = outside(grid) > 0
         grid, distance = grid[free], distance[free]

@@ -425,7 +425,7 @@ class Planner(Part):
             # outside the estimate (beyond the ends of parts it closes off).
             shell = 2 * self.p.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
-                                      unit=self.unit)
+                                      unit=self.unit, observed_only=self.p.check_shell_observed)
         if not self.scene.is_free:
             return self._scene_check(estimate, contacts, through)
         if through is None:

@@ -232,6 +232,21 @@ def test_the_widest_gap_is_where_nothing_was_observed():
     assert widest_gap(contacts, contacts, contacts, lambda p: -np.ones(len(p)))[0] is None
 
 
+def test_a_shell_gap_observed_only_is_not_bounded_by_the_estimate():
+    # A flat estimate at z = 0 (outside above it), touched at one corner only: the space
+    # just above the far corner is unobserved. Measured from the estimate too, no shell
+    # point is wider than the shell; measured from the observations alone, one is.
+    grid = np.linspace(-1.0, 1.0, 21)
+    surface = np.array([[x, y, 0.0] for x in grid for y in grid])
+    contacts = np.array([[-1.0, -1.0, 0.0], [-0.9, -1.0, 0.0], [-1.0, -0.9, 0.0],
+                         [-0.95, -0.95, -0.1]])
+    outside = lambda points: points[:, 2]  # noqa: E731
+    _, bounded = widest_gap(contacts, contacts, surface, outside, shell=0.6)
+    point, gap = widest_gap(contacts, contacts, surface, outside, shell=0.6, observed_only=True)
+    assert bounded <= 0.6 + 1e-9 < gap
+    assert point[0] > 0.5 and point[1] > 0.5 and 0.0 < point[2] <= 0.6 + 0.1
+
+
 def test_a_gap_beyond_the_end_of_a_part_is_found_in_the_shell():
     # A rod's estimate along z ends at z = 2 (its contacts stop there): the shell reaches
     # beyond the end, the widest gap lies there.
