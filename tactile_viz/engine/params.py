@@ -395,9 +395,10 @@ class SessionParams:
               "unless it surprises; contact: a straight line through a random contact moved "
               "by about eps, from the least used direction.")
     check_shell_observed: bool = _session(
-        False, "A check in the shell outside the estimate sweeps the place farthest from "
+        True, "A check in the shell outside the estimate sweeps the place farthest from "
         "what was observed, not also from the estimated surface (beyond the paper).",
-        kind="bool", notes="The surface is no observation: a mug's handle beside it hid.")
+        kind="bool", notes="The surface is no observation: a mug's handle beside it hid "
+        "(docs/journal/novel.md).")
     variance_points: int = _gpis(
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
