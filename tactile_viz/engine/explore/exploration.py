@@ -176,9 +176,10 @@ def next_sweep_direction(used, rng, count=64):
 def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max_points=8000,
                unit=1.0, observed_only=False):
     """The point inside the contacts' convex hull or in a shell just outside the estimated
-    surface that lies farthest from everything observed and from the estimated surface:
-    where a part that nothing predicted could still hide (between touched parts, or
-    beyond the end of a part that the estimate closes off).
+    surface that lies farthest from everything observed and (but for a shell point with
+    ``observed_only``) from the estimated surface: where a part that nothing predicted
+    could still hide (between touched parts, or beyond the end of a part that the
+    estimate closes off).
 
     Parameters
     ----------

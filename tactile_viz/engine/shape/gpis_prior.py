@@ -105,9 +105,9 @@ def refuted_fit(fit, free, value, rounds, refit, contacts=None, keep_within=0.0)
         ``fit`` itself when it puts none of ``free`` inside.
     """
     free = np.asarray(free, dtype=float).reshape(-1, 3)
-    contacts = np.zeros((0, 3)) if contacts is None else np.asarray(contacts, dtype=float)
+    contacts = np.asarray(() if contacts is None else contacts, dtype=float).reshape(-1, 3)
     if keep_within > 0 and len(free) and len(contacts):
-        free = free[cKDTree(contacts.reshape(-1, 3)).query(free)[0] > keep_within]
+        free = free[cKDTree(contacts).query(free)[0] > keep_within]
     chosen = np.zeros(len(free), dtype=bool)
     for _ in range(rounds if len(free) else 0):
         values = np.asarray(fit.mean_value(free))
