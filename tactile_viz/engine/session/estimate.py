@@ -11,8 +11,6 @@ import time
 from dataclasses import replace
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..shape.gpis import (
@@ -32,6 +30,7 @@ from ..transforms import transform_points
 from .context import Part
 from .fields import PosedSDF, thin_points
 from .planner import open_vertices
+from .reported import refuted_points, reported_parts
 from .snapshot import Reconstruction
 
 FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
@@ -151,9 +150,10 @@ class Estimator(Part):
         or, where part of it lies farther than ``eps`` from every contact, the newest
         reconstruction of a recent MAP prior that the contacts cover, else the best
         supported (:meth:`best_supported`; ``prior`` is the step's ``(class, rotation,
-        translation)``); of that, the parts some contact comes within ``eps`` of
-        (:func:`supported_parts`): a part no contact comes near is a phantom of the prior
-        mean or the kernel (an 8 cm cup's ended with a blob 5 cm off every contact).
+        translation)``); of that, without what misses refute (the holes this leaves
+        closed), the parts some contact comes within ``eps`` of (:meth:`_supported`): a
+        part no contact comes near is a phantom of the prior mean or the kernel (an 8 cm
+        cup's ended with a blob 5 cm off every contact).
 
         Returns
         -------
@@ -176,27 +176,29 @@ class Estimator(Part):
             gpis = replace(gpis, shape=shape)
         final = self._thin_walls(final, contacts)
         if p.final_candidates:
-            keep = supported_parts(final.vertices, final.faces, contacts, p.eps)
-            if keep.any() and not keep.all():
-                final = final.restricted(keep)
+            final = self._supported(final, contacts, close=True)
         if final is not recon:
             timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return final, gpis
 
     def reported(self, recon, contacts, timings):
         """The step's surface as a snapshot reports it: with ``final_candidates`` (as the
-        final surface), only the parts some contact comes within ``eps`` of
-        (:func:`supported_parts`); the planner keeps the whole estimate. A part no contact
-        comes near is a phantom of the prior mean or the kernel, and it comes and goes from
-        step to step (an 8 cm cup's error between 10 and 90 mm on consecutive touches)."""
+        final surface), without what misses refute, only the parts some contact comes
+        within ``eps`` of (:meth:`_supported`); the planner keeps the whole estimate. A
+        part no contact comes near is a phantom of the prior mean or the kernel, and it
+        comes and goes from step to step (an 8 cm cup's error between 10 and 90 mm on
+        consecutive touches)."""
         if recon is None or recon.empty or not self.p.final_candidates:
             return recon
         clock = time.perf_counter()
-        keep = supported_parts(recon.vertices, recon.faces, contacts, self.p.eps)
-        if keep.any() and not keep.all():
-            recon = recon.restricted(keep)
+        recon = self._supported(recon, contacts)
         timings["surface"] = timings.get("surface", 0.0) + time.perf_counter() - clock
         return recon
+
+    def _supported(self, recon, contacts, close=False):
+        """:func:`~.reported.reported_parts` of ``recon`` in this session."""
+        return reported_parts(recon, refuted_points(self.state), contacts,
+                              self.p.contact_spacing, self.p.eps, close=close)
 
     def best_supported(self, final, contacts, prior):
         """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
@@ -554,35 +556,6 @@ def support(vertices, contacts_tree):
     if len(vertices) == 0:
         return np.inf
     return float(contacts_tree.query(vertices)[0].max())
-
-
-def supported_parts(vertices, faces, points, reach):
-    """Mask of the vertices on connected parts of a surface that come within ``reach`` of
-    a point: the parts some contact supports.
-
-    Parameters
-    ----------
-    vertices : (v, 3) float
-    faces : (f, 3) int
-    points : (n, 3) float
-        Contacts, the same frame as ``vertices``.
-    reach : float
-        Scene units.
-
-    Returns
-    -------
-    (v,) bool
-        All False without points or vertices.
-    """
-    vertices, faces = np.asarray(vertices, float), np.asarray(faces, int)
-    if len(vertices) == 0 or len(points) == 0:
-        return np.zeros(len(vertices), bool)
-    ends = np.roll(faces, 1, axis=1)
-    graph = coo_matrix((np.ones(faces.size), (faces.ravel(), ends.ravel())),
-                       shape=(len(vertices),) * 2)
-    _, labels = connected_components(graph, directed=False)
-    near = cKDTree(points).query(vertices, distance_upper_bound=reach)[0] <= reach
-    return np.isin(labels, labels[near])
 
 
 def _extent(points):

@@ -117,6 +117,39 @@ def _repaired_surface(mesh, source):
     return _concatenated(merged), notes
 
 
+def closed_faces(vertices, faces):
+    """``faces`` with every hole of the surface closed by a patch across its rim
+    (pymeshlab's hole filling, whatever the hole's size), or None when the result is not
+    closed; the vertices stay as they are (the patches join existing vertices).
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+    faces : (f, 3) int
+
+    Returns
+    -------
+    (g, 3) int or None
+        The first ``f`` rows are ``faces``.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int32)
+    if len(faces) == 0:
+        return None
+    pymeshlab = _pymeshlab()
+    meshset = pymeshlab.MeshSet()
+    meshset.add_mesh(pymeshlab.Mesh(vertices, faces))
+    meshset.meshing_close_holes(maxholesize=3 * len(faces) + 3, selfintersection=False)
+    current = meshset.current_mesh()
+    closed = current.face_matrix().astype(np.int64)
+    if (current.vertex_matrix().shape != vertices.shape
+            or not np.array_equal(current.vertex_matrix(), vertices)
+            or not np.array_equal(closed[:len(faces)], faces)):
+        return None
+    mesh = trimesh.Trimesh(vertices, closed, process=False)
+    return closed if mesh.is_watertight else None
+
+
 def _non_manifold_edge_count(mesh):
     """Edges shared by more than two faces."""
     edges = mesh.edges_sorted.astype(np.int64)

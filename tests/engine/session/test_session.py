@@ -269,7 +269,7 @@ def test_snapshot_is_complete_and_immutable(bundled, known):
 def test_every_reported_surface_holds_only_supported_parts(novel_session):
     """Each novel snapshot reports the parts of its estimate some contact comes within eps
     of (the bundled objects' eps is one size unit at every step), as the final one does."""
-    from tactile_viz.engine.session.estimate import supported_parts
+    from tactile_viz.engine.session.reported import supported_parts
 
     eps = novel_session._p.eps
     reported = [s for s in novel_session.snapshots if s.gpis_faces is not None]

@@ -1,0 +1,139 @@
+"""A novel session's surface keeps only the parts a contact supports and drops what the
+misses refute: :mod:`tactile_viz.engine.session.reported` and
+:meth:`Reconstruction.restricted` on their own."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from tactile_viz.engine.session.reported import (
+    refuted_points,
+    refuted_vertices,
+    supported_parts,
+    without_refuted,
+)
+from tactile_viz.engine.session.snapshot import Reconstruction
+from tactile_viz.engine.session.state import ExplorationState
+from tactile_viz.engine.shape.mesh_repair import closed_faces
+
+
+def _two_balls(scale):
+    """A ball at the origin and a smaller one 3 radii off, one surface of two parts."""
+    body = trimesh.creation.icosphere(2, scale)
+    blob = trimesh.creation.icosphere(1, 0.3 * scale)
+    blob.apply_translation([3.0 * scale, 0.0, 0.0])
+    both = trimesh.util.concatenate([body, blob])
+    return np.asarray(both.vertices), np.asarray(both.faces), len(body.vertices)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_only_the_parts_a_contact_comes_near_are_kept(scale):
+    vertices, faces, body = _two_balls(scale)
+    contacts = vertices[:body][::7] + 0.01 * scale  # touches of the body only
+    keep = supported_parts(vertices, faces, contacts, 0.1 * scale)
+    assert keep[:body].all() and not keep[body:].any()
+    # A contact near the blob supports it too; one nearly within reach does not.
+    beside = np.array([[3.3 * scale + 0.09 * scale, 0.0, 0.0]])
+    assert supported_parts(vertices, faces, np.vstack([contacts, beside]), 0.1 * scale).all()
+    assert not supported_parts(vertices, faces, beside, 0.05 * scale).any()
+
+
+def test_no_contacts_or_no_surface_support_nothing():
+    vertices, faces, _ = _two_balls(1.0)
+    assert not supported_parts(vertices, faces, np.zeros((0, 3)), 1.0).any()
+    assert supported_parts(np.zeros((0, 3)), np.zeros((0, 3), int), vertices, 1.0).shape == (0,)
+
+
+def test_a_restricted_estimate_keeps_its_faces_and_variance_on_the_kept_part():
+    vertices, faces, body = _two_balls(1.0)
+    subset = np.array([0, 5, body + 1, body + 2, 40])
+    variance = np.arange(len(subset), dtype=float)
+    recon = Reconstruction(vertices, faces, subset, variance, fit=None, resolution=32,
+                           vertex_variance=np.linspace(0.0, 1.0, len(vertices)))
+    keep = np.arange(len(vertices)) < body
+    part = recon.restricted(keep)
+    np.testing.assert_array_equal(part.vertices, vertices[:body])
+    assert part.faces.min() >= 0 and part.faces.max() < body
+    assert len(part.faces) == len(trimesh.creation.icosphere(2, 1.0).faces)
+    np.testing.assert_array_equal(part.vertices[part.subset], vertices[[0, 5, 40]])
+    np.testing.assert_array_equal(part.candidate_variance, [0.0, 1.0, 4.0])
+    np.testing.assert_array_equal(part.variance, recon.vertex_variance[:body])
+
+
+def test_a_restricted_estimate_without_a_variance_sample_has_none():
+    vertices, faces, body = _two_balls(1.0)
+    recon = Reconstruction(vertices, faces, np.array([body, body + 3]), np.ones(2),
+                           fit=None, resolution=32)
+    part = recon.restricted(np.arange(len(vertices)) < body)
+    assert part.subset is None
+    np.testing.assert_array_equal(part.variance, np.zeros(body))
+
+
+def _ball_with_misses(scale):
+    """A ball of radius ``scale`` touched on its lower half, with misses beside its top:
+    ``(recon, refuted, contacts)``."""
+    ball = trimesh.creation.icosphere(3, scale)
+    vertices, faces = np.asarray(ball.vertices), np.asarray(ball.faces)
+    contacts = vertices[vertices[:, 2] < -0.2 * scale][::5]
+    top = vertices[vertices[:, 2] > 0.8 * scale]
+    refuted = top * 1.05  # just outside: the probes passed there and touched nothing
+    recon = Reconstruction(vertices, faces, None, np.zeros(0), fit=None, resolution=32)
+    return recon, refuted, contacts
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_only_vertices_near_a_miss_and_far_from_every_contact_are_refuted(scale):
+    recon, refuted, contacts = _ball_with_misses(scale)
+    marked = refuted_vertices(recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale)
+    z = recon.vertices[:, 2]
+    assert marked.any() and (z[marked] > 0.6 * scale).all()
+    assert marked[z > 0.85 * scale].all()
+    # A contact within reach of the top covers it; a miss farther than spacing refutes none.
+    assert not refuted_vertices(recon.vertices, refuted, np.vstack([contacts, refuted]),
+                                0.2 * scale, 0.3 * scale).any()
+    assert not refuted_vertices(recon.vertices, refuted + [0, 0, scale], contacts,
+                                0.2 * scale, 0.3 * scale).any()
+
+
+def test_without_misses_or_vertices_nothing_is_refuted():
+    recon, refuted, contacts = _ball_with_misses(1.0)
+    assert not refuted_vertices(recon.vertices, np.zeros((0, 3)), contacts, 1.0, 0.1).any()
+    assert refuted_vertices(np.zeros((0, 3)), refuted, contacts, 1.0, 0.1).shape == (0,)
+    # Without contacts, every vertex near a miss is refuted.
+    assert refuted_vertices(recon.vertices, refuted, np.zeros((0, 3)), 0.2, 0.3).any()
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_refuted_part_is_dropped_and_its_hole_closed_on_request(scale):
+    recon, refuted, contacts = _ball_with_misses(scale)
+    marked = refuted_vertices(recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale)
+    opened = without_refuted(recon, refuted, contacts, 0.2 * scale, 0.3 * scale)
+    closed = without_refuted(recon, refuted, contacts, 0.2 * scale, 0.3 * scale, close=True)
+    for part in (opened, closed):
+        assert len(part.vertices) == np.count_nonzero(~marked)
+        assert part.vertices[:, 2].max() < 0.95 * scale
+    assert not trimesh.Trimesh(opened.vertices, opened.faces, process=False).is_watertight
+    mesh = trimesh.Trimesh(closed.vertices, closed.faces, process=False)
+    assert mesh.is_watertight
+    np.testing.assert_array_equal(closed.faces[:len(opened.faces)], opened.faces)
+    assert 0.8 * (4 / 3 * np.pi * scale**3) < mesh.volume < 4 / 3 * np.pi * scale**3
+
+
+def test_nothing_is_dropped_when_every_vertex_is_refuted():
+    recon, _, _ = _ball_with_misses(1.0)
+    everywhere = recon.vertices * 1.05
+    assert without_refuted(recon, everywhere, np.zeros((0, 3)), 0.5, 0.1) is recon
+
+
+def test_a_closed_surface_stays_as_it_is():
+    ball = trimesh.creation.icosphere(2)
+    np.testing.assert_array_equal(closed_faces(ball.vertices, ball.faces), ball.faces)
+    assert closed_faces(ball.vertices, np.zeros((0, 3), int)) is None
+
+
+def test_the_refuted_points_are_the_given_up_targets_and_the_free_space():
+    state = ExplorationState()
+    assert refuted_points(state).shape == (0, 3)
+    state.given_up.append(np.ones(3))
+    state.free_space = np.zeros((2, 3))
+    np.testing.assert_array_equal(refuted_points(state), [[1, 1, 1], [0, 0, 0], [0, 0, 0]])
