@@ -90,3 +90,33 @@ def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
     directions = trimesh.creation.icosphere(1).vertices
     estimator, _ = _estimator(scale, scale * directions, directions, tmp_path)
     assert estimator.wall_resolution(box, 64, scale * directions) == 64
+
+
+@pytest.mark.parametrize("scale", [1e-2, 1.0, 1e2])
+def test_a_final_surface_small_in_its_box_is_extracted_again_in_its_own(scale, tmp_path):
+    # A ball a tenth of the box across (the MAP prior's box, with a far corner): its
+    # surface is extracted again in its own box, on cells as many times finer, nearer the
+    # ball; a surface that fills its box is left as it is.
+    directions = trimesh.creation.icosphere(2).vertices
+    radius = 0.1 * scale
+    contacts, normals = radius * directions, directions
+    estimator, _ = _estimator(scale, contacts, normals, tmp_path)
+    ball = trimesh.creation.icosphere(3, radius)
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    model = ObjectModel.from_arrays(ball.vertices, ball.faces, "ball",
+                                    cache=ArrayCache(tmp_path), longest_side=None)
+    far = np.vstack([ball.vertices, [[-scale, -scale, -scale], [scale, scale, scale]]])
+    recon, _ = estimator.reconstruct(model, np.eye(3), np.zeros(3), far, {})
+    final = estimator._surface(recon.fit, recon.bounds, 32)[0]
+    own = estimator._own_box(final)
+    box = np.ptp(np.asarray(final.bounds), axis=0).max()
+    own_box = np.ptp(np.asarray(own.bounds), axis=0).max()
+    assert own.resolution == final.resolution and own_box < 0.5 * box
+    assert (own.vertices.min(axis=0) >= np.asarray(own.bounds[0]) - 1e-9 * scale).all()
+
+    def error(surface):
+        return np.median(np.abs(np.linalg.norm(surface.vertices, axis=1) - radius))
+
+    assert error(own) < error(final)
+    assert estimator._own_box(own) is own  # it fills its own box
