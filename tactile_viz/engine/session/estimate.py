@@ -263,13 +263,10 @@ class Estimator(Part):
         prior's box had 4.6 mm cells, 28 mm across and 16.7% of its size off."""
         if final.bounds is None or final.spacing is not None or final.empty:
             return final
-        low, high = np.asarray(final.bounds[0], float), np.asarray(final.bounds[1], float)
-        cell = float(np.max(high - low)) / final.resolution
-        own_low = np.maximum(final.vertices.min(axis=0) - OWN_BOX_CELLS * cell, low)
-        own_high = np.minimum(final.vertices.max(axis=0) + OWN_BOX_CELLS * cell, high)
-        if np.max(own_high - own_low) > OWN_BOX_SHARE * np.max(high - low):
+        box = own_box(final.vertices, final.bounds, final.resolution)
+        if box is None:
             return final
-        tighter = self._surface(final.fit, (own_low, own_high), final.resolution)[0]
+        tighter = self._surface(final.fit, box, final.resolution)[0]
         return final if tighter.empty else tighter
 
     def _thin_walls(self, final, contacts):
@@ -578,6 +575,22 @@ def support(vertices, contacts_tree):
     if len(vertices) == 0:
         return np.inf
     return float(contacts_tree.query(vertices)[0].max())
+
+
+def own_box(vertices, bounds, resolution):
+    """The box ``(low, high)`` of a surface's ``vertices`` (v, 3) with :data:`OWN_BOX_CELLS`
+    cells of margin, within ``bounds`` (the box it was extracted in on ``resolution``
+    cells along its longest side), if it is at most :data:`OWN_BOX_SHARE` of ``bounds``
+    across; else None."""
+    low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    if len(vertices) == 0:
+        return None
+    cell = float(np.max(high - low)) / resolution
+    own_low = np.maximum(np.min(vertices, axis=0) - OWN_BOX_CELLS * cell, low)
+    own_high = np.minimum(np.max(vertices, axis=0) + OWN_BOX_CELLS * cell, high)
+    if np.max(own_high - own_low) > OWN_BOX_SHARE * np.max(high - low):
+        return None
+    return own_low, own_high
 
 
 def _extent(points):

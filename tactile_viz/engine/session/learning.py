@@ -9,6 +9,7 @@ from ..errors import SessionError
 from ..shape.gpis import ThinPlateKernel, held_out_errors, zero_level_surface
 from ..shape.gpis_variance import lattice_low
 from ..shape.objects import ObjectModel
+from .estimate import own_box
 
 
 def learned_model(estimator, snapshot, name, resolution, library):
@@ -16,7 +17,8 @@ def learned_model(estimator, snapshot, name, resolution, library):
 
     The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
     extracted at ``resolution`` (``params.learned_resolution`` as a session asks), finer
-    where the contacts measure thin walls (:meth:`~.estimate.Estimator.wall_resolution`);
+    where the contacts measure thin walls (:meth:`~.estimate.Estimator.wall_resolution`)
+    and in its own box where it is small in the prior's (:func:`~.estimate.own_box`);
     a stopped session's last surface, asked at ``params.final_resolution``, is learned as
     reported (the final surface, finer where walls are thin); the largest connected
     piece of the zero level set is kept, and the model is checked and normalised like any
@@ -49,6 +51,10 @@ def learned_model(estimator, snapshot, name, resolution, library):
     vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
     if resolution != snapshot.gpis_resolution:
         vertices, faces = level_set(fit, box, resolution, estimator.p.gpis_fill_voids)
+        tighter = None if box[2] is not None else own_box(vertices, box[:2], resolution)
+        if tighter is not None:  # a small object's surface in its prior's box
+            vertices, faces = level_set(fit, (*tighter, None), resolution,
+                                        estimator.p.gpis_fill_voids)
     errors = held_out_errors(fit)
     return learned_model_from_surface(
         vertices, faces, name, params=library[snapshot.map_class].params

@@ -120,3 +120,20 @@ def test_a_final_surface_small_in_its_box_is_extracted_again_in_its_own(scale, t
 
     assert error(own) < error(final)
     assert estimator._own_box(own) is own  # it fills its own box
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_own_box_is_a_small_surfaces_box_with_two_cells_of_margin(scale):
+    from tactile_viz.engine.session.estimate import OWN_BOX_CELLS, own_box
+
+    bounds = (np.zeros(3), np.full(3, 10.0 * scale))
+    cell = 10.0 * scale / 20
+    small = np.array([[1.0, 1.0, 1.0], [3.0, 2.0, 2.5]]) * scale
+    low, high = own_box(small, bounds, 20)
+    np.testing.assert_allclose(low, small[0] - OWN_BOX_CELLS * cell)
+    np.testing.assert_allclose(high, small[1] + OWN_BOX_CELLS * cell)
+    # Clipped to the box; a surface over half the box across, or none, keeps it.
+    corner = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]) * scale
+    np.testing.assert_allclose(own_box(corner, bounds, 20)[0], np.zeros(3))
+    assert own_box(np.array([[1.0, 1, 1], [6.5, 1, 1]]) * scale, bounds, 20) is None
+    assert own_box(np.zeros((0, 3)), bounds, 20) is None
