@@ -138,8 +138,11 @@ def closed_faces(vertices, faces):
         return None
     pymeshlab = _pymeshlab()
     meshset = pymeshlab.MeshSet()
-    meshset.add_mesh(pymeshlab.Mesh(vertices, faces))
-    meshset.meshing_close_holes(maxholesize=3 * len(faces) + 3, selfintersection=False)
+    try:
+        meshset.add_mesh(pymeshlab.Mesh(vertices, faces))
+        meshset.meshing_close_holes(maxholesize=3 * len(faces) + 3, selfintersection=False)
+    except pymeshlab.PyMeshLabException:  # e.g. a non-manifold rim: left as it is
+        return None
     current = meshset.current_mesh()
     closed = current.face_matrix().astype(np.int64)
     if (current.vertex_matrix().shape != vertices.shape

@@ -137,3 +137,15 @@ def test_the_refuted_points_are_the_given_up_targets_and_the_free_space():
     state.given_up.append(np.ones(3))
     state.free_space = np.zeros((2, 3))
     np.testing.assert_array_equal(refuted_points(state), [[1, 1, 1], [0, 0, 0], [0, 0, 0]])
+
+
+def test_a_surface_pymeshlab_refuses_is_not_closed(monkeypatch):
+    import pymeshlab
+
+    def refuse(self, **_):
+        raise pymeshlab.PyMeshLabException("Failed to apply filter")
+
+    monkeypatch.setattr(pymeshlab.MeshSet, "meshing_close_holes", refuse)
+    recon, refuted, contacts = _ball_with_misses(1.0)
+    assert closed_faces(recon.vertices, recon.faces[:-10]) is None
+    assert without_refuted(recon, refuted, contacts, 0.2, 0.3, close=True) is recon
