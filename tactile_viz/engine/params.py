@@ -431,7 +431,8 @@ class SessionParams:
         "final_resolution (0: all of them, docs/gpis.md).", kind="int", valid="[0, inf)")
     final_wall_cells: float = _gpis(
         2.0, "The final and learned surfaces: at least this many cells across the median "
-        "wall touched on both sides, up to about 3,000 vertices (beyond the paper; 0: off).",
+        "wall touched on both sides, up to about 3,000 vertices, and a small one in its own "
+        "box (beyond the paper; 0: both off).",
         valid="[0, 10]", notes="A 4 mm tine one cell across is a blob (docs/gpis.md).")
     learned_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side when a reconstruction is kept as a "

@@ -258,10 +258,12 @@ class Estimator(Part):
     def _own_box(self, final):
         """``final`` extracted again at its resolution in its own box (its vertices', with
         :data:`OWN_BOX_CELLS` cells of margin) where that box's longest side is at most
-        :data:`OWN_BOX_SHARE` of the box it was extracted in (beyond the paper). The box
-        holds the MAP prior and the contacts: a 2 cm block's surface in a 29 cm knife
-        prior's box had 4.6 mm cells, 28 mm across and 16.7% of its size off."""
-        if final.bounds is None or final.spacing is not None or final.empty:
+        :data:`OWN_BOX_SHARE` of the box it was extracted in (beyond the paper; off with
+        ``final_wall_cells`` 0, as the thin walls). The box holds the MAP prior and the
+        contacts: a 2 cm block's surface in a 29 cm knife prior's box had 4.6 mm cells,
+        28 mm across and 16.7% of its size off."""
+        if (self.p.final_wall_cells <= 0 or final.bounds is None or final.spacing is not None
+                or final.empty):
             return final
         box = own_box(final.vertices, final.bounds, final.resolution)
         if box is None:

@@ -51,7 +51,8 @@ def learned_model(estimator, snapshot, name, resolution, library):
     vertices, faces = snapshot.gpis_vertices, snapshot.gpis_faces
     if resolution != snapshot.gpis_resolution:
         vertices, faces = level_set(fit, box, resolution, estimator.p.gpis_fill_voids)
-        tighter = None if box[2] is not None else own_box(vertices, box[:2], resolution)
+        tighter = (None if box[2] is not None or estimator.p.final_wall_cells <= 0
+                   else own_box(vertices, box[:2], resolution))
         if tighter is not None:  # a small object's surface in its prior's box
             vertices, faces = level_set(fit, (*tighter, None), resolution,
                                         estimator.p.gpis_fill_voids)

@@ -137,3 +137,19 @@ def test_own_box_is_a_small_surfaces_box_with_two_cells_of_margin(scale):
     np.testing.assert_allclose(own_box(corner, bounds, 20)[0], np.zeros(3))
     assert own_box(np.array([[1.0, 1, 1], [6.5, 1, 1]]) * scale, bounds, 20) is None
     assert own_box(np.zeros((0, 3)), bounds, 20) is None
+
+
+def test_no_own_box_without_the_final_surfaces_refinements(tmp_path):
+    # final_wall_cells 0 (the paper preset) turns the own box off with the thin walls.
+    from dataclasses import replace
+
+    directions = trimesh.creation.icosphere(2).vertices
+    estimator, _ = _estimator(1.0, 0.1 * directions, directions, tmp_path)
+    estimator.p = replace(estimator.p, final_wall_cells=0.0)
+    ball = trimesh.creation.icosphere(2, 0.1)
+    from tactile_viz.engine.session.snapshot import Reconstruction
+
+    final = Reconstruction(np.asarray(ball.vertices), np.asarray(ball.faces), None,
+                           np.zeros(0), fit=None, resolution=32,
+                           bounds=(np.full(3, -1.0), np.full(3, 1.0)))
+    assert estimator._own_box(final) is final
