@@ -80,6 +80,10 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False):
     keep = ~refuted_vertices(recon.vertices, refuted, contacts, spacing, reach)
     if keep.all() or not keep.any():
         return recon
+    # A kept vertex whose faces all went is dropped with them.
+    faces = recon.faces[keep[recon.faces].all(axis=1)]
+    keep = np.zeros(len(keep), bool)
+    keep[faces.ravel()] = True
     kept = recon.restricted(keep)
     if not close or len(kept.faces) == 0:
         return kept if len(kept.faces) else recon
