@@ -30,7 +30,7 @@ from ..transforms import transform_points
 from .context import Part
 from .fields import PosedSDF, thin_points
 from .planner import open_vertices
-from .reported import refuted_points, reported_parts
+from .reported import reported_parts
 from .snapshot import Reconstruction
 
 FILL_NOISE_STDS = 2.0  # a point this many position-noise stds behind a tangent plane bounds
@@ -202,7 +202,7 @@ class Estimator(Part):
 
     def _supported(self, recon, contacts, close=False):
         """:func:`~.reported.reported_parts` of ``recon`` in this session."""
-        return reported_parts(recon, refuted_points(self.state), contacts,
+        return reported_parts(recon, self.state.refuted, contacts,
                               self.p.contact_spacing, self.p.eps, close=close)
 
     def best_supported(self, final, contacts, prior):

@@ -331,7 +331,7 @@ class Planner(Part):
         # Touches are spread over the parts that differ (each earlier one within half the
         # contact spacing halves a place's worth), but may come back to the one part that
         # tells the hypotheses apart while noise leaves them plausible.
-        refuted = np.vstack([np.reshape(self.state.given_up, (-1, 3)), self.state.free_space])
+        refuted = self.state.refuted
         spread = max(2 * self.sensor_noise[0], self.p.decision_floor,
                      TELL_SPACING * self.p.contact_spacing)
         told = np.reshape(self.state.told, (-1, 3))
@@ -539,7 +539,7 @@ def segment_points(segments, spacing):
 def open_vertices(vertices, state, radius):
     """Mask of ``vertices`` farther than ``radius`` from every given-up target and every
     free-space point of the exploration ``state`` (all of them if none is)."""
-    refuted = np.vstack([np.reshape(state.given_up, (-1, 3)), state.free_space])
+    refuted = state.refuted
     if len(refuted) == 0 or len(vertices) == 0:
         return np.ones(len(vertices), bool)
     distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(

@@ -24,13 +24,6 @@ from ..shape.mesh_repair import closed_faces
 from .planner import refuted_tree
 
 
-def refuted_points(state):
-    """The given-up targets and the missed probes' free-space samples of an exploration
-    ``state``, ``(k, 3)`` float, world frame."""
-    return np.vstack([np.reshape(state.given_up, (-1, 3)),
-                      np.reshape(state.free_space, (-1, 3))]).astype(float)
-
-
 def refuted_vertices(vertices, refuted, contacts, spacing, reach):
     """Mask of the ``vertices`` that misses refute: within ``spacing`` of a ``refuted``
     point and farther than ``reach`` from every contact.
@@ -39,7 +32,7 @@ def refuted_vertices(vertices, refuted, contacts, spacing, reach):
     ----------
     vertices : (v, 3) float
     refuted : (k, 3) float
-        Given-up targets and free-space samples (:func:`refuted_points`).
+        Given-up targets and free-space samples (``ExplorationState.refuted``).
     contacts : (n, 3) float
     spacing : float
         The session's ``contact_spacing`` (the stop's reach of a miss), scene units.

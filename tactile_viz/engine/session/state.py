@@ -163,6 +163,13 @@ class ExplorationState:
     misfit_steps: int = 0
     replayed: int = 0
 
+    @property
+    def refuted(self):
+        """The given-up targets and the missed probes' free-space samples, ``(k, 3)``
+        float, world frame: where probes looked for the object and did not find it."""
+        return np.vstack([np.reshape(self.given_up, (-1, 3)),
+                          np.reshape(self.free_space, (-1, 3))]).astype(float)
+
     def adopt(self, plan):
         """Take a step's plan (:class:`~.planner.Plan`): the one place the target, the
         check and their flags enter the state; a frontier target leaves the queue, a

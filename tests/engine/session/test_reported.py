@@ -7,7 +7,6 @@ import pytest
 import trimesh
 
 from tactile_viz.engine.session.reported import (
-    refuted_points,
     refuted_vertices,
     supported_parts,
     without_refuted,
@@ -134,10 +133,10 @@ def test_a_closed_surface_stays_as_it_is():
 
 def test_the_refuted_points_are_the_given_up_targets_and_the_free_space():
     state = ExplorationState()
-    assert refuted_points(state).shape == (0, 3)
+    assert state.refuted.shape == (0, 3)
     state.given_up.append(np.ones(3))
     state.free_space = np.zeros((2, 3))
-    np.testing.assert_array_equal(refuted_points(state), [[1, 1, 1], [0, 0, 0], [0, 0, 0]])
+    np.testing.assert_array_equal(state.refuted, [[1, 1, 1], [0, 0, 0], [0, 0, 0]])
 
 
 def test_a_surface_pymeshlab_refuses_is_not_closed(monkeypatch):
