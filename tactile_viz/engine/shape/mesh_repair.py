@@ -137,9 +137,8 @@ def closed_faces(vertices, faces):
     if len(faces) == 0:
         return None
     pymeshlab = _pymeshlab()
-    meshset = pymeshlab.MeshSet()
     try:
-        meshset.add_mesh(pymeshlab.Mesh(vertices, faces))
+        meshset = _meshset(trimesh.Trimesh(vertices, faces, process=False))
         meshset.meshing_close_holes(maxholesize=3 * len(faces) + 3, selfintersection=False)
     except pymeshlab.PyMeshLabException:  # e.g. a non-manifold rim: left as it is
         return None
