@@ -33,7 +33,7 @@ PRESET_TABLE = {
               "gpis_incremental": False, "gpis_refit_every": 1, "gpis_box_tolerance": 0.0,
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "decision_hold": False, "decision_refresh": 1,
-              "decision_normals": False, "decision_any_class": False,
+              "decision_contacts": 0, "decision_normals": False, "decision_any_class": False,
               "sdf_max_resolution": 0,
               "final_candidates": 0, "final_wall_cells": 0.0, "variance_points": 1500,
               "way_back_anchors": 1,

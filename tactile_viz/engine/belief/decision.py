@@ -65,6 +65,7 @@ from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
 from .posed import posed_by_normals
 from .round_turns import flips, turn_near_spheres, turn_round_hypotheses
+from .spread import FREE_PER_CONTACT, seen_through, spread_contacts, thinned
 from .support import table_support
 
 TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
@@ -169,7 +170,7 @@ UNDECIDED = Decision(False, 0.0)
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
            pose_tolerance=np.inf, normal_noise_deg=0.0, refined=NOTHING, refresh=1,
-           budget=np.inf, normals=False, any_class=False):
+           budget=np.inf, normals=False, any_class=False, spread=0):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -224,6 +225,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         ``decision_any_class``: a hypothesis of another class than the filter's MAP, the
         class of the last touch's most probable hypothesis (whose flips are weighed), may
         lead (:func:`~.lead.class_lead`); decided, it comes first in ``hypotheses``.
+    spread : int
+        ``decision_contacts``: with more contacts, searched on this many of them spread
+        over the object and a thinned free space, and again on all only when that
+        decides (:mod:`.spread`; 0: on all).
 
     Returns
     -------
@@ -233,19 +238,25 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                    free_space=free_space, pose_tolerance=pose_tolerance,
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget,
                    normals=normals, any_class=any_class)
-    if refresh <= 1:  # as before: afresh at each touch
-        return _weigh(pf, belief, full=True, incremental=False, **options)
-    full = full_search_due(refined, len(pf.contact_positions), refresh)
-    decision = _weigh(pf, belief, full=full, incremental=True, **options)
-    if decision.decided and not full:
-        decision = _weigh(pf, belief, full=True, incremental=True, **options)
+    count = len(pf.contact_positions)
+    index = spread_contacts(pf.contact_positions, spread)
+    seen = pf if len(index) == count else seen_through(pf, index)
+    incremental = refresh > 1  # else as before: afresh at each touch
+    full = not incremental or full_search_due(refined, count, refresh)
+    thin = {} if seen is pf else {"free_space": thinned(free_space, FREE_PER_CONTACT * spread)}
+    decision = _weigh(seen, belief, full=full, incremental=incremental, count=count,
+                      **{**options, **thin})
+    if decision.decided and (not full or seen is not pf):  # only a full search on all decides
+        decision = _weigh(pf, belief, full=True, incremental=incremental, count=count,
+                          **options)
     return decision
 
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
-           normal_noise_deg, refined, budget, full, incremental, normals, any_class):
+           normal_noise_deg, refined, budget, full, incremental, normals, any_class, count):
     """:func:`decide`, a full search or not, with what the last touch refined or
-    afresh (not ``incremental``: the decision as it was before :mod:`.incremental`)."""
+    afresh (not ``incremental``: the decision as it was before :mod:`.incremental`);
+    ``count`` the filter's contacts (``pf`` may see a spread of them)."""
     contacts = pf.contact_positions
     if belief.particles is None or len(contacts) < 3:
         return UNDECIDED
@@ -298,7 +309,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         return UNDECIDED
     memory = remembered(memory, source, fresh, begun, classes,
                         (rotations.copy(), translations.copy()),
-                        len(contacts) if full else memory.searched)
+                        count if full else memory.searched)
     misfit = np.where(np.isfinite(misfit), misfit, np.inf)
     best = float(misfit.min())
     floor2 = model_floor2(pf, classes[0], floor)  # the MAP's model, a learned one's error too

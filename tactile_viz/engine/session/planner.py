@@ -179,7 +179,7 @@ class Planner(Part):
                       normal_noise_deg=self.sensor_noise[1],
                       refined=self.state.decision_refined, refresh=p.decision_refresh,
                       budget=p.decision_budget, normals=p.decision_normals,
-                      any_class=p.decision_any_class)
+                      any_class=p.decision_any_class, spread=p.decision_contacts)
 
     def misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):

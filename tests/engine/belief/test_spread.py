@@ -1,0 +1,114 @@
+"""A decision searched on a spread of the contacts: what it keeps, and that a decision
+still stands on every contact."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine.belief import decision as decision_module
+from tactile_viz.engine.belief.decision import decide
+from tactile_viz.engine.belief.particle_filter import ParticleFilter
+from tactile_viz.engine.belief.spread import seen_through, spread_contacts, thinned
+from tactile_viz.engine.explore.observations import Contact
+from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
+from tactile_viz.engine.presets import session_preset
+
+pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
+
+
+@pytest.fixture(scope="module")
+def shapes(tmp_path_factory):
+    """A box 6 x 3 x 2, the same box with a knob on one end, and a cylinder."""
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    cache = ArrayCache(tmp_path_factory.mktemp("cache"))
+    box = trimesh.creation.box(extents=(6, 3, 2))
+    knob = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
+    knob.apply_translation([2.0, 0.0, 1.4])
+    knobbed = trimesh.util.concatenate([box, knob])
+    cylinder = trimesh.creation.cylinder(radius=1.5, height=6, sections=48)
+    models = [ObjectModel.from_arrays(m.vertices, m.faces, name, cache=cache)
+              for m, name in ((box, "box"), (knobbed, "knobbed"), (cylinder, "cylinder"))]
+    return PriorLibrary(models)
+
+
+def _filter(library, model, count, seed):
+    points, faces = trimesh.sample.sample_surface_even(model.mesh, count, seed=seed)
+    pf = ParticleFilter(library, scaled_lengths(FilterParams(), library.reference_size
+                                                / PAPER_SIZE), rng=seed)
+    for p, n in zip(points, model.mesh.face_normals[faces]):
+        state = pf.update(Contact(p, n))
+    return pf, state
+
+
+def _seen_counts(monkeypatch):
+    """The contacts each of a decision's searches sees, in order."""
+    seen, weigh = [], decision_module._weigh
+
+    def counted(pf, belief, **options):
+        seen.append(len(pf.contact_positions))
+        return weigh(pf, belief, **options)
+
+    monkeypatch.setattr(decision_module, "_weigh", counted)
+    return seen
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_spread_keeps_the_far_ends_in_the_contacts_order(scale):
+    line = scale * np.c_[np.linspace(0.0, 1.0, 101), np.zeros((101, 2))]
+    index = spread_contacts(line, 3)
+    np.testing.assert_array_equal(index, [0, 50, 100])
+    np.testing.assert_array_equal(spread_contacts(line, 0), np.arange(101))
+    np.testing.assert_array_equal(spread_contacts(line, 101), np.arange(101))
+    np.testing.assert_array_equal(spread_contacts(line[:1], 5), [0])
+    assert len(spread_contacts(np.repeat(line[:1], 9, axis=0), 4)) == 4  # all one point
+
+
+def test_the_free_space_is_thinned_along_every_path():
+    path = np.c_[np.arange(100.0), np.zeros((100, 2))]
+    kept = thinned(path, 10)
+    assert len(kept) == 10
+    np.testing.assert_array_equal(kept[:, 0], np.arange(0.0, 100.0, 10.0))
+    np.testing.assert_array_equal(thinned(path, 0), path)
+    np.testing.assert_array_equal(thinned(path[:3], 10), path[:3])
+    assert thinned(None, 10) is None and thinned(np.zeros((0, 3)), 10).shape == (0, 3)
+
+
+def test_a_view_sees_some_contacts_and_changes_nothing(shapes):
+    pf, _ = _filter(shapes, shapes["cylinder"], 12, seed=1)
+    positions, normals = pf.contact_positions.copy(), pf.contact_normals.copy()
+    view = seen_through(pf, [0, 5, 11])
+    np.testing.assert_array_equal(view.contact_positions, positions[[0, 5, 11]])
+    np.testing.assert_array_equal(view.contact_normals, normals[[0, 5, 11]])
+    np.testing.assert_array_equal(pf.contact_positions, positions)
+    assert view.bank is pf.bank and view.particles is pf.particles
+
+
+def test_a_decision_on_a_spread_is_searched_again_on_every_contact(shapes, monkeypatch):
+    pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
+    whole = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
+    seen = _seen_counts(monkeypatch)
+    spread = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=16)
+    assert whole.decided and spread.decided
+    assert seen == [16, 60]
+    np.testing.assert_allclose(spread.hypotheses[0].rotation, whole.hypotheses[0].rotation)
+    np.testing.assert_allclose(spread.hypotheses[0].translation,
+                               whole.hypotheses[0].translation)
+
+
+def test_a_misfit_on_a_spread_is_a_misfit_and_is_not_searched_again(shapes, monkeypatch):
+    """The knobbed box against a library without it: 24 of 80 contacts spread over it
+    already leave the box's fit far beyond the noise."""
+    library = PriorLibrary([shapes["box"], shapes["cylinder"]])
+    pf, state = _filter(library, shapes["knobbed"], 80, seed=3)
+    seen = _seen_counts(monkeypatch)
+    misfit = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=24)
+    assert seen == [24]
+    assert not misfit.fits and misfit.fit_p < 1e-6 and not misfit.decided
+
+
+def test_the_recommended_preset_spreads_and_the_paper_does_not():
+    assert session_preset("recommended").decision_contacts > 0
+    assert session_preset("paper").decision_contacts == 0
+    assert SessionParams().decision_contacts == session_preset("recommended").decision_contacts
