@@ -61,6 +61,7 @@ from .discrimination import contenders, lookalikes
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
 from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
+from .modes import distinct, mode_tolerance, pose_disagreements, surface_disagreement
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
 from .posed import posed_by_normals
@@ -73,8 +74,6 @@ OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a riva
 HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
 GRID_ERROR_PERCENTILE = 95
-AGREE_PERCENTILE = 99  # two poses of a class agree if all but 1% of their surfaces do
-SURFACE_STRIDE = 3  # every third feature point compares two poses' surfaces
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
 MAX_RIVALS = 8  # the most plausible rivals aimed at and carried to the next step
 REFINE_TOLERANCE = 1e-4  # a hypothesis's fit ends once a step gains less than this share
@@ -186,7 +185,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         in quadrature.
     same_mode : float, scene units
         Hypotheses of one class whose posed surfaces agree within this distance
-        (:func:`surface_disagreement`) are one.
+        (:func:`~.modes.surface_disagreement`) are one.
     carried : sequence of Hypothesis
         The plausible hypotheses of the step before: weighed again, so that a mode the
         particles lost (resampling under noise) is not forgotten while it still fits.
@@ -323,9 +322,8 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # Each mode is kept as its most probable pose, the normals weighed in: a cross
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
-    keep = _distinct(pf.bank, classes, rotations, translations,
-                     misfit / (2 * scale2) + turned,
-                     [mode_tolerance(model, same_mode) for model in pf.models])
+    keep = distinct(pf.bank, classes, rotations, translations, misfit / (2 * scale2) + turned,
+                    [mode_tolerance(model, same_mode) for model in pf.models])
     for turn in (turn_round_hypotheses, turn_near_spheres):
         rotations, translations, misfit, turned = turn(
             pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
@@ -536,38 +534,11 @@ def _poses_apart(particles, a, b, distance):
 
 def _apart(bank, particles, a, b, tolerance):
     """Whether particles ``a`` and ``b`` are distinct hypotheses: other classes, or their
-    posed surfaces further apart than ``tolerance`` (:func:`surface_disagreement`)."""
+    posed surfaces further apart than ``tolerance`` (:func:`~.modes.surface_disagreement`)."""
     if particles.classes[a] != particles.classes[b]:
         return True
     return surface_disagreement(bank, particles.classes[a], particles.rotations[[a, b]],
                                 particles.translations[[a, b]]) > tolerance
-
-
-def mode_tolerance(model, same_mode):
-    """How far two poses of a class's surface may lie apart and be one hypothesis (scene
-    units, as :func:`surface_disagreement`): ``same_mode``, or for a learned shape as far
-    as its own error (``shape_error``, an RMS) puts two copies of it apart at the
-    ``AGREE_PERCENTILE`` percentile. Touches cannot tell apart poses of a shape that
-    differ by less than the shape is known to (a learned cross screwdriver's turns about
-    its shaft, 4 mm apart on its blob of a tip, split the decision for 150 touches)."""
-    spread = np.sqrt(2) * model.shape_error * ndtri(0.5 + AGREE_PERCENTILE / 200)
-    return float(max(same_mode, spread))
-
-
-def _distinct(bank, classes, rotations, translations, cost, tolerance):
-    """Indices of the refined hypotheses that are distinct, each kept once (the least
-    ``cost`` of a mode; the MAP candidate, index 0, always). ``tolerance``: (classes,)
-    float, scene units, by class index (:func:`mode_tolerance`)."""
-    kept = [0]
-    for index in np.argsort(cost, kind="stable"):
-        if index == 0 or not np.isfinite(cost[index]):
-            continue
-        same = [k for k in kept if classes[k] == classes[index]]
-        if not same or np.all(pose_disagreements(
-                bank, classes[index], rotations[index], translations[index],
-                rotations[same], translations[same]) > tolerance[classes[index]]):
-            kept.append(int(index))
-    return np.array(kept, dtype=np.int64)
 
 
 def grid_error(bank, class_index):
@@ -577,31 +548,3 @@ def grid_error(bank, class_index):
     most, on edges and thin parts, so an RMS understates it)."""
     values, _ = bank.evaluate(np.array([class_index]), bank.points[class_index][None])
     return float(np.percentile(np.abs(values), GRID_ERROR_PERCENTILE))
-
-
-def surface_disagreement(bank, class_index, rotations, translations):
-    """How far one class's surface at two poses lies apart, both ways: the
-    ``AGREE_PERCENTILE`` percentile of the distance of its feature points at each pose to
-    its surface at the other (scene units; about 0 for poses related by a symmetry).
-
-    Nearly the largest, not the RMS: a mug's handle is a small part of its surface, and
-    two poses that put it 2 cm apart agree in RMS within the noise, yet only one is the
-    object. The top percent is left out as the grid's own error at thin edges."""
-    return float(pose_disagreements(bank, class_index, rotations[0], translations[0],
-                                    rotations[1:2], translations[1:2])[0])
-
-
-def pose_disagreements(bank, class_index, rotation, translation, rotations, translations):
-    """:func:`surface_disagreement` of one pose against each of ``k`` others of the same
-    class, in two batched look-ups: (k,) float, scene units."""
-    points = bank.points[class_index][::SURFACE_STRIDE]
-    mine = transform_points(points, rotation, translation)  # (m, 3), world
-    theirs = np.einsum("kij,mj->kmi", rotations, points) + translations[:, None]  # (k, m, 3)
-    # Mine in each of their frames, and theirs in mine: x = R^T (p - t).
-    in_theirs = np.einsum("kmi,kij->kmj", mine[None] - translations[:, None], rotations)
-    in_mine = (theirs - translation) @ rotation
-    count = len(rotations)
-    values, _ = bank.evaluate(np.full(2 * count, class_index),
-                              np.concatenate([in_theirs, in_mine]))
-    spread = np.percentile(np.abs(values), AGREE_PERCENTILE, axis=1)
-    return np.maximum(spread[:count], spread[count:])

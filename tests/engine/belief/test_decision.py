@@ -9,7 +9,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
-from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide, surface_disagreement
+from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide
+from tactile_viz.engine.belief.modes import distinct, mode_tolerance, surface_disagreement
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.belief.telling import disagreement_target
@@ -107,16 +108,15 @@ def test_a_symmetry_of_the_shape_is_one_mode(shapes):
 def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
     """Poses of one class within the tolerance are one mode, kept once: as the pose of the
     least cost (the normals weighed in), whichever fits the positions closest."""
-    from tactile_viz.engine.belief.decision import _distinct
 
     pf = ParticleFilter(shapes, FilterParams(), rng=0)
     nudged = Rotation.from_euler("z", 2, degrees=True).as_matrix()
     rotations = np.stack([np.eye(3), np.eye(3), nudged, nudged])
     classes = np.array([1, 0, 0, 2])
-    kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
+    kept = distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
                      np.array([3.0, 2.0, 1.0, 5.0]), tolerance=[0.3] * 3)
     np.testing.assert_array_equal(kept, [0, 2, 3])  # the MAP candidate always leads
-    kept = _distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
+    kept = distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
                      np.array([3.0, 1.0, 2.0, np.inf]), tolerance=[0.3] * 3)
     np.testing.assert_array_equal(kept, [0, 1])
 
@@ -124,7 +124,6 @@ def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
 def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
     """A shape learned to within 0.05 RMS cannot tell two poses apart whose surfaces lie
     0.1 apart (the box turned 2 degrees): one mode, while the box scanned keeps both."""
-    from tactile_viz.engine.belief.decision import _distinct, mode_tolerance
 
     box = shapes["box"]
     learned = ObjectModel.from_arrays(box.mesh.vertices, box.mesh.faces, "learned",
@@ -137,7 +136,7 @@ def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
     assert tolerance[0] == 0.02 and tolerance[1] > apart > 0.02
     rotations = np.stack([np.eye(3), nudged])
     for index, expected in ((0, [0, 1]), (1, [0])):
-        kept = _distinct(pf.bank, np.array([index, index]), rotations, np.zeros((2, 3)),
+        kept = distinct(pf.bank, np.array([index, index]), rotations, np.zeros((2, 3)),
                          np.array([1.0, 0.5]), tolerance)
         np.testing.assert_array_equal(kept, expected)
 
