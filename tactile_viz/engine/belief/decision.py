@@ -225,9 +225,9 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         class of the last touch's most probable hypothesis (whose flips are weighed), may
         lead (:func:`~.lead.class_lead`); decided, it comes first in ``hypotheses``.
     spread : int
-        ``decision_contacts``: with more contacts, searched on this many of them spread
-        over the object and a thinned free space, and again on all only when that
-        decides (:mod:`.spread`; 0: on all).
+        With more contacts, searched first on this many of them spread over the object
+        and a thinned free space, and again on all unless the lead misfits there
+        (:mod:`.spread`; 0: on all; the planner asks it while the MAP keeps misfitting).
 
     Returns
     -------
@@ -238,16 +238,19 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget,
                    normals=normals, any_class=any_class)
     count = len(pf.contact_positions)
-    index = spread_contacts(pf.contact_positions, spread)
-    seen = pf if len(index) == count else seen_through(pf, index)
     incremental = refresh > 1  # else as before: afresh at each touch
     full = not incremental or full_search_due(refined, count, refresh)
-    thin = {} if seen is pf else {"free_space": thinned(free_space, FREE_PER_CONTACT * spread)}
-    decision = _weigh(seen, belief, full=full, incremental=incremental, count=count,
-                      **{**options, **thin})
-    if decision.decided and (not full or seen is not pf):  # only a full search on all decides
-        decision = _weigh(pf, belief, full=True, incremental=incremental, count=count,
+    index = spread_contacts(pf.contact_positions, spread)
+    decision = None
+    if len(index) < count:  # a misfit on a spread is a misfit on all
+        decision = _weigh(seen_through(pf, index), belief, full=full, incremental=incremental,
+                          count=count, **{**options, "free_space": thinned(
+                              free_space, FREE_PER_CONTACT * spread)})
+    if decision is None or decision.fits:
+        decision = _weigh(pf, belief, full=full, incremental=incremental, count=count,
                           **options)
+    if decision.decided and not full:  # only a full search decides
+        decision = _weigh(pf, belief, full=True, incremental=True, count=count, **options)
     return decision
 
 

@@ -160,7 +160,8 @@ class Planner(Part):
 
     def decide(self, belief):
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
-        the object is judged novel)."""
+        the object is judged novel); while the MAP keeps misfitting (the misfit count runs)
+        searched first on a spread of the contacts (``decision_contacts``)."""
         if belief.novel:
             return UNDECIDED
         p, noise = self.p, self.sensor_noise[0]
@@ -179,7 +180,8 @@ class Planner(Part):
                       normal_noise_deg=self.sensor_noise[1],
                       refined=self.state.decision_refined, refresh=p.decision_refresh,
                       budget=p.decision_budget, normals=p.decision_normals,
-                      any_class=p.decision_any_class, spread=p.decision_contacts)
+                      any_class=p.decision_any_class,
+                      spread=p.decision_contacts if self.state.misfit_steps else 0)
 
     def misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):

@@ -7,12 +7,13 @@ import trimesh
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
 from tactile_viz.engine.belief import decision as decision_module
-from tactile_viz.engine.belief.decision import decide
+from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.spread import seen_through, spread_contacts, thinned
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.params import PAPER_SIZE, FilterParams, SessionParams, scaled_lengths
 from tactile_viz.engine.presets import session_preset
+from tactile_viz.engine.session import Session, make_truth
 
 pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
 
@@ -95,6 +96,35 @@ def test_a_decision_on_a_spread_is_searched_again_on_every_contact(shapes, monke
     np.testing.assert_allclose(spread.hypotheses[0].rotation, whole.hypotheses[0].rotation)
     np.testing.assert_allclose(spread.hypotheses[0].translation,
                                whole.hypotheses[0].translation)
+
+
+def test_a_spread_that_fits_is_searched_again_on_every_contact(shapes, monkeypatch):
+    """The cylinder's own touches fit on a spread: every contact decides (a spread holds
+    the pose less tightly)."""
+    pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
+    seen = _seen_counts(monkeypatch)
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=16, refresh=4)
+    assert decision.fits and seen[:2] == [16, 60] and set(seen[2:]) <= {60}
+
+
+def test_the_planner_spreads_only_while_the_map_keeps_misfitting(shapes, monkeypatch):
+    from tactile_viz.engine.session import planner
+
+    spreads = {}
+
+    def misfitting(pf, belief, *args, **kwargs):
+        spreads[pf.step_count] = kwargs["spread"]
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        return Decision(False, 1.0, (first,), False, fit_p=1e-9)
+
+    monkeypatch.setattr(planner, "decide", misfitting)
+    params = session_preset("recommended", decision_cover=12.0, max_steps_known=12)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
+    session.run(max_steps=12)
+    assert spreads[min(spreads)] == 0  # the first decision: no misfit yet
+    assert set(spreads.values()) == {0, params.decision_contacts}
 
 
 def test_a_misfit_on_a_spread_is_a_misfit_and_is_not_searched_again(shapes, monkeypatch):
