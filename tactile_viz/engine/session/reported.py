@@ -57,12 +57,13 @@ def refuted_vertices(vertices, refuted, contacts, spacing, reach):
     return near
 
 
-def without_refuted(recon, refuted, contacts, spacing, reach, close=False):
+def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=None):
     """``recon`` (a :class:`~.snapshot.Reconstruction`) without the faces on a vertex
     :func:`refuted_vertices` marks; with ``close``, the holes this leaves closed by patches
-    across their rims (:func:`~..shape.mesh_repair.closed_faces`), and ``recon`` unchanged
-    if they cannot be (its surface stays one that can be learned). Nothing is dropped
-    when every vertex is refuted.
+    across their rims (:func:`~..shape.mesh_repair.closed_faces`), and if they cannot be
+    (a rim that is not manifold), ``cut(recon)``: its surface extracted again with what
+    the misses refute cut out of its solid (None: ``recon`` unchanged; either way a
+    surface that can be learned). Nothing is dropped when every vertex is refuted.
 
     Returns
     -------
@@ -81,12 +82,15 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False):
     if not close or len(kept.faces) == 0:
         return kept if len(kept.faces) else recon
     faces = closed_faces(kept.vertices, kept.faces)
-    return recon if faces is None else replace(kept, faces=faces)
+    if faces is not None:
+        return replace(kept, faces=faces)
+    return recon if cut is None else cut(recon)
 
 
-def reported_parts(recon, refuted, contacts, spacing, reach, close=False):
-    """``recon`` :func:`without_refuted` (``close`` passed on), and of the rest only the
-    connected parts some contact comes within ``reach`` of (:func:`supported_parts`).
+def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=None):
+    """``recon`` :func:`without_refuted` (``close`` and ``cut`` passed on), and of the rest
+    only the connected parts some contact comes within ``reach`` of
+    (:func:`supported_parts`).
 
     Returns
     -------
@@ -94,7 +98,7 @@ def reported_parts(recon, refuted, contacts, spacing, reach, close=False):
     """
     if recon is None or recon.empty:
         return recon
-    recon = without_refuted(recon, refuted, contacts, spacing, reach, close=close)
+    recon = without_refuted(recon, refuted, contacts, spacing, reach, close=close, cut=cut)
     keep = supported_parts(recon.vertices, recon.faces, contacts, reach)
     return recon.restricted(keep) if keep.any() and not keep.all() else recon
 

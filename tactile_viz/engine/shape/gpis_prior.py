@@ -178,6 +178,25 @@ def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0)
     return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())), kept)
 
 
+class BothCuts:
+    """Two cuts of a field's solid applied in turn, as one (a fit's ``cut``): the field
+    is the largest of its own and both cuts' balls."""
+
+    def __init__(self, first, second):
+        self.first, self.second = first, second
+
+    def __call__(self, points, values, gradients=None):
+        self.first(points, values, gradients)
+        return self.second(points, values, gradients)
+
+
+def joined_cut(first, second):
+    """``first`` and ``second`` (cuts, or None) as one cut (None: neither)."""
+    if first is None or second is None:
+        return second if first is None else first
+    return BothCuts(first, second)
+
+
 class CarvedPrior:
     """``prior`` with a :class:`FreeSpaceCut` applied (see :func:`carved_prior`); a
     callable with the prior's signature that pickles."""

@@ -149,3 +149,12 @@ def test_a_surface_pymeshlab_refuses_is_not_closed(monkeypatch):
     recon, refuted, contacts = _ball_with_misses(1.0)
     assert closed_faces(recon.vertices, recon.faces[:-10]) is None
     assert without_refuted(recon, refuted, contacts, 0.2, 0.3, close=True) is recon
+    # Given one, the surface is cut instead (the session extracts it again without what
+    # the misses refute), and only then.
+    cut = []
+    assert without_refuted(recon, refuted, contacts, 0.2, 0.3, close=True,
+                           cut=lambda r: cut.append(r) or "cut") == "cut"
+    assert cut == [recon]
+    assert without_refuted(recon, refuted, contacts, 0.2, 0.3,
+                           cut=lambda r: cut.append(r) or "cut") is not recon
+    assert len(cut) == 1

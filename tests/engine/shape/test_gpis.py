@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.linalg import cho_solve
@@ -19,7 +21,7 @@ from tactile_viz.engine.shape.gpis import (
     value_rows,
     zero_level_surface,
 )
-from tactile_viz.engine.shape.gpis_prior import CUT_TIE, REFUTE_MOST, refuted_fit
+from tactile_viz.engine.shape.gpis_prior import CUT_TIE, REFUTE_MOST, joined_cut, refuted_fit
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 
@@ -269,6 +271,30 @@ def test_the_estimate_is_cut_where_probes_found_nothing(mug_data):
     kept = cut_free_space(plain, refuted, points, 0.6, keep_within=1.3)
     assert len(near)
     np.testing.assert_array_equal(kept.mean_value(near), plain.mean_value(near))
+
+
+def test_a_second_cut_joins_the_first(mug_data):
+    # Two sets of balls cut one after the other: the mean is the largest of the fit's and
+    # both cuts', and its gradient is that of whichever is largest there.
+    points, normals, prior, _ = mug_data
+    plain = fit_gpis(points, normals, prior, ThinPlateKernel(12.0))
+    candidates = np.random.default_rng(7).uniform(-3, 3, size=(6000, 3))
+    distance = np.min(np.linalg.norm(candidates[:, None] - points[None], axis=-1), 1)
+    refuted = candidates[(plain.mean_value(candidates) < -0.05) & (distance > 1.0)][:20]
+    first = cut_free_space(plain, refuted[:10], points, 0.6)
+    second = cut_free_space(plain, refuted[10:], points, 0.6)
+    both = dataclasses.replace(plain, cut=joined_cut(first.cut, second.cut))
+    np.testing.assert_allclose(both.mean_value(refuted), 0.6)
+    np.testing.assert_array_equal(both.mean_value(candidates), np.maximum(
+        first.mean_value(candidates), second.mean_value(candidates)))
+    values, gradients = both.mean(candidates)
+    np.testing.assert_array_equal(values, both.mean_value(candidates))
+    # Where the second's balls win by more than a tie (CUT_TIE of the radius).
+    theirs = second.mean_value(candidates) > first.mean_value(candidates) + 2 * CUT_TIE * 0.6
+    assert theirs.sum() > 100
+    np.testing.assert_allclose(gradients[theirs], second.mean(candidates[theirs])[1])
+    assert joined_cut(None, first.cut) is first.cut and joined_cut(first.cut, None) is first.cut
+    assert joined_cut(None, None) is None
 
 
 def test_a_miss_refutes_the_fit_only_away_from_the_contacts(mug_data):
