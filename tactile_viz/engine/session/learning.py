@@ -9,7 +9,7 @@ from ..errors import SessionError
 from ..shape.gpis import ThinPlateKernel, held_out_errors, zero_level_surface
 from ..shape.gpis_variance import lattice_low
 from ..shape.objects import ObjectModel
-from .estimate import own_box
+from .final import own_box
 
 
 def learned_model(estimator, snapshot, name, resolution, library):
@@ -18,7 +18,7 @@ def learned_model(estimator, snapshot, name, resolution, library):
     The snapshot's GPIS posterior mean (its contacts, MAP prior and kernel scale) is
     extracted at ``resolution`` (``params.learned_resolution`` as a session asks), finer
     where the contacts measure thin walls (:meth:`~.estimate.Estimator.wall_resolution`)
-    and in its own box where it is small in the prior's (:func:`~.estimate.own_box`);
+    and in its own box where it is small in the prior's (:func:`~.final.own_box`);
     a stopped session's last surface, asked at ``params.final_resolution``, is learned as
     reported (the final surface, finer where walls are thin); the largest connected
     piece of the zero level set is kept, and the model is checked and normalised like any

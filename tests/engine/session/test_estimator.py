@@ -64,7 +64,7 @@ def test_thin_walls_raise_the_final_resolution_up_to_its_cap(scale, tmp_path):
     # it, at most WALL_MOST times final_resolution; a ball's contacts raise nothing.
     from dataclasses import replace
 
-    from tactile_viz.engine.session.estimate import WALL_MOST, WALL_VERTICES
+    from tactile_viz.engine.session.final import WALL_MOST, WALL_VERTICES
 
     rng = np.random.default_rng(0)
     xy = rng.uniform(-scale, scale, size=(40, 2))
@@ -124,7 +124,7 @@ def test_a_final_surface_small_in_its_box_is_extracted_again_in_its_own(scale, t
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_own_box_is_a_small_surfaces_box_with_two_cells_of_margin(scale):
-    from tactile_viz.engine.session.estimate import OWN_BOX_CELLS, own_box
+    from tactile_viz.engine.session.final import OWN_BOX_CELLS, own_box
 
     bounds = (np.zeros(3), np.full(3, 10.0 * scale))
     cell = 10.0 * scale / 20
