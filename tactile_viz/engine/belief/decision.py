@@ -241,11 +241,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     incremental = refresh > 1  # else as before: afresh at each touch
     full = not incremental or full_search_due(refined, count, refresh)
     index = spread_contacts(pf.contact_positions, spread)
+    view = seen_through(pf, index) if len(index) < count else None
     decision = None
-    if len(index) < count:  # a misfit on a spread is a misfit on all
-        decision = _weigh(seen_through(pf, index), belief, full=full, incremental=incremental,
-                          count=count, **{**options, "free_space": thinned(
-                              free_space, FREE_PER_CONTACT * spread)})
+    if view is not None:  # a misfit on a spread is a misfit on all
+        decision = _weigh(view, belief, full=full, incremental=incremental, count=count,
+                          **{**options, "free_space": thinned(free_space,
+                                                              FREE_PER_CONTACT * spread)})
     if decision is None or decision.fits:
         decision = _weigh(pf, belief, full=full, incremental=incremental, count=count,
                           **options)
@@ -353,7 +354,9 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # process to the next, and so would the sum's last bit.
     weighed = sorted({belief.class_names[c] for c in np.r_[classes[keep], left_out]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
-    dof = len(contacts) - POSE_PARAMETERS
+    # Every contact's degrees of freedom, on a spread too: its least squares are a lower
+    # bound of theirs on all, so failing all's test there fails it on all (:mod:`.spread`).
+    dof = count - POSE_PARAMETERS
     lead = particle_lead(hypotheses, scale2, confidence)
     if leader is not None:  # only the class whose flips were weighed, as rival modes
         lead = class_lead([h for h in hypotheses if h.class_index == leader[0]], lead, scale2,

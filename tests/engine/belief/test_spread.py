@@ -86,6 +86,17 @@ def test_a_view_sees_some_contacts_and_changes_nothing(shapes):
     assert view.bank is pf.bank and view.particles is pf.particles
 
 
+def test_a_view_leaves_out_as_many_contacts_as_the_filter(shapes):
+    import dataclasses
+
+    pf, _ = _filter(shapes, shapes["cylinder"], 40, seed=1)
+    pf.params = dataclasses.replace(pf.params, outlier_probability=0.05)  # 2 of 40
+    view = seen_through(pf, np.arange(0, 40, 4))
+    assert np.ceil(view.params.outlier_probability * 10) == 2
+    assert pf.params.outlier_probability == 0.05
+    assert seen_through(pf, np.arange(4)) is None  # 2 of 4: half of them
+
+
 def test_a_decision_on_a_spread_is_searched_again_on_every_contact(shapes, monkeypatch):
     pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
     whole = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
@@ -136,6 +147,8 @@ def test_a_misfit_on_a_spread_is_a_misfit_and_is_not_searched_again(shapes, monk
     misfit = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=24)
     assert seen == [24]
     assert not misfit.fits and misfit.fit_p < 1e-6 and not misfit.decided
+    # Its p-value bounds that of every contact from above: the test is never stricter.
+    assert misfit.fit_p >= decide(pf, state, 0.99, floor=0.02, same_mode=0.1).fit_p
 
 
 def test_the_recommended_preset_spreads_and_the_paper_does_not():
