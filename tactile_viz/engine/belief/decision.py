@@ -136,6 +136,8 @@ class Decision:
         unlikely a right hypothesis leaves them.
     refined : Refined
         What it refined, for the next touch's starts (:mod:`.incremental`).
+    lead : Hypothesis or None
+        The hypothesis the fit test and the decision are about (None: not assessed).
     """
 
     decided: bool
@@ -147,6 +149,7 @@ class Decision:
     modes: tuple = ()
     fit_p: float = 1.0
     refined: Refined = field(default=NOTHING, repr=False)
+    lead: object = field(default=None, repr=False)
 
     @property
     def rivals(self):
@@ -243,16 +246,49 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     index = spread_contacts(pf.contact_positions, spread)
     view = seen_through(pf, index) if len(index) < count else None
     decision = None
-    if view is not None:  # a misfit on a spread is a misfit on all
+    if view is not None:
         decision = _weigh(view, belief, full=full, incremental=incremental, count=count,
                           **{**options, "free_space": thinned(free_space,
                                                               FREE_PER_CONTACT * spread)})
+        if not decision.fits and decision.lead is not None:  # its misfit, tested on all
+            fits, fit_p = _tested_on_all(pf, decision.lead, floor, confidence, free_space,
+                                         normal_noise_deg, normals, incremental)
+            decision = None if fits else replace(decision, fit_p=fit_p)
     if decision is None or decision.fits:
         decision = _weigh(pf, belief, full=full, incremental=incremental, count=count,
                           **options)
     if decision.decided and not full:  # only a full search decides
         decision = _weigh(pf, belief, full=True, incremental=True, count=count, **options)
     return decision
+
+
+def _outside(pf, free_space):
+    """The points a fit keeps its shape off: the non-contacts and the ``free_space``."""
+    if free_space is None:
+        return pf.noncontact_positions
+    return np.vstack([pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
+
+
+def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, normals,
+                   incremental):
+    """:func:`fit_test`'s ``(fits, fit_p)`` of a lead found on a spread of the contacts
+    (:mod:`.spread`), its pose refined on every contact and all the free space first."""
+    outside = _outside(pf, free_space)
+    oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
+                                  normals)
+    tolerance = REFINE_TOLERANCE if incremental else 0.0
+    try:
+        rotations, translations, misfit = refine_poses(
+            pf.bank.evaluate, [lead.class_index], lead.rotation[None], lead.translation[None],
+            pf.contact_positions, outside, pf.params.refine_iterations,
+            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
+            clearance=pf.scene.tip_radius, support=table_support(pf), boxes=pf.bank.boxes,
+            tolerance=tolerance)
+    except np.linalg.LinAlgError:
+        return True, 1.0  # untested: searched on all
+    refit = replace(lead, rotation=rotations[0], translation=translations[0],
+                    misfit=float(misfit[0]) if np.isfinite(misfit[0]) else np.inf)
+    return fit_test(pf, refit, floor, confidence, outside, oriented, tolerance)[:2]
 
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
@@ -297,8 +333,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     rotations = np.concatenate([rotations, np.reshape([h.rotation for h in kept], (-1, 3, 3))])
     translations = np.concatenate([translations,
                                    np.reshape([h.translation for h in kept], (-1, 3))])
-    outside = pf.noncontact_positions if free_space is None else np.vstack(
-        [pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
+    outside = _outside(pf, free_space)
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
                                   normals)
     try:
@@ -354,34 +389,14 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # process to the next, and so would the sum's last bit.
     weighed = sorted({belief.class_names[c] for c in np.r_[classes[keep], left_out]})
     weighed_share = sum(belief.class_posterior.get(name, 0.0) for name in weighed)
-    # Every contact's degrees of freedom, on a spread too: its least squares are a lower
-    # bound of theirs on all, so failing all's test there fails it on all (:mod:`.spread`).
-    dof = count - POSE_PARAMETERS
+    dof = len(contacts) - POSE_PARAMETERS
     lead = particle_lead(hypotheses, scale2, confidence)
     if leader is not None:  # only the class whose flips were weighed, as rival modes
         lead = class_lead([h for h in hypotheses if h.class_index == leader[0]], lead, scale2,
                           confidence, belief.class_posterior, belief.class_names,
                           lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
-    # The lead must also fit within the noise: a rival that was never sampled cannot be
-    # weighed, but a MAP in a wrong mode leaves residuals beyond the noise. A round
-    # shape's detail (a bumpy ball's bumps) is not granted: its turns are searched all
-    # round (round_turns), and granted, a smooth ball fitted a bumpy one within it.
-    shape2 = pf.models[lead.class_index].shape_error ** 2
-    quantile = chi2_quantile(confidence, dof) if dof > 0 else 0.0
-    # The grid errs most inside thin parts, where noisy readings lie, and more than its
-    # error at the surface says: where the grid's residuals fail, the mesh is asked, with
-    # no grid error.
-    limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
-    fits, fit_p = dof > 0 and lead.misfit <= limit, 1.0
-    if dof > 0 and not fits:
-        mesh2 = max(floor**2 + shape2, 1e-300)
-        on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
-                              oriented, tolerance)
-        fits = on_mesh <= quantile * mesh2
-        if not fits:
-            grid2 = limit / max(chi2_quantile(confidence, dof), 1e-300)
-            fit_p = float(max(chdtrc(dof, lead.misfit / grid2), chdtrc(dof, on_mesh / mesh2)))
+    fits, fit_p, limit = fit_test(pf, lead, floor, confidence, outside, oriented, tolerance)
     loosest, modes, posed = None, (), lead
     if fits and level >= confidence:
         modes = _open_modes(pf.bank, hypotheses, lead, limit,
@@ -395,7 +410,34 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         hypotheses = (posed,) + tuple(h for h in hypotheses if h is not lead)
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
-                    float(np.sqrt(scale2)), modes, fit_p, memory)
+                    float(np.sqrt(scale2)), modes, fit_p, memory, lead)
+
+
+def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
+    """Whether the lead fits within the noise, ``(fits, fit_p, limit)``: its squares on
+    the grid within ``limit`` (:func:`fit_limit`), else on its mesh within the chi-squared
+    quantile of ``confidence`` (:func:`~.mesh_fit.mesh_misfit`); ``fit_p`` the better
+    p-value of the two when it fails (1 when it fits).
+
+    A rival that was never sampled cannot be weighed, but a MAP in a wrong mode leaves
+    residuals beyond the noise. A round shape's detail (a bumpy ball's bumps) is not
+    granted: its turns are searched all round (round_turns), and granted, a smooth ball
+    fitted a bumpy one within it. The grid errs most inside thin parts, where noisy
+    readings lie, and more than its error at the surface says: where the grid's residuals
+    fail, the mesh is asked, with no grid error."""
+    dof = len(pf.contact_positions) - POSE_PARAMETERS
+    limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
+    if dof <= 0 or lead.misfit <= limit:
+        return dof > 0, 1.0, limit
+    quantile = chi2_quantile(confidence, dof)
+    mesh2 = max(floor**2 + pf.models[lead.class_index].shape_error ** 2, 1e-300)
+    on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
+                          oriented, tolerance)
+    if on_mesh <= quantile * mesh2:
+        return True, 1.0, limit
+    grid2 = limit / max(quantile, 1e-300)
+    return False, float(max(chdtrc(dof, lead.misfit / grid2),
+                            chdtrc(dof, on_mesh / mesh2))), limit
 
 
 def _flipped(pf, poses):

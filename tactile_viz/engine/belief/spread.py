@@ -9,15 +9,12 @@ misfit) was searched afresh every few touches for hundreds of touches. While the
 keeps misfitting, a search first fits a spread of ``count`` of the contacts, each the
 farthest from those before it, and ``FREE_PER_CONTACT`` times as many points of the free
 space (every k-th: each path keeps a share of its points), and costs what one with
-``count`` contacts does. Its lead's squares there are a lower bound of theirs on every
-observation (the spread's are the least at its own best pose, a free-space point only
-adds cost, and as many contacts are left out as all would leave), so squares beyond the
-test's limit for every contact's degrees of freedom fail it on all too; a lead that
-passes that limit on the spread is searched again on all (a spread holds a pose less
-tightly, and the test of fewer contacts is stricter for a misfit held by a few of them).
+``count`` contacts does. Its lead, if it misfits there, is refitted alone on every
+contact and all the free space and tested there: the test of all the contacts decides,
+and a lead that passes it (or fits on the spread) is searched again on all, as without a
+spread. The spread only finds the lead: fewer contacts hold a pose less tightly, and their
+test is stricter for a misfit held by a few of them (a learned cup's rim met again).
 """
-
-from dataclasses import replace
 
 import numpy as np
 
@@ -40,20 +37,12 @@ def spread_contacts(positions, count):
 
 def seen_through(pf, index):
     """A view of a particle filter whose contacts are those at ``index`` (their positions
-    and normals); its bank, models, particles and non-contacts are the filter's own, and
-    its fits leave out as many contacts as the filter's would (``outlier_probability``:
-    a subset's squares less its ``D`` largest are at most the whole set's less its ``D``
-    largest). None when that is half of them or more. The filter is not changed."""
-    index = np.asarray(index)
-    drop = int(np.ceil(pf.params.outlier_probability * len(pf.contact_positions)))
-    if drop and 2 * drop >= len(index):
-        return None
+    and normals); its bank, models, particles and non-contacts are the filter's own. The
+    filter itself is not changed."""
     view = object.__new__(type(pf))
     view.__dict__.update(pf.__dict__)
     view.contact_positions = pf.contact_positions[index]
     view.contact_normals = pf.contact_normals[index]
-    if drop:  # refine_poses leaves out ceil(share * contacts)
-        view.params = replace(pf.params, outlier_probability=(drop - 0.5) / len(index))
     return view
 
 

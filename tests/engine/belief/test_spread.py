@@ -86,17 +86,6 @@ def test_a_view_sees_some_contacts_and_changes_nothing(shapes):
     assert view.bank is pf.bank and view.particles is pf.particles
 
 
-def test_a_view_leaves_out_as_many_contacts_as_the_filter(shapes):
-    import dataclasses
-
-    pf, _ = _filter(shapes, shapes["cylinder"], 40, seed=1)
-    pf.params = dataclasses.replace(pf.params, outlier_probability=0.05)  # 2 of 40
-    view = seen_through(pf, np.arange(0, 40, 4))
-    assert np.ceil(view.params.outlier_probability * 10) == 2
-    assert pf.params.outlier_probability == 0.05
-    assert seen_through(pf, np.arange(4)) is None  # 2 of 4: half of them
-
-
 def test_a_decision_on_a_spread_is_searched_again_on_every_contact(shapes, monkeypatch):
     pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
     whole = decide(pf, state, 0.99, floor=0.02, same_mode=0.1)
@@ -155,3 +144,31 @@ def test_the_recommended_preset_spreads_and_the_paper_does_not():
     assert session_preset("recommended").decision_contacts > 0
     assert session_preset("paper").decision_contacts == 0
     assert SessionParams().decision_contacts == session_preset("recommended").decision_contacts
+
+
+def test_a_misfit_on_a_spread_that_all_contacts_pass_is_searched_on_all(shapes, monkeypatch):
+    """The spread only finds the lead: when its refit on every contact passes the test
+    (a learned shape wrong where the spread's extremes lie), all of them are searched."""
+    library = PriorLibrary([shapes["box"], shapes["cylinder"]])
+    pf, state = _filter(library, shapes["knobbed"], 80, seed=3)
+    monkeypatch.setattr(decision_module, "_tested_on_all", lambda *args: (True, 1.0))
+    seen = _seen_counts(monkeypatch)
+    decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=24)
+    assert seen == [24, 80]
+
+
+def test_the_lead_of_a_spread_is_tested_on_every_contact(shapes):
+    library = PriorLibrary([shapes["box"], shapes["cylinder"]])
+    pf, state = _filter(library, shapes["knobbed"], 80, seed=3)
+    view = seen_through(pf, spread_contacts(pf.contact_positions, 24))
+    on_spread = decide(view, state, 0.99, floor=0.02, same_mode=0.1)
+    assert not on_spread.fits and on_spread.lead is not None
+    fits, fit_p = decision_module._tested_on_all(pf, on_spread.lead, 0.02, 0.99, None, 0.0,
+                                                 False, False)
+    assert not fits and fit_p < 1e-6
+    pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
+    view = seen_through(pf, spread_contacts(pf.contact_positions, 16))
+    lead = decide(view, state, 0.99, floor=0.02, same_mode=0.1).lead
+    assert decision_module._tested_on_all(pf, lead, 0.02, 0.99, None, 0.0, False,
+                                          False) == (True, 1.0)
+
