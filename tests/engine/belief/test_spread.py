@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from tactile_viz.engine import ObjectModel, PriorLibrary
+from tactile_viz.engine import PriorLibrary
 from tactile_viz.engine.belief import decision as decision_module
 from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
@@ -19,19 +19,9 @@ pytestmark = pytest.mark.filterwarnings("ignore:knobbed. repaired on loading")
 
 
 @pytest.fixture(scope="module")
-def shapes(tmp_path_factory):
+def shapes(knobbed_shapes):
     """A box 6 x 3 x 2, the same box with a knob on one end, and a cylinder."""
-    from tactile_viz.engine.io.cache import ArrayCache
-
-    cache = ArrayCache(tmp_path_factory.mktemp("cache"))
-    box = trimesh.creation.box(extents=(6, 3, 2))
-    knob = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
-    knob.apply_translation([2.0, 0.0, 1.4])
-    knobbed = trimesh.util.concatenate([box, knob])
-    cylinder = trimesh.creation.cylinder(radius=1.5, height=6, sections=48)
-    models = [ObjectModel.from_arrays(m.vertices, m.faces, name, cache=cache)
-              for m, name in ((box, "box"), (knobbed, "knobbed"), (cylinder, "cylinder"))]
-    return PriorLibrary(models)
+    return knobbed_shapes
 
 
 def _filter(library, model, count, seed):
