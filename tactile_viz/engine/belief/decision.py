@@ -250,11 +250,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         decision = _weigh(view, belief, full=full, incremental=incremental, count=count,
                           **{**options, "free_space": thinned(free_space,
                                                               FREE_PER_CONTACT * spread)})
-        if not decision.fits and decision.lead is not None:  # its misfit, tested on all
+        fits, fit_p = True, 1.0  # a lead that fits, or none, is searched on all
+        if decision.lead is not None and not decision.fits:  # its misfit, tested on all
             fits, fit_p = _tested_on_all(pf, decision.lead, floor, confidence, free_space,
                                          normal_noise_deg, normals, incremental)
-            decision = None if fits else replace(decision, fit_p=fit_p)
-    if decision is None or decision.fits:
+        decision = None if fits else replace(decision, fit_p=fit_p)
+    if decision is None:
         decision = _weigh(pf, belief, full=full, incremental=incremental, count=count,
                           **options)
     if decision.decided and not full:  # only a full search decides

@@ -162,3 +162,12 @@ def test_the_lead_of_a_spread_is_tested_on_every_contact(shapes):
     assert decision_module._tested_on_all(pf, lead, 0.02, 0.99, None, 0.0, False,
                                           False) == (True, 1.0)
 
+
+@pytest.mark.parametrize("spread", [1, 2, 6])
+def test_a_spread_too_small_to_assess_is_searched_on_all(shapes, monkeypatch, spread):
+    pf, state = _filter(shapes, shapes["cylinder"], 40, seed=1)
+    seen = _seen_counts(monkeypatch)
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=spread)
+    assert seen[0] == spread and 40 in seen
+    assert decision.decided == decide(pf, state, 0.99, floor=0.02, same_mode=0.1).decided
+
