@@ -500,8 +500,8 @@ class SessionParams:
         4, "New hypotheses a touch between full searches refines at most, besides the MAP's.",
         kind="int", valid=_AT_LEAST_0, control=(0, 50))
     decision_contacts: int = _session(
-        64, "While a known MAP keeps misfitting, the contacts a decision search fits at most, "
-        "spread over the object; searched again on all if the MAP fits (0: all).",
+        64, "While a known MAP misfits, the contacts a decision search fits first, spread "
+        "over the object; its lead is then tested on all, searched on all if it fits (0: all).",
         kind="int", valid=_AT_LEAST_0, control=(0, 1000))
     decision_normals: bool = _session(
         True, "The decided pose is fitted to the contacts' normals too, and a pose mode they "

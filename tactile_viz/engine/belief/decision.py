@@ -270,6 +270,16 @@ def _outside(pf, free_space):
     return np.vstack([pf.noncontact_positions, np.reshape(free_space, (-1, 3))])
 
 
+def _refined(pf, classes, rotations, translations, outside, oriented, tolerance):
+    """The poses refined on the filter's contacts and ``outside``
+    (:func:`~.pose_refinement.refine_poses`): rotations, translations, misfits."""
+    return refine_poses(
+        pf.bank.evaluate, classes, rotations, translations, pf.contact_positions, outside,
+        pf.params.refine_iterations, trim=pf.params.outlier_probability,
+        normals=pf.contact_normals, oriented=oriented, clearance=pf.scene.tip_radius,
+        support=table_support(pf), boxes=pf.bank.boxes, tolerance=tolerance)
+
+
 def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, normals,
                    incremental):
     """:func:`fit_test`'s ``(fits, fit_p)`` of a lead found on a spread of the contacts
@@ -279,12 +289,9 @@ def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, no
                                   normals)
     tolerance = REFINE_TOLERANCE if incremental else 0.0
     try:
-        rotations, translations, misfit = refine_poses(
-            pf.bank.evaluate, [lead.class_index], lead.rotation[None], lead.translation[None],
-            pf.contact_positions, outside, pf.params.refine_iterations,
-            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
-            clearance=pf.scene.tip_radius, support=table_support(pf), boxes=pf.bank.boxes,
-            tolerance=tolerance)
+        rotations, translations, misfit = _refined(
+            pf, [lead.class_index], lead.rotation[None], lead.translation[None], outside,
+            oriented, tolerance)
     except np.linalg.LinAlgError:
         return True, 1.0  # untested: searched on all
     refit = replace(lead, rotation=rotations[0], translation=translations[0],
@@ -338,12 +345,8 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
                                   normals)
     try:
-        rotations, translations, misfit = refine_poses(
-            pf.bank.evaluate, classes, rotations, translations, contacts, outside,
-            pf.params.refine_iterations,
-            trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
-            clearance=pf.scene.tip_radius, support=table_support(pf), boxes=pf.bank.boxes,
-            tolerance=tolerance)
+        rotations, translations, misfit = _refined(pf, classes, rotations, translations,
+                                                   outside, oriented, tolerance)
     except np.linalg.LinAlgError:
         return UNDECIDED
     memory = remembered(memory, source, fresh, begun, classes,
@@ -420,12 +423,10 @@ def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
     quantile of ``confidence`` (:func:`~.mesh_fit.mesh_misfit`); ``fit_p`` the better
     p-value of the two when it fails (1 when it fits).
 
-    A rival that was never sampled cannot be weighed, but a MAP in a wrong mode leaves
-    residuals beyond the noise. A round shape's detail (a bumpy ball's bumps) is not
-    granted: its turns are searched all round (round_turns), and granted, a smooth ball
-    fitted a bumpy one within it. The grid errs most inside thin parts, where noisy
-    readings lie, and more than its error at the surface says: where the grid's residuals
-    fail, the mesh is asked, with no grid error."""
+    A rival never sampled cannot be weighed, but a MAP in a wrong mode leaves residuals
+    beyond the noise. A round shape's detail is not granted (a smooth ball fitted a bumpy
+    one within it; its turns are searched all round, round_turns). The grid errs most in
+    thin parts, where noisy readings lie: where it fails, the mesh is asked."""
     dof = len(pf.contact_positions) - POSE_PARAMETERS
     limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
     if dof <= 0 or lead.misfit <= limit:
