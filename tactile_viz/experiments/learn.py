@@ -123,7 +123,8 @@ def again_task(task, result, max_steps):
                  extra_priors=task["extra_priors"] + [
                      {"name": learned["name"], "vertices": learned["vertices"],
                       "faces": learned["faces"], "learned": True,
-                      "shape_error": learned.get("shape_error", 0.0)}])
+                      "shape_error": learned.get("shape_error", 0.0),
+                      "normal_error": learned.get("normal_error", 0.0)}])
     return again
 
 

@@ -153,7 +153,8 @@ def task_library(task):
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,
                            learned=prior.get("learned", True),
-                           shape_error=prior.get("shape_error", 0.0))
+                           shape_error=prior.get("shape_error", 0.0),
+                           normal_error=prior.get("normal_error", 0.0))
     return library
 
 
@@ -182,7 +183,8 @@ def _finisher(task):
                 model = session.learned_model(task["learn_as"])
                 extra["learned"] = {"name": model.name, "vertices": model.mesh.vertices.tolist(),
                                     "faces": model.mesh.faces.tolist(),
-                                    "shape_error": model.shape_error}
+                                    "shape_error": model.shape_error,
+                                    "normal_error": model.normal_error}
             except Exception as error:  # not novel, no surface, or a mesh the loader refuses
                 extra["learned"] = {"name": task["learn_as"], "error": str(error)}
         return extra

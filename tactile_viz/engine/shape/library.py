@@ -145,7 +145,8 @@ class PriorLibrary:
 
         Each entry of the manifest has the prior's ``name``, mesh ``file`` and its
         ``sha256``, ``learned``, ``longest_side``, ``file_to_object`` (4x4), ``shape_error``
-        (a learned shape's, in its units) and ``units`` (None when unknown).
+        (a learned shape's, in its units), ``normal_error`` (a learned shape's) and
+        ``units`` (None when unknown).
         """
         folder = Path(folder)
         try:
@@ -204,7 +205,8 @@ class PriorLibrary:
             model = ObjectModel(entry["name"], mesh, params, cache,
                                 learned=entry.get("learned") is True,
                                 file_to_object=np.diag([scale] * 3 + [1.0]) @ _matrix(entry, path),
-                                shape_error=scale * float(entry.get("shape_error", 0.0)))
+                                shape_error=scale * float(entry.get("shape_error", 0.0)),
+                                normal_error=float(entry.get("normal_error", 0.0)))
             library.add(model, units=units if saved is not None and units else saved)
         log.info("loaded %d priors from %s", len(library), folder)
         return library
@@ -222,7 +224,7 @@ def _save_mesh(folder, model):
         write_atomic(folder / filename, data)
     return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned,
             "longest_side": model.length, "file_to_object": model.file_to_object.tolist(),
-            "shape_error": model.shape_error}
+            "shape_error": model.shape_error, "normal_error": model.normal_error}
 
 
 def _matrix(entry, path):

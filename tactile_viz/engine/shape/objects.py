@@ -94,16 +94,22 @@ class ObjectModel:
         given mesh; for a learned shape the RMS of its held-out errors
         (:func:`~tactile_viz.engine.shape.gpis.held_out_errors`), which the decision adds to
         the sensor's noise.
+    normal_error : float
+        How far a touch's normal may lie off this surface's although the object is this
+        one, as the RMS length of the difference of unit normals: 0 for a given mesh; for
+        a learned shape its learning contacts' (a thin part's reconstruction turns its
+        normals), which the novelty test adds to ``sigma_n``.
     """
 
     def __init__(self, name, mesh, params=None, cache=None, learned=False, file_to_object=None,
-                 shape_error=0.0):
+                 shape_error=0.0, normal_error=0.0):
         self.name = str(name)
         self.mesh = mesh
         self.params = params or ModelParams()
         self.cache = cache if cache is not None else ArrayCache()
         self.learned = bool(learned)
         self.shape_error = float(shape_error)
+        self.normal_error = float(normal_error)
         if file_to_object is None:
             file_to_object = mesh.metadata.get("file_to_object", np.eye(4))
         self.file_to_object = np.array(file_to_object, dtype=float).reshape(4, 4)
@@ -142,16 +148,18 @@ class ObjectModel:
 
     @classmethod
     def from_arrays(cls, vertices, faces, name, params=None, cache=None, longest_side=None,
-                    learned=False, scale=1.0, shape_error=0.0):
+                    learned=False, scale=1.0, shape_error=0.0, normal_error=0.0):
         """Build a model from ``(n, 3)`` vertices and ``(m, 3)`` faces (checked and centred;
         ``longest_side`` normalises their size)."""
         mesh = prepare_mesh(vertices, faces, source=name, longest_side=longest_side,
                             scale=scale)
-        return cls(name, mesh, params, cache, learned, shape_error=shape_error)
+        return cls(name, mesh, params, cache, learned, shape_error=shape_error,
+                   normal_error=normal_error)
 
     def _like(self, name=None, params=None):
         return ObjectModel(name or self.name, self.mesh, params or self.params, self.cache,
-                           self.learned, self.file_to_object, self.shape_error)
+                           self.learned, self.file_to_object, self.shape_error,
+                           self.normal_error)
 
     def with_params(self, **changes):
         """The same mesh with other :class:`ModelParams` (shares the exact distance)."""

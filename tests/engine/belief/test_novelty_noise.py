@@ -112,3 +112,42 @@ def test_a_learned_shapes_own_error_is_granted_as_noise(tmp_path):
     assert not _judged_novel(learned, plate, seed=0, believed=(0.0, NOISE[1]))
     assert _judged_novel(plate, plate, seed=0, believed=(0.0, NOISE[1]))
     assert _judged_novel(learned, plate, seed=0, believed=(0.0, NOISE[1]), learned_noise=False)
+
+
+def _turned_ball_test(model, params, degrees):
+    """``(total, threshold)`` of the contact test on a ball's surface whose normals are
+    turned ``degrees`` each (eight contacts, the MAP at the ball's pose)."""
+    rng = np.random.default_rng(0)
+    outward = rng.normal(size=(8, 3))
+    outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+    aside = np.cross(outward, rng.normal(size=(8, 3)))
+    aside /= np.linalg.norm(aside, axis=1, keepdims=True)
+    turn = np.radians(degrees)
+    particle_filter = ParticleFilter(PriorLibrary([model]), params)
+    particle_filter.contact_positions = outward
+    particle_filter.contact_normals = np.cos(turn) * outward + np.sin(turn) * aside
+    best = Particles(np.zeros(1, int), np.eye(3)[None], np.zeros((1, 3)), np.zeros(1))
+    return particle_filter._contact_test(best)
+
+
+def test_a_learned_shapes_normal_error_is_granted(tmp_path):
+    """Contacts on a ball with normals turned 43 degrees: a ball learned with that turn
+    (its ``normal_error``, the length of the normals' difference) stays known, the ball
+    scanned, or learned under the paper's test (``learned_noise`` off), is judged novel
+    (a learned fork's tines are blobs whose normals turn 20-30 degrees); normals turned
+    150 degrees, the other face of a thin part, are novel on the learned ball too."""
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+    cache = ArrayCache(tmp_path)
+    chord = 2 * np.sin(np.radians(43.0) / 2)
+    scanned = ObjectModel.from_arrays(ball.vertices, ball.faces, "ball", cache=cache)
+    learned = ObjectModel.from_arrays(ball.vertices, ball.faces, "learned", cache=cache,
+                                      learned=True, normal_error=chord)
+    params = noise_matched(FilterParams(), *NOISE)
+    total, threshold = _turned_ball_test(learned, params, 43.0)
+    assert total >= threshold
+    for model, changes, degrees in ((scanned, {}, 43.0), (learned, {"learned_noise": False},
+                                    43.0), (learned, {}, 150.0)):
+        total, threshold = _turned_ball_test(model, replace(params, **changes), degrees)
+        assert total < threshold, (model.name, changes, degrees)

@@ -35,7 +35,7 @@ def test_a_learned_prior_stays_learned_through_save_and_load(small_library, tmp_
     library, folder = small_library
     cone = trimesh.creation.cone(radius=1.0, height=3.0)
     library.add_arrays(cone.vertices, cone.faces, "learned cone", learned=True,
-                       shape_error=0.03)
+                       shape_error=0.03, normal_error=0.4)
     library.save(folder)
     loaded = PriorLibrary.load(folder)
     assert [loaded[name].learned for name in loaded.names] == [False, False, True]
@@ -43,6 +43,8 @@ def test_a_learned_prior_stays_learned_through_save_and_load(small_library, tmp_
     # Its own error travels with it (in its units) and a given mesh has none.
     assert loaded["learned cone"].renamed("again").shape_error == pytest.approx(0.03)
     assert loaded["box"].shape_error == 0.0
+    assert loaded["learned cone"].renamed("again").normal_error == pytest.approx(0.4)
+    assert loaded["box"].normal_error == 0.0
 
 
 def test_names_are_unique(small_library):
