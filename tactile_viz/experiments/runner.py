@@ -183,8 +183,7 @@ def _finisher(task):
                 model = session.learned_model(task["learn_as"])
                 extra["learned"] = {"name": model.name, "vertices": model.mesh.vertices.tolist(),
                                     "faces": model.mesh.faces.tolist(),
-                                    "shape_error": model.shape_error,
-                                    "normal_error": model.normal_error}
+                                    **model.own_errors()}
             except Exception as error:  # not novel, no surface, or a mesh the loader refuses
                 extra["learned"] = {"name": task["learn_as"], "error": str(error)}
         return extra

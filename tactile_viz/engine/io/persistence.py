@@ -24,7 +24,7 @@ from ..params import SessionParams
 from ..scene import Scene
 from ..shape.library import PriorLibrary
 from ..shape.meshes import check_arrays
-from ..shape.objects import ObjectModel
+from ..shape.objects import OWN_ERRORS, ObjectModel
 from .files import write_atomic
 from .observation_file import ObservationFileError, format_observations, parse_observations
 
@@ -46,6 +46,8 @@ def save_session(session, path):
               "sensor_outliers": setup.get("sensor_outliers", 0.0) if truth else 0.0,
               "steps": session.step_count, "library": library.names,
               "learned": [model.name for model in library if model.learned],
+              "own_errors": {model.name: model.own_errors() for model in library
+                             if model.learned},
               "truth_name": None if truth is None else truth.model.name,
               "scene": setup["scene"].as_dict() if setup.get("scene") is not None else None}
     arrays = {"config": np.frombuffer(json.dumps(config).encode(), dtype=np.uint8),
@@ -81,10 +83,11 @@ def _read(path, build):
     learned = config.get("learned", [])
     if not (isinstance(learned, list) and all(isinstance(name, str) for name in learned)):
         raise ValueError("the list of learned priors is not a list of names")
-    learned = set(learned)
+    learned, errors = set(learned), _own_errors(config.get("own_errors", {}))
     library = PriorLibrary(_model_from_arrays(name, arrays[f"prior{i}_vertices"],
                                               arrays[f"prior{i}_faces"],
-                                              f"the mesh of prior {name!r}", name in learned)
+                                              f"the mesh of prior {name!r}", name in learned,
+                                              errors.get(name, {}))
                            for i, name in enumerate(config["library"]))
     truth, recorded = None, None
     if config["truth_name"] is None:
@@ -160,12 +163,31 @@ def load_session(path, build, callback=None):
     return session
 
 
-def _model_from_arrays(name, vertices, faces, what="the mesh", learned=False):
-    """A model from stored (already normalised) arrays, checked but not re-processed."""
+def _model_from_arrays(name, vertices, faces, what="the mesh", learned=False, errors=None):
+    """A model from stored (already normalised) arrays, checked but not re-processed, with
+    its own ``errors`` (:meth:`~..shape.objects.ObjectModel.own_errors`)."""
     if not isinstance(name, str):
         raise TypeError(f"the name of {what} must be a string, got {name!r}")
     vertices, faces = check_arrays(vertices, faces, what)
-    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False), learned=learned)
+    return ObjectModel(name, trimesh.Trimesh(vertices, faces, process=False), learned=learned,
+                       **(errors or {}))
+
+
+def _own_errors(stored):
+    """The learned priors' own errors as saved: ``{name: {"shape_error": float,
+    "normal_error": float}}``, each a finite number >= 0 (files saved before they were
+    kept have none: 0)."""
+    if not isinstance(stored, dict) or not all(
+            isinstance(errors, dict) and set(errors) <= set(OWN_ERRORS)
+            for errors in stored.values()):
+        raise ValueError("the learned priors' own errors are not a table of their errors")
+    for name, errors in stored.items():
+        for key, value in errors.items():
+            if (isinstance(value, bool) or not isinstance(value, (int, float))
+                    or not np.isfinite(value) or value < 0):
+                raise ValueError(f"the {key} of learned prior {name!r} must be a finite "
+                                 f"number >= 0, got {value!r}")
+    return stored
 
 
 def _checked_pose(rotation, translation):

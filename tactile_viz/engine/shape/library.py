@@ -224,7 +224,7 @@ def _save_mesh(folder, model):
         write_atomic(folder / filename, data)
     return {"name": model.name, "file": filename, "sha256": digest, "learned": model.learned,
             "longest_side": model.length, "file_to_object": model.file_to_object.tolist(),
-            "shape_error": model.shape_error, "normal_error": model.normal_error}
+            **model.own_errors()}
 
 
 def _matrix(entry, path):

@@ -156,6 +156,11 @@ class ObjectModel:
         return cls(name, mesh, params, cache, learned, shape_error=shape_error,
                    normal_error=normal_error)
 
+    def own_errors(self):
+        """``{"shape_error": ..., "normal_error": ...}``: how far a touch may lie off this
+        shape although the object is this one (both 0 for a given mesh)."""
+        return {name: getattr(self, name) for name in OWN_ERRORS}
+
     def _like(self, name=None, params=None):
         return ObjectModel(name or self.name, self.mesh, params or self.params, self.cache,
                            self.learned, self.file_to_object, self.shape_error,
@@ -358,6 +363,7 @@ class ObjectModel:
 
 
 LEARNED_MARK = b"comment tactile_viz learned shape"
+OWN_ERRORS = ("shape_error", "normal_error")  # ObjectModel.own_errors, as saved
 
 
 def is_learned_file(path):

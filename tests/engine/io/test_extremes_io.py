@@ -95,6 +95,12 @@ CORRUPT_CONFIGS = {
     "negative seed": (_config_change("seed", -3), "not a readable session file"),
     "library not a list": (_config_change("library", 5), "not a readable session file"),
     "truth name a number": (_config_change("truth_name", 7), "name"),
+    "own errors a list": (_config_change("own_errors", [0.1]), "own errors"),
+    "own error unknown": (_config_change("own_errors", {"a": {"size": 1.0}}), "own errors"),
+    "own error negative": (_config_change("own_errors", {"a": {"shape_error": -1.0}}),
+                           "shape_error"),
+    "own error not finite": (_config_change("own_errors", {"a": {"normal_error": None}}),
+                             "normal_error"),
     "no format": (lambda config: {k: v for k, v in config.items() if k != "format"},
                   "not a tactile_viz session file"),
 }

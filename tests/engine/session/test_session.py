@@ -370,6 +370,20 @@ def test_a_learned_prior_stays_learned_in_a_saved_session(bundled, known, tmp_pa
     assert [m.name for m in loaded.library if m.learned] == ["box_learned"]
 
 
+def test_a_learned_priors_own_errors_survive_a_saved_session(bundled, known, tmp_path):
+    # The novelty test and the decision grant them: a session loaded without them
+    # would replay differently.
+    learned = learned_model_from_surface(*_box_surface(), "box_learned")
+    learned.shape_error, learned.normal_error = 0.05, 0.4
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=4),
+                                PriorLibrary(list(known) + [learned]), "gpis-dhd", seed=4)
+    session.run(max_steps=2)
+    loaded = Session.load(session.save(tmp_path / "learned.npz"))
+    assert loaded.library["box_learned"].own_errors() == pytest.approx(
+        {"shape_error": 0.05, "normal_error": 0.4})
+    assert loaded.library["bottle_1"].own_errors() == {"shape_error": 0.0, "normal_error": 0.0}
+
+
 def _box_surface():
     box = trimesh.creation.box((2.0, 3.0, 4.0))
     return box.vertices, box.faces
