@@ -156,20 +156,25 @@ def learned_tasks(prior, trials, seed, preset, max_steps):
 
 
 def save_learned(result, folder):
-    """Write the learned surface of a result to ``folder/NAME.ply``; returns the prior dict
-    (name, vertices, faces) or None, and leaves only a short note in the result."""
+    """Write the learned surface of a result to ``folder/NAME.ply``, marked learned with
+    its own errors; returns the prior dict (name, vertices, faces, own errors) or None, and
+    leaves only a short note in the result."""
     import trimesh
+
+    from ..engine.shape.objects import OWN_ERRORS, mark_learned
 
     learned = result.get("learned")
     if not learned or "vertices" not in learned:
         return None
     vertices, faces = np.asarray(learned["vertices"]), np.asarray(learned["faces"])
+    errors = {name: float(learned[name]) for name in OWN_ERRORS if name in learned}
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{learned['name']}.ply"
-    trimesh.Trimesh(vertices, faces, process=False).export(path)
+    write_atomic(path, mark_learned(trimesh.Trimesh(vertices, faces, process=False).export(
+        file_type="ply"), errors))
     result["learned"] = {"name": learned["name"], "file": str(path),
-                         "n_vertices": len(vertices), "n_faces": len(faces)}
-    return {"name": learned["name"], "vertices": vertices, "faces": faces}
+                         "n_vertices": len(vertices), "n_faces": len(faces), **errors}
+    return {"name": learned["name"], "vertices": vertices, "faces": faces, **errors}
 
 
 def load_learned(folder):
@@ -179,8 +184,12 @@ def load_learned(folder):
 
 
 def load_learned_file(path):
-    """A mesh file as the learned prior (name ``home_chair_learned``)."""
+    """A mesh file as the learned prior (name ``home_chair_learned``), with the own errors
+    its header keeps (:func:`~..engine.shape.objects.file_own_errors`)."""
     import trimesh
+
+    from ..engine.errors import MeshError
+    from ..engine.shape.objects import file_own_errors
 
     try:
         mesh = trimesh.load(path, process=False, force="mesh")
@@ -188,8 +197,12 @@ def load_learned_file(path):
         raise SystemExit(f"cannot read the learned prior {path}: {error}") from None
     if len(mesh.faces) == 0:
         raise SystemExit(f"the learned prior {path} has no faces")
+    try:
+        errors = file_own_errors(path)
+    except MeshError as error:
+        raise SystemExit(f"cannot read the learned prior {path}: {error}") from None
     return {"name": LEARNED_NAME, "vertices": np.asarray(mesh.vertices),
-            "faces": np.asarray(mesh.faces)}
+            "faces": np.asarray(mesh.faces), **errors}
 
 
 def write_json(path, value):

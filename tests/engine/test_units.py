@@ -142,6 +142,7 @@ def test_an_exported_reconstruction_loads_as_a_learned_prior(tmp_path):
     assert is_learned_file(path)
     learned = ObjectModel.from_file(path, longest_side=6.0)  # never normalised
     assert learned.learned and learned.length == pytest.approx(0.1, rel=0.3)
+    assert learned.own_errors() == {"shape_error": 0.0, "normal_error": 0.0}
     first = read_observations(tmp_path / "out" / "observations.csv", units="mm")[0]
     np.testing.assert_allclose(first.observations[0].position,
                                1000 * session.snapshots[0].new_observations[0].position)

@@ -58,11 +58,14 @@ def test_protocol_plan_orders_costly_trials_first_and_learns_from_the_home_chair
 def test_learned_surface_is_saved_and_becomes_a_prior(tmp_path):
     box = trimesh.creation.box((6, 3, 2))
     result = {"learned": {"name": "home_chair_learned", "vertices": box.vertices.tolist(),
-                          "faces": box.faces.tolist()}}
+                          "faces": box.faces.tolist(), "shape_error": 0.02,
+                          "normal_error": 0.3}}
     prior = paper.save_learned(result, tmp_path)
     assert result["learned"]["n_faces"] == 12 and "vertices" not in result["learned"]
     loaded = paper.load_learned(tmp_path)
     assert np.allclose(loaded["vertices"], prior["vertices"])
+    # Its own errors come with it, as from a learned library's manifest.
+    assert (loaded["shape_error"], loaded["normal_error"]) == (0.02, 0.3)
     tasks = paper.learned_tasks(loaded, 3, 0, "paper", 5)
     assert [t["seed"] for t in tasks] == [1000, 1001, 1002]
     assert tasks[0]["extra_priors"][0]["name"] == "home_chair_learned"

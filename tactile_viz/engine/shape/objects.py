@@ -139,12 +139,16 @@ class ObjectModel:
             :func:`~tactile_viz.engine.shape.meshes.unit_factor`).
         learned : bool or None
             None: a file that :func:`~tactile_viz.engine.io.export.export_session` wrote as a
-            reconstruction is a learned shape (and is never normalised), others are not.
+            reconstruction is a learned shape (never normalised, with the own errors its
+            header keeps, :func:`file_own_errors`), others are not.
         """
         if learned is None:
             learned = is_learned_file(path)
         mesh = load_mesh(path, None if learned else longest_side, scale=scale)
-        return cls(name or Path(path).stem, mesh, params, cache, learned)
+        errors = file_own_errors(path) if learned else {}
+        if "shape_error" in errors:
+            errors["shape_error"] *= scale  # a length, in the file's units
+        return cls(name or Path(path).stem, mesh, params, cache, learned, **errors)
 
     @classmethod
     def from_arrays(cls, vertices, faces, name, params=None, cache=None, longest_side=None,
@@ -364,24 +368,62 @@ class ObjectModel:
 
 LEARNED_MARK = b"comment tactile_viz learned shape"
 OWN_ERRORS = ("shape_error", "normal_error")  # ObjectModel.own_errors, as saved
+OWN_ERRORS_MARK = b"comment tactile_viz own errors"
+
+
+def _ply_header(path):
+    """The header of a PLY file (bytes before ``end_header``; empty for another file)."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(1024)
+    except OSError:
+        return b""
+    return head.split(b"end_header")[0] if head.startswith(b"ply") else b""
 
 
 def is_learned_file(path):
     """Whether a mesh file is a reconstruction :func:`mark_learned` marked (a PLY header
     comment): such a shape is a learned prior, in the units of the session that made it."""
-    try:
-        with open(path, "rb") as stream:
-            head = stream.read(512)
-    except OSError:
-        return False
-    return head.startswith(b"ply") and LEARNED_MARK in head.split(b"end_header")[0]
+    return LEARNED_MARK in _ply_header(path)
 
 
-def mark_learned(ply_bytes):
-    """PLY bytes with the learned-shape comment after the format line."""
+def file_own_errors(path):
+    """The own errors :func:`mark_learned` wrote into a learned file's header, in its
+    units (:meth:`ObjectModel.own_errors`; ``{}`` without them).
+
+    Raises
+    ------
+    MeshError
+        A value that is not a finite number >= 0.
+    """
+    errors = {}
+    for line in _ply_header(path).splitlines():
+        if not line.startswith(OWN_ERRORS_MARK):
+            continue
+        for pair in line[len(OWN_ERRORS_MARK):].decode(errors="replace").split():
+            name, _, text = pair.partition("=")
+            try:
+                value = float(text)
+            except ValueError:
+                value = np.nan
+            if name in OWN_ERRORS and not (np.isfinite(value) and value >= 0):
+                raise MeshError(path, f"its {name} must be a finite number >= 0, got {text!r}")
+            if name in OWN_ERRORS:
+                errors[name] = value
+    return errors
+
+
+def mark_learned(ply_bytes, errors=None):
+    """PLY bytes with the learned-shape comment after the format line, and a comment with
+    the shape's own ``errors`` (:meth:`ObjectModel.own_errors`, in the file's units)."""
     first, rest = ply_bytes.split(b"\n", 1)
     second, rest = rest.split(b"\n", 1)
-    return b"\n".join([first, second, LEARNED_MARK, rest])
+    marks = [LEARNED_MARK]
+    if errors:
+        marks.append(OWN_ERRORS_MARK + "".join(
+            f" {name}={float(errors[name])!r}" for name in OWN_ERRORS if name in errors
+        ).encode())
+    return b"\n".join([first, second, *marks, rest])
 
 
 def assets_dir():

@@ -106,3 +106,22 @@ def test_interrupted_save_keeps_last_good_library(small_library, monkeypatch):
         library.save(folder)
     assert snapshot(folder) == before
     assert PriorLibrary.load(folder).names == ["box", "cylinder"]
+
+
+def test_a_marked_learned_file_carries_its_own_errors(tmp_path):
+    """A learned shape written with its own errors in the PLY header loads with them (the
+    shape error scaled with the file's unit); a bad value is one clear error."""
+    from tactile_viz.engine.errors import MeshError
+    from tactile_viz.engine.shape.objects import ObjectModel, file_own_errors, mark_learned
+
+    cone = trimesh.creation.cone(radius=1.0, height=3.0)
+    path = tmp_path / "cone.ply"
+    path.write_bytes(mark_learned(cone.export(file_type="ply"),
+                                  {"shape_error": 0.03, "normal_error": 0.4}))
+    assert file_own_errors(path) == {"shape_error": 0.03, "normal_error": 0.4}
+    model = ObjectModel.from_file(path, scale=0.001)
+    assert model.learned
+    assert model.own_errors() == pytest.approx({"shape_error": 3e-5, "normal_error": 0.4})
+    path.write_bytes(mark_learned(cone.export(file_type="ply"), {"shape_error": -1.0}))
+    with pytest.raises(MeshError, match="shape_error"):
+        ObjectModel.from_file(path)
