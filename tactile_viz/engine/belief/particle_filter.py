@@ -31,22 +31,17 @@ from . import kernels
 from .discrimination import discriminate
 from .likelihood import (
     OUTLIER_NATS,
-    log_contact_likelihood,
     log_noncontact_likelihood,
     log_normaliser,
     normalise_log_weights,
 )
+from .novelty import contact_test
 from .particles import FilterState, Particles
 from .pose_refinement import refine_poses
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
 
-NOISE_OFFSETS = np.array([0.0, -1.0, 1.0, -2.0, 2.0])  # position-noise stds along a normal
-# A noise offset counts where the nearest face's normal turns by more than 60 degrees
-# within it: a fold of the distance field (a thin wall's middle, the inside of a sharp
-# edge), not a curvature, which turns the normal by a few degrees over the offset.
-FOLD_COSINE = 0.5
 EXACT_KEPT = 8  # classes whose exact distance (libigl trees, ~8 MB each) the filter keeps
 SCREEN_POINTS = 4  # earlier contacts that screen the candidates beyond max_candidates
 SEED_NORMAL_TOLERANCE = 0.25  # resting seeds: vertical parts of the normals this close
@@ -491,53 +486,16 @@ class ParticleFilter:
         return self.log_likelihood(best, noncontacts=self.noncontact_positions)[0]
 
     def _contact_test(self, best, pose=None):
-        """The novelty test's contact part: ``(the MAP's log-likelihood of the contacts, its
-        threshold)``, with a noisy sensor at the MAP's refined pose and each contact at its
-        best offset within the position noise where that offset crosses a fold of the
-        distance field (a thin wall's middle), and
-        without the worst ``ceil(eps n)`` contacts (``eps = outlier_probability``): one
-        wrong contact cannot make a known object novel.
-
-        Distances and normals are the MAP mesh's own (exact distance, nearest face's
-        normal), not its grid's: a tine or a rod one or two voxels across has grid normals
-        that point anywhere a few millimetres inside it, where noisy readings lie (a fork
-        at 2 mm flipped between known and novel).
-
-        A learned MAP's threshold is lowered by what its own normal error costs each
-        contact (:meth:`own_turn`): the most a contact on a reconstruction can be granted
-        is what its learning contacts reach, not a perfect fit."""
-        params = self.params
+        """The novelty test's contact part (:func:`~.novelty.contact_test`) at the MAP's
+        refined pose with a noisy sensor, the noise the class is granted
+        (:meth:`allowed_noise`) and a learned MAP's own normal error (:meth:`own_turn`):
+        ``(the MAP's log-likelihood of the contacts, its threshold)``."""
         rotation, translation = self._tested_pose(best) if pose is None else pose
-        normals = self.contact_normals @ rotation  # object frame
-        local = (self.contact_positions - translation) @ rotation
-        noise = self.allowed_noise(int(best.classes[0]))
-        offsets = noise * NOISE_OFFSETS[1:] if noise else ()
-        exact = self.exact_distance(int(best.classes[0]))
-        # One look-up for the readings and their offsets; the likelihood needs no sign.
-        distance, faces = exact.nearest_face(
-            np.vstack([local, *(local + offset * normals for offset in offsets)]))
-        distance, faces = distance[:len(local)], faces.reshape(-1, len(local))
-        own = exact.face_normal(faces[0])
-        terms = log_contact_likelihood(distance, own, normals, params.sigma_d, params.sigma_n,
-                                       params.outlier_probability)
-        for offset, at_offset in zip(offsets, faces[1:]):
-            # The normal a reading ``offset`` off along its normal would meet, where the
-            # offset crosses a fold of the distance field (FOLD_COSINE) and nowhere else: a
-            # best-of-five normal elsewhere grants every contact on a near twin's curves
-            # slack that no noise explains (sofa_2 passed as sofa_1). The distance stays
-            # the reading's own, so a shape that merely lies near the contacts gains
-            # nothing; the offset costs as a distance does, with the same sigma_d.
-            shifted_normal = exact.face_normal(at_offset)
-            fold = np.einsum("ij,ij->i", shifted_normal, own) < FOLD_COSINE
-            shifted = log_contact_likelihood(distance, shifted_normal, normals, params.sigma_d,
-                                             params.sigma_n, params.outlier_probability)
-            prior = -0.5 * (offset / params.sigma_d) ** 2
-            terms = np.where(fold, np.maximum(terms, shifted + prior), terms)
-        total, kept = _trimmed(terms, params.outlier_probability)
-        turn = self.own_turn(int(best.classes[0]))
-        return total, kept * (np.log(params.known_fraction)
-                              - log_normaliser(params.sigma_d, params.sigma_n)
-                              - 0.5 * (turn / params.sigma_n) ** 2)
+        mine = int(best.classes[0])
+        return contact_test(self.exact_distance(mine),
+                            (self.contact_positions - translation) @ rotation,
+                            self.contact_normals @ rotation, self.params,
+                            self.allowed_noise(mine), self.own_turn(mine))
 
     def allowed_noise(self, class_index):
         """The position noise the novelty test grants a class's contacts, scene units: the
@@ -600,14 +558,6 @@ class ParticleFilter:
                 float(on_contacts + on_noncontacts), threshold, novel, sampled, n_pos, n_neg, index)
         self.state = state
         return state
-
-
-def _trimmed(terms, fraction):
-    """The sum of ``terms`` without their ``ceil(fraction * n)`` smallest, and how many
-    remain."""
-    drop = int(np.ceil(fraction * len(terms)))
-    kept = np.sort(terms)[drop:]
-    return float(kept.sum()), len(kept)
 
 
 def _with_log_weights(particles, log_weights):

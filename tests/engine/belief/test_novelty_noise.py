@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, ObjectModel, PriorLibrary
-from tactile_viz.engine.belief import particle_filter as particle_filter_module
+from tactile_viz.engine.belief import novelty
 from tactile_viz.engine.belief.particle_filter import ParticleFilter
 from tactile_viz.engine.belief.particles import Particles
 from tactile_viz.engine.explore.simulator import random_touch
@@ -65,7 +65,7 @@ def test_an_offset_grants_nothing_away_from_a_fold(tmp_path, monkeypatch):
     particle_filter.contact_normals = np.cos(turn) * outward + np.sin(turn) * aside
     best = Particles(np.zeros(1, int), np.eye(3)[None], np.zeros((1, 3)), np.zeros(1))
     with_offsets = particle_filter._contact_test(best)
-    monkeypatch.setattr(particle_filter_module, "NOISE_OFFSETS", np.zeros(1))
+    monkeypatch.setattr(novelty, "NOISE_OFFSETS", np.zeros(1))
     assert particle_filter._contact_test(best) == pytest.approx(with_offsets, rel=1e-12)
 
 
@@ -92,7 +92,7 @@ def test_a_thin_plate_stays_known_under_noise_only_with_its_fold(tmp_path, monke
     box = trimesh.creation.box(extents=(6.0, 3.0, 0.1))
     plate = ObjectModel.from_arrays(box.vertices, box.faces, "plate", cache=ArrayCache(tmp_path))
     assert not _judged_novel(plate, plate, seed=0)
-    monkeypatch.setattr(particle_filter_module, "NOISE_OFFSETS", np.zeros(1))
+    monkeypatch.setattr(novelty, "NOISE_OFFSETS", np.zeros(1))
     assert _judged_novel(plate, plate, seed=0)
 
 
