@@ -114,6 +114,8 @@ def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps,
 
 def again_task(task, result, max_steps):
     """The trial that meets the learned object again, or None (nothing learned)."""
+    from ..engine.shape.objects import OWN_ERRORS
+
     learned = result.get("learned")
     if "error" in result or not learned or "vertices" not in learned:
         return None
@@ -123,8 +125,7 @@ def again_task(task, result, max_steps):
                  extra_priors=task["extra_priors"] + [
                      {"name": learned["name"], "vertices": learned["vertices"],
                       "faces": learned["faces"], "learned": True,
-                      "shape_error": learned.get("shape_error", 0.0),
-                      "normal_error": learned.get("normal_error", 0.0)}])
+                      **{name: learned[name] for name in OWN_ERRORS if name in learned}}])
     return again
 
 

@@ -140,6 +140,7 @@ def _sizes(task):
 def task_library(task):
     """The :class:`PriorLibrary` of a task: a bundled set plus its extra priors."""
     from ..engine.shape.library import PriorLibrary
+    from ..engine.shape.objects import OWN_ERRORS
 
     library = PriorLibrary(list(_bundled_library(task["library"], _sizes(task))))
     for prior in task["extra_priors"]:
@@ -153,8 +154,7 @@ def task_library(task):
         library.add_arrays(np.asarray(prior["vertices"]), np.asarray(prior["faces"]),
                            prior["name"], longest_side=None,
                            learned=prior.get("learned", True),
-                           shape_error=prior.get("shape_error", 0.0),
-                           normal_error=prior.get("normal_error", 0.0))
+                           **{name: prior[name] for name in OWN_ERRORS if name in prior})
     return library
 
 

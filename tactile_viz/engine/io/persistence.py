@@ -24,7 +24,7 @@ from ..params import SessionParams
 from ..scene import Scene
 from ..shape.library import PriorLibrary
 from ..shape.meshes import check_arrays
-from ..shape.objects import OWN_ERRORS, ObjectModel
+from ..shape.objects import OWN_ERRORS, ObjectModel, checked_own_error
 from .files import write_atomic
 from .observation_file import ObservationFileError, format_observations, parse_observations
 
@@ -181,13 +181,13 @@ def _own_errors(stored):
             isinstance(errors, dict) and set(errors) <= set(OWN_ERRORS)
             for errors in stored.values()):
         raise ValueError("the learned priors' own errors are not a table of their errors")
+    checked = {}
     for name, errors in stored.items():
-        for key, value in errors.items():
-            if (isinstance(value, bool) or not isinstance(value, (int, float))
-                    or not np.isfinite(value) or value < 0):
-                raise ValueError(f"the {key} of learned prior {name!r} must be a finite "
-                                 f"number >= 0, got {value!r}")
-    return stored
+        try:
+            checked[name] = {key: checked_own_error(key, value) for key, value in errors.items()}
+        except ValueError as error:
+            raise ValueError(f"learned prior {name!r}: {error}") from None
+    return checked
 
 
 def _checked_pose(rotation, translation):

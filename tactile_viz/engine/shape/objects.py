@@ -91,14 +91,14 @@ class ObjectModel:
         the identity. ``object_to_world @ file_to_object`` places the user's file.
     shape_error : float, scene units
         How far a touch may lie off this surface although the object is this one: 0 for a
-        given mesh; for a learned shape the RMS of its held-out errors
-        (:func:`~tactile_viz.engine.shape.gpis.held_out_errors`), which the decision adds to
-        the sensor's noise.
+        given mesh; for a learned shape its contacts' held-out errors and distances to it
+        (:func:`~tactile_viz.engine.session.learning.own_errors`), which the decision adds
+        to the sensor's noise.
     normal_error : float
         How far a touch's normal may lie off this surface's although the object is this
         one, as the RMS length of the difference of unit normals: 0 for a given mesh; for
         a learned shape its learning contacts' (a thin part's reconstruction turns its
-        normals), which the novelty test adds to ``sigma_n``.
+        normals), which the novelty test grants (``ParticleFilter.own_turn``).
     """
 
     def __init__(self, name, mesh, params=None, cache=None, learned=False, file_to_object=None,
@@ -394,7 +394,7 @@ def file_own_errors(path):
     Raises
     ------
     MeshError
-        A value that is not a finite number >= 0.
+        A value that is not a finite number >= 0 (:func:`checked_own_error`).
     """
     errors = {}
     for line in _ply_header(path).splitlines():
@@ -402,15 +402,23 @@ def file_own_errors(path):
             continue
         for pair in line[len(OWN_ERRORS_MARK):].decode(errors="replace").split():
             name, _, text = pair.partition("=")
+            if name not in OWN_ERRORS:
+                continue
             try:
-                value = float(text)
+                errors[name] = checked_own_error(name, float(text))
             except ValueError:
-                value = np.nan
-            if name in OWN_ERRORS and not (np.isfinite(value) and value >= 0):
-                raise MeshError(path, f"its {name} must be a finite number >= 0, got {text!r}")
-            if name in OWN_ERRORS:
-                errors[name] = value
+                raise MeshError(path, f"its {name} must be a finite number >= 0, "
+                                      f"got {text!r}") from None
     return errors
+
+
+def checked_own_error(name, value):
+    """``value`` as one of :data:`OWN_ERRORS` (a float); ValueError unless it is a finite
+    number >= 0."""
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not np.isfinite(value) or value < 0):
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+    return float(value)
 
 
 def mark_learned(ply_bytes, errors=None):
