@@ -271,10 +271,10 @@ def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, 
                              library, "m") is None
 
 
-def test_own_unit_is_the_contacts_diameter_when_much_smaller_than_the_prior():
+def test_own_unit_is_the_contacts_diameter_when_much_smaller_or_larger_than_the_prior():
     """A sixth of the largest distance between two contacts, at any scale and turned any
-    way; None at or above the share of the prior's unit, with too few contacts or without
-    a span."""
+    way; None between the share of the prior's unit and OWN_LARGER times its diameter,
+    with too few contacts or without a span."""
     rng = np.random.default_rng(0)
     ball = trimesh.sample.sample_surface(trimesh.creation.icosphere(4, radius=0.5), 400,
                                          seed=1)[0]
@@ -289,6 +289,11 @@ def test_own_unit_is_the_contacts_diameter_when_much_smaller_than_the_prior():
                                                                 rel=1e-12)
         assert own_unit(points, 0.3 * scale, 0.5) is None  # not under half the prior's
         assert own_unit(points, 10 * scale, 0.0) is None  # own_size_share 0: never
+        # Larger than the prior: over OWN_LARGER times its diameter, not just over it.
+        assert own_unit(points, 0.1 * scale, 0.5, 0.7 * scale) == pytest.approx(scale / 6,
+                                                                           rel=0.02)
+        assert own_unit(points, 0.15 * scale, 0.5, 0.9 * scale) is None
+        assert own_unit(points, 0.1 * scale, 0.0, 0.7 * scale) is None
     assert own_unit(ball[:OWN_CONTACTS], 10.0, 0.5) is None  # too few to tell
     assert own_unit(np.zeros((2 * OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
 
@@ -308,28 +313,31 @@ def test_own_unit_waits_until_the_contacts_span_stops_growing():
     assert own_unit(settled, 10.0, 0.5) == pytest.approx(1.5 / 6)
 
 
-def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(metric_mugs):
-    """A 2 cm die against 10-25 cm priors: once judged novel, eps and the probes' lengths
-    follow its contacts' span, and the GPIS's and the decision's stay the prior's; with
-    ``own_size_share`` 0 (the paper preset) every length is the prior's."""
-    die = trimesh.creation.box([0.02, 0.02, 0.02])
-    die = ObjectModel.from_arrays(die.vertices, die.faces, "die")
+@pytest.mark.parametrize("sides", [[0.02, 0.02, 0.02], [0.6, 0.4, 0.3]])
+def test_a_novel_object_much_smaller_or_larger_than_its_prior_is_explored_at_its_own_size(
+        metric_mugs, sides):
+    """A 2 cm die and a 60 cm crate against 10-25 cm priors: once judged novel, eps and the
+    probes' lengths follow its contacts' span, and the GPIS's and the decision's stay the
+    prior's; with ``own_size_share`` 0 (the paper preset) every length is the prior's."""
+    box = trimesh.creation.box(sides)
+    box = ObjectModel.from_arrays(box.vertices, box.faces, "box")
     for share in (0.5, 0.0):
-        session = Session.simulated(make_truth(die, rng=[2, 0]), metric_mugs, seed=2,
+        session = Session.simulated(make_truth(box, rng=[2, 0]), metric_mugs, seed=2,
                           params=SessionParams(own_size_share=share))
         for _ in range(120):  # until judged novel for long, its contacts' span settled
             snapshot = session.step()
-            unit = metric_mugs[snapshot.map_class].size_unit
+            prior = metric_mugs[snapshot.map_class]
+            unit = prior.size_unit
             if (novel_for_long(s.novel for s in session.snapshots)
-                    and own_unit(snapshot.contacts, unit, 0.5) is not None):
+                    and own_unit(snapshot.contacts, unit, 0.5, prior.diameter) is not None):
                 break
         assert novel_for_long(s.novel for s in session.snapshots)
         p = session._p
         assert p.gpis_margin == pytest.approx(SessionParams().gpis_margin * unit)
         assert p.decision_cover == pytest.approx(SessionParams().decision_cover * unit)
         if share:
-            own = own_unit(snapshot.contacts, unit, share)
-            assert own is not None  # a 2 cm span beside a 10-25 cm prior
+            own = own_unit(snapshot.contacts, unit, share, prior.diameter)
+            assert own is not None  # a 2 cm or 70 cm span beside 10-25 cm priors
             assert p.eps == pytest.approx(0.6 * own)
             assert p.contact_spacing == pytest.approx(0.3 * own)
         else:
@@ -339,13 +347,16 @@ def test_a_novel_object_much_smaller_than_its_prior_is_explored_at_its_own_size(
         assert session.parts().planner.context.own_size == bool(share)
 
 
-def test_an_own_eps_under_noise_is_at_least_the_noise_and_at_most_the_priors():
+def test_an_own_eps_under_noise_is_at_least_the_noise_and_a_smaller_ones_the_priors():
     params, unit = SessionParams(), 0.1 / 6
     assert session_lengths(params, unit, 0.02 / 6, noise=0.002).eps == pytest.approx(
         np.hypot(0.002, 2 * 0.002))
     assert session_lengths(params, unit, 0.095 / 6, noise=0.002).eps == pytest.approx(0.01)
     assert session_lengths(params, unit, noise=0.002).eps == pytest.approx(0.01)
     assert session_lengths(params, unit, 0.02 / 6).eps == pytest.approx(0.002)  # noiseless
+    # Larger than the prior: its own eps, more than the prior's.
+    assert session_lengths(params, unit, 0.2 / 6, noise=0.002).eps == pytest.approx(
+        np.hypot(0.02, 2 * 0.002))
     tipped = session_lengths(params, unit, 0.02 / 6, tip_radius=0.005)
     assert tipped.gpis_carve_radius == pytest.approx(params.gpis_carve_radius * unit + 0.005)
 

@@ -40,7 +40,7 @@ class StepContext:
     tolerance : float or None
         How precisely the sensor places a contact (scene units; None: unknown).
     own_size : bool
-        The object is explored at its own size, much smaller than its MAP prior
+        The object is explored at its own size, much smaller or larger than its MAP prior
         (``own_size_share``; :func:`~.lengths.own_unit`).
     """
 

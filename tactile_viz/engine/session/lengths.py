@@ -2,23 +2,23 @@
 
 Each length parameter is in size units, a sixth of an object's longest side
 (:mod:`..params`). A session measures them in its MAP object's (docs/units.md); with
-``own_size_share`` (0.5 by default, 0 in ``paper``) a novel object much smaller than its
-MAP prior is explored at its own size, since the prior's eps and contact spacing can be
-larger than the object (a 2 cm block beside a 25 cm knife was stopped by the knife's 25 mm
-eps, and every touch after the first few was given up within its 12.5 mm spacing). Plain
-functions, so that the rule is tested without a session.
-"""
+``own_size_share`` (0.5 by default, 0 in ``paper``) a novel object much smaller or larger
+than its MAP prior is explored at its own size. The prior's eps and contact spacing can be
+larger than a small object (a 2 cm block beside a 25 cm knife was stopped by the knife's
+25 mm eps, and every touch after the first few was given up within its 12.5 mm spacing),
+and a large object's touches must then cover it finer than its own eps (a 15 cm elephant
+under a 10 cm mug's 10 mm eps ran to its 400-touch cap). Plain functions, so that the
+rule is tested without a session."""
 
 import functools
 from dataclasses import replace
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
-from scipy.spatial.distance import pdist
 
 from ..params import PAPER_SIZE, scaled_lengths
+from ..shape.metrics import diameter
 
-# What a novel object much smaller than its MAP prior measures in its own size unit
+# What a novel object much smaller or larger than its MAP prior measures in its own size unit
 # (own_size_share): the stop's eps and the probes'. The GPIS's box, kernel and carve, and
 # the decision, keep the prior's.
 OWN_LENGTHS = ("eps", "probe_depth", "approach_clearance", "follow_step", "contact_spacing",
@@ -34,6 +34,11 @@ OWN_GROWTH = 0.1
 # novel at single steps among known ones, its few contacts spanning 3 cm, and its lengths
 # switched there. Own lengths wait until this many steps in a row judged it novel.
 OWN_STEPS = 10
+# An object is larger than its prior when its contacts span more than this many times the
+# prior's diameter. Objects of one longest side differ in diameter by up to a fifth (the
+# bundled objects' diameters are 1.0 to 1.19 times their longest side): an object of its
+# prior's size keeps its lengths.
+OWN_LARGER = 1.25
 
 
 def novel_for_long(judgements):
@@ -43,11 +48,12 @@ def novel_for_long(judgements):
     return len(recent) == OWN_STEPS and all(recent)
 
 
-def own_unit(contacts, unit, share):
+def own_unit(contacts, unit, share, prior_diameter=None):
     """A novel object's own size unit: a sixth of its contacts' diameter (the largest
-    distance between two of them), when that is under ``share`` of ``unit``, there are
-    more than :data:`OWN_CONTACTS` contacts and the last :data:`OWN_CONTACTS` of them
-    widened the diameter by at most :data:`OWN_GROWTH`; else None.
+    distance between two of them), when that is under ``share`` of ``unit``'s object or
+    over :data:`OWN_LARGER` times ``prior_diameter``, there are more than
+    :data:`OWN_CONTACTS` contacts and the last :data:`OWN_CONTACTS` of them widened the
+    diameter by at most :data:`OWN_GROWTH`; else None.
 
     The diameter, not a box's longest side: it does not depend on axes (a cube's principal
     axes are any three, and its box along them was 5-50% longer from one touch to the
@@ -62,6 +68,9 @@ def own_unit(contacts, unit, share):
         The MAP prior's size unit.
     share : float
         ``own_size_share`` (0: never).
+    prior_diameter : float, optional, scene units
+        The MAP prior's diameter (:attr:`~..shape.objects.ObjectModel.diameter`);
+        without it only a smaller object has its own unit.
 
     Returns
     -------
@@ -71,7 +80,9 @@ def own_unit(contacts, unit, share):
     if share <= 0 or len(contacts) <= OWN_CONTACTS:
         return None
     span = _diameter(contacts.tobytes())
-    if not 0.0 < span < share * unit * PAPER_SIZE:
+    smaller = 0.0 < span < share * unit * PAPER_SIZE
+    larger = prior_diameter is not None and span > OWN_LARGER * prior_diameter
+    if not (smaller or larger):
         return None
     before = _diameter(contacts[:-OWN_CONTACTS].tobytes())
     return span / PAPER_SIZE if before >= (1.0 - OWN_GROWTH) * span else None
@@ -79,16 +90,8 @@ def own_unit(contacts, unit, share):
 
 @functools.lru_cache(maxsize=8)
 def _diameter(data):
-    # A step asks it several times of the same contacts. The farthest pair are corners of
-    # their hull: its few vertices, not the m^2 / 2 pairs of a long session.
-    points = np.frombuffer(data, dtype=float).reshape(-1, 3)
-    if len(points) < 2:
-        return 0.0
-    try:
-        points = points[ConvexHull(points).vertices]
-    except QhullError:  # flat or on a line: every pair
-        pass
-    return float(pdist(points).max())
+    # A step asks it several times of the same contacts.
+    return diameter(np.frombuffer(data, dtype=float))
 
 
 def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):
@@ -103,7 +106,7 @@ def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):
     own : float, optional, scene units
         A novel object's own size unit (:func:`own_unit`): :data:`OWN_LENGTHS` are in it,
         and ``eps`` is its own within the noise, ``hypot(eps, cover_noise_stds noise)``,
-        but at most ``unit``'s.
+        but at most ``unit``'s when ``own`` is the smaller.
     noise : float, scene units
         The sensor's position noise (std).
     tip_radius : float, scene units
@@ -117,7 +120,8 @@ def session_lengths(params, unit, own=None, noise=0.0, tip_radius=0.0):
     p = scaled_lengths(params, unit)
     if own is not None:
         mine = scaled_lengths(params, own)
-        eps = min(p.eps, float(np.hypot(mine.eps, p.cover_noise_stds * noise)))
+        eps = float(np.hypot(mine.eps, p.cover_noise_stds * noise))
+        eps = eps if own > unit else min(p.eps, eps)
         p = replace(p, **{**{name: getattr(mine, name) for name in OWN_LENGTHS}, "eps": eps})
     if tip_radius:
         p = replace(p, gpis_carve_radius=p.gpis_carve_radius + tip_radius)

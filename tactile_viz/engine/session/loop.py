@@ -465,8 +465,8 @@ class Session:
         sixth of its longest side, default the latest MAP object (the library's reference
         size before the first step), or ``params.length_unit``; an object judged novel
         at this step (``novel``; default: the latest step's judgement) and the steps
-        before (:func:`~.lengths.novel_for_long`), much smaller than ``model``, is explored
-        at its own size (:func:`~.lengths.own_unit`). Changes nothing."""
+        before (:func:`~.lengths.novel_for_long`), much smaller or larger than ``model``,
+        is explored at its own size (:func:`~.lengths.own_unit`). Changes nothing."""
         if model is None and self.snapshots:
             model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
         judged = [s.novel for s in self.snapshots[-OWN_STEPS:]]
@@ -476,7 +476,8 @@ class Session:
                                            else self._filter_unit)
         own = None
         if novel_for_long(judged) and not self.params.length_unit:
-            own = own_unit(self.filter.contact_positions, unit, self.params.own_size_share)
+            own = own_unit(self.filter.contact_positions, unit, self.params.own_size_share,
+                           None if model is None else model.diameter)
         if (unit, own) == self._lengths:
             return self._p, self._unit, self._lengths
         return self._scene_lengths(unit, own), unit, (unit, own)

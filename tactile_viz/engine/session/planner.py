@@ -24,8 +24,8 @@ flat variance      where the variance does not grow away from the   ``target_far
                    contacts, the candidate farthest from them
 noisy cover        under noise, a known object is covered within    ``cover_noise_stds=0``
                    its noise as well as eps
-own size           a novel object much smaller than its MAP prior   ``own_size_share=0``
-                   is explored at its own size (eps, probes)
+own size           a novel object much smaller or larger than its   ``own_size_share=0``
+                   MAP prior is explored at its own size
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)

@@ -6,8 +6,8 @@ units."""
 import igl
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
-from scipy.spatial.distance import directed_hausdorff as scipy_directed_hausdorff
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial.distance import directed_hausdorff as scipy_directed_hausdorff, pdist
 from scipy.spatial.transform import Rotation
 
 from ..transforms import transform_points
@@ -78,6 +78,20 @@ def wall_thickness(points, normals, reach, opposed=-0.5, least=5):
     np.minimum.at(nearest, front[behind], depth[behind])
     found = nearest[np.isfinite(nearest)]
     return float(np.median(found)) if len(found) >= least else None
+
+
+def diameter(points):
+    """The largest distance between two of ``points`` (n, 3), scene units (0 for fewer
+    than two). The farthest pair are corners of the points' convex hull: its few
+    vertices, not the n^2 / 2 pairs (every pair when the points are flat or on a line)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    if len(points) < 2:
+        return 0.0
+    try:
+        points = points[ConvexHull(points).vertices]
+    except QhullError:
+        pass
+    return float(pdist(points).max())
 
 
 def directed_hausdorff(from_points, to_points, tree=None):

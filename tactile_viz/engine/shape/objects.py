@@ -24,6 +24,7 @@ from ..errors import MeshError
 from ..io.cache import ArrayCache
 from ..params import PAPER_SIZE
 from .meshes import bare_mesh, content_hash, load_mesh, prepare_mesh
+from .metrics import diameter
 from .sdf import ExactDistance, SDFGrid
 from .sdf_build import (
     MAX_REFINED_NODES,
@@ -188,6 +189,11 @@ class ObjectModel:
     def length(self) -> float:
         """Longest side of the bounding box, scene units (6 for the paper's objects)."""
         return float(self.mesh.extents.max())
+
+    @cached_property
+    def diameter(self) -> float:
+        """The largest distance between two of the mesh's vertices, scene units."""
+        return float(diameter(self.mesh.vertices))
 
     @property
     def size_unit(self) -> float:

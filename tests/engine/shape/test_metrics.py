@@ -1,8 +1,11 @@
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.distance import pdist
 
+from tactile_viz.engine import ObjectModel
 from tactile_viz.engine.shape.metrics import (
+    diameter,
     directed_hausdorff,
     surface_hausdorff,
     two_way_hausdorff,
@@ -23,6 +26,22 @@ def test_directed_hausdorff_is_exact_near_and_far(offset, rng):
     other[:5] += [offset * 10, 0, 0]
     for a, b in ((surface, other), (other, surface), (surface[:3], other), (other, surface[:1])):
         assert directed_hausdorff(a, b) == pytest.approx(_brute(a, b), rel=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_diameter_is_the_farthest_pair_at_any_scale(scale, rng):
+    """A box's diagonal, a flat set's and a line's farthest pair (no hull: every pair), 0
+    for fewer than two points; an object's diameter is its mesh's."""
+    box = trimesh.creation.box([1.0, 2.0, 3.0])
+    points = np.vstack([box.vertices, trimesh.sample.sample_surface(box, 200, seed=1)[0]])
+    assert diameter(points * scale) == pytest.approx(np.sqrt(14) * scale, rel=1e-12)
+    flat = rng.random((50, 3)) * [scale, scale, 0.0]
+    assert diameter(flat) == pytest.approx(pdist(flat).max(), rel=1e-12)
+    line = np.outer(np.linspace(0.0, scale, 9), [1.0, 0.0, 0.0])
+    assert diameter(line) == pytest.approx(scale)
+    assert diameter(np.zeros((1, 3))) == 0.0 and diameter(np.zeros((0, 3))) == 0.0
+    model = ObjectModel.from_arrays(box.vertices * scale, box.faces, "box")
+    assert model.diameter == pytest.approx(diameter(model.mesh.vertices))
 
 
 def test_directed_hausdorff_of_empty_sets():
