@@ -97,7 +97,8 @@ def test_a_symmetry_of_the_shape_is_one_mode(shapes):
 
 def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
     """Poses of one class within the tolerance are one mode, kept once: as the pose of the
-    least cost (the normals weighed in), whichever fits the positions closest."""
+    least cost (the normals weighed in), whichever fits the positions closest; the MAP
+    candidate's mode first."""
 
     pf = ParticleFilter(shapes, FilterParams(), rng=0)
     nudged = Rotation.from_euler("z", 2, degrees=True).as_matrix()
@@ -109,6 +110,18 @@ def test_a_mode_is_kept_as_its_least_costly_pose_not_its_closest(shapes):
     kept = distinct(pf.bank, classes, rotations, np.zeros((4, 3)),
                      np.array([3.0, 1.0, 2.0, np.inf]), tolerance=[0.3] * 3)
     np.testing.assert_array_equal(kept, [0, 1])
+    # The MAP candidate's own mode leads at its least costly pose, and only its mode.
+    classes = np.array([0, 0, 1])
+    rotations = np.stack([np.eye(3), nudged, np.eye(3)])
+    kept = distinct(pf.bank, classes, rotations, np.zeros((3, 3)),
+                     np.array([9.0, 1.0, 0.5]), tolerance=[0.3] * 3)
+    np.testing.assert_array_equal(kept, [1, 2])
+    kept = distinct(pf.bank, classes, rotations, np.zeros((3, 3)),
+                     np.array([3.0, 1.0, 0.5]), tolerance=[0.3] * 3)  # within the margin
+    np.testing.assert_array_equal(kept, [0, 2])
+    kept = distinct(pf.bank, classes, rotations, np.zeros((3, 3)),
+                     np.array([9.0, 1.0, 0.5]), tolerance=[0.01] * 3)  # two modes
+    np.testing.assert_array_equal(kept, [0, 2, 1])
 
 
 def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
