@@ -366,7 +366,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
     keep = distinct(pf.bank, classes, rotations, translations, misfit / (2 * scale2) + turned,
-                    [mode_tolerance(model, same_mode) for model in pf.models])
+                    [mode_tolerance(model, same_mode) for model in pf.models], same_mode)
     for turn in (turn_round_hypotheses, turn_near_spheres):
         rotations, translations, misfit, turned = turn(
             pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,

@@ -142,6 +142,13 @@ def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
         kept = distinct(pf.bank, np.array([index, index]), rotations, np.zeros((2, 3)),
                          np.array([1.0, 0.5]), tolerance)
         np.testing.assert_array_equal(kept, expected)
+    # A far better pose of the learned MAP's wide mode leads only within lead_tolerance.
+    learned_map, costs = np.array([1, 1]), np.array([9.0, 0.5])
+    np.testing.assert_array_equal(
+        distinct(pf.bank, learned_map, rotations, np.zeros((2, 3)), costs, tolerance), [1])
+    np.testing.assert_array_equal(
+        distinct(pf.bank, learned_map, rotations, np.zeros((2, 3)), costs, tolerance,
+                 lead_tolerance=0.02), [0])
 
 
 def test_the_decision_is_about_the_classs_most_probable_pose(shapes):
