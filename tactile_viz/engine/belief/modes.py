@@ -38,14 +38,14 @@ def distinct(bank, classes, rotations, translations, cost, tolerance, lead_toler
     its own error (:func:`mode_tolerance`): ``lead_tolerance`` keeps its lead near the MAP
     candidate (a learned cup met again at 2 mm was left 34% of its size off)."""
     order = np.argsort(cost, kind="stable")
-    near = np.array(tolerance, dtype=float)
-    if lead_tolerance is not None:
-        near[classes[0]] = min(near[classes[0]], lead_tolerance)
+    near = tolerance[classes[0]] if lead_tolerance is None else min(
+        tolerance[classes[0]], lead_tolerance)
     lead = next((int(index) for index in order
                  if index == 0 or (classes[index] == classes[0]
                                    and cost[index] < cost[0] - LEAD_MARGIN
-                                   and _within(bank, classes, rotations, translations,
-                                               index, [0], near))), 0)
+                                   and pose_disagreements(
+                                       bank, classes[0], rotations[index], translations[index],
+                                       rotations[:1], translations[:1])[0] <= near)), 0)
     kept = [lead]
     for index in order:
         if index == lead or not np.isfinite(cost[index]):
@@ -56,14 +56,6 @@ def distinct(bank, classes, rotations, translations, cost, tolerance, lead_toler
                 rotations[same], translations[same]) > tolerance[classes[index]]):
             kept.append(int(index))
     return np.array(kept, dtype=np.int64)
-
-
-def _within(bank, classes, rotations, translations, index, others, tolerance):
-    """Whether hypothesis ``index`` agrees with any of ``others`` (indices, of its
-    class) within its class's ``tolerance``."""
-    return bool(np.any(pose_disagreements(
-        bank, classes[index], rotations[index], translations[index], rotations[others],
-        translations[others]) <= tolerance[classes[index]]))
 
 
 def surface_disagreement(bank, class_index, rotations, translations):
