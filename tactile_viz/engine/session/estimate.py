@@ -72,16 +72,22 @@ class Estimator(FinalSurface, Part):
         """
         p, gpis = self.p, self.state.gpis
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        low, high, kernel = self.gpis_box(map_vertices, contacts, gpis.shape)
+        poses = [(rotation, translation)] + self._held_pose(model, rotation, translation)
+        force = (("shape", gpis.shape.roundness) if gpis.shape is not None
+                 else ("pose", len(poses) - 1))
+        low, high, kernel = self.gpis_box(
+            self._prior_vertices(model, poses, map_vertices, force), contacts, gpis.shape)
         clock = time.perf_counter()
-        fit, fitted = self._prior_fit(kernel, model, rotation, translation, contacts,
-                                      normals, gpis)
-        if (fitted.shape is None) != (gpis.shape is None):
-            # The prior mean switched between the MAP shape and a superquadric: fit again
-            # in the box of the one now in force.
-            low, high, kernel = self.gpis_box(map_vertices, contacts, fitted.shape)
-            fit, fitted = self._prior_fit(kernel, model, rotation, translation, contacts,
-                                          normals, fitted)
+        fit, fitted, chosen = self._prior_fit(kernel, model, poses, contacts, normals, gpis,
+                                              force)
+        if chosen != force and "pose" in (chosen[0], force[0]):
+            # The prior mean switched between the MAP shape and a superquadric, or between
+            # two poses of the MAP shape: fit again in the box of the one now in force.
+            low, high, kernel = self.gpis_box(
+                self._prior_vertices(model, poses, map_vertices, chosen), contacts,
+                fitted.shape)
+            fit, fitted, _ = self._prior_fit(kernel, model, poses, contacts, normals, fitted,
+                                             chosen)
         gpis = fitted
         fit = self.cut_estimate(fit, contacts, self.filter.noncontact_positions,
                                  self.state.free_space)
@@ -98,31 +104,71 @@ class Estimator(FinalSurface, Part):
         timings["surface"] = time.perf_counter() - clock
         return recon, replace(gpis, variance=variance)
 
-    def _prior_fit(self, kernel, model, rotation, translation, contacts, normals, gpis):
-        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's or,
-        with ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
-        (``gpis.shape``) unless another's evidence is ahead by ``AGNOSTIC_MARGIN`` nats
-        and ``AGNOSTIC_SHARE`` of its own (beyond the paper). Returns the fit and the
-        next :class:`~.state.GpisState`."""
+    def _prior_fit(self, kernel, model, poses, contacts, normals, gpis, force):
+        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's at
+        one of ``poses`` (the MAP particle's, then with ``gpis_prior_hold`` the one the
+        last fit held) or, with ``gpis_agnostic``, a superquadric fitted to the contacts;
+        the one in force (``force``: ``("pose", k)`` or ``("shape", roundness)``) unless
+        another's evidence is ahead by ``AGNOSTIC_MARGIN`` nats (and, a superquadric
+        either way, ``AGNOSTIC_SHARE`` of its own; beyond the paper). Returns the fit, the
+        next :class:`~.state.GpisState` and the key of the prior mean it started from."""
         p = self.p
         free = self.filter.noncontact_positions, self.state.free_space
-        prior = self.gpis_prior(model, rotation, translation, contacts, *free, normals)
         shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts))
                   if p.gpis_agnostic else [])
-        candidates = [prior] + [self.gpis_prior(model, rotation, translation, contacts, *free,
-                                                 normals, shape=shape) for shape in shapes]
-        kept = gpis.shape
-        index = next((i + 1 for i, shape in enumerate(shapes)
-                      if kept is not None and shape.roundness == kept.roundness), 0)
+        keys = [("pose", k) for k in range(len(poses))] + [
+            ("shape", shape.roundness) for shape in shapes]
+        candidates = [self.gpis_prior(model, *pose, contacts, *free, normals)
+                      for pose in poses] + [
+            self.gpis_prior(model, *poses[0], contacts, *free, normals, shape=shape)
+            for shape in shapes]
+        index = keys.index(force) if force in keys else 0
         fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
         if len(candidates) > 1:
             evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
             best = int(np.argmax(evidence))
-            margin = max(AGNOSTIC_MARGIN, AGNOSTIC_SHARE * abs(evidence[index]))
+            # Between two poses of one shape the margin is the nats alone: a share of a
+            # look-alike's evidence (hundreds of nats) held a pose it had left far behind.
+            share = AGNOSTIC_SHARE if "shape" in (keys[best][0], keys[index][0]) else 0.0
+            margin = max(AGNOSTIC_MARGIN, share * abs(evidence[index]))
             if evidence[best] > evidence[index] + margin:  # another explains more
                 index = best
                 fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
-        return fit, replace(gpis, shape=shapes[index - 1] if index else None)
+        shape = shapes[index - len(poses)] if index >= len(poses) else None
+        pose = None if shape is not None else (model.name, *poses[index])
+        return fit, replace(gpis, shape=shape, pose=pose), keys[index]
+
+    def _held_pose(self, model, rotation, translation):
+        """``[(rotation, translation)]`` the MAP shape's GPIS prior was held at by the
+        last fit (``gpis_prior_hold``), if that is another pose of this step's MAP class;
+        else ``[]``. A novel object's MAP pose can turn from touch to touch between poses
+        the contacts tell apart no better (a 20 cm fork's flat-screwdriver prior turned
+        half a turn 20 times in 80 touches), each bringing other uncovered prior surface."""
+        held, when = self.state.gpis.pose, self.p.gpis_prior_hold
+        if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
+            return []
+        if held is None or held[0] != model.name:
+            return []
+        if np.array_equal(held[1], rotation) and np.array_equal(held[2], translation):
+            return []
+        return [(held[1], held[2])]
+
+    def prior_pose(self, model, pose, map_vertices):
+        """The MAP shape's pose and vertices as the GPIS prior holds them
+        (``gpis_prior_hold``; else ``pose`` and ``map_vertices``): the targets, the prior
+        cover and the snapshot follow the prior the estimate came from."""
+        held = self._held_pose(model, *pose)
+        if not held or self.state.gpis.shape is not None:
+            return pose, map_vertices
+        return held[0], transform_points(model.mesh.vertices, *held[0])
+
+    @staticmethod
+    def _prior_vertices(model, poses, map_vertices, key):
+        """The vertices of the MAP shape at the pose ``key`` names (``map_vertices``
+        for the MAP particle's, or for a superquadric)."""
+        if key[0] == "pose" and key[1] > 0:
+            return transform_points(model.mesh.vertices, *poses[key[1]])
+        return map_vertices
 
     def _step_fit(self, kernel, contacts, normals, prior, gpis):
         """A step's GPIS fit from ``prior``: extending the kept factor

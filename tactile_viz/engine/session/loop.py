@@ -553,6 +553,8 @@ class Session:
             self._use_lengths(model, novel=False)                 # lengths in its size
             estimator, planner, _ = self.parts()
         pose, map_vertices = estimator.aimed_pose(decision, model, pose, map_vertices)
+        if recon is not None:                                     # beyond the paper
+            pose, map_vertices = estimator.prior_pose(model, pose, map_vertices)
         with _timed(timings, "target"):
             coverage = planner.coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
                                         model, pose)

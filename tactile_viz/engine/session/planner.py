@@ -62,6 +62,7 @@ from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
 from .context import Part
 from .fields import BelowTangentPlane, PosedSDF, ValueOf
+from .lengths import own_unit
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -74,6 +75,7 @@ FIRST_SEARCH = 0.5  # size units: how near
 MISSED_SPACING = 0.1  # missed probes' paths sampled this far apart for the decision
 TELL_SPACING = 0.5  # of contact_spacing: telling touches kept this far from contacts
 MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is novel
+ROUND_SHARE = 0.5  # or contacts spanning under this share of its size, settled, misfit
 
 # (extension, the parameter and value that switch it off; None: always on)
 EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
@@ -209,11 +211,20 @@ class Planner(Part):
         if not decision.hypotheses:
             return False, 0
         last = self.snapshots[-1] if self.snapshots else None
-        around = (last is not None and last.dhd <= p.decision_cover
-                  and last.map_class == belief.map_class)
+        around = (last is not None and last.map_class == belief.map_class
+                  and (last.dhd <= p.decision_cover or self._touched_round(belief)))
         misfit = decision.fit_p < p.misfit_novelty
         steps = before + 1 if misfit and (around or before >= MISFIT_STEPS) else 0
         return steps >= MISFIT_STEPS, steps
+
+    def _touched_round(self, belief):
+        """Whether the contacts' span settled under :data:`ROUND_SHARE` of the MAP class's
+        size (:func:`~.lengths.own_unit`): an object much smaller than its MAP is touched
+        all round while the MAP's surface is never covered (a 2 cm die beside a 20 cm mug,
+        its MAP 19 cm from its contacts, p-values under 1e-200, known to the cap)."""
+        f = self.filter
+        model = f.models[f.class_names.index(belief.map_class)]
+        return own_unit(f.contact_positions, model.size_unit, ROUND_SHARE) is not None
 
     def coverage(self, recon, map_vertices, contacts, model=None, pose=None):
         """The :class:`Coverage` of the estimate S* (the GPIS surface, else the MAP

@@ -55,6 +55,9 @@ class GpisState:
     shape : Superquadric or None
         The object-agnostic prior mean the last fit started from (``gpis_agnostic``;
         None: the MAP shape's).
+    pose : tuple or None
+        ``(class name, rotation, translation)`` of the MAP shape the last fit started
+        from (None: a superquadric's); ``gpis_prior_hold`` weighs it against the next MAP.
     cache : GramCache or None
         The last fit's Gram matrix and factor (:mod:`~tactile_viz.engine.shape.gpis_incremental`;
         immutable, keyed by content: a fit extends it only where the content agrees).
@@ -67,6 +70,7 @@ class GpisState:
     spacing: Any = None
     fits: int = 0
     shape: Any = None
+    pose: Any = None
     cache: Any = None
     variance: Any = None
 

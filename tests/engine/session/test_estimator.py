@@ -153,3 +153,54 @@ def test_no_own_box_without_the_final_surfaces_refinements(tmp_path):
                            np.zeros(0), fit=None, resolution=32,
                            bounds=(np.full(3, -1.0), np.full(3, 1.0)))
     assert estimator._own_box(final) is final
+
+
+def _box_touched(scale, tmp_path, hold):
+    """An estimator (``gpis_prior_hold`` as ``hold``) whose contacts lie on its
+    ``2 x 1 x 1`` box prior at the identity; that pose and a quarter turn about z moved by
+    its size along x."""
+    from dataclasses import replace
+
+    box = trimesh.creation.box((2.0 * scale, scale, scale))
+    points, faces = trimesh.sample.sample_surface_even(box, 60, seed=0)
+    estimator, model = _estimator(scale, points, box.face_normals[faces], tmp_path)
+    estimator.p = replace(estimator.p, gpis_agnostic=False,
+                          gpis_prior_hold="always" if hold else "never")
+    quarter = trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1])[:3, :3]
+    return estimator, model, (np.eye(3), np.zeros(3)), (quarter, np.array([scale, 0, 0]))
+
+
+@pytest.mark.parametrize("scale", [1e-2, 1.0, 1e2])
+def test_a_held_prior_pose_gives_way_only_to_a_pose_the_contacts_favour(scale, tmp_path,
+                                                                        monkeypatch):
+    from dataclasses import replace
+
+    from tactile_viz.engine.session import estimate
+    from tactile_viz.engine.transforms import transform_points
+
+    def prior_in_force(estimator, model, held, particle):
+        estimator.state.gpis = replace(estimator.state.gpis, pose=(model.name, *held))
+        vertices = transform_points(model.mesh.vertices, *particle)
+        _, estimator.state.gpis = estimator.reconstruct(model, *particle, vertices, {})
+        pose, map_vertices = estimator.prior_pose(model, particle, vertices)
+        np.testing.assert_allclose(estimator.state.gpis.pose[1], pose[0], atol=1e-12)
+        np.testing.assert_allclose(
+            map_vertices, transform_points(model.mesh.vertices, *pose), atol=1e-9 * scale)
+        return pose
+
+    # The contacts favour the pose they lie on by about 2 nats here: within the margin a
+    # turned pose held stays in force (the hysteresis), beyond it gives way.
+    estimator, model, fitting, turned = _box_touched(scale, tmp_path, hold=True)
+    np.testing.assert_allclose(prior_in_force(estimator, model, turned, fitting)[0],
+                               turned[0], atol=1e-12)
+    monkeypatch.setattr(estimate, "AGNOSTIC_MARGIN", 1.0)
+    monkeypatch.setattr(estimate, "AGNOSTIC_SHARE", 0.0)
+    for hold in (True, False):
+        estimator, model, fitting, turned = _box_touched(scale, tmp_path, hold)
+        for held, particle in ((fitting, turned), (turned, fitting)):
+            # Held, the pose the contacts lie on stays in force against a turned MAP
+            # particle, and a turned pose held gives way to the particle on them; without
+            # the hold the prior is the MAP particle's.
+            expected = fitting if hold else particle
+            np.testing.assert_allclose(prior_in_force(estimator, model, held, particle)[0],
+                                       expected[0], atol=1e-12)
