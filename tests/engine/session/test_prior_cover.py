@@ -56,6 +56,22 @@ def test_missed_probes_refute_the_prior_where_they_passed(scale):
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_prior_refuted_everywhere_has_nothing_left_to_cover(scale):
+    # Probes missed through all of the prior: none of it is left to touch, and the stop
+    # does not wait for it (a 2 mm fork's held prior, refuted everywhere, held its stop
+    # 28 mm off for 80 touches). The estimate's own DHD keeps every vertex then.
+    planner, recon = _planner(scale), _estimate(scale)
+    contacts = _ball(scale, 2)
+    prior = _ball(1.3 * scale)
+    directions = prior / np.linalg.norm(prior, axis=1, keepdims=True)
+    planner.state.free_space = np.concatenate(
+        [d * scale * np.linspace(1.0, 2.0, 21)[:, None] for d in directions])
+    coverage = planner.coverage(recon, prior, contacts)
+    assert not coverage.prior_open.any() and coverage.prior_dhd == 0.0
+    assert coverage.reachable.all()  # every estimate vertex lies near a refuted point
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_a_prior_many_times_the_objects_size_is_not_covered(scale):
     # A 2 cm block's 25 cm knife prior held its stop 15-23 cm off the block: explored at
     # its own size, the object's coverage is its reconstruction's alone.
