@@ -40,8 +40,7 @@ from .param_schema import (
 PAPER_SIZE = 6.0  # longest side of the paper's normalised objects: one size unit is 1/6 of it
 GPIS_KERNELS = ("wendland", "thin-plate")
 CHECK_LINE_AIMS = ("gap", "gap-weakest", "contact")
-CARVE_ESTIMATE = ("never", "noisy", "always")
-PRIOR_HOLDS = ("never", "noisy", "always")
+CARVE_ESTIMATE = PRIOR_HOLDS = ("never", "noisy", "always")  # with a noisy sensor: "noisy"
 _filter = functools.partial(param, component="filter")
 _session = functools.partial(param, component="session")
 _gpis = functools.partial(param, component="gpis")
@@ -173,8 +172,7 @@ class FilterParams:
               "fits better than every contender joins the belief, and while several classes "
               "contend the MAP is the one whose refined pose fits best.")
     contender_mass: float = _filter(
-        0.05, "The share of the posterior a class must hold to contend (0-1).",
-        valid="[0, 1]")
+        0.05, "The share of the posterior a class must hold to contend (0-1).", valid="[0, 1]")
     outlier_probability: float = _filter(
         0.0, "The chance that a contact is a wrong reading (beyond the paper; 0: the paper's "
         "Gaussian).", valid="[0, 0.5)", control=(0.0, 0.49),
@@ -189,11 +187,9 @@ class FilterParams:
               "contact's term is the best over the offsets, an offset costing as a distance "
               "does; the MAP is taken refined.")
     n_features: int = _filter(
-        200, "Poisson-disk feature points per object (paper 200).", kind="int",
-        valid="[3, inf)")
+        200, "Poisson-disk feature points per object (paper 200).", kind="int", valid="[3, inf)")
     sdf_resolution: int = _filter(
-        64, "Voxels along the longest side of each prior's SDF grid.", kind="int",
-        valid="[8, inf)")
+        64, "Voxels along the longest side of each prior's SDF grid.", kind="int", valid="[8, inf)")
     sdf_max_resolution: int = _filter(
         256, "Up to how many voxels a prior's SDF grid is refined for thin parts (at most "
         "sdf_resolution: never).", kind="int", valid="[0, inf)",
@@ -237,8 +233,7 @@ class SessionParams:
         0.6, "Termination threshold on the DHD from the estimated surface to the contacts.",
         valid=_POSITIVE, length=1, control=(0.05, 10.0),
         notes="With cover_prior the MAP prior of a novel object counts too; the surface near "
-              "targets the sensor could not reach and near missed probes' paths is left "
-              "out.")
+              "targets the sensor could not reach and near missed probes' paths is left out.")
     max_steps_known: int = _session(
         300, "Step cap while the object is judged known (paper 300).", kind="int",
         valid=_AT_LEAST_1)
@@ -314,11 +309,10 @@ class SessionParams:
               "(cover_prior). docs/novel.md.")
     gpis_prior_hold: str = _gpis(
         "noisy", "A novel object's GPIS prior keeps the MAP shape's last pose until the MAP "
-        "particle's new pose is 10 nats ahead in the contacts' GP evidence (beyond the "
-        "paper): never, with a noisy sensor, or always.", kind="choice", choices=PRIOR_HOLDS,
-        notes="The targets, the prior cover and the snapshot follow the pose held. Under "
-              "noise it helped bench learn; noiseless it was mixed there and on the "
-              "protocol (docs/novel.md).")
+        "particle's is 10 nats ahead in the contacts' GP evidence (beyond the paper): never, "
+        "with a noisy sensor, or always.", kind="choice", choices=PRIOR_HOLDS,
+        notes="Targets, prior cover and snapshot follow the pose held; noiseless it was "
+              "mixed on bench learn and the protocol (docs/novel.md).")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "
@@ -334,9 +328,8 @@ class SessionParams:
         10, "The kernel scale's Newton step every this many fits (1: all, the paper's).",
         kind="int", valid="[1, 100]",
         notes="A full fit without it is one Cholesky factorisation instead of two and the "
-              "inverse. Under 10 contacts every fit takes it, then every contacts // 10 "
-              "fits up to this many. gpis_incremental also refits when gpis_refit_score "
-              "asks.")
+              "inverse. Under 10 contacts every fit takes it, then every contacts // 10 fits up "
+              "to this many. gpis_incremental also refits when gpis_refit_score asks.")
     gpis_refit_score: float = _gpis(
         4.0, "With gpis_incremental: also refit when the likelihood's gradient in the log "
         "scale exceeds this many standard deviations.", valid="[0.5, 100]")
@@ -419,9 +412,8 @@ class SessionParams:
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",
         notes="The same posterior mean as the steps' surfaces, sampled finer (at 32 cells a "
-              "sofa's foot or a chair's rung thinner than a cell can fall between the "
-              "samples and vanish, docs/bench-novel.md). Exploration keeps "
-              "gpis_resolution.")
+              "sofa's foot or a chair's rung thinner than a cell can fall between the samples and "
+              "vanish, docs/bench-novel.md). Exploration keeps gpis_resolution.")
     final_candidates: int = _gpis(
         10, "When a novel session stops with part of its reconstruction farther than eps "
         "from every contact, the reported surface is the newest one the contacts cover of "

@@ -144,10 +144,8 @@ class Estimator(FinalSurface, Part):
         else ``[]``. A novel object's MAP pose can turn from touch to touch between poses
         the contacts tell apart no better (a 20 cm fork's flat-screwdriver prior turned
         half a turn 20 times in 80 touches), each bringing other uncovered prior surface."""
-        held, when = self.state.gpis.pose, self.p.gpis_prior_hold
-        if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
-            return []
-        if held is None or held[0] != model.name:
+        held = self.state.gpis.pose
+        if not self._switched_on(self.p.gpis_prior_hold) or held is None or held[0] != model.name:
             return []
         if np.array_equal(held[1], rotation) and np.array_equal(held[2], translation):
             return []
@@ -326,11 +324,14 @@ class Estimator(FinalSurface, Part):
     def cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)
         where no contact is within ``eps`` (where the surface is not covered)."""
-        when = self.p.gpis_carve_estimate
-        if when == "never" or (when == "noisy" and not any(self.sensor_noise)):
+        if not self._switched_on(self.p.gpis_carve_estimate):
             return fit
         return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
                               self.p.gpis_carve_radius, keep_within=self.p.eps)
+
+    def _switched_on(self, when):
+        """Whether a ``"never"``/``"noisy"``/``"always"`` switch is on for this sensor."""
+        return when == "always" or (when == "noisy" and any(self.sensor_noise))
 
     def _prior(self, model, rotation, translation):
         return PosedSDF(model, rotation, translation)
