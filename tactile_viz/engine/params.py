@@ -366,9 +366,9 @@ class SessionParams:
               "never come nearer its far corners than the noise allows. A novel object "
               "keeps eps (its estimate is what the touches make it).")
     own_size_share: float = _session(
-        0.5, "A novel object whose contacts span less than this share of its MAP prior's "
-        "size (or over 1.25 times its diameter) explores at its own size: eps and the "
-        "probes' lengths follow the contacts' diameter (beyond the paper; 0: the prior's).",
+        0.5, "A novel object whose contacts span under this share of its MAP prior's size "
+        "(or its diameter / 1.25, or over 1.25 times it) explores at its own size: eps and "
+        "the probes' lengths follow the contacts' diameter (beyond the paper; 0: the prior's).",
         valid="[0, 1]", control=(0.0, 1.0),
         notes="Once judged novel ten steps in a row and the span stopped growing (the "
               "last ten contacts widened it by at most a tenth): a thin object's first "

@@ -18,6 +18,7 @@ from tactile_viz.engine.params import FilterParams, SessionParams, length_fields
 from tactile_viz.engine.session import RecordedSession, Session, make_truth, session_preset
 from tactile_viz.engine.session.lengths import (
     OWN_CONTACTS,
+    OWN_SETTLE,
     OWN_STEPS,
     novel_for_long,
     own_unit,
@@ -273,8 +274,9 @@ def test_a_recording_without_units_far_from_the_library_is_flagged(metric_mugs, 
 
 def test_own_unit_is_the_contacts_diameter_when_much_smaller_or_larger_than_the_prior():
     """A sixth of the largest distance between two contacts, at any scale and turned any
-    way; None between the share of the prior's unit and OWN_LARGER times its diameter,
-    with too few contacts or without a span."""
+    way; None within a factor OWN_LARGER of the prior's diameter (and over the share of
+    its unit), with too few contacts or without a span; under the prior's diameter over
+    OWN_LARGER only once OWN_SETTLE contacts held the span."""
     rng = np.random.default_rng(0)
     ball = trimesh.sample.sample_surface(trimesh.creation.icosphere(4, radius=0.5), 400,
                                          seed=1)[0]
@@ -293,6 +295,12 @@ def test_own_unit_is_the_contacts_diameter_when_much_smaller_or_larger_than_the_
         assert own_unit(points, 0.1 * scale, 0.5, 0.7 * scale) == pytest.approx(scale / 6,
                                                                            rel=0.02)
         assert own_unit(points, 0.15 * scale, 0.5, 0.9 * scale) is None
+        # Smaller by as much: under its diameter over OWN_LARGER, above the share.
+        assert own_unit(points, 0.3 * scale, 0.5, 1.4 * scale) == pytest.approx(scale / 6,
+                                                                            rel=0.02)
+        assert own_unit(points, 0.3 * scale, 0.5, 1.1 * scale) is None
+        assert own_unit(points, 0.3 * scale, 0.0, 1.4 * scale) is None
+        assert own_unit(points[:OWN_SETTLE], 0.3 * scale, 0.5, 1.4 * scale) is None
         assert own_unit(points, 0.1 * scale, 0.0, 0.7 * scale) is None
     assert own_unit(ball[:OWN_CONTACTS], 10.0, 0.5) is None  # too few to tell
     assert own_unit(np.zeros((2 * OWN_CONTACTS, 3)), 1.0, 0.5) is None  # no span
