@@ -371,8 +371,8 @@ class SessionParams:
         "the probes' lengths follow the contacts' diameter (beyond the paper; 0: the prior's).",
         valid="[0, 1]", control=(0.0, 1.0),
         notes="Once judged novel ten steps in a row and the span stopped growing (the "
-              "last ten contacts widened it by at most a tenth): a thin object's first "
-              "contacts span less than it (docs/novel.md, engine/session/lengths.py).")
+              "last ten contacts, forty under the diameter / 1.25, widened it by at most a "
+              "tenth): a thin object's first contacts span less than it (docs/novel.md).")
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
