@@ -376,30 +376,31 @@ class SessionParams:
     check_lines: int = _session(
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
-        notes="Once a novel object's estimate is covered, this many checks must each touch "
-              "nothing farther than contact_spacing from the estimate and from every contact "
-              "before the session stops; a check that does restarts the count (part of the "
-              "object was never predicted) and grows a frontier from the contact: targets "
-              "eps along four tangents, each contact on ground neither a contact nor the "
-              "estimate predicted growing it again; no stop while one is queued "
+        notes="Each must touch nothing farther than contact_spacing from the estimate and "
+              "every contact; one that does restarts the count (a part never predicted) "
+              "and grows a frontier from the contact: targets eps along four tangents, each "
+              "surprising contact growing it again; no stop while one is queued "
               "(docs/bench-novel.md).")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,
         notes="gap: each check sweeps the widest gap that no contact, swept path or "
               "estimated surface is near, alternately inside the contacts' convex hull and "
-              "in a shell of 2 eps around the estimate: in from a direction with a clear "
-              "way, then a lattice of rows 0.2 apart through the cube inside the gap's ball; "
+              "in a shell of 2 eps around the estimate: in from a clear direction, "
+              "then a lattice of rows 0.2 apart through the cube inside the gap's ball; "
               "gap-weakest: after every two gap checks one more sweeps that lattice about "
               "the estimate's vertex farthest from every contact (where the object may lie "
-              "up to eps off the estimate unseen); it does not count toward check_lines "
-              "unless it surprises; contact: a straight line through a random contact moved "
-              "by about eps, from the least used direction.")
+              "up to eps off the estimate unseen), not counted unless it surprises; "
+              "contact: a line through a random contact moved by about eps.")
+    check_shell_inward: bool = _session(
+        True, "A shell check's lattice reaches in to the band beside the estimate: its "
+        "centre moves toward the estimate (beyond the paper).", kind="bool",
+        notes="The shell's widest gap lies on its far rim, 2 eps out, and its lattice never "
+              "met a part beside the estimate (an elephant's ear tip, docs/novel.md).")
     check_shell_observed: bool = _session(
         True, "A check in the shell outside the estimate sweeps the place farthest from "
         "what was observed, not also from the estimated surface (beyond the paper).",
-        kind="bool", notes="The surface is no observation: a mug's handle beside it hid "
-        "(docs/journal/novel.md).")
+        kind="bool", notes="The surface is no observation (docs/journal/novel.md).")
     variance_points: int = _gpis(
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
@@ -578,8 +579,7 @@ def declarations() -> dict[str, Declaration]:
 
 
 def declaration(name: str) -> Declaration:
-    """The :class:`~.param_schema.Declaration` of one parameter (ParameterError for an
-    unknown name)."""
+    """One parameter's :class:`~.param_schema.Declaration` (ParameterError if unknown)."""
     try:
         return declarations()[name]
     except KeyError:

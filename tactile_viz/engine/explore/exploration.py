@@ -29,6 +29,7 @@ STRATEGIES = ("gpis-dhd", "rrt")
 # places its object up to a size unit off it, and a thin one is missed by lines through
 # the middle (a 20 cm fork, 2 of 8 trials of one seed).
 WIDE_OFFSET = 1.5
+RASTER_HALF = 0.55  # of a lattice's radius: the half-size of the cube it sweeps
 
 
 def farthest_vertex(vertices, contacts):
@@ -261,10 +262,40 @@ def clearest_direction(through, surface, used=(), count=64, reach=10.0, wanted=0
     return candidates[int(np.argmax(np.minimum(clearance, wanted) + 1e-3 * novelty))]
 
 
+def inward(point, surface, radius, margin=0.3, unit=1.0):
+    """``point`` moved toward its nearest vertex of the estimated ``surface`` until the
+    cube a :func:`raster_path` of ``radius`` sweeps about it reaches in to ``margin unit``
+    of the surface (unmoved when it already does): a gap on a shell's far rim is swept
+    together with the band beside the estimate, which any part the estimate misses
+    crosses (an ear's tip 1.4 eps beyond it, never reaching the rim).
+
+    Parameters
+    ----------
+    point : (3,) float
+        A gap in the shell outside the estimate (:func:`widest_gap`).
+    surface : (v, 3) float
+        Vertices of the estimated surface.
+    radius : float
+        The lattice's ball (its cube's half-size is :data:`RASTER_HALF` of it).
+
+    Returns
+    -------
+    (3,) float
+    """
+    point = np.asarray(point, dtype=float)
+    if len(surface) == 0:
+        return point
+    distance, index = cKDTree(surface).query(point)
+    wanted = margin * unit + max(RASTER_HALF * radius, 0.0)
+    if distance <= wanted:
+        return point
+    return surface[index] + (point - surface[index]) * (wanted / distance)
+
+
 def raster_path(centre, radius, direction, spacing=0.2, reach=10.0):
     """A sweep of the free space around a gap: in along ``-direction`` from ``reach``
     away, then along rows ``spacing`` apart in each of three perpendicular directions
-    through the cube of half-size ``0.55 radius`` about ``centre`` (inside the ball of
+    through the cube of half-size ``RASTER_HALF radius`` about ``centre`` (inside the ball of
     ``radius``): a lattice that any bar crossing the cube meets if it is thicker than
     ``spacing``, whatever its direction.
 
@@ -277,7 +308,7 @@ def raster_path(centre, radius, direction, spacing=0.2, reach=10.0):
     helper = np.eye(3)[int(np.argmin(np.abs(direction)))]
     across = normalise_rows(np.cross(direction, helper)[None])[0]
     up = np.cross(direction, across)
-    half = max(0.55 * radius, spacing / 2)
+    half = max(RASTER_HALF * radius, spacing / 2)
     offsets = np.linspace(-half, half, max(2, int(np.ceil(2 * half / spacing)) + 1))
     waypoints = [centre + reach * direction]
     row = 0

@@ -51,6 +51,7 @@ from ..belief.telling import disagreement_target
 from ..explore.exploration import (
     clearest_direction,
     farthest_vertex,
+    inward,
     next_sweep_direction,
     raster_path,
     variance_target,
@@ -424,8 +425,10 @@ class Planner(Part):
 
         ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): a
         lattice through the widest unobserved gap, alternately inside the contacts' hull
-        and in a shell of ``2 eps`` around the estimate, in from a direction with a clear
-        way (:func:`~.exploration.widest_gap`, :func:`~.exploration.raster_path`);
+        and in a shell of ``2 eps`` around the estimate (with ``check_shell_inward`` the
+        lattice moved in to reach the band beside the estimate, :func:`~.exploration.inward`),
+        in from a direction with a clear way (:func:`~.exploration.widest_gap`,
+        :func:`~.exploration.raster_path`);
         ``"gap-weakest"``: every third check sweeps the same lattice about the estimate's
         vertex farthest from every contact (:meth:`_weakest_support`), in addition to the
         ``check_lines`` gap checks;
@@ -444,6 +447,9 @@ class Planner(Part):
             shell = 2 * self.p.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
                                       unit=self.unit, observed_only=self.p.check_shell_observed)
+            if kind == "shell" and through is not None and self.p.check_shell_inward:
+                through = inward(through, estimate, min(gap, MAX_RASTER_RADIUS * self.unit),
+                                 unit=self.unit)
         if not self.scene.is_free:
             return self._scene_check(estimate, contacts, through)
         if through is None:

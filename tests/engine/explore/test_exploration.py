@@ -5,12 +5,14 @@ import pytest
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
 from tactile_viz.engine.explore.exploration import (
+    RASTER_HALF,
     clearest_direction,
     enforce_contact,
     farthest_vertex,
     first_contact,
     follow_surface,
     grows_away,
+    inward,
     next_sweep_direction,
     path_until,
     raster_path,
@@ -259,6 +261,21 @@ def test_a_gap_beyond_the_end_of_a_part_is_found_in_the_shell():
     swept = np.vstack([surface + t * radial for t in np.arange(0.0, 2.01, 0.25)])
     point, gap = widest_gap(surface, swept, surface, outside, shell=0.6)
     assert point is not None and abs(point[2]) > 2.0 and gap >= 0.3
+
+
+def test_inward_moves_a_rim_gap_until_its_lattice_reaches_the_band():
+    # A flat estimate at z = 0: a gap 1.2 above it with a lattice of radius 0.5 (a cube
+    # of half-size 0.275) moves straight down to 0.3 + 0.275; a gap already that near
+    # stays, and so does any gap without an estimate.
+    grid = np.linspace(-1.0, 1.0, 21)
+    surface = np.array([[x, y, 0.0] for x in grid for y in grid])
+    moved = inward([0.0, 0.0, 1.2], surface, 0.5)
+    np.testing.assert_allclose(moved, [0.0, 0.0, 0.3 + RASTER_HALF * 0.5])
+    np.testing.assert_allclose(inward([0.0, 0.0, 0.5], surface, 0.5), [0.0, 0.0, 0.5])
+    np.testing.assert_allclose(inward([0.0, 0.0, 1.2], np.zeros((0, 3)), 0.5), [0, 0, 1.2])
+    # In scene units: a 6 cm object's unit is 0.01.
+    np.testing.assert_allclose(inward([0.0, 0.0, 0.012], surface * 0.01, 0.005, unit=0.01),
+                               [0.0, 0.0, 0.003 + RASTER_HALF * 0.005])
 
 
 def test_a_clear_direction_avoids_the_estimate():

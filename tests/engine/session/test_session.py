@@ -574,6 +574,31 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     assert session.state.checks_passed == 1
 
 
+@pytest.mark.parametrize("inward", [True, False])
+def test_a_shell_check_reaches_in_to_the_band_beside_the_estimate(bundled, known, inward):
+    # A flat estimate at z = 0 touched all along its border: the shell check (the second)
+    # sweeps above its middle, where nothing was observed. The widest gap lies on the
+    # shell's rim, 2 eps up; moved inward, the lattice's cube reaches down to 0.3 units of
+    # the estimate, across the band any part the estimate misses must cross.
+    params = session_preset("recommended", check_shell_inward=inward)
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=0), known, seed=0,
+                                params=params)
+    eps = session.parts().planner.p.eps
+    grid = np.linspace(-3.0, 3.0, 31)
+    estimate = np.array([[x, y, 0.0] for x in grid for y in grid])
+    contacts = estimate[np.abs(estimate[:, :2]).max(axis=1) > 2.9]
+    session.state.check_directions = [np.eye(3)[0]]  # one (hull) check done
+    _plan_check(session, estimate, contacts, lambda p: p[:, 2])
+    through, path = session.state.check.through, session.state.check.path
+    assert np.abs(through[:2]).max() < 1.0  # above the middle
+    beside = np.linalg.norm(estimate - through, axis=1).min()
+    if inward:  # the gap is over a unit wide: the lattice's cube has half-size 0.55
+        assert beside == pytest.approx(0.3 + 0.55)
+        assert path[1:, 2].min() < 0.3 + 0.05  # the rows, after the way in
+    else:  # on the rim, up to a cell of the gap's grid below it
+        assert 0.3 + 0.55 + 0.1 < beside <= 2 * eps
+
+
 def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     # A touch on a part nothing predicted queues targets eps along four tangents (not
     # where a contact already is), and the session does not stop while one is queued.
