@@ -396,7 +396,7 @@ class SessionParams:
         True, "A shell check's lattice reaches in to the band beside the estimate: its "
         "centre moves toward the estimate (beyond the paper).", kind="bool",
         notes="The shell's widest gap lies on its far rim, 2 eps out, and its lattice never "
-              "met a part beside the estimate (an elephant's ear tip, docs/novel.md).")
+              "met a part beside the estimate (an elephant's ear tip, docs/journal/novel.md).")
     check_shell_observed: bool = _session(
         True, "A check in the shell outside the estimate sweeps the place farthest from "
         "what was observed, not also from the estimated surface (beyond the paper).",

@@ -286,7 +286,7 @@ def inward(point, surface, radius, margin=0.3, unit=1.0):
     if len(surface) == 0:
         return point
     distance, index = cKDTree(surface).query(point)
-    wanted = margin * unit + max(RASTER_HALF * radius, 0.0)
+    wanted = margin * unit + RASTER_HALF * radius
     if distance <= wanted:
         return point
     return surface[index] + (point - surface[index]) * (wanted / distance)
