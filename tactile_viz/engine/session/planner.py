@@ -426,7 +426,8 @@ class Planner(Part):
         ``check_line_aim = "gap"`` (with ``outside``, positive outside the estimate): a
         lattice through the widest unobserved gap, alternately inside the contacts' hull
         and in a shell of ``2 eps`` around the estimate (with ``check_shell_inward`` the
-        lattice moved in to reach the band beside the estimate, :func:`~.exploration.inward`),
+        lattice moved in to reach the band beside the estimate, :func:`~.exploration.inward`;
+        a robot's scene sweeps one line through the gap itself),
         in from a direction with a clear way (:func:`~.exploration.widest_gap`,
         :func:`~.exploration.raster_path`);
         ``"gap-weakest"``: every third check sweeps the same lattice about the estimate's
@@ -447,11 +448,11 @@ class Planner(Part):
             shell = 2 * self.p.eps if kind == "shell" else 0.0
             through, gap = widest_gap(contacts, explored, estimate, outside, shell=shell,
                                       unit=self.unit, observed_only=self.p.check_shell_observed)
-            if kind == "shell" and through is not None and self.p.check_shell_inward:
-                through = inward(through, estimate, min(gap, MAX_RASTER_RADIUS * self.unit),
-                                 unit=self.unit)
-        if not self.scene.is_free:
+        if not self.scene.is_free:  # one line, no lattice: the gap itself
             return self._scene_check(estimate, contacts, through)
+        if kind == "shell" and through is not None and self.p.check_shell_inward:
+            through = inward(through, estimate, min(gap, MAX_RASTER_RADIUS * self.unit),
+                             unit=self.unit)
         if through is None:
             direction = next_sweep_direction(self.state.check_directions, self.rng)
             through = contacts[self.rng.integers(len(contacts))] + self.rng.normal(

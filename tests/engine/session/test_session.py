@@ -599,6 +599,27 @@ def test_a_shell_check_reaches_in_to_the_band_beside_the_estimate(bundled, known
         assert 0.3 + 0.55 + 0.1 < beside <= 2 * eps
 
 
+def test_a_scene_check_sweeps_its_line_through_the_shell_gap_itself(bundled, known):
+    # On a table a check is one straight line, no lattice: moving it inward would only
+    # move the line, so the shell gap is swept where it is, inward or not.
+    from tactile_viz.engine.scene import Scene
+
+    scene = Scene.on_table(-1.0, 60.0, 0.0)
+    grid = np.linspace(-3.0, 3.0, 31)
+    estimate = np.array([[x, y, 0.0] for x in grid for y in grid])
+    contacts = estimate[np.abs(estimate[:, :2]).max(axis=1) > 2.9]
+    throughs = []
+    for inward in (True, False):
+        params = session_preset("recommended", check_shell_inward=inward)
+        truth = make_truth(bundled["bottle_1"], rng=0, scene=scene)
+        session = Session.simulated(truth, known, seed=0, params=params, scene=scene)
+        session.state.check_directions = [np.eye(3)[0]]  # one (hull) check done
+        _plan_check(session, estimate, contacts, lambda p: p[:, 2])
+        throughs.append(session.state.check.through)
+    np.testing.assert_allclose(throughs[0], throughs[1])
+    assert np.linalg.norm(estimate - throughs[0], axis=1).min() > 0.3 + 0.55 + 0.1
+
+
 def test_a_surprise_grows_a_frontier_that_holds_the_stop(sphere_model):
     # A touch on a part nothing predicted queues targets eps along four tangents (not
     # where a contact already is), and the session does not stop while one is queued.
