@@ -574,6 +574,13 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     assert session.state.checks_passed == 1
 
 
+def _bordered_plate():
+    """A flat estimate at z = 0, 6 across, and contacts all along its border."""
+    grid = np.linspace(-3.0, 3.0, 31)
+    estimate = np.array([[x, y, 0.0] for x in grid for y in grid])
+    return estimate, estimate[np.abs(estimate[:, :2]).max(axis=1) > 2.9]
+
+
 @pytest.mark.parametrize("inward", [True, False])
 def test_a_shell_check_reaches_in_to_the_band_beside_the_estimate(bundled, known, inward):
     # A flat estimate at z = 0 touched all along its border: the shell check (the second)
@@ -584,9 +591,7 @@ def test_a_shell_check_reaches_in_to_the_band_beside_the_estimate(bundled, known
     session = Session.simulated(make_truth(bundled["bottle_1"], rng=0), known, seed=0,
                                 params=params)
     eps = session.parts().planner.p.eps
-    grid = np.linspace(-3.0, 3.0, 31)
-    estimate = np.array([[x, y, 0.0] for x in grid for y in grid])
-    contacts = estimate[np.abs(estimate[:, :2]).max(axis=1) > 2.9]
+    estimate, contacts = _bordered_plate()
     session.state.check_directions = [np.eye(3)[0]]  # one (hull) check done
     _plan_check(session, estimate, contacts, lambda p: p[:, 2])
     through, path = session.state.check.through, session.state.check.path
@@ -605,9 +610,7 @@ def test_a_scene_check_sweeps_its_line_through_the_shell_gap_itself(bundled, kno
     from tactile_viz.engine.scene import Scene
 
     scene = Scene.on_table(-1.0, 60.0, 0.0)
-    grid = np.linspace(-3.0, 3.0, 31)
-    estimate = np.array([[x, y, 0.0] for x in grid for y in grid])
-    contacts = estimate[np.abs(estimate[:, :2]).max(axis=1) > 2.9]
+    estimate, contacts = _bordered_plate()
     throughs = []
     for inward in (True, False):
         params = session_preset("recommended", check_shell_inward=inward)
