@@ -16,6 +16,9 @@ extension          what it does                                     off with
 =================  ===============================================  ==========================
 given-up targets   targets out of reach, and the free space of      (always on; without a
                    missed probes, leave the DHD and the targets     miss it changes nothing)
+box caps           where a GPIS estimate closes at its box beyond   ``gpis_carve_radius=0``
+                   eps of every contact, a miss refutes it as far
+                   as the carve reaches
 prior cover        a novel object's MAP prior must be covered too   ``cover_prior=False``
 uncovered target   the variance target among uncovered vertices     ``target_uncovered=False``
 noisy target       under noise, the variance target and a check's   ``target_noise_stds=0``
@@ -64,6 +67,7 @@ from ..shape.sdf import normalise_rows
 from .context import Part
 from .fields import BelowTangentPlane, PosedSDF, ValueOf
 from .lengths import own_unit
+from .refuted import open_estimate, open_vertices
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -79,7 +83,8 @@ MISFIT_STEPS = 5  # steps in a row a known MAP must misfit before the object is 
 ROUND_SHARE = 0.5  # or contacts spanning under this share of its size, settled, misfit
 
 # (extension, the parameter and value that switch it off; None: always on)
-EXTENSIONS = (("given-up targets", None), ("prior cover", ("cover_prior", False)),
+EXTENSIONS = (("given-up targets", None), ("box caps", ("gpis_carve_radius", 0.0)),
+              ("prior cover", ("cover_prior", False)),
               ("uncovered target", ("target_uncovered", False)),
               ("noisy target", ("target_noise_stds", 0.0)),
               ("flat variance", ("target_farthest", False)),
@@ -236,7 +241,8 @@ class Planner(Part):
         """
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
-        reachable = self._reachable(surface)
+        reachable = (open_estimate(surface, recon.closure, self.state, self.p, contacts)
+                     if reconstructed else self._reachable(surface))
         in_scene = not self.scene.is_free and model is not None
         map_reach = None  # the MAP's reachable vertices, only where they are asked for
         if in_scene and (not reconstructed or self.p.cover_prior):
@@ -559,23 +565,3 @@ def segment_points(segments, spacing):
     starts = np.repeat(segments[:, 0], counts, axis=0)
     ends = np.repeat(segments[:, 1], counts, axis=0)
     return starts + fractions[:, None] * (ends - starts)
-
-
-def open_vertices(vertices, state, radius, all_refuted=True):
-    """Mask of ``vertices`` farther than ``radius`` from every given-up target and every
-    free-space point of the exploration ``state`` (all of them if none is, unless
-    ``all_refuted`` is False)."""
-    refuted = state.refuted
-    if len(refuted) == 0 or len(vertices) == 0:
-        return np.ones(len(vertices), bool)
-    distance = refuted_tree(np.ascontiguousarray(refuted, dtype=float).tobytes()).query(
-        vertices, distance_upper_bound=radius)[0]
-    far = distance >= radius
-    return far if far.any() or not all_refuted else np.ones(len(vertices), bool)
-
-
-@functools.lru_cache(maxsize=4)
-def refuted_tree(points):
-    """A KD-tree of refuted points given as the bytes of a ``(k, 3)`` float array, kept
-    while they stay the same (a step asks twice, and a step without a miss adds none)."""
-    return cKDTree(np.frombuffer(points, dtype=float).reshape(-1, 3))

@@ -4,7 +4,7 @@ without those misses refute (beyond the paper).
 A part no contact comes near is a phantom of the prior mean or the kernel.
 
 The stop weighs only the estimate's vertices away from the misses
-(:func:`~.planner.open_vertices`): near a target given up or a missed probe's path, the
+(:func:`~.refuted.open_vertices`): near a target given up or a missed probe's path, the
 estimate is surface the probes looked for and did not find. A part there that no contact
 comes within ``eps`` of is the prior mean's or the kernel's, not the object's: on a 20 cm
 fork at 2 mm noise such parts were a fifth to a third of the reported surface, up to
@@ -21,7 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..shape.mesh_repair import closed_faces
-from .planner import refuted_tree
+from .refuted import refuted_tree
 
 
 def refuted_vertices(vertices, refuted, contacts, spacing, reach):

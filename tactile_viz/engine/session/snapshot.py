@@ -7,6 +7,9 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..shape.gpis import box_closure
+from ..shape.gpis_variance import lattice_low
+
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 
 
@@ -199,6 +202,17 @@ class Reconstruction:
         vertex_variance = None if self.vertex_variance is None else self.vertex_variance[keep]
         return replace(self, vertices=self.vertices[keep], faces=faces, subset=subset,
                        candidate_variance=candidates, vertex_variance=vertex_variance)
+
+    @cached_property
+    def closure(self):
+        """Mask of the vertices where the surface closes at its box, not where the fit
+        crosses zero (:func:`~..shape.gpis.box_closure`), (v,) bool (none without
+        ``bounds``)."""
+        if self.bounds is None or self.empty:
+            return np.zeros(len(self.vertices), bool)
+        low = self.bounds[0] if self.spacing is None else lattice_low(self.bounds[0],
+                                                                        self.spacing)
+        return box_closure(self.vertices, (low, self.bounds[1]), self.resolution, self.spacing)
 
     @cached_property
     def variance(self):

@@ -503,11 +503,8 @@ def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None, fill
     faces : (f, 3) int
         Empty arrays when the mean has no zero crossing in the box.
     """
-    low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
-    spacing = float((high - low).max()) / resolution if spacing is None else float(spacing)
-    counts = np.maximum(np.ceil((high - low) / spacing).astype(int) + 1, 2)
+    low, spacing, counts = level_grid(bounds, resolution, spacing, band)
     if band:
-        counts += (counts + 1) % 2  # odd: every second node spans the same box
         volume = _banded_mean(fit, low, spacing, counts)
     else:
         axes = [low[i] + spacing * np.arange(counts[i]) for i in range(3)]
@@ -522,6 +519,42 @@ def zero_level_surface(fit, bounds, resolution=32, band=True, spacing=None, fill
     vertices, faces, _, _ = marching_cubes(volume, 0.0, spacing=(spacing,) * 3,
                                            method="lewiner")
     return vertices + low - spacing, faces.astype(np.int64)
+
+
+def level_grid(bounds, resolution=32, spacing=None, band=True):
+    """The nodes :func:`zero_level_surface` evaluates: their low corner, cell and
+    ``(3,)`` counts (odd with ``band``)."""
+    low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    spacing = float((high - low).max()) / resolution if spacing is None else float(spacing)
+    counts = np.maximum(np.ceil((high - low) / spacing).astype(int) + 1, 2)
+    if band:
+        counts += (counts + 1) % 2  # odd: every second node spans the same box
+    return low, spacing, counts
+
+
+def box_closure(vertices, bounds, resolution=32, spacing=None, band=True):
+    """Mask of the vertices of :func:`zero_level_surface` that close its surface at the
+    box: beyond its outermost nodes, where the solid reaches the box and is cut off there.
+
+    Such a vertex is not where the posterior mean crosses zero but where the grid ends (a
+    thin-plate fit's solid can reach far past every contact); a probe sent there finds
+    the object only if it reaches past the box.
+
+    Parameters
+    ----------
+    vertices : (v, 3) float, world frame
+    bounds, resolution, spacing, band
+        As given to :func:`zero_level_surface`.
+
+    Returns
+    -------
+    (v,) bool
+    """
+    low, spacing, counts = level_grid(bounds, resolution, spacing, band)
+    top = low + spacing * (counts - 1)
+    vertices = np.reshape(vertices, (-1, 3))
+    slack = 1e-6 * spacing
+    return ((vertices < low - slack) | (vertices > top + slack)).any(axis=1)
 
 
 BAND_CELLS = 1.0

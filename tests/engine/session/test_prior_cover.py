@@ -19,12 +19,12 @@ def _ball(radius, subdivisions=3):
     return trimesh.creation.icosphere(subdivisions, radius).vertices
 
 
-def _planner(scale):
+def _planner(scale, carve=0.1):
     """A planner with what its coverage reads: parameters in scene units, the exploration
     state and the scene (the paper's free space); no filter."""
     p = session_preset("recommended")
     p = dataclasses.replace(p, eps=0.1 * scale, contact_spacing=0.05 * scale,
-                            gpis_carve_radius=0.1 * scale)
+                            gpis_carve_radius=carve * scale)
     return Planner(StepContext(p, scale, scale, scene=FREE), None, ExplorationState())
 
 
@@ -32,7 +32,8 @@ def _estimate(radius):
     """A reconstruction whose surface is a ball of ``radius`` about the origin."""
     vertices = _ball(radius)
     fit = types.SimpleNamespace(mean_value=lambda q: np.linalg.norm(q, axis=1) - radius)
-    return types.SimpleNamespace(vertices=vertices, empty=False, fit=fit)
+    return types.SimpleNamespace(vertices=vertices, empty=False, fit=fit,
+                                 closure=np.zeros(len(vertices), bool))
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
@@ -84,3 +85,49 @@ def test_a_prior_many_times_the_objects_size_is_not_covered(scale):
     assert coverage.prior_open is None
     assert coverage.prior_dhd == 0.0
     assert coverage.value == pytest.approx(coverage.dhd)
+
+
+@pytest.mark.parametrize("carve", [0.0, 0.1])
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_miss_refutes_where_the_estimate_closes_at_its_box_as_far_as_the_carve(scale,
+                                                                                  carve):
+    # A disc 0.5 above a ball closes the estimate at its box (the grid ends there): one
+    # probe missed down through its middle refutes it as far as the carve reaches, the
+    # ball's own surface as far as the contact spacing, as before.
+    planner, ball, disc, recon = _capped(scale, carve)
+    reachable = planner.coverage(recon, ball, ball[ball[:, 2] < 0]).reachable
+    off_axis = np.hypot(disc[:, 0], disc[:, 1])
+    assert reachable[:len(ball)].all()
+    assert not reachable[len(ball):][off_axis < 0.05 * scale].any()
+    assert reachable[len(ball):][off_axis > 0.11 * scale].all()
+    between = (off_axis > 0.06 * scale) & (off_axis < 0.09 * scale)
+    assert reachable[len(ball):][between].all() == (carve == 0)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_cap_within_eps_of_a_contact_is_refuted_as_the_fit_is(scale):
+    # Near a contact a cap can be the object going on past its box: a miss refutes it
+    # only within the contact spacing there (neptune's trident tip, 0.35 from a miss).
+    planner, ball, disc, recon = _capped(scale, 0.1)
+    contact = np.array([[0.15, 0.0, 1.5]]) * scale
+    reachable = planner.coverage(recon, ball, np.vstack([ball[ball[:, 2] < 0], contact]))
+    reachable = reachable.reachable[len(ball):]
+    off_axis = np.hypot(disc[:, 0], disc[:, 1])
+    between = (off_axis > 0.06 * scale) & (off_axis < 0.09 * scale)
+    near = np.linalg.norm(disc - contact, axis=1) < 0.1 * scale
+    assert (between & near).any() and (between & ~near).any()
+    assert reachable[between & near].all() and not reachable[between & ~near].any()
+
+
+def _capped(scale, carve):
+    """A planner, a ball, a disc 0.5 above it that closes the estimate at its box, the
+    estimate of both, and one probe missed down through the disc's middle."""
+    planner = _planner(scale, carve)
+    ball = _ball(scale)
+    side = np.linspace(-0.3, 0.3, 25) * scale
+    disc = np.stack(np.meshgrid(side, side, [1.5 * scale]), axis=-1).reshape(-1, 3)
+    recon = _estimate(scale)
+    recon.vertices = np.vstack([ball, disc])
+    recon.closure = np.r_[np.zeros(len(ball), bool), np.ones(len(disc), bool)]
+    planner.state.free_space = np.linspace([0, 0, 3.0], [0, 0, 1.5], 31) * scale
+    return planner, ball, disc, recon

@@ -1,4 +1,5 @@
 import dataclasses
+import types
 
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ from tactile_viz.engine.shape.gpis import (
     WendlandKernel,
     _inverse_from_cholesky,
     _pair_terms,
+    box_closure,
     carved_prior,
     cut_free_space,
     fit_gpis,
@@ -440,3 +442,23 @@ def test_banded_surface_matches_the_full_grid(mug_data):
     spacing = 7.2 / 31
     assert directed_hausdorff(band_vertices, full_vertices) < 0.05 * spacing
     assert directed_hausdorff(full_vertices, band_vertices) < 0.05 * spacing
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+@pytest.mark.parametrize("spacing", [None, 0.07])
+def test_box_closure_marks_the_surface_the_box_cuts_off(scale, spacing):
+    """A ball cut by its box at z = 0.3: the vertices that close it there are marked, the
+    ball's own are not, at any scale and on a kept lattice too."""
+    fit = types.SimpleNamespace(mean_value=lambda x: np.linalg.norm(x, axis=1) - scale)
+    bounds = (np.full(3, -1.2 * scale), np.array([1.2, 1.2, 0.3]) * scale)
+    spacing = None if spacing is None else spacing * scale
+    vertices, _ = zero_level_surface(fit, bounds, 24, spacing=spacing)
+    closure = box_closure(vertices, bounds, 24, spacing)
+    cell = 2.4 * scale / 24 if spacing is None else spacing
+    assert closure.any() and not closure.all()
+    assert np.all(vertices[closure, 2] > 0.3 * scale)  # past the box's top node
+    off_ball = np.abs(np.linalg.norm(vertices[~closure], axis=1) - scale)
+    assert off_ball.max() < cell / 2  # the others are the ball's
+    whole = (np.full(3, -1.2 * scale), np.full(3, 1.2 * scale))
+    inside = zero_level_surface(fit, whole, 24, spacing=spacing)[0]
+    assert not box_closure(inside, whole, 24, spacing).any()
