@@ -91,7 +91,8 @@ class FinalSurface:
         cut by :meth:`_cut_refuted` where its holes cannot be closed)."""
         cut = functools.partial(self._cut_refuted, contacts=contacts) if close else None
         return reported_parts(recon, self.state.refuted, contacts,
-                              self.p.contact_spacing, self.p.eps, close=close, cut=cut)
+                              self.p.contact_spacing, self.p.eps, close=close, cut=cut,
+                              cap_reach=self.p.gpis_carve_radius)
 
     def _cut_refuted(self, recon, contacts):
         """``recon`` extracted again as it was, with balls of ``contact_spacing`` about

@@ -24,9 +24,12 @@ from ..shape.mesh_repair import closed_faces
 from .refuted import refuted_tree
 
 
-def refuted_vertices(vertices, refuted, contacts, spacing, reach):
+def refuted_vertices(vertices, refuted, contacts, spacing, reach, closure=None,
+                     cap_reach=0.0):
     """Mask of the ``vertices`` that misses refute: within ``spacing`` of a ``refuted``
-    point and farther than ``reach`` from every contact.
+    point, or those of ``closure`` (where the surface closes at its box,
+    :func:`~..shape.gpis.box_closure`) within ``cap_reach`` of one, and farther than
+    ``reach`` from every contact (the stop's view, :func:`~.refuted.open_estimate`).
 
     Parameters
     ----------
@@ -38,6 +41,10 @@ def refuted_vertices(vertices, refuted, contacts, spacing, reach):
         The session's ``contact_spacing`` (the stop's reach of a miss), scene units.
     reach : float
         The session's ``eps`` (a contact's cover), scene units.
+    closure : (v,) bool, optional
+    cap_reach : float
+        The carve's reach (``gpis_carve_radius``), scene units; at most ``spacing``:
+        the caps as the rest.
 
     Returns
     -------
@@ -49,15 +56,20 @@ def refuted_vertices(vertices, refuted, contacts, spacing, reach):
     refuted = np.ascontiguousarray(refuted, dtype=float).reshape(-1, 3)
     if len(refuted) == 0 or len(vertices) == 0:
         return np.zeros(len(vertices), bool)
-    near = refuted_tree(refuted.tobytes()).query(
-        vertices, distance_upper_bound=spacing)[0] < spacing
+    wide = closure is not None and cap_reach > spacing and np.any(closure)
+    far = max(spacing, cap_reach) if wide else spacing
+    distance = refuted_tree(refuted.tobytes()).query(vertices, distance_upper_bound=far)[0]
+    near = distance < spacing
+    if wide:
+        near |= np.asarray(closure, bool) & (distance < cap_reach)
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
     if len(contacts) and near.any():
         near[near] = cKDTree(contacts).query(vertices[near])[0] > reach
     return near
 
 
-def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=None):
+def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=None,
+                    cap_reach=0.0):
     """``recon`` (a :class:`~.snapshot.Reconstruction`) without the faces on a vertex
     :func:`refuted_vertices` marks; with ``close``, the holes this leaves closed by patches
     across their rims (:func:`~..shape.mesh_repair.closed_faces`), and if they cannot be
@@ -71,7 +83,8 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=N
     """
     if recon is None or recon.empty:
         return recon
-    keep = ~refuted_vertices(recon.vertices, refuted, contacts, spacing, reach)
+    keep = ~refuted_vertices(recon.vertices, refuted, contacts, spacing, reach,
+                             recon.closure if cap_reach > spacing else None, cap_reach)
     if keep.all() or not keep.any():
         return recon
     # A kept vertex whose faces all went is dropped with them.
@@ -87,8 +100,10 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=N
     return recon if cut is None else cut(recon)
 
 
-def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=None):
-    """``recon`` :func:`without_refuted` (``close`` and ``cut`` passed on), and of the rest
+def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=None,
+                   cap_reach=0.0):
+    """``recon`` :func:`without_refuted` (``close``, ``cut`` and ``cap_reach`` passed on),
+    and of the rest
     only the connected parts some contact comes within ``reach`` of
     (:func:`supported_parts`).
 
@@ -98,7 +113,8 @@ def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=No
     """
     if recon is None or recon.empty:
         return recon
-    recon = without_refuted(recon, refuted, contacts, spacing, reach, close=close, cut=cut)
+    recon = without_refuted(recon, refuted, contacts, spacing, reach, close=close, cut=cut,
+                            cap_reach=cap_reach)
     keep = supported_parts(recon.vertices, recon.faces, contacts, reach)
     return recon.restricted(keep) if keep.any() and not keep.all() else recon
 

@@ -94,6 +94,25 @@ def test_only_vertices_near_a_miss_and_far_from_every_contact_are_refuted(scale)
                                 0.2 * scale, 0.3 * scale).any()
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_cap_at_the_box_is_refuted_as_far_as_the_carve_reaches(scale):
+    # The top closes the surface at its box: a miss refutes it within cap_reach there,
+    # the rest of the ball within spacing only, as the stop sees it (refuted.open_estimate).
+    recon, refuted, contacts = _ball_with_misses(scale)
+    z = recon.vertices[:, 2]
+    cap = z > 0.3 * scale
+    narrow = refuted_vertices(recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale)
+    wide = refuted_vertices(recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale,
+                            cap, 0.5 * scale)
+    assert not (wide & ~narrow & ~cap).any() and (wide & ~narrow & cap).any()
+    assert (narrow <= wide).all()
+    # No wider than spacing, or no closure: the narrow mask.
+    np.testing.assert_array_equal(refuted_vertices(
+        recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale, cap, 0.1 * scale), narrow)
+    np.testing.assert_array_equal(refuted_vertices(
+        recon.vertices, refuted, contacts, 0.2 * scale, 0.3 * scale, None, 0.5 * scale), narrow)
+
+
 def test_without_misses_or_vertices_nothing_is_refuted():
     recon, refuted, contacts = _ball_with_misses(1.0)
     assert not refuted_vertices(recon.vertices, np.zeros((0, 3)), contacts, 1.0, 0.1).any()
