@@ -227,10 +227,11 @@ class FinalSurface:
     def _support(self, vertices, contacts_tree, closure):
         """:func:`support` over the vertices the stop counts (``final_support_open``): not
         near a given-up target or a missed probe's path, nor where it closes at its box
-        within the carve's reach of one (the planner's mask, :func:`~.refuted.open_estimate`). A
-        session stopped with its estimate covered there had every surface weighed again
-        for vertices no probe could reach: a 20 cm fork's last step at 2 mm noise took
-        2.1 s, 1.8 of them candidate surfaces (0.8 s without)."""
+        within the carve's reach of one (the planner's mask,
+        :func:`~.refuted.open_estimate`). A session stopped with its estimate covered
+        there had every surface weighed again for vertices no probe could reach: a 20 cm
+        fork's last step at 2 mm noise took 2.1 s, 1.8 of them candidate surfaces (0.8 s
+        without)."""
         if self.p.final_support_open:
             vertices = vertices[open_estimate(vertices, closure, self.state, self.p,
                                               contacts_tree.data)]

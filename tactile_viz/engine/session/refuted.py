@@ -35,8 +35,8 @@ def open_estimate(vertices, closure, state, p, contacts):
     (beyond the paper). A thin-plate fit's solid can reach the box far from every contact:
     an 8 cm cup's estimate against a mug prior closed 260 vertices at its box, and 100
     probes in a row missed there, each refuting the few vertices its path passed within
-    ``contact_spacing`` of. Near a contact a cap can be the object going on past the box
-    (neptune's trident, its tip lost to a miss 0.35 beside it)."""
+    ``contact_spacing`` of. Within ``eps`` of a contact a cap can be the object going on
+    past the box: there, as the carve, a miss refutes no more than elsewhere."""
     keep = open_vertices(vertices, state, p.contact_spacing)
     reach = max(p.contact_spacing, p.gpis_carve_radius)
     if reach <= p.contact_spacing or not closure.any() or not keep.any():

@@ -103,8 +103,7 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=N
 def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=None,
                    cap_reach=0.0):
     """``recon`` :func:`without_refuted` (``close``, ``cut`` and ``cap_reach`` passed on),
-    and of the rest
-    only the connected parts some contact comes within ``reach`` of
+    and of the rest only the connected parts some contact comes within ``reach`` of
     (:func:`supported_parts`).
 
     Returns

@@ -107,7 +107,7 @@ def test_a_miss_refutes_where_the_estimate_closes_at_its_box_as_far_as_the_carve
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_a_cap_within_eps_of_a_contact_is_refuted_as_the_fit_is(scale):
     # Near a contact a cap can be the object going on past its box: a miss refutes it
-    # only within the contact spacing there (neptune's trident tip, 0.35 from a miss).
+    # only within the contact spacing there, as the carve keeps within eps of a contact.
     planner, ball, disc, recon = _capped(scale, 0.1)
     contact = np.array([[0.15, 0.0, 1.5]]) * scale
     reachable = planner.coverage(recon, ball, np.vstack([ball[ball[:, 2] < 0], contact]))
