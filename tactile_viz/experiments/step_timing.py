@@ -34,10 +34,10 @@ from ..engine.shape.gpis import (
     fit_gpis,
     kernel_blocks,
     stable_cholesky,
-    zero_level_surface,
 )
 from ..engine.shape.gpis_incremental import fit_gpis_incremental
 from ..engine.shape.gpis_variance import lattice_low, lattice_variance
+from ..engine.shape.level_set import zero_level_surface
 from ..engine.shape.library import PriorLibrary
 from ..engine.shape.objects import load_bundled
 

@@ -17,7 +17,6 @@ from ..shape.gpis import (
     carved_prior,
     cut_free_space,
     fit_gpis,
-    zero_level_surface,
 )
 from ..shape.gpis_evidence import contact_evidence, fit_superquadrics
 from ..shape.gpis_incremental import fit_gpis_incremental
@@ -27,6 +26,7 @@ from ..shape.gpis_prior import (
     refuted_fit,
 )
 from ..shape.gpis_variance import lattice_low, lattice_variance
+from ..shape.level_set import zero_level_surface
 from ..transforms import transform_points
 from .context import Part
 from .fields import PosedSDF, thin_points

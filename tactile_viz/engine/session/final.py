@@ -11,9 +11,10 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..shape.gpis import box_closure, cut_free_space, zero_level_surface
+from ..shape.gpis import cut_free_space
 from ..shape.gpis_evidence import fit_superquadrics
 from ..shape.gpis_prior import free_space_cut, joined_cut
+from ..shape.level_set import box_closure, zero_level_surface
 from ..shape.metrics import wall_thickness
 from ..transforms import transform_points
 from .refuted import open_estimate

@@ -6,8 +6,9 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ..errors import SessionError
-from ..shape.gpis import ThinPlateKernel, held_out_errors, zero_level_surface
+from ..shape.gpis import ThinPlateKernel, held_out_errors
 from ..shape.gpis_variance import lattice_low
+from ..shape.level_set import zero_level_surface
 from ..shape.objects import ObjectModel
 from ..shape.sdf import ExactDistance
 from .final import own_box

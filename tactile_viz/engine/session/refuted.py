@@ -4,7 +4,7 @@ surface's support share.
 
 Near a given-up target or a missed probe's path, probing again cannot teach anything: the
 vertices within ``contact_spacing`` of one are left out, and where a GPIS estimate closes
-at its box (:func:`~..shape.gpis.box_closure`) far from every contact, as far as the carve
+at its box (:func:`~..shape.level_set.box_closure`) far from every contact, as far as the carve
 reaches.
 """
 
@@ -30,7 +30,7 @@ def open_vertices(vertices, state, radius, all_refuted=True):
 def open_estimate(vertices, closure, state, p, contacts):
     """Mask of a GPIS estimate's ``vertices`` still to visit (:func:`open_vertices`
     within ``contact_spacing``), and of those where it closes at its box (``closure``,
-    :func:`~..shape.gpis.box_closure`) farther than ``eps`` from every contact, only the
+    :func:`~..shape.level_set.box_closure`) farther than ``eps`` from every contact, only the
     ones farther than the carve's reach (``gpis_carve_radius``) from every refuted point
     (beyond the paper). A thin-plate fit's solid can reach the box far from every contact:
     an 8 cm cup's estimate against a mug prior closed 260 vertices at its box, and 100

@@ -28,7 +28,7 @@ def refuted_vertices(vertices, refuted, contacts, spacing, reach, closure=None,
                      cap_reach=0.0):
     """Mask of the ``vertices`` that misses refute: within ``spacing`` of a ``refuted``
     point, or those of ``closure`` (where the surface closes at its box,
-    :func:`~..shape.gpis.box_closure`) within ``cap_reach`` of one, and farther than
+    :func:`~..shape.level_set.box_closure`) within ``cap_reach`` of one, and farther than
     ``reach`` from every contact (the stop's view, :func:`~.refuted.open_estimate`).
 
     Parameters

@@ -7,8 +7,8 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..shape.gpis import box_closure
 from ..shape.gpis_variance import lattice_low
+from ..shape.level_set import box_closure
 
 HYPOTHESES = 4  # poses after the MAP in each snapshot (the viewer's belief ghosts)
 
@@ -206,7 +206,7 @@ class Reconstruction:
     @cached_property
     def closure(self):
         """Mask of the vertices where the surface closes at its box, not where the fit
-        crosses zero (:func:`~..shape.gpis.box_closure`), (v,) bool (none without
+        crosses zero (:func:`~..shape.level_set.box_closure`), (v,) bool (none without
         ``bounds``)."""
         if self.bounds is None or self.empty:
             return np.zeros(len(self.vertices), bool)

@@ -8,7 +8,8 @@ as far as the noise allows.
 import numpy as np
 import pytest
 
-from tactile_viz.engine.shape.gpis import fit_gpis, zero_level_surface
+from tactile_viz.engine.shape.gpis import fit_gpis
+from tactile_viz.engine.shape.level_set import zero_level_surface
 from tactile_viz.engine.shape.metrics import surface_samples
 
 NOISES = [1e-12, 1e-8, 1e-4, 1e-2, 1.0]

@@ -11,7 +11,6 @@ from tactile_viz.engine.shape.gpis import (
     WendlandKernel,
     _inverse_from_cholesky,
     _pair_terms,
-    box_closure,
     carved_prior,
     cut_free_space,
     fit_gpis,
@@ -21,9 +20,9 @@ from tactile_viz.engine.shape.gpis import (
     stable_cholesky,
     value_correction,
     value_rows,
-    zero_level_surface,
 )
 from tactile_viz.engine.shape.gpis_prior import CUT_TIE, REFUTE_MOST, joined_cut, refuted_fit
+from tactile_viz.engine.shape.level_set import box_closure, zero_level_surface
 from tactile_viz.engine.shape.metrics import directed_hausdorff, surface_samples
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tactile_viz.engine.presets import session_preset
-from tactile_viz.engine.shape.gpis import filled_voids
 from tactile_viz.engine.shape.gpis_prior import contact_balls, filled_prior
+from tactile_viz.engine.shape.level_set import filled_voids
 
 
 def _sphere_contacts(count, radius=1.0, rng=0):

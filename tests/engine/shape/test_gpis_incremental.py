@@ -16,7 +16,6 @@ from tactile_viz.engine.shape.gpis import (
     fit_gpis,
     kernel_blocks,
     value_correction,
-    zero_level_surface,
 )
 from tactile_viz.engine.shape.gpis_incremental import (
     cached_factor,
@@ -27,6 +26,7 @@ from tactile_viz.engine.shape.gpis_incremental import (
     scale_score,
 )
 from tactile_viz.engine.shape.gpis_variance import lattice_low, lattice_variance
+from tactile_viz.engine.shape.level_set import zero_level_surface
 from tactile_viz.engine.shape.metrics import surface_samples
 
 
