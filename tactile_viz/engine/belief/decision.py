@@ -37,7 +37,7 @@ are one. Their fit posterior is Gaussian in the refined residuals with one noise
 ``s^2 = max(RSS_best / (n - 6), floor^2 + e^2)``: the residual scatter of the best fit (six
 pose parameters spent), at least the sensor's position noise and ``decision_floor`` in
 quadrature (``floor``) with the MAP grid's own error at its surface (``e``,
-:func:`grid_error`)::
+:func:`~.fit_test.grid_error`)::
 
     log p_k = -(RSS_k - RSS_best) / (2 s^2) - N_k   (normalised over the hypotheses)
 
@@ -53,14 +53,15 @@ expected to take the most posterior mass from the others.
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.special import chdtrc, gammaincinv, ndtri
+from scipy.special import ndtri
 
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
+from .fit_test import fit_limit, fit_test, model_floor2
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
-from .mesh_fit import NO_FITS, mesh_misfit, weighed_on_meshes
+from .mesh_fit import NO_FITS, weighed_on_meshes
 from .modes import distinct, mode_tolerance, pose_disagreements, surface_disagreement
 from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses, surface_uncertainty
@@ -73,7 +74,6 @@ TOP_PARTICLES = 64  # the heaviest particles searched for other pose modes
 OTHER_CLASSES = 4  # classes besides the MAP's whose heaviest particle is a rival
 HELD_CLASSES = 8  # up to this many, those the filter holds at least PLAUSIBLE of
 OTHER_MODES = 3  # pose modes of the MAP's class besides its own
-GRID_ERROR_PERCENTILE = 95
 PLAUSIBLE = 1e-3  # fit posterior above which a rival is aimed at
 MAX_RIVALS = 8  # the most plausible rivals aimed at and carried to the next step
 REFINE_TOLERANCE = 1e-4  # a hypothesis's fit ends once a step gains less than this share
@@ -417,30 +417,6 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                     float(np.sqrt(scale2)), modes, fit_p, memory, lead)
 
 
-def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
-    """Whether the lead fits within the noise, ``(fits, fit_p, limit)``: its squares on
-    the grid within ``limit`` (:func:`fit_limit`), else on its mesh within the chi-squared
-    quantile of ``confidence`` (:func:`~.mesh_fit.mesh_misfit`); ``fit_p`` the better
-    p-value of the two when it fails (1 when it fits).
-
-    A rival never sampled cannot be weighed, but a MAP in a wrong mode leaves residuals
-    beyond the noise. A round shape's detail is not granted (a smooth ball fitted a bumpy
-    one within it; its turns are searched all round, round_turns). The grid errs most in
-    thin parts, where noisy readings lie: where it fails, the mesh is asked."""
-    dof = len(pf.contact_positions) - POSE_PARAMETERS
-    limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
-    if dof <= 0 or lead.misfit <= limit:
-        return dof > 0, 1.0, limit
-    quantile = chi2_quantile(confidence, dof)
-    mesh2 = max(floor**2 + pf.models[lead.class_index].shape_error ** 2, 1e-300)
-    on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
-                          oriented, tolerance)
-    if on_mesh <= quantile * mesh2:
-        return True, 1.0, limit
-    grid2 = limit / max(quantile, 1e-300)
-    return False, float(max(chdtrc(dof, lead.misfit / grid2),
-                            chdtrc(dof, on_mesh / mesh2))), limit
-
 
 def _flipped(pf, poses):
     """:func:`~.round_turns.flips` of each ``(class, rotation, translation)`` (None
@@ -459,28 +435,7 @@ def _starts_at(hypothesis, classes, rotations, translations):
                        & np.all(translations[mine] == hypothesis.translation, axis=1)))
 
 
-def chi2_quantile(q, dof):
-    """``scipy.stats.chi2.ppf(q, dof)`` to the bit, from :mod:`scipy.special` (as
-    ``chdtrc`` is its ``sf`` and ``ndtri`` the normal's ``ppf``): importing
-    :mod:`scipy.stats` was a third of the engine's import."""
-    return 2.0 * gammaincinv(dof / 2, q)
 
-
-def model_floor2(pf, class_index, floor):
-    """The squared noise scale a right hypothesis of a class leaves at least (squared
-    scene units): the sensor's ``floor``, the grid's own error and a learned shape's
-    ``shape_error``, in quadrature."""
-    return (floor**2 + grid_error(pf.bank, class_index) ** 2
-            + pf.models[class_index].shape_error ** 2)
-
-
-def fit_limit(pf, class_index, floor, confidence, dof):
-    """The largest sum of squared residuals a right hypothesis of a class passes at
-    ``confidence`` (chi-squared with ``dof`` degrees of freedom; 0 without any): its
-    :func:`model_floor2`."""
-    if dof <= 0:
-        return 0.0
-    return chi2_quantile(confidence, dof) * max(model_floor2(pf, class_index, floor), 1e-300)
 
 
 def _open_modes(bank, hypotheses, lead, limit, tolerance, turned=np.inf):
@@ -590,11 +545,3 @@ def _apart(bank, particles, a, b, tolerance):
     return surface_disagreement(bank, particles.classes[a], particles.rotations[[a, b]],
                                 particles.translations[[a, b]]) > tolerance
 
-
-def grid_error(bank, class_index):
-    """How far a perfect touch can seem off a class's surface, scene units: the 95th
-    percentile of its grid's signed distance at its own feature points, which lie on the
-    surface (largest for a thin blade in coarse cells; touches gather where the grid errs
-    most, on edges and thin parts, so an RMS understates it)."""
-    values, _ = bank.evaluate(np.array([class_index]), bank.points[class_index][None])
-    return float(np.percentile(np.abs(values), GRID_ERROR_PERCENTILE))

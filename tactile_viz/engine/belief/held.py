@@ -12,7 +12,8 @@ chi-squared test of its residuals at ``confidence``, and the filter still puts t
 
 import numpy as np
 
-from .decision import Decision, Hypothesis, fit_limit, model_floor2
+from .decision import Decision, Hypothesis
+from .fit_test import fit_limit, model_floor2
 from .oriented import oriented_evaluator
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .posed import posed_by_normals

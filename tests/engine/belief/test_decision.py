@@ -630,7 +630,7 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     """Exact touches of the cylinder, and the grid's error not allowed: the grid's
     interpolation of the curved side fails the chi-squared test, the mesh passes it; a
     mesh that does not fit either leaves it undecided."""
-    from tactile_viz.engine.belief import decision as module
+    from tactile_viz.engine.belief import fit_test as module
 
     pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
     monkeypatch.setattr(module, "grid_error", lambda bank, class_index: 0.0)
@@ -862,7 +862,7 @@ def test_the_chi2_quantile_is_scipy_stats_own():
     scipy.stats), from one degree of freedom to thousands, at every confidence."""
     from scipy.stats import chi2
 
-    from tactile_viz.engine.belief.decision import chi2_quantile
+    from tactile_viz.engine.belief.fit_test import chi2_quantile
 
     for dof in (1, 2, 7, 94, 3000):
         for confidence in (0.5, 0.9, 0.99, 0.999999):
@@ -937,7 +937,7 @@ def test_a_smooth_ball_is_no_bumpy_ball_at_its_fit(tmp_path):
     ball lie about the bumps' depth (2% of the radius) off a bumpy ball of the same size,
     and the decision's fit test refuses the bumpy ball (granted, it passed); the bumpy
     ball's own touches fit it at its true pose."""
-    from tactile_viz.engine.belief.decision import fit_limit
+    from tactile_viz.engine.belief.fit_test import fit_limit
     from tactile_viz.engine.belief.mesh_fit import mesh_misfit
     from tactile_viz.engine.io.cache import ArrayCache
 

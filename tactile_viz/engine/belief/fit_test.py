@@ -1,0 +1,71 @@
+"""Whether a hypothesis fits its contacts within the noise (beyond the paper): the
+chi-squared test the decision asks of its lead, and the noise a right hypothesis leaves
+(the sensor's, the contact's localisation, the grid's own error and a learned shape's own
+error, in quadrature).
+"""
+
+import numpy as np
+from scipy.special import chdtrc, gammaincinv
+
+from .mesh_fit import mesh_misfit
+from .pose_refinement import POSE_PARAMETERS
+
+GRID_ERROR_PERCENTILE = 95
+
+
+def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
+    """Whether the lead fits within the noise, ``(fits, fit_p, limit)``: its squares on
+    the grid within ``limit`` (:func:`fit_limit`), else on its mesh within the chi-squared
+    quantile of ``confidence`` (:func:`~.mesh_fit.mesh_misfit`); ``fit_p`` the better
+    p-value of the two when it fails (1 when it fits).
+
+    A rival never sampled cannot be weighed, but a MAP in a wrong mode leaves residuals
+    beyond the noise. A round shape's detail is not granted (a smooth ball fitted a bumpy
+    one within it; its turns are searched all round, round_turns). The grid errs most in
+    thin parts, where noisy readings lie: where it fails, the mesh is asked."""
+    dof = len(pf.contact_positions) - POSE_PARAMETERS
+    limit = fit_limit(pf, lead.class_index, floor, confidence, dof)
+    if dof <= 0 or lead.misfit <= limit:
+        return dof > 0, 1.0, limit
+    quantile = chi2_quantile(confidence, dof)
+    mesh2 = max(floor**2 + pf.models[lead.class_index].shape_error ** 2, 1e-300)
+    on_mesh = mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation, outside,
+                          oriented, tolerance)
+    if on_mesh <= quantile * mesh2:
+        return True, 1.0, limit
+    grid2 = limit / max(quantile, 1e-300)
+    return False, float(max(chdtrc(dof, lead.misfit / grid2),
+                            chdtrc(dof, on_mesh / mesh2))), limit
+
+
+def chi2_quantile(q, dof):
+    """``scipy.stats.chi2.ppf(q, dof)`` to the bit, from :mod:`scipy.special` (as
+    ``chdtrc`` is its ``sf`` and ``ndtri`` the normal's ``ppf``): importing
+    :mod:`scipy.stats` was a third of the engine's import."""
+    return 2.0 * gammaincinv(dof / 2, q)
+
+
+def model_floor2(pf, class_index, floor):
+    """The squared noise scale a right hypothesis of a class leaves at least (squared
+    scene units): the sensor's ``floor``, the grid's own error and a learned shape's
+    ``shape_error``, in quadrature."""
+    return (floor**2 + grid_error(pf.bank, class_index) ** 2
+            + pf.models[class_index].shape_error ** 2)
+
+
+def fit_limit(pf, class_index, floor, confidence, dof):
+    """The largest sum of squared residuals a right hypothesis of a class passes at
+    ``confidence`` (chi-squared with ``dof`` degrees of freedom; 0 without any): its
+    :func:`model_floor2`."""
+    if dof <= 0:
+        return 0.0
+    return chi2_quantile(confidence, dof) * max(model_floor2(pf, class_index, floor), 1e-300)
+
+
+def grid_error(bank, class_index):
+    """How far a perfect touch can seem off a class's surface, scene units: the 95th
+    percentile of its grid's signed distance at its own feature points, which lie on the
+    surface (largest for a thin blade in coarse cells; touches gather where the grid errs
+    most, on edges and thin parts, so an RMS understates it)."""
+    values, _ = bank.evaluate(np.array([class_index]), bank.points[class_index][None])
+    return float(np.percentile(np.abs(values), GRID_ERROR_PERCENTILE))
