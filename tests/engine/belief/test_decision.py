@@ -857,6 +857,54 @@ def test_a_step_the_papers_test_judges_novel_keeps_the_misfit_count(shapes, monk
     assert novel[0] < flipped[0]
 
 
+def test_a_long_misfit_is_held_between_assessments(shapes, monkeypatch):
+    """Once a known MAP has misfitted ``MISFIT_HOLD`` steps in a row, its fit is asked
+    again only every ``MISFIT_EVERY`` steps (a look-alike's searches were most of its
+    session's time); the object stays novel in between, each decision is still given what
+    the last one weighed (after a step the paper's test judges novel, which carries
+    nothing, the next is assessed), and a fit at an assessment ends the misfit."""
+    from tactile_viz.engine.session import planner
+
+    asked, fits_from = {}, 40
+
+    def misfitting(pf, belief, *args, **kwargs):
+        asked[pf.step_count] = kwargs["carried"]
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        fit_p = 0.5 if pf.step_count >= fits_from else 1e-9
+        return Decision(False, 1.0, (first,), fit_p == 0.5, fit_p=fit_p)
+
+    monkeypatch.setattr(planner, "decide", misfitting)
+    params = session_preset("recommended", decision_cover=12.0, misfit_novelty=1e-6)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
+    update, flipped = session.filter.update, fits_from - 5
+
+    def flipping(observations):  # the paper's test judges one held step novel
+        belief = update(observations)
+        if session.filter.step_count == flipped:
+            return dataclasses.replace(belief, novel=True)
+        return belief
+
+    monkeypatch.setattr(session.filter, "update", flipping)
+    counts = []
+    while len(session.snapshots) < fits_from + 2 * planner.MISFIT_EVERY:
+        counts.append(session.state.misfit_steps)
+        session.step()
+    steps = [s.step for s in session.snapshots]
+    held = [t for t, count in zip(steps, counts)
+            if count >= planner.MISFIT_HOLD and t < fits_from]
+    assert len(held) >= 2 * planner.MISFIT_EVERY
+    assessed = [t for t in held if t in asked]
+    assert 1 <= len(assessed) <= len(held) / 2
+    novel = {s.step: s.novel for s in session.snapshots}
+    assert all(novel[t] for t in held)
+    assert flipped + 1 in assessed  # nothing carried through a novel step: assessed
+    assert all(len(asked[t]) == 1 for t in assessed if t != flipped + 1)  # carried on
+    known = [t for t in steps if t >= fits_from and not novel[t]]
+    assert known and known[0] <= fits_from + planner.MISFIT_EVERY
+
+
 def test_the_chi2_quantile_is_scipy_stats_own():
     """The decision's quantile is scipy.stats's chi2.ppf to the bit (without importing
     scipy.stats), from one degree of freedom to thousands, at every confidence."""
