@@ -538,8 +538,11 @@ class Session:
             decision = planner.decide(belief)
         misfit, self.state.misfit_steps = planner.misfits(belief, decision)
         # What the decision weighed is carried to the next step's, misfit or not (a
-        # misfit is assessed again at every step: afresh, it refined three poses in full).
-        self.state.hypotheses, self.state.decision_refined = decision.carried, decision.refined
+        # misfit is assessed again at every step: afresh, it refined three poses in full),
+        # and through a step the paper's test judges novel while the misfit count runs.
+        if not (belief.novel and self.state.misfit_steps):
+            self.state.hypotheses = decision.carried
+            self.state.decision_refined = decision.refined
         if misfit:                                                # beyond the paper
             belief, decision = replace(belief, novel=True), UNDECIDED
             self._use_lengths(model, novel=True)
