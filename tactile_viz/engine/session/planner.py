@@ -199,9 +199,9 @@ class Planner(Part):
 
     def _misfit_held(self, belief):
         """Whether the step holds the misfit it would assess: the MAP class of the last
-        step has misfitted for :data:`MISFIT_HOLD` steps in a row or more, what its
-        decision weighed is carried (a step the paper's test judges novel carries
-        nothing), and the step is not one of every :data:`MISFIT_EVERY`. A misfitting
+        step has misfitted for :data:`MISFIT_HOLD` steps in a row or more, what the last
+        decision weighed is carried (with nothing carried the step is assessed), and the
+        step is not one of every :data:`MISFIT_EVERY`. A misfitting
         look-alike's decision searches every step's poses afresh: an 8 cm cup judged novel
         against a 10 cm mug at 2 mm noise spent 60 s of its 106 s deciding, 0.45 s each
         fourth touch."""
@@ -217,8 +217,9 @@ class Planner(Part):
         failing it. The paper's test passes a look-alike of equal size that misfits by a
         few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
         decision's test asks for the sensor's noise. A step the paper's test judges novel
-        keeps the count (nothing is assessed there): a misfitting look-alike whose paper
-        test flips now and then stays novel instead of counting its five steps afresh.
+        keeps the count and what the last decision weighed (nothing is assessed there): a
+        misfitting look-alike whose paper test flips now and then stays novel instead of
+        counting its five steps afresh.
 
         Returns
         -------
