@@ -417,7 +417,6 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                     float(np.sqrt(scale2)), modes, fit_p, memory, lead)
 
 
-
 def _flipped(pf, poses):
     """:func:`~.round_turns.flips` of each ``(class, rotation, translation)`` (None
     skipped): classes (k,), rotations (k, 3, 3), translations (k, 3)."""
@@ -433,9 +432,6 @@ def _starts_at(hypothesis, classes, rotations, translations):
     mine = np.flatnonzero(classes == hypothesis.class_index)
     return bool(np.any(np.all(rotations[mine] == hypothesis.rotation, axis=(1, 2))
                        & np.all(translations[mine] == hypothesis.translation, axis=1)))
-
-
-
 
 
 def _open_modes(bank, hypotheses, lead, limit, tolerance, turned=np.inf):
