@@ -537,9 +537,9 @@ class Session:
         with _timed(timings, "decision"):                         # beyond the paper
             decision = planner.decide(belief)
         misfit, self.state.misfit_steps = planner.misfits(belief, decision)
-        # What the decision weighed is carried to the next step's, misfit or not (a
-        # misfit is assessed again at every step: afresh, it refined three poses in full),
-        # and through a step the paper's test judges novel while the misfit count runs.
+        # What the decision weighed is carried to the next step's, misfit or not (afresh, a
+        # misfit's assessment refined three poses in full), and through a step the
+        # paper's test judges novel while the misfit count runs.
         if not (belief.novel and self.state.misfit_steps):
             self.state.hypotheses = decision.carried
             self.state.decision_refined = decision.refined

@@ -171,7 +171,8 @@ class Planner(Part):
     def decide(self, belief):
         """The step's :class:`~..decision.Decision` (beyond the paper; not assessed while
         the object is judged novel); while the MAP keeps misfitting (the misfit count runs)
-        searched first on a spread of the contacts (``decision_contacts``)."""
+        searched first on a spread of the contacts (``decision_contacts``), and once it
+        has misfitted long, held between assessments (:meth:`_misfit_held`)."""
         if belief.novel:
             return UNDECIDED
         if self._misfit_held(belief):
