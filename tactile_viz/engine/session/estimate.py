@@ -114,7 +114,8 @@ class Estimator(FinalSurface, Part):
         next :class:`~.state.GpisState` and the key of the prior mean it started from."""
         p = self.p
         free = self.filter.noncontact_positions, self.state.free_space
-        shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts))
+        shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts),
+                                    faces=self.sensor_noise[0] > 0)
                   if p.gpis_agnostic else [])
         keys = [("pose", k) for k in range(len(poses))] + [
             ("shape", shape.roundness) for shape in shapes]

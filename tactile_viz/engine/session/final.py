@@ -270,7 +270,8 @@ class FinalSurface:
         model, rotation, translation = step_prior
         own = getattr(self.state.gpis.shape, "roundness", None)
         for shape in fit_superquadrics(contacts, f.contact_normals,
-                                       self._least_radius(contacts)):
+                                       self._least_radius(contacts),
+                                       faces=self.sensor_noise[0] > 0):
             if shape.roundness == own:
                 continue  # the step's own
             low, high, kernel = self.gpis_box(None, contacts, shape)

@@ -10,6 +10,7 @@ from tactile_viz.engine.session import Session, make_truth, session_preset
 from tactile_viz.engine.shape.gpis import ThinPlateKernel, fit_gpis
 from tactile_viz.engine.shape.gpis_evidence import (
     Superquadric,
+    box_faces,
     contact_evidence,
     fit_superquadrics,
 )
@@ -87,6 +88,26 @@ def test_a_boxs_contacts_fit_the_sharp_superquadric_best():
     corner, _ = shapes[2](np.array([[0.9, 1.35, 1.8]]))
     assert corner[0] < 0  # inside, where the ellipsoid leaves the corner out
     assert shapes[0](np.array([[0.9, 1.35, 1.8]]))[0][0] > 0
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_noisy_cube_gives_a_box_where_its_faces_contacts_lie(scale):
+    # A 2-unit cube touched with noise a tenth of its size (a 2 cm die at 2 mm): the least
+    # squares of the radii's powers are pulled outward; the faces' medians are not.
+    rng = np.random.default_rng(4)
+    mesh = trimesh.creation.box((2.0 * scale,) * 3)
+    points, normals = _surface_samples(mesh, 150)
+    points = points + rng.normal(0.0, 0.2 * scale, size=points.shape)
+    shapes = fit_superquadrics(points, normals, 0.05 * scale, faces=True)
+    np.testing.assert_allclose(shapes[2].radii, scale, rtol=0.05)
+    np.testing.assert_allclose(shapes[2].centre, 0.0, atol=0.05 * scale)
+    assert shapes[0].radii.min() > 1.1 * scale  # the ellipsoid keeps its least squares
+    least_squares = fit_superquadrics(points, normals, 0.05 * scale)[2]
+    assert least_squares.radii.min() > 1.1 * scale  # without faces, as a noiseless sensor
+    # Inside a cup (normals toward its axis, as a box's would not be) no face is moved.
+    inner = -normals[np.abs(normals[:, 2]) < 0.5]
+    assert box_faces(shapes[2], 0.5 * points[np.abs(normals[:, 2]) < 0.5], inner,
+                     0.05 * scale, 10 * scale).radii == pytest.approx(shapes[2].radii)
 
 
 def _ball(points, radius=1.0):
