@@ -167,8 +167,8 @@ def box_faces(shape, points, normals, min_radius, max_radii):
 def _closer(first, second, points):
     """Of two superquadrics, the one whose values at the contacts ``points`` have the
     smaller mean square (the first on a tie)."""
-    rms = [float(np.mean(shape(points)[0] ** 2)) for shape in (first, second)]
-    return second if rms[1] < rms[0] else first
+    squares = [float(np.mean(shape(points)[0] ** 2)) for shape in (first, second)]
+    return second if squares[1] < squares[0] else first
 
 
 def one_per_place(points, normals, cell):
