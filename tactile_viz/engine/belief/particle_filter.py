@@ -18,8 +18,6 @@ Particles are static hypotheses ``z = (class, object_to_world)``. Each step:
 """
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from ..errors import ParameterError
 from ..explore.observations import observation_arrays
@@ -37,7 +35,7 @@ from .likelihood import (
 )
 from .novelty import contact_test
 from .particles import FilterState, Particles
-from .pose_refinement import refine_poses
+from .pose_refinement import least_squares_pose, refine_poses
 from .ppf import is_degenerate, local_frames, pair_features, rotation_about_x
 from .prior_bank import PriorBank, bank_for, kept_recent, release_freed_memory
 from .resampling import merge_close_poses, stochastic_universal_resampling  # noqa: F401
@@ -414,31 +412,14 @@ class ParticleFilter:
         is none). The particle is replaced, not copied: a copy would count its weight twice."""
         particle = self.particles.take([index])
         evidence_before = self.log_evidence_of(particle)[0]
-        c = particle.classes[:1]
-        rotation0, translation0 = particle.rotations[0], particle.translations[0]
-        centre = self.contact_positions.mean(axis=0)
-        p, n, q = self.contact_positions, self.contact_normals, self.noncontact_positions
-        sd, sn = self.params.sigma_d, self.params.sigma_n
-
-        def pose(x):
-            turn = Rotation.from_rotvec(x[:3]).as_matrix()
-            return turn @ rotation0, turn @ (translation0 - centre) + centre + x[3:]
-
-        def residuals(x):
-            rotation, translation = pose(x)
-            values, gradients = self.bank.evaluate(c, ((np.vstack([p, q]) - translation)
-                                                       @ rotation)[None])
-            values, gradients = values[0], gradients[0]
-            normal_error = gradients[:len(p)] - n @ rotation
-            outside = np.minimum(values[len(p):] - self.scene.tip_radius, 0.0)
-            return np.concatenate([values[:len(p)] / sd, normal_error.ravel() / sn, outside / sd])
-
         try:
-            result = least_squares(residuals, np.zeros(6), method="trf",
-                                   max_nfev=self.params.refine_iterations * 7, x_scale=0.1)
+            rotation, translation = least_squares_pose(
+                self.bank.evaluate, int(particle.classes[0]), particle.rotations[0],
+                particle.translations[0], self.contact_positions, self.contact_normals,
+                self.noncontact_positions, self.params.sigma_d, self.params.sigma_n,
+                self.scene.tip_radius, self.params.refine_iterations * 7)
         except (ValueError, np.linalg.LinAlgError):
             return
-        rotation, translation = pose(result.x)
         refined = Particles(particle.classes, rotation[None], translation[None], np.zeros(1))
         evidence = self.log_evidence_of(refined)[0]
         if not evidence > evidence_before:

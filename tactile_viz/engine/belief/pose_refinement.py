@@ -404,3 +404,85 @@ def surface_uncertainty(evaluate, class_index, rotation, translation, contacts, 
     rows = np.concatenate([np.cross(world - centre, world_normals), world_normals], axis=1)
     variance = np.einsum("qi,ij,qj->q", rows, covariance, rows)
     return np.sqrt(np.maximum(variance, 0.0))
+
+
+def least_squares_pose(evaluate, class_index, rotation, translation, contacts, normals,
+                       noncontacts, sigma_d, sigma_n, clearance=0.0, evaluations=70):
+    """One pose fitted to every observation by scipy's trust-region least squares, the
+    normals' raw differences residuals too: the filter's refinement of a particle.
+
+    The residuals are the contacts' signed distances over ``sigma_d``, their grid normals
+    less the measured ones over ``sigma_n`` and the non-contacts' ``min(s(x) - r, 0)`` over
+    ``sigma_d``; the pose turns by a rotation vector about the contacts' centre and
+    shifts. The Jacobian is scipy's forward difference (the same steps and arithmetic),
+    its six poses evaluated in one call.
+
+    Parameters
+    ----------
+    evaluate : callable
+        As in :func:`refine_poses`.
+    class_index : int
+    rotation : (3, 3) float
+        Object-to-world rotation the fit starts from.
+    translation : (3,) float, world frame
+    contacts, normals : (m, 3) float, world frame
+        At least one contact and their measured outward unit normals.
+    noncontacts : (q, 3) float, world frame
+    sigma_d : float, length units
+    sigma_n : float
+        The normal residuals' scale.
+    clearance : float, length units
+        The probe tip's radius.
+    evaluations : int
+        Residual evaluations at most, the Jacobian's not counted.
+
+    Returns
+    -------
+    rotation : (3, 3) float
+    translation : (3,) float
+    """
+    from scipy.optimize import least_squares
+
+    contacts, normals = np.asarray(contacts, float), np.asarray(normals, float)
+    points = np.vstack([contacts, np.asarray(noncontacts, float).reshape(-1, 3)])
+    count, centre = len(contacts), contacts.mean(axis=0)
+
+    def pose(x):
+        turn = Rotation.from_rotvec(x[:3]).as_matrix()
+        return turn @ rotation, turn @ (translation - centre) + centre + x[3:]
+
+    def batch(steps):  # (b, 6) parameters -> (b, residuals)
+        local, facing = np.empty((len(steps),) + points.shape), []
+        for row, x in enumerate(steps):
+            turned, shifted = pose(x)
+            local[row] = (points - shifted) @ turned
+            facing.append(normals @ turned)
+        values, gradients = evaluate(np.full(len(steps), class_index), local)
+        out = []
+        for row in range(len(steps)):
+            normal_error = gradients[row, :count] - facing[row]
+            outside = np.minimum(values[row, count:] - clearance, 0.0)
+            out.append(np.concatenate([values[row, :count] / sigma_d,
+                                       normal_error.ravel() / sigma_n, outside / sigma_d]))
+        return np.array(out)
+
+    last = {}
+
+    def residuals(x):
+        last["x"], last["f"] = np.array(x), batch(np.asarray(x)[None])[0]
+        return last["f"]
+
+    def jacobian(x):
+        f0 = last["f"] if np.array_equal(last.get("x"), x) else residuals(x)
+        # scipy's 2-point step: sqrt(eps) max(1, |x|), positive at 0
+        step = _FORWARD * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        steps = np.repeat(np.asarray(x, float)[None], len(x), axis=0)
+        steps[np.arange(len(x)), np.arange(len(x))] = x + step
+        return ((batch(steps) - f0) / ((x + step) - x)[:, None]).T
+
+    result = least_squares(residuals, np.zeros(POSE_PARAMETERS), jac=jacobian, method="trf",
+                           max_nfev=evaluations, x_scale=0.1)
+    return pose(result.x)
+
+
+_FORWARD = np.finfo(float).eps ** 0.5
