@@ -25,6 +25,7 @@ edge, a turned face) says nothing of the turn.
 """
 
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..transforms import inverse_transform_points_batch
@@ -441,8 +442,6 @@ def least_squares_pose(evaluate, class_index, rotation, translation, contacts, n
     rotation : (3, 3) float
     translation : (3,) float
     """
-    from scipy.optimize import least_squares
-
     contacts, normals = np.asarray(contacts, float), np.asarray(normals, float)
     points = np.vstack([contacts, np.asarray(noncontacts, float).reshape(-1, 3)])
     count, centre = len(contacts), contacts.mean(axis=0)
