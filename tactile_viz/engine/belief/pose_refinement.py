@@ -37,6 +37,7 @@ _DAMPING = 1e-3  # initial Marquardt damping, relative to the diagonal of J^T J
 _FLOOR = 1e-12
 _FITTED = 1e-9  # a fit this far below its start is done (with a tolerance: rounding)
 NORMAL_GATE_DEG = 30.0  # three stds of the least normal noise the oriented match assumes
+_FORWARD = np.finfo(float).eps ** 0.5  # scipy's relative step of a 2-point derivative
 
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
@@ -483,5 +484,3 @@ def least_squares_pose(evaluate, class_index, rotation, translation, contacts, n
                            max_nfev=evaluations, x_scale=0.1)
     return pose(result.x)
 
-
-_FORWARD = np.finfo(float).eps ** 0.5
