@@ -15,8 +15,8 @@ from .belief import kernels
 from .shape import gpis_compiled, sdf
 
 KERNELS = (sdf._interpolate, kernels.contact_log_likelihoods, kernels.distances,
-           kernels.align, gpis_compiled._corrections, gpis_compiled._value_rows,
-           gpis_compiled._kernel_blocks)
+           kernels.align, kernels.pairs_below, gpis_compiled._corrections,
+           gpis_compiled._value_rows, gpis_compiled._kernel_blocks)
 """The compiled kernels Python calls."""
 
 HELPERS = (sdf.grid_lookup, gpis_compiled._profile, gpis_compiled._term,

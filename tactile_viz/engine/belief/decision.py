@@ -277,7 +277,7 @@ def _refined(pf, classes, rotations, translations, outside, oriented, tolerance)
         pf.bank.evaluate, classes, rotations, translations, pf.contact_positions, outside,
         pf.params.refine_iterations, trim=pf.params.outlier_probability,
         normals=pf.contact_normals, oriented=oriented, clearance=pf.scene.tip_radius,
-        support=table_support(pf), boxes=pf.bank.boxes, tolerance=tolerance)
+        support=table_support(pf), below=pf.bank.below, tolerance=tolerance)
 
 
 def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, normals,

@@ -152,14 +152,15 @@ def _refined(pf, candidates, oriented, warm):
             pf.bank.evaluate, candidates.classes, candidates.rotations, candidates.translations,
             pf.contact_positions, pf.noncontact_positions, params.refine_iterations,
             trim=params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
-            clearance=pf.scene.tip_radius), {})
+            clearance=pf.scene.tip_radius, below=pf.bank.below), {})
     keys, rotations, translations, started = warm_starts(
         candidates.classes, candidates.rotations, candidates.translations, warm)
     rotations, translations, misfit = refine_warm(
         pf.bank.evaluate, candidates.classes, rotations, translations, started,
         params.refine_iterations, params.refine_warm_iterations, pf.contact_positions,
         pf.noncontact_positions, trim=params.outlier_probability, normals=pf.contact_normals,
-        oriented=oriented, clearance=pf.scene.tip_radius)
+        oriented=oriented, clearance=pf.scene.tip_radius,
+        below=pf.bank.below)
     refined = {key: (rotations[index], translations[index]) for index, key in enumerate(keys)}
     return rotations, translations, misfit, refined
 

@@ -61,7 +61,7 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
             contacts, outside, pf.params.refine_iterations,
             trim=pf.params.outlier_probability, normals=pf.contact_normals,
             oriented=oriented, clearance=pf.scene.tip_radius, support=table_support(pf),
-            boxes=pf.bank.boxes)
+            below=pf.bank.below)
     except np.linalg.LinAlgError:
         return None
     misfit = float(misfit[0])

@@ -152,3 +152,51 @@ def align(frames, points, classes, first, second, observed_rotations, observed_t
             translations[i, row] = (rs[0, row] * shifted[0] + rs[1, row] * shifted[1]
                                     + rs[2, row] * shifted[2])
     return rotations, translations
+
+
+@njit(cache=True)
+def pairs_below(codes, gradient_codes, offsets, shapes, origins, spacings, steps, classes,
+                rotations, translations, points, low, high, level, pose, point, value,
+                gradient):
+    """The ``(hypothesis, point)`` pairs whose signed distance is below ``level``.
+
+    A point outside its hypothesis's class box ``low``-``high`` (object frame) is taken
+    to lie above ``level`` unlooked (:meth:`~.prior_bank.PriorBank.near_boxes`). The
+    pairs found are written to ``pose``, ``point`` (int), ``value`` and ``gradient``
+    (object frame, unit length), each at least ``k m`` long, in order of hypothesis then
+    point.
+
+    Returns
+    -------
+    int
+        How many pairs were written.
+    """
+    found = 0
+    for i in range(len(classes)):
+        c = classes[i]
+        r = rotations[i]
+        t = translations[i]
+        for j in range(len(points)):
+            dx, dy, dz = points[j, 0] - t[0], points[j, 1] - t[1], points[j, 2] - t[2]
+            x = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz
+            if x < low[c, 0] or x > high[c, 0]:
+                continue
+            y = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz
+            if y < low[c, 1] or y > high[c, 1]:
+                continue
+            z = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
+            if z < low[c, 2] or z > high[c, 2]:
+                continue
+            distance, gx, gy, gz = _lookup(codes, gradient_codes, offsets[c], shapes[c],
+                                           origins[c], spacings[c], steps[c], x, y, z)
+            if not distance - level < 0:
+                continue
+            norm = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if norm > _TINY:
+                gx, gy, gz = gx / norm, gy / norm, gz / norm
+            else:
+                gx, gy, gz = 0.0, 0.0, 1.0
+            pose[found], point[found], value[found] = i, j, distance
+            gradient[found, 0], gradient[found, 1], gradient[found, 2] = gx, gy, gz
+            found += 1
+    return found

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .incremental import in_mode
+from .outside import dense_below
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .support import table_support
 
@@ -58,11 +59,15 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
     """:func:`mesh_misfit` and the refined pose: ``(misfit, rotation (3, 3), translation
     (3,))``, refined in ``iterations`` steps (None: ``refine_iterations``)."""
     exact = pf.exact_distance(class_index)
-    m, clearance = len(pf.contact_positions), pf.scene.tip_radius
+    clearance = pf.scene.tip_radius
     low, high = exact.bounds
     last = {}  # the points of the last look-up and a lower bound of their distances
 
     def evaluate(classes, points):
+        distance, _, face = exact.query(points.reshape(-1, 3))
+        return distance.reshape(points.shape[:-1]), exact.face_normal(face).reshape(points.shape)
+
+    def bounded(classes, points):
         # A free-space point farther than the tip's radius from the shape has residual 0
         # (refine_poses) whatever its exact distance, so a lower bound above the radius
         # stands in for it: its distance to the mesh's box, or its distance at the last
@@ -73,7 +78,7 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
         if "points" in last and last["points"].shape == flat.shape:
             moved = np.linalg.norm(flat - last["points"], axis=1)
             bound = np.maximum(bound, last["bound"] - moved)
-        asked = (np.arange(len(flat)) % points.shape[-2] < m) | (bound <= clearance)
+        asked = bound <= clearance
         distance, normals = bound, np.zeros_like(flat)
         normals[:, 2] = 1.0
         if asked.any():
@@ -86,7 +91,8 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
         evaluate, [class_index], rotation[None], translation[None], pf.contact_positions,
         outside, pf.params.refine_iterations if iterations is None else iterations,
         trim=pf.params.outlier_probability, normals=pf.contact_normals, oriented=oriented,
-        clearance=pf.scene.tip_radius, support=table_support(pf), tolerance=tolerance)
+        clearance=pf.scene.tip_radius, support=table_support(pf), tolerance=tolerance,
+        below=dense_below(bounded))
     return float(misfit[0]), rotations[0], translations[0]
 
 

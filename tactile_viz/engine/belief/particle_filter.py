@@ -440,7 +440,7 @@ class ParticleFilter:
                 self.bank.evaluate, best.classes[:1].astype(np.int64), best.rotations[:1],
                 best.translations[:1], self.contact_positions, self.noncontact_positions,
                 self.params.refine_iterations, trim=self.params.outlier_probability,
-                clearance=self.scene.tip_radius)
+                clearance=self.scene.tip_radius, below=self.bank.below)
         except np.linalg.LinAlgError:
             return best.rotations[0], best.translations[0]
         return rotations[0], translations[0]

@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..transforms import inverse_transform_points_batch
+from .outside import dense_below, outside_terms
 from .support import support_residuals
 
 POSE_PARAMETERS = 6  # three of rotation, three of translation
@@ -42,7 +43,7 @@ _FORWARD = np.finfo(float).eps ** 0.5  # scipy's relative step of a 2-point deri
 
 def refine_poses(evaluate, classes, rotations, translations, contacts, noncontacts=None,
                  iterations=10, trim=0.0, normals=None, oriented=None, clearance=0.0,
-                 support=None, boxes=None, tolerance=0.0, normal_noise=None):
+                 support=None, below=None, tolerance=0.0, normal_noise=None):
     """Refine poses to fit the observations by Levenberg-Marquardt on the signed distance.
 
     Parameters
@@ -77,12 +78,11 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     support : Support, optional
         A table the poses rest on: the heights of the hull vertices each rests on are
         residuals too (:func:`~.support.support_residuals`).
-    boxes : ((c, 3) float, (c, 3) float), optional
-        Each class's box in its object frame, outside which ``evaluate`` is positive and
-        grows by at least the distance to it (a grid's; :attr:`~.prior_bank.PriorBank.boxes`):
-        a non-contact farther than ``clearance`` outside every pose's box costs nothing
-        and is not evaluated (the same fit; the free space of missed probes is mostly far
-        from the object).
+    below : callable, optional
+        The non-contacts' look-up of :func:`~.outside.outside_terms`: the pairs of a
+        pose and a non-contact inside the shape grown by ``clearance``
+        (:meth:`~.prior_bank.PriorBank.below`, which skips the points far off unlooked;
+        None: ``evaluate`` at every pair, :func:`~.outside.dense_below`).
     tolerance : float
         A pose's fit ends early once a step taken lowers its sum of squares by less than
         this share, or it is below ``_FITTED`` of where it began (0: every pose takes every
@@ -102,36 +102,34 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
     """
     contacts = np.asarray(contacts, dtype=float)
     noncontacts = np.zeros((0, 3)) if noncontacts is None else np.asarray(noncontacts, float)
-    points = np.vstack([contacts, noncontacts])
-    inside_only = np.arange(len(points)) >= len(contacts)
     if (oriented is not None or normal_noise is not None) and normals is None:
         raise ValueError("refine_poses: oriented or normal residuals need the contacts' "
                          "normals")
     measured = None if normals is None else np.asarray(normals, dtype=float)
-    drop = int(np.ceil(trim * len(contacts)))
+    m, drop = len(contacts), int(np.ceil(trim * len(contacts)))
     centre = contacts.mean(axis=0)
-    arm = points - centre  # a = p - c, (m + q, 3)
+    arm = contacts - centre  # a = p - c, (m, 3)
     classes = np.asarray(classes)
     rotations, translations = np.array(rotations, float), np.array(translations, float)
+    below = below or dense_below(evaluate)
     weights = None if normal_noise is None else normal_weights(
         evaluate, classes, inverse_transform_points_batch(contacts, rotations, translations),
         *normal_noise)  # at the starting poses: (k, m)
 
     def residuals(rotations, translations, which):
+        """The contacts' (and the table's and normals') residuals and Jacobian rows, and
+        the non-contacts' sums (:func:`~.outside.outside_terms`)."""
         classes_ = classes[which]
-        local = inverse_transform_points_batch(points, rotations, translations)  # R^T (p - t)
-        values, gradients = _evaluated(evaluate, classes_, local, inside_only, boxes, clearance)
+        local = inverse_transform_points_batch(contacts, rotations, translations)  # R^T (p - t)
+        values, gradients = evaluate(classes_, local)
         if oriented is not None:
-            m = len(contacts)
             facing = inverse_transform_points_batch(measured, rotations)  # R^T n
-            k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients[:, :m], facing) < 0)
+            k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients, facing) < 0)
             if len(k):
                 values[k, i], gradients[k, i] = oriented(classes_[k], local[k, i], facing[k, i])
-        if clearance:
-            values[:, len(contacts):] -= clearance
-        active = ~inside_only | (values < 0)
+        active = np.ones(values.shape, bool)
         if drop:
-            farthest = np.argsort(-np.abs(values[:, :len(contacts)]), axis=1)[:, :drop]
+            farthest = np.argsort(-np.abs(values), axis=1)[:, :drop]
             np.put_along_axis(active, farthest, False, axis=1)
         values = np.where(active, values, 0.0)
         normals = np.matmul(gradients, rotations.transpose(0, 2, 1)) * active[..., None]
@@ -144,14 +142,17 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             rows = np.pad(rows, ((0, 0), (0, pad - rows.shape[1]), (0, 0)))
             values, jacobian = np.hstack([values, heights]), np.hstack([jacobian, rows])
         if weights is not None:
-            turns, rows = normal_residuals(normals[:, :len(contacts)], measured, weights[which])
+            turns, rows = normal_residuals(normals, measured, weights[which])
             values, jacobian = np.hstack([values, turns]), np.hstack([jacobian, rows])
-        return values, jacobian
+        outside = outside_terms(below, classes_, rotations, translations, noncontacts,
+                                centre, clearance)
+        return values, jacobian, outside
 
     # The normals' rows are the last 3 m: the misfit returned is the rest's.
-    counted = slice(None, -3 * len(contacts) if weights is not None else None)
-    values, jacobian = residuals(rotations, translations, np.arange(len(classes)))
-    cost = np.square(values).sum(axis=1)
+    counted = slice(None, -3 * m if weights is not None else None)
+    values, jacobian, (free, free_normal, free_gradient) = residuals(
+        rotations, translations, np.arange(len(classes)))
+    cost = np.square(values).sum(axis=1) + free
     damping = np.full(len(classes), _DAMPING)
     fitting = np.arange(len(classes))  # the poses still refined
     first, done = cost.copy(), np.zeros(len(classes), bool)
@@ -162,17 +163,18 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
                 break
         k = fitting
         transposed = jacobian[k].transpose(0, 2, 1)
-        normal = np.matmul(transposed, jacobian[k])  # J^T J
+        normal = np.matmul(transposed, jacobian[k]) + free_normal[k]  # J^T J
         diagonal = np.einsum("kii->ki", normal)
         diagonal = diagonal + _FLOOR * diagonal.max(axis=1, keepdims=True) + np.finfo(float).tiny
         lhs = normal + (damping[k][:, None] * diagonal)[:, :, None] * np.eye(6)
-        step = np.linalg.solve(lhs, -np.matmul(transposed, values[k][..., None]))[..., 0]
+        rhs = np.matmul(transposed, values[k][..., None])[..., 0] + free_gradient[k]  # J^T r
+        step = np.linalg.solve(lhs, -rhs[..., None])[..., 0]
         turn = Rotation.from_rotvec(step[:, :3]).as_matrix()
         new_rotations = turn @ rotations[k]
         new_translations = (np.einsum("kij,kj->ki", turn, translations[k] - centre) + centre
                             + step[:, 3:])
-        new_values, new_jacobian = residuals(new_rotations, new_translations, k)
-        new_cost = np.square(new_values).sum(axis=1)
+        new_values, new_jacobian, new_free = residuals(new_rotations, new_translations, k)
+        new_cost = np.square(new_values).sum(axis=1) + new_free[0]
         better = new_cost < cost[k]
         # A step taken that gains less than the tolerance ends a pose's fit.
         done[k] = better & (new_cost >= cost[k] * (1 - tolerance))
@@ -180,8 +182,9 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
         rotations[b], translations[b] = new_rotations[better], new_translations[better]
         values[b], jacobian[b], cost[b] = (new_values[better], new_jacobian[better],
                                            new_cost[better])
+        free[b], free_normal[b], free_gradient[b] = (part[better] for part in new_free)
         damping[k] = np.where(better, damping[k] / 3, damping[k] * 10)
-    return rotations, translations, np.square(values[:, counted]).sum(axis=1)
+    return rotations, translations, np.square(values[:, counted]).sum(axis=1) + free
 
 
 def normal_weights(evaluate, classes, local, scale, sigma):
@@ -255,26 +258,6 @@ def normal_residuals(posed, measured, weight):
     k, m = gate.shape
     jacobian = np.concatenate([turn, np.zeros_like(turn)], axis=3)  # (k, m, 3, 6)
     return values.reshape(k, 3 * m), jacobian.reshape(k, 3 * m, 6)
-
-
-def _evaluated(evaluate, classes, local, inside_only, boxes, clearance):
-    """``evaluate(classes, local)``, with each pose's non-contacts outside its class's box
-    by more than ``clearance`` left out: value ``inf``, gradient 0 (``refine_poses``
-    leaves them out of the fit, as it would their positive distances)."""
-    if boxes is None or not inside_only.any():
-        return evaluate(classes, local)
-    outside = local[:, inside_only]
-    low, high = boxes[0][classes][:, None], boxes[1][classes][:, None]
-    gap = np.linalg.norm(np.maximum(np.maximum(low - outside, outside - high), 0.0), axis=2)
-    pose, point = np.nonzero(gap <= clearance)
-    values = np.full(local.shape[:2], np.inf)
-    gradients = np.zeros(local.shape)
-    values[:, ~inside_only], gradients[:, ~inside_only] = evaluate(classes, local[:, ~inside_only])
-    if len(pose):
-        column = np.flatnonzero(inside_only)[point]
-        near, slopes = evaluate(classes[pose], local[pose, column][:, None])
-        values[pose, column], gradients[pose, column] = near[:, 0], slopes[:, 0]
-    return values, gradients
 
 
 def warm_starts(classes, rotations, translations, warm):

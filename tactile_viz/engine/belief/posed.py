@@ -31,7 +31,7 @@ def posed_by_normals(pf, lead, outside, oriented, tolerance=0.0):
             lead.translation[None], pf.contact_positions, outside,
             pf.params.refine_iterations, trim=pf.params.outlier_probability,
             normals=pf.contact_normals, oriented=oriented, clearance=pf.scene.tip_radius,
-            support=table_support(pf), boxes=pf.bank.boxes, tolerance=tolerance,
+            support=table_support(pf), below=pf.bank.below, tolerance=tolerance,
             normal_noise=oriented.fit_noise)
     except np.linalg.LinAlgError:
         return lead

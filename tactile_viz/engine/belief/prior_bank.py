@@ -20,6 +20,7 @@ import numpy as np
 
 from ..shape.sdf import SDFGrid, interpolate
 from ..shape.sdf_build import grid_layout
+from .kernels import pairs_below
 from .ppf import PairTable, rotation_to_x
 
 
@@ -127,6 +128,67 @@ class PriorBank:
         distance to it: :func:`~tactile_viz.engine.shape.sdf.interpolate`)."""
         low = np.asarray(self.origins, float)
         return low, low + (np.asarray(self.shapes) - 1) * np.asarray(self.spacings, float)[:, None]
+
+    def near_boxes(self, level=0.0):
+        """Each class's box about the nodes whose value is at most ``level`` (scene units),
+        object frame, outside which its value exceeds ``level``: ``low (c, 3)``,
+        ``high (c, 3)``.
+
+        Inside the grid a point's value is a convex combination of its cell's eight nodes,
+        so a point one spacing beyond every such node lies above ``level`` (the nodes are
+        taken one value code above it, against rounding); outside it, the value at the
+        nearest grid point plus the distance to it. Cached by ``level``.
+        """
+        cache = self.__dict__.setdefault("_near_boxes", {})
+        if level not in cache:
+            low, high = np.array(self.boxes[0]), np.array(self.boxes[1])
+            for c in range(len(self)):
+                grid = self.grid(c)
+                below = grid.codes <= level / grid.value_step + 1
+                spans = [np.flatnonzero(below.any(axis=tuple({0, 1, 2} - {axis})))
+                         for axis in range(3)]
+                if not len(spans[0]):
+                    continue
+                first, last = np.array([[s[0], s[-1]] for s in spans]).T
+                if first.min() > 0 and (last < np.array(below.shape) - 1).all():
+                    low[c] = grid.origin + (first - 1) * grid.spacing
+                    high[c] = grid.origin + (last + 1) * grid.spacing
+                else:  # a node on the grid's face: as far out as the least value allows
+                    reach = level - grid.codes.min() * grid.value_step
+                    low[c], high[c] = low[c] - reach, high[c] + reach
+            cache[level] = low, high
+        return cache[level]
+
+    def below(self, classes, rotations, translations, points, level=0.0):
+        """Each ``(hypothesis, point)`` pair whose signed distance is below ``level``.
+
+        Parameters
+        ----------
+        classes : (k,) int
+        rotations : (k, 3, 3) float
+            Object-to-world rotations.
+        translations : (k, 3) float, world frame
+        points : (q, 3) float, world frame
+        level : float, scene units
+
+        Returns
+        -------
+        pose, point : (n,) int
+            The pairs, in order of hypothesis then point.
+        values : (n,) float
+        gradients : (n, 3) float
+            Unit outward gradients, object frame.
+        """
+        classes = np.ascontiguousarray(classes, dtype=np.int64)
+        points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+        size = len(classes) * len(points)
+        pose, point = np.empty(size, np.int64), np.empty(size, np.int64)
+        values, gradients = np.empty(size), np.empty((size, 3))
+        low, high = self.near_boxes(float(level))
+        found = pairs_below(*self.grids, classes, np.ascontiguousarray(rotations, float),
+                            np.ascontiguousarray(translations, float), points, low, high,
+                            float(level), pose, point, values, gradients)
+        return pose[:found], point[:found], values[:found], gradients[:found]
 
     def grid(self, c):
         """Class ``c``'s :class:`~tactile_viz.engine.shape.sdf.SDFGrid` as views into the bank's

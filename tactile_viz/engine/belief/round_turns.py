@@ -211,7 +211,7 @@ def _cost(pf, oriented, classes, rotations, translations, outside, normal_noise_
         pf.bank.evaluate, classes, rotations, translations, pf.contact_positions, outside,
         iterations, trim=pf.params.outlier_probability, normals=pf.contact_normals,
         oriented=oriented, clearance=pf.scene.tip_radius, support=table_support(pf),
-        boxes=pf.bank.boxes)
+        below=pf.bank.below)
     turned = turned_cost(oriented, classes, rotations, translations, pf.contact_positions,
                          pf.contact_normals, normal_noise_deg)
     cost = np.where(np.isfinite(misfit), misfit / (2 * scale2) + turned, np.inf)

@@ -950,37 +950,36 @@ def test_a_mesh_fit_spares_far_free_space_and_gives_the_same_misfit(shapes, monk
     query = exact.query
     monkeypatch.setattr(exact, "query", lambda points: asked.append(len(points)) or
                         query(points))
-    refine, looked_at = mesh_fit.refine_poses, []
+    dense_below, looked_at, outside_asked = mesh_fit.dense_below, [], []
 
-    def recording(evaluate, *args, **kwargs):
+    def recording(bounded):
         def spy(classes, points):
             looked_at.append(points.reshape(-1, 3).copy())
-            return evaluate(classes, points)
-        return refine(spy, *args, **kwargs)
+            before = len(asked)
+            out = bounded(classes, points)
+            outside_asked.append(sum(asked[before:]))
+            return out
+        return dense_below(spy)
 
-    monkeypatch.setattr(mesh_fit, "refine_poses", recording)
+    monkeypatch.setattr(mesh_fit, "dense_below", recording)
     spared = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
                                   outside, None)
-    monkeypatch.setattr(mesh_fit, "refine_poses", refine)
 
-    def every_point(evaluate, *args, **kwargs):
-        def plain(classes, points):
-            distance, _, face = query(points.reshape(-1, 3))
-            return (distance.reshape(points.shape[:-1]),
-                    exact.face_normal(face).reshape(points.shape))
-        return refine(plain, *args, **kwargs)
+    def every_point(classes, points):
+        distance, _, face = query(points.reshape(-1, 3))
+        return distance.reshape(points.shape[:-1]), exact.face_normal(face).reshape(points.shape)
 
-    monkeypatch.setattr(mesh_fit, "refine_poses", every_point)
+    monkeypatch.setattr(mesh_fit, "dense_below", lambda bounded: dense_below(every_point))
     plain = mesh_fit.mesh_misfit(pf, lead.class_index, lead.rotation, lead.translation,
                                  outside, None)
-    assert spared == plain
-    assert max(asked) < len(pf.contact_positions) + len(outside)
-    # What the box alone would have asked: the contacts and every point near the box.
-    m, (low, high) = len(pf.contact_positions), exact.bounds
-    by_box = [m + int((np.linalg.norm(np.maximum(np.maximum(low - p[m:], p[m:] - high), 0),
-                                      axis=1) <= clearance).sum()) for p in looked_at]
-    assert len(asked) == len(by_box) > 1
-    assert sum(asked) <= sum(by_box) - (len(asked) - 1) * len(beside) // 2
+    assert spared == pytest.approx(plain, rel=1e-12, abs=1e-15)
+    assert max(outside_asked) < len(outside)
+    # What the box alone would have asked: every point near the box.
+    low, high = exact.bounds
+    by_box = [int((np.linalg.norm(np.maximum(np.maximum(low - p, p - high), 0),
+                                  axis=1) <= clearance).sum()) for p in looked_at]
+    assert len(outside_asked) == len(by_box) > 1
+    assert sum(outside_asked) <= sum(by_box) - (len(by_box) - 1) * len(beside) // 2
 
 
 def test_a_smooth_ball_is_no_bumpy_ball_at_its_fit(tmp_path):
