@@ -1,5 +1,6 @@
-"""Shapes the decision's tests share."""
+"""Shapes and distances the belief tests share."""
 
+import numpy as np
 import pytest
 import trimesh
 
@@ -20,3 +21,14 @@ def knobbed_shapes(tmp_path_factory):
     models = [ObjectModel.from_arrays(m.vertices, m.faces, name, cache=cache)
               for m, name in ((box, "box"), (knobbed, "knobbed"), (cylinder, "cylinder"))]
     return PriorLibrary(models)
+
+
+def box_distance(points, half):
+    """A box's exact signed distance and outward unit gradient at ``points (..., 3)``
+    (its frame), its half extents ``half`` broadcasting against them."""
+    q = np.abs(points) - half
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    values = outside + np.minimum(q.max(axis=-1), 0.0)
+    face = np.eye(3)[np.argmax(q, axis=-1)] * np.sign(points)
+    corner = np.sign(points) * np.maximum(q, 0.0) / np.maximum(outside, 1e-300)[..., None]
+    return values, np.where((outside > 0)[..., None], corner, face)

@@ -7,17 +7,14 @@ from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine.belief.pose_refinement import least_squares_pose
 
+from .conftest import box_distance
+
 HALF = np.array([3.0, 1.5, 1.0])  # a 6 x 3 x 2 box
 
 
 def box_evaluate(classes, points):
     """The box's exact signed distance and outward unit gradient: (k, m), (k, m, 3)."""
-    q = np.abs(points) - HALF
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
-    values = outside + np.minimum(q.max(axis=-1), 0.0)
-    face = np.eye(3)[np.argmax(q, axis=-1)] * np.sign(points)
-    corner = np.sign(points) * np.maximum(q, 0.0) / np.maximum(outside, 1e-300)[..., None]
-    return values, np.where((outside > 0)[..., None], corner, face)
+    return box_distance(points, HALF)
 
 
 def _observations(rng, count=40):

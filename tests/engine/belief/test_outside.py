@@ -8,18 +8,14 @@ from scipy.spatial.transform import Rotation
 from tactile_viz.engine.belief.outside import dense_below, outside_terms
 from tactile_viz.engine.belief.prior_bank import PriorBank
 
+from .conftest import box_distance
+
 HALF = np.array([[3.0, 1.5, 1.0], [1.0, 1.0, 2.5]])  # two boxes, one a class
 
 
 def boxes_evaluate(classes, points):
     """Each class's box's exact signed distance and outward gradient: (k, m), (k, m, 3)."""
-    half = HALF[np.asarray(classes)][:, None]
-    q = np.abs(points) - half
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
-    values = outside + np.minimum(q.max(axis=-1), 0.0)
-    face = np.eye(3)[np.argmax(q, axis=-1)] * np.sign(points)
-    corner = np.sign(points) * np.maximum(q, 0.0) / np.maximum(outside, 1e-300)[..., None]
-    return values, np.where((outside > 0)[..., None], corner, face)
+    return box_distance(points, HALF[np.asarray(classes)][:, None])
 
 
 def dense_terms(classes, rotations, translations, points, centre, clearance):
