@@ -9,9 +9,19 @@ import os
 import sys
 import warnings
 
-from .cli import ArgumentParser, add_logging_arguments, one_line, one_line_warning, setup_logging
-from .engine.errors import TactileVizError
-from .experiments import BENCHMARKS
+from .threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads (the imports below)
+
+from .cli import (  # noqa: E402
+    ArgumentParser,
+    add_logging_arguments,
+    one_line,
+    one_line_warning,
+    setup_logging,
+)
+from .engine.errors import TactileVizError  # noqa: E402
+from .experiments import BENCHMARKS  # noqa: E402
 
 # Not __name__: run as ``python -m`` it is "__main__", outside the package's loggers.
 log = logging.getLogger("tactile_viz.__main__")

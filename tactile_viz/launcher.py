@@ -19,7 +19,11 @@ import logging
 import os
 import sys
 
-from tactile_viz.cli import (
+from tactile_viz.threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads: the window's process and the engine's it spawns
+
+from tactile_viz.cli import (  # noqa: E402
     ExtendList,
     add_logging_arguments,
     add_preset_argument,

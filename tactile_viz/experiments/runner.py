@@ -32,7 +32,6 @@ does not change its result (only the timing fields differ).
 import concurrent.futures as cf
 import functools
 import multiprocessing
-import os
 import sys
 import traceback
 import warnings
@@ -40,6 +39,7 @@ import warnings
 import numpy as np
 
 from ..cli import one_line_warning
+from ..threads import one_blas_thread
 
 TIMING_KEYS = ("seconds", "step_seconds", "timings")
 
@@ -260,8 +260,7 @@ class SerialPool:
 
 def _limit_threads():
     """One BLAS/OpenMP thread per worker process (they thrash when processes compete)."""
-    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
+    one_blas_thread()
 
 
 def one_line_warnings_in_worker(prog):
