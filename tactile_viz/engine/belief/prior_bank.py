@@ -180,15 +180,26 @@ class PriorBank:
             Unit outward gradients, object frame.
         """
         classes = np.ascontiguousarray(classes, dtype=np.int64)
+        rotations = np.ascontiguousarray(rotations, float)
+        translations = np.ascontiguousarray(translations, float)
         points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
-        size = len(classes) * len(points)
-        pose, point = np.empty(size, np.int64), np.empty(size, np.int64)
-        values, gradients = np.empty(size), np.empty((size, 3))
         low, high = self.near_boxes(float(level))
-        found = pairs_below(*self.grids, classes, np.ascontiguousarray(rotations, float),
-                            np.ascontiguousarray(translations, float), points, low, high,
-                            float(level), pose, point, values, gradients)
-        return pose[:found], point[:found], values[:found], gradients[:found]
+        # Room for every pair of a chunk of hypotheses: a bounded buffer at any count.
+        step = max(1, BELOW_PAIRS // max(len(points), 1))
+        pose, point = np.empty(step * len(points), np.int64), np.empty(step * len(points),
+                                                                        np.int64)
+        values, gradients = np.empty(len(pose)), np.empty((len(pose), 3))
+        parts = []
+        for start in range(0, len(classes), step):
+            chunk = slice(start, start + step)
+            found = pairs_below(*self.grids, classes[chunk], rotations[chunk],
+                                translations[chunk], points, low, high, float(level), pose,
+                                point, values, gradients)
+            parts.append((pose[:found] + start, point[:found].copy(), values[:found].copy(),
+                          gradients[:found].copy()))
+        if not parts:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3))
+        return tuple(np.concatenate(arrays) for arrays in zip(*parts))
 
     def grid(self, c):
         """Class ``c``'s :class:`~tactile_viz.engine.shape.sdf.SDFGrid` as views into the bank's
@@ -223,6 +234,7 @@ class PriorBank:
         return self.pairs.lookup(features, neighbours)
 
 
+BELOW_PAIRS = 1 << 21  # (hypothesis, point) pairs :meth:`PriorBank.below` looks at a call
 LARGE = 200e6  # bytes of a bank beyond which a filter trims the heap after each update
 
 

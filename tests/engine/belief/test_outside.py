@@ -90,3 +90,19 @@ def test_outside_a_near_box_every_value_exceeds_its_level(bundled, level, rng):
         # The box is tight: a point just inside each face is within a cell of the level.
         assert (values[0][~beyond] <= level).any()
     assert bank.near_boxes(level) is bank.near_boxes(level)  # cached
+
+
+def test_the_banks_look_up_in_chunks_finds_the_same_pairs(bundled, monkeypatch, rng):
+    from tactile_viz.engine.belief import prior_bank
+
+    bank = PriorBank([bundled[name] for name in ("mug_1", "bottle_1")], 0.1, 12.0)
+    classes = rng.integers(0, 2, 7)
+    rotations = Rotation.random(7, random_state=2).as_matrix()
+    translations = rng.uniform(-0.5, 0.5, (7, 3))
+    points = rng.uniform(-4, 4, (500, 3))
+    whole = bank.below(classes, rotations, translations, points, 0.1)
+    monkeypatch.setattr(prior_bank, "BELOW_PAIRS", 1100)  # two hypotheses a chunk
+    chunked = bank.below(classes, rotations, translations, points, 0.1)
+    assert len(whole[0]) > 50
+    for a, b in zip(whole, chunked):
+        np.testing.assert_array_equal(a, b)
