@@ -127,12 +127,11 @@ def refine_poses(evaluate, classes, rotations, translations, contacts, noncontac
             k, i = np.nonzero(np.einsum("kmj,kmj->km", gradients, facing) < 0)
             if len(k):
                 values[k, i], gradients[k, i] = oriented(classes_[k], local[k, i], facing[k, i])
-        active = np.ones(values.shape, bool)
-        if drop:
+        if drop:  # the farthest contacts leave the fit: residual and row 0
             farthest = np.argsort(-np.abs(values), axis=1)[:, :drop]
-            np.put_along_axis(active, farthest, False, axis=1)
-        values = np.where(active, values, 0.0)
-        normals = np.matmul(gradients, rotations.transpose(0, 2, 1)) * active[..., None]
+            np.put_along_axis(values, farthest, 0.0, axis=1)
+            np.put_along_axis(gradients, farthest[..., None], 0.0, axis=1)
+        normals = np.matmul(gradients, rotations.transpose(0, 2, 1))
         jacobian = -np.concatenate([np.cross(arm, normals), normals], axis=2)  # (k, m, 6)
         if support is not None:
             heights, rows = support_residuals(support, classes_, rotations, translations, centre)
