@@ -153,8 +153,8 @@ class FilterParams:
         notes="A learned shape's feature normals come from a reconstruction: its point-pair "
               "poses are coarser than a mesh's, and the novelty test failed at them.")
     learned_noise: bool = _filter(
-        True, "The novelty test grants a learned MAP its own errors, shape_error and "
-        "normal_error (beyond the paper).", kind="bool", notes="docs/novel.md: a learned fork.")
+        True, "The novelty test and the decision grant a learned MAP its own errors, "
+        "shape_error and normal_error (beyond the paper).", kind="bool", notes="docs/novel.md.")
     refine_iterations: int = _filter(
         10, "Gauss-Newton steps of each pose refinement.", kind="int", valid=_AT_LEAST_1)
     refine_warm_iterations: int = _filter(

@@ -58,7 +58,7 @@ from scipy.special import ndtri
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
-from .fit_test import fit_limit, fit_test, model_floor2
+from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
 from .mesh_fit import NO_FITS, weighed_on_meshes
@@ -356,12 +356,13 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     best = float(misfit.min())
     floor2 = model_floor2(pf, classes[0], floor)  # the MAP's model, a learned one's error too
     scale2 = max(best / max(len(contacts) - POSE_PARAMETERS, 1), floor2, 1e-300)
+    turn_deg = model_turn_deg(pf, classes[0], normal_noise_deg)  # a learned MAP's own too
     turned = np.full(len(classes), np.inf)
     finite = np.flatnonzero(np.isfinite(misfit))
     if len(finite):
         turned[finite] = turned_cost(oriented, classes[finite], rotations[finite],
                                      translations[finite], contacts, pf.contact_normals,
-                                     normal_noise_deg)
+                                     turn_deg)
     # Each mode is kept as its most probable pose, the normals weighed in: a cross
     # screwdriver turned 60 degrees about its shaft fitted noisy touches' positions better
     # than turned right, and, kept for the mode, lost to the flat one by its tip's normals.
@@ -370,7 +371,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
     for turn in (turn_round_hypotheses, turn_near_spheres):
         rotations, translations, misfit, turned = turn(
             pf, oriented, classes, rotations, translations, misfit, turned, scale2, outside,
-            normal_noise_deg, among=keep)
+            turn_deg, among=keep)
     occam = 0.5 * np.log(len(contacts)) * np.array(
         [used_pose_parameters(pf.models[c], scale2) for c in classes[keep]])
     log_p = -(misfit[keep] - best) / (2 * scale2) - turned[keep] - occam  # the fit posterior
