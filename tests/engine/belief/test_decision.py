@@ -9,7 +9,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from tactile_viz.engine import ObjectModel, PriorLibrary
-from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide
+from tactile_viz.engine.belief.decision import Decision, Hypothesis, decide, pose_limit
 from tactile_viz.engine.belief.fit_test import model_turn_deg
 from tactile_viz.engine.belief.modes import distinct, mode_tolerance, surface_disagreement
 from tactile_viz.engine.belief.oriented import oriented_evaluator, turned_cost
@@ -1042,3 +1042,19 @@ def test_a_learned_maps_normals_are_weighed_at_its_own_normal_error(shapes):
     assert lead.turned < 0.5 * cost(2.0)
     pf.params = dataclasses.replace(pf.params, learned_noise=False)
     assert model_turn_deg(pf, 1, 2.0) == 2.0
+
+
+def test_a_learned_shapes_pose_need_not_be_known_better_than_the_shape(shapes):
+    """The pose a decision asks for: ``decision_pose_error`` of the longest side, or for a
+    learned shape as far as its own error puts two copies of it apart (poses that differ
+    by less are one mode), whichever is farther; a given mesh's as before, to the bit."""
+    box = shapes["box"]
+    learned = ObjectModel.from_arrays(box.mesh.vertices, box.mesh.faces, "learned",
+                                      learned=True, shape_error=0.2)
+    pf = ParticleFilter(PriorLibrary([box, learned]), FilterParams(), rng=0)
+    assert pose_limit(pf, 0, 0.05) == 0.05 * box.length
+    np.testing.assert_allclose(pose_limit(pf, 1, 0.05), mode_tolerance(learned, 0.0))
+    assert pose_limit(pf, 1, 0.05) > 0.05 * learned.length
+    assert pose_limit(pf, 1, 0.5) == 0.5 * learned.length  # a looser tolerance holds
+    pf.params = dataclasses.replace(pf.params, learned_noise=False)
+    assert pose_limit(pf, 1, 0.05) == 0.05 * learned.length
