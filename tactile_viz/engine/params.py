@@ -472,9 +472,9 @@ class SessionParams:
               "posterior of the distinct hypotheses (:mod:`~tactile_viz.engine.belief.decision`).")
     decision_pose_error: float = _session(
         0.05, "A decision also needs the MAP's pose known within this share of its longest "
-        "side (at decision_confidence).", valid=_POSITIVE, control=(1e-3, 1.0),
-        notes="The fit's Gauss-Newton covariance, as the displacement of the MAP surface "
-              "along its normals; the success threshold is 10% (TWD).")
+        "side, or a learned shape's own error (at decision_confidence).", valid=_POSITIVE,
+        control=(1e-3, 1.0), notes="The fit's Gauss-Newton covariance, as the displacement "
+        "of the MAP surface along its normals; the success threshold is 10% (TWD).")
     decision_floor: float = _session(
         0.01, "How far a right hypothesis's contacts may lie off its surface besides the "
         "sensor's noise and the grid's own error.", valid=_POSITIVE, length=1,
