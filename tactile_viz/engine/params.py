@@ -279,6 +279,11 @@ class SessionParams:
         "the paper; 0 keeps the prior whole).", valid=_AT_LEAST_0, length=1,
         notes="At most the distance to the nearest contact, around every non-contact and "
               "missed probe's sample: a probe through a wrong prior's phantom removes it.")
+    gpis_carve_disk: float = _gpis(
+        1.0, "A carve's ball reaches no contact's disc of this many contact_spacing in its "
+        "tangent plane (beyond the paper; 0: the contact alone).", valid=_AT_LEAST_0,
+        control=(0.0, 3.0), notes="A disc ends where a free point lies beside the contact "
+              "rather than above it (a fork's tines): docs/gpis.md.")
     gpis_fill_radius: float = _gpis(
         0.0, "Largest solid ball added to the GPIS prior mean behind a contact that the prior "
         "puts in its empty space (beyond the paper; 0 keeps the prior as it is).",

@@ -21,8 +21,10 @@ from ..shape.gpis import (
 from ..shape.gpis_evidence import contact_evidence, fit_superquadrics
 from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import (
+    CarvedPrior,
     contact_balls,
     filled_prior,
+    free_space_cut,
     refuted_fit,
 )
 from ..shape.gpis_variance import lattice_low, lattice_variance
@@ -319,8 +321,27 @@ class Estimator(FinalSurface, Part):
             prior = filled_prior(prior, contact_balls(
                 contacts[refuting], normals[refuting], np.vstack([free, contacts]),
                 p.gpis_fill_radius, slack))
-        return carved_prior(prior, free, contacts, p.gpis_carve_radius,
-                            inside_only=not p.gpis_carve_outside)
+        if not p.gpis_carve_outside:
+            return carved_prior(prior, free, contacts, p.gpis_carve_radius, inside_only=True,
+                                normals=normals, disk=self._disc())
+        cut = self._carve(free, contacts, normals)
+        return prior if cut is None else CarvedPrior(prior, cut)
+
+    def _carve(self, free, contacts, normals):
+        """The carve's balls (:func:`~..shape.gpis_prior.free_space_cut`) about ``free``,
+        made once for the step's candidate priors, which are all carved alike."""
+        inputs = (free, contacts, normals)
+        kept = getattr(self, "_carved", None)
+        if kept is None or not all(np.array_equal(a, b) for a, b in zip(kept[0], inputs)):
+            kept = tuple(np.array(a) for a in inputs), free_space_cut(
+                free, contacts, self.p.gpis_carve_radius, normals=normals, disk=self._disc())
+            self._carved = kept
+        return kept[1]
+
+    def _disc(self):
+        """The radius of a contact's disc that the carve's balls do not reach (scene
+        units): ``gpis_carve_disk`` contact spacings."""
+        return self.p.gpis_carve_disk * self.p.contact_spacing
 
     def cut_estimate(self, fit, contacts, noncontacts, free_space):
         """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)
@@ -328,7 +349,9 @@ class Estimator(FinalSurface, Part):
         if not self._switched_on(self.p.gpis_carve_estimate):
             return fit
         return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
-                              self.p.gpis_carve_radius, keep_within=self.p.eps)
+                              self.p.gpis_carve_radius, keep_within=self.p.eps,
+                              normals=self.filter.contact_normals,
+                              disk=self._disc())
 
     def _switched_on(self, when):
         """Whether a ``"never"``/``"noisy"``/``"always"`` switch is on for this sensor."""

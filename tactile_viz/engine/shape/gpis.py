@@ -451,7 +451,8 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
                    compiled=True)
 
 
-def cut_free_space(fit, free_points, contacts, radius, keep_within=0.0):
+def cut_free_space(fit, free_points, contacts, radius, keep_within=0.0, normals=None,
+                   disk=0.0):
     """``fit`` with balls about ``free_points`` cut out of its mean's solid, each at most
     ``radius`` and never reaching a contact (:func:`carved_prior`'s balls), except within
     ``keep_within`` of a contact; the fit itself is not changed.
@@ -470,4 +471,5 @@ def cut_free_space(fit, free_points, contacts, radius, keep_within=0.0):
     GPISFit
     """
     return replace(fit, cut=free_space_cut(free_points, contacts, radius,
-                                           keep_within=keep_within))
+                                           keep_within=keep_within, normals=normals,
+                                           disk=disk))

@@ -119,7 +119,8 @@ def refuted_fit(fit, free, value, rounds, refit, contacts=None, keep_within=0.0)
     return fit
 
 
-def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only=False):
+def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only=False,
+                 normals=None, disk=0.0):
     """The prior mean with the space known to be empty cut out of its shape.
 
     A ball around each free-space point (where a probe passed without touching) is removed
@@ -156,13 +157,16 @@ def carved_prior(prior, free_points, contacts, radius, neighbours=8, inside_only
     if inside_only and len(free_points):
         free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
         free_points = free_points[np.asarray(prior(free_points)[0]) < 0]
-    cut = free_space_cut(free_points, contacts, radius, neighbours)
+    cut = free_space_cut(free_points, contacts, radius, neighbours, normals=normals, disk=disk)
     return prior if cut is None else CarvedPrior(prior, cut)
 
 
-def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0):
+def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0,
+                   normals=None, disk=0.0):
     """The balls :func:`carved_prior` cuts, as a :class:`FreeSpaceCut` (None: no ball);
-    points within ``keep_within`` of a contact are never cut."""
+    points within ``keep_within`` of a contact are never cut. With ``normals`` and a
+    ``disk`` radius, a ball reaches no contact's disc either (:func:`disk_distances`,
+    each disc at most :func:`disk_radii`)."""
     free_points = np.asarray(free_points, dtype=float).reshape(-1, 3)
     if radius <= 0 or len(free_points) == 0:
         return None
@@ -170,12 +174,59 @@ def free_space_cut(free_points, contacts, radius, neighbours=8, keep_within=0.0)
     contacts = np.asarray(contacts, dtype=float).reshape(-1, 3)
     tree = cKDTree(contacts) if len(contacts) else None
     if tree is not None:
-        radii = np.minimum(radii, tree.query(free_points)[0])
+        if normals is not None and disk > 0:
+            normals = np.asarray(normals, dtype=float).reshape(-1, 3)
+            discs = disk_radii(contacts, normals, free_points, disk)
+            radii = np.minimum(radii, disk_distances(free_points, contacts, normals, discs,
+                                                     tree, radius))
+        else:
+            radii = np.minimum(radii, tree.query(free_points)[0])
     keep = radii > 0
     if not keep.any():
         return None
     kept = (tree, float(keep_within)) if keep_within > 0 and tree is not None else None
     return FreeSpaceCut(free_points[keep], radii[keep], min(neighbours, int(keep.sum())), kept)
+
+
+DISK_NEIGHBOURS = 16
+
+
+def disk_distances(points, contacts, normals, disk, tree=None, reach=np.inf):
+    """The distance from each of ``points`` (k, 3) to the nearest of the discs of radius
+    ``disk`` about ``contacts`` (n, 3) in their tangent planes (unit ``normals``): where
+    the surface lies at least, between contacts on a thin wall as much as at them. Only the
+    ``DISK_NEIGHBOURS`` nearest contacts within ``reach + disk`` are asked (a disc farther
+    lies farther than ``reach``); ``inf`` where none is. Returns (k,) float."""
+    tree = cKDTree(contacts) if tree is None else tree
+    k = min(DISK_NEIGHBOURS, len(contacts))
+    distance, index = tree.query(points, k=k, distance_upper_bound=reach + np.max(disk))
+    distance, index = distance.reshape(len(points), k), index.reshape(len(points), k)
+    found = index < len(contacts)
+    index = np.where(found, index, 0)
+    offset = points[:, None, :] - contacts[index]
+    along = np.einsum("kjd,kjd->kj", offset, normals[index])
+    across = np.sqrt(np.maximum(distance**2 - along**2, 0.0))
+    disk = np.broadcast_to(np.asarray(disk, dtype=float), (len(contacts),))
+    to_disk = np.hypot(along, np.maximum(across - disk[index], 0.0))
+    return np.where(found, to_disk, np.inf).min(axis=1)
+
+
+def disk_radii(contacts, normals, free_points, disk):
+    """Each contact's disc radius, (n,): ``disk``, or less where a free point lies nearer
+    across the contact's tangent plane than along its normal (the surface ends there:
+    a probe passed between a fork's tines, beyond a wall's rim)."""
+    radii = np.full(len(contacts), float(disk))
+    if len(free_points) == 0 or disk <= 0:
+        return radii
+    k = min(DISK_NEIGHBOURS, len(free_points))
+    distance, index = cKDTree(free_points).query(contacts, k=k, distance_upper_bound=disk)
+    distance, index = distance.reshape(len(contacts), k), index.reshape(len(contacts), k)
+    found = index < len(free_points)
+    offset = free_points[np.where(found, index, 0)] - contacts[:, None, :]
+    along = np.abs(np.einsum("njd,nd->nj", offset, normals))
+    across = np.sqrt(np.maximum(np.where(found, distance, 0.0) ** 2 - along**2, 0.0))
+    beside = found & (along < across)
+    return np.minimum(radii, np.where(beside, across, np.inf).min(axis=1))
 
 
 class BothCuts:
