@@ -97,8 +97,7 @@ class FilterParams:
         0.5, "... and its evidence on the non-contacts this probability per non-contact "
         "(paper 0.5).", valid="(0, 1]", notes="Each kind is tested on its own.")
     distance_step: float = _filter(
-        0.1, "Point-pair key resolution of the distance (paper 0.1).", valid=_POSITIVE,
-        length=1)
+        0.1, "Point-pair key resolution of the distance (paper 0.1).", valid=_POSITIVE, length=1)
     angle_step_deg: float = _filter(
         12.0, "Point-pair key resolution of the angles (paper 12).", valid=_POSITIVE,
         unit="degrees")
@@ -235,14 +234,11 @@ class SessionParams:
         notes="With cover_prior the MAP prior of a novel object counts too; the surface near "
               "targets the sensor could not reach and near missed probes' paths is left out.")
     max_steps_known: int = _session(
-        300, "Step cap while the object is judged known (paper 300).", kind="int",
-        valid=_AT_LEAST_1)
+        300, "Step cap while judged known (paper 300).", kind="int", valid=_AT_LEAST_1)
     max_steps_novel: int = _session(
-        400, "Step cap while the object is judged novel (paper 400).", kind="int",
-        valid=_AT_LEAST_1)
+        400, "Step cap while judged novel (paper 400).", kind="int", valid=_AT_LEAST_1)
     gpis_noise: float = _gpis(
-        1e-4, "Observation noise variance of the GPIS (paper 1e-4).", valid=_POSITIVE,
-        length=2)
+        1e-4, "Observation noise variance of the GPIS (paper 1e-4).", valid=_POSITIVE, length=2)
     gpis_scale: float = _gpis(
         1.0, "Initial kernel scale a_0 of the GPIS.", valid=_POSITIVE, length=-1,
         unit="per size unit (thin-plate; Wendland: size units squared)")
@@ -280,10 +276,9 @@ class SessionParams:
         notes="At most the distance to the nearest contact, around every non-contact and "
               "missed probe's sample: a probe through a wrong prior's phantom removes it.")
     gpis_carve_disk: float = _gpis(
-        1.0, "A carve's ball reaches no contact's disc of this many contact_spacing in its "
+        1.0, "No carve ball reaches a contact's disc of this many contact_spacing in its "
         "tangent plane (beyond the paper; 0: the contact alone).", valid=_AT_LEAST_0,
-        control=(0.0, 3.0), notes="A disc ends where a free point lies beside the contact "
-              "rather than above it (a fork's tines): docs/gpis.md.")
+        control=(0.0, 3.0), notes="A disc ends at a free point beside it: docs/gpis.md.")
     gpis_fill_radius: float = _gpis(
         0.0, "Largest solid ball added to the GPIS prior mean behind a contact that the prior "
         "puts in its empty space (beyond the paper; 0 keeps the prior as it is).",
