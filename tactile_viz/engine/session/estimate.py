@@ -91,7 +91,7 @@ class Estimator(FinalSurface, Part):
             fit, fitted, _ = self._prior_fit(kernel, model, poses, contacts, normals, fitted,
                                              chosen)
         gpis = fitted
-        fit = self.cut_estimate(fit, contacts, self.filter.noncontact_positions,
+        fit = self.cut_estimate(fit, contacts, normals, self.filter.noncontact_positions,
                                  self.state.free_space)
         timings["gpis"] = time.perf_counter() - clock
         clock = time.perf_counter()
@@ -343,15 +343,20 @@ class Estimator(FinalSurface, Part):
         units): ``gpis_carve_disk`` contact spacings."""
         return self.p.gpis_carve_disk * self.p.contact_spacing
 
-    def cut_estimate(self, fit, contacts, noncontacts, free_space):
-        """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``)
-        where no contact is within ``eps`` (where the surface is not covered)."""
+    def cut_estimate(self, fit, contacts, normals, noncontacts, free_space):
+        """``fit`` with the carve's balls cut out of its mean too (``gpis_carve_estimate``):
+        :meth:`carve_estimate`."""
         if not self._switched_on(self.p.gpis_carve_estimate):
             return fit
-        return cut_free_space(fit, np.vstack([noncontacts, free_space]), contacts,
-                              self.p.gpis_carve_radius, keep_within=self.p.eps,
-                              normals=self.filter.contact_normals,
-                              disk=self._disc())
+        return self.carve_estimate(fit, contacts, normals, np.vstack([noncontacts,
+                                                                      free_space]))
+
+    def carve_estimate(self, fit, contacts, normals, free):
+        """``fit`` with the carve's balls about ``free`` cut out of its mean where no
+        contact is within ``eps`` (where the surface is not covered), each ball short of
+        the contacts' discs (``normals``: the contacts' own)."""
+        return cut_free_space(fit, free, contacts, self.p.gpis_carve_radius,
+                              keep_within=self.p.eps, normals=normals, disk=self._disc())
 
     def _switched_on(self, when):
         """Whether a ``"never"``/``"noisy"``/``"always"`` switch is on for this sensor."""

@@ -11,7 +11,6 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..shape.gpis import cut_free_space
 from ..shape.gpis_evidence import fit_superquadrics
 from ..shape.gpis_prior import free_space_cut, joined_cut
 from ..shape.level_set import box_closure, zero_level_surface
@@ -244,8 +243,8 @@ class FinalSurface:
         f, p = self.filter, self.p
         free = np.vstack([f.noncontact_positions, self.state.free_space])
         observed = self.noncontact_points()
-        cut = functools.partial(cut_free_space, free_points=free, contacts=contacts,
-                                radius=p.gpis_carve_radius, keep_within=p.eps)
+        cut = functools.partial(self.carve_estimate, contacts=contacts,
+                                normals=f.contact_normals, free=free)
         step_prior = None
         for index, (class_name, rotation, translation) in enumerate(
                 self._recent_priors(p.final_candidates, prior)):

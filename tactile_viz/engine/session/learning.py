@@ -88,8 +88,8 @@ def snapshot_fit(estimator, snapshot, resolution):
                           estimator.noncontact_points(snapshot.noncontacts,
                                                       snapshot.free_space),
                           prior, snapshot.gpis_scale)
-    fit = estimator.cut_estimate(fit, snapshot.contacts, snapshot.noncontacts,
-                                 snapshot.free_space)
+    fit = estimator.cut_estimate(fit, snapshot.contacts, snapshot.normals,
+                                 snapshot.noncontacts, snapshot.free_space)
     return fit, (low, high, spacing)
 
 

@@ -1055,3 +1055,25 @@ def test_the_reported_surface_is_judged_where_the_stop_judges_it(sphere_model, o
     step_prior = (last.map_class, last.map_rotation, last.map_translation)
     recon = estimator.best_supported(final, contacts, step_prior)[0]
     assert (recon is final) == open_only
+
+
+def test_an_earlier_snapshot_is_learned_with_its_own_contacts_normals(novel_session,
+                                                                     monkeypatch):
+    # The carve's discs lie in the tangent planes of the snapshot's contacts: a snapshot
+    # of fewer contacts than the filter holds now must not borrow the filter's normals.
+    earlier = next(s for s in novel_session.snapshots
+                   if s.novel and s.gpis_vertices is not None and len(s.gpis_vertices)
+                   and len(s.contacts) < len(novel_session.filter.contact_positions))
+    seen = []
+    cut = Estimator.cut_estimate
+
+    def spy(self, fit, contacts, normals, noncontacts, free_space):
+        seen.append((np.array(contacts), np.array(normals)))
+        return cut(self, fit, contacts, normals, noncontacts, free_space)
+
+    monkeypatch.setattr(Estimator, "cut_estimate", spy)
+    novel_session.learned_model("vase_2_early", earlier)
+    assert seen
+    for contacts, normals in seen:
+        np.testing.assert_array_equal(contacts, earlier.contacts)
+        np.testing.assert_array_equal(normals, earlier.normals)
