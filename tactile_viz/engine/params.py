@@ -81,8 +81,7 @@ class FilterParams:
         0.5, "Std of the signed-distance likelihood (paper 0.5).", valid=_POSITIVE, length=1,
         control=(1e-3, 100.0), notes="Larger forgives misfit.")
     sigma_n: float = _filter(
-        1.5, "Std of the normal likelihood (paper 1.5).", valid=_POSITIVE,
-        control=(1e-3, 100.0))
+        1.5, "Std of the normal likelihood (paper 1.5).", valid=_POSITIVE, control=(1e-3, 100.0))
     n_s: int = _filter(
         30, "Earlier contacts paired with each new one for point-pair sampling (paper 30).",
         kind="int", valid=_AT_LEAST_1, control=(1, 500))
@@ -108,11 +107,10 @@ class FilterParams:
               "(two positions' noise) and half a step in each angle; 2 within one step in "
               "every component, at over three times the look-ups.")
     init_rotations: int = _filter(
-        1, "Rotations about the contact normal per feature point when initialising.", kind="int",
-        valid=_AT_LEAST_1)
+        1, "Turns about the normal per feature point at the start.", kind="int", valid=_AT_LEAST_1)
     max_new_per_class: int = _filter(
-        2000, "Cap on particles sampled per class and step (a random subset beyond it).",
-        kind="int", valid=_AT_LEAST_1)
+        2000, "Particles sampled per class and step at most (a random subset).", kind="int",
+        valid=_AT_LEAST_1)
     max_particles: int = _filter(
         20000, "Cap on the number of draws of the resampling step, and on the hypotheses the "
         "first touch spawns.", kind="int", valid=_AT_LEAST_1,
@@ -243,11 +241,11 @@ class SessionParams:
         1.0, "Initial kernel scale a_0 of the GPIS.", valid=_POSITIVE, length=-1,
         unit="per size unit (thin-plate; Wendland: size units squared)")
     gpis_resolution: int = _gpis(
-        32, "Marching-cubes cells along the longest side of the reconstruction box.",
-        kind="int", valid="[8, inf)")
+        32, "Marching-cubes cells along the reconstruction box's longest side.", kind="int",
+        valid="[8, inf)")
     gpis_margin: float = _gpis(
-        0.6, "Margin of the reconstruction box around the MAP shape and the contacts.",
-        valid=_POSITIVE, length=1)
+        0.6, "Margin of the reconstruction box about the MAP shape and contacts.", valid=_POSITIVE,
+        length=1)
     gpis_kernel: str = _gpis(
         "thin-plate", "The GPIS kernel: the paper's thin-plate, or the compact Wendland.",
         kind="choice", choices=GPIS_KERNELS,
@@ -381,6 +379,9 @@ class SessionParams:
               "and grows a frontier from the contact: targets eps along four tangents, each "
               "surprising contact growing it again; no stop while one is queued "
               "(docs/bench-novel.md).")
+    check_refit_every: int = _session(
+        4, "While checks touch nothing unpredicted, fit the estimate every this many steps "
+        "(1: each; a stop fits afresh; docs/bench-speed.md).", kind="int", valid="[1, 100]")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,
@@ -463,8 +464,7 @@ class SessionParams:
     rrt_step: float = _session(
         0.3, "Length of one step of the RRT strategy.", valid=_POSITIVE, length=1)
     metric_samples: int = _session(
-        3000, "Surface samples per shape for the error metrics (TWD).", kind="int",
-        valid=_AT_LEAST_1)
+        3000, "Surface samples per shape for the error metrics.", kind="int", valid=_AT_LEAST_1)
     decision_confidence: float = _session(
         0.99, "A known object is decided once the MAP class and the MAP hold this share of "
         "their posteriors (beyond the paper).", valid="[0.5, 1)", control=(0.5, 0.999999),

@@ -222,19 +222,27 @@ def widest_gap(contacts, explored, surface, outside, margin=None, shell=0.6, max
     except (QhullError, ValueError):  # fewer than 4 contacts, or all in a plane
         in_hull = np.zeros(len(grid), bool)
     distance = np.full(len(grid), np.inf)
-    width = distance
-    if len(surface):
-        distance = cKDTree(surface).query(grid)[0]
-        width = np.where(in_hull | (not observed_only), distance, np.inf)
+    hull = in_hull.copy()
+    tree = cKDTree(surface) if len(surface) else None
+    if tree is not None:
+        # Deep inside a closed surface a nearest vertex is slow to find, and such a node
+        # is no gap: distances beyond the shell and the margin are found for the nodes
+        # left outside the estimate alone.
+        distance = tree.query(grid, distance_upper_bound=1.01 * max(shell, margin))[0]
         if shell > 0:
             in_hull |= distance <= shell
     keep = in_hull & (distance > margin)
-    grid, distance = grid[keep], width[keep]
+    grid, distance, hull = grid[keep], distance[keep], hull[keep]
     if len(grid):
         free = outside(grid) > 0
-        grid, distance = grid[free], distance[free]
+        grid, distance, hull = grid[free], distance[free], hull[free]
     if len(grid) == 0:
         return None, 0.0
+    if tree is not None:
+        far = ~np.isfinite(distance)
+        distance[far] = tree.query(grid[far])[0]
+        if observed_only:
+            distance = np.where(hull, distance, np.inf)
     if len(explored):
         distance = np.minimum(distance, cKDTree(explored).query(grid)[0])
     best = int(np.argmax(distance))

@@ -104,7 +104,27 @@ class Estimator(FinalSurface, Part):
         recon, variance = self._surface(fit, (low, high), p.gpis_resolution, spacing,
                                         gpis.variance)
         timings["surface"] = time.perf_counter() - clock
-        return recon, replace(gpis, variance=variance)
+        return recon, replace(gpis, variance=variance, recon=recon, held=0)
+
+    def estimate(self, model, rotation, translation, map_vertices, timings):
+        """The step's estimate: the last fit's surface again where :meth:`held_estimate`
+        allows, else :meth:`reconstruct` (the same arguments and returns)."""
+        held = self.held_estimate()
+        if held is not None:
+            return held, replace(self.state.gpis, held=self.state.gpis.held + 1)
+        return self.reconstruct(model, rotation, translation, map_vertices, timings)
+
+    def held_estimate(self):
+        """The last fit's surface if this step may plan on it again, else None: after a
+        check that touched nothing unpredicted, up to ``check_refit_every - 1`` steps in a
+        row (what such a check adds lies within ``contact_spacing`` of the estimate, or is
+        free space the next checks avoid), never through a check of a decision."""
+        state, gpis = self.state, self.state.gpis
+        if (gpis.recon is None or state.check is None or state.confirming
+                or state.checks_passed == 0 or gpis.held + 1 >= self.p.check_refit_every
+                or not (self.snapshots and self.snapshots[-1].novel)):
+            return None
+        return gpis.recon
 
     def _prior_fit(self, kernel, model, poses, contacts, normals, gpis, force):
         """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's at

@@ -531,9 +531,9 @@ class Session:
         self._use_lengths(model, belief.novel)                    # lengths in its size
         estimator, planner, _ = self.parts()
         contacts, recon = self.filter.contact_positions, None
+        fitted = model, *pose, map_vertices
         if belief.novel:                                          # l.3: below eq. 24
-            recon, self.state.gpis = estimator.reconstruct(       # l.4: GPIS
-                model, *pose, map_vertices, timings)
+            recon, self.state.gpis = estimator.estimate(*fitted, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                         # beyond the paper
             decision = planner.decide(belief)
         misfit, self.state.misfit_steps = planner.misfits(belief, decision)
@@ -555,15 +555,21 @@ class Session:
             belief, model, pose, map_vertices = reported
             self._use_lengths(model, novel=False)                 # lengths in its size
             estimator, planner, _ = self.parts()
-        pose, map_vertices = estimator.aimed_pose(decision, model, pose, map_vertices)
-        if recon is not None:                                     # beyond the paper
-            pose, map_vertices = estimator.prior_pose(model, pose, map_vertices)
-        with _timed(timings, "target"):
-            coverage = planner.coverage(recon, map_vertices, contacts,  # l.8: d_H, eq. 35
-                                        model, pose)
-            stop = planner.stop_test(coverage, belief, decision)        # l.1: d_H <= eps
-            plan = planner.choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
-                                         map_vertices, recon, contacts, decision)  # l.6: 36
+        aimed = estimator.aimed_pose(decision, model, pose, map_vertices)
+        while True:
+            pose, map_vertices = aimed
+            if recon is not None:                                 # beyond the paper
+                pose, map_vertices = estimator.prior_pose(model, pose, map_vertices)
+            with _timed(timings, "target"):
+                coverage = planner.coverage(recon, map_vertices, contacts,  # l.8: eq. 35
+                                            model, pose)
+                stop = planner.stop_test(coverage, belief, decision)        # l.1: d_H <= eps
+                plan = planner.choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
+                                             map_vertices, recon, contacts, decision)  # 36
+            if not (plan.terminated and recon is not None and self.state.gpis.held):
+                break
+            # A session stops on a fit of all its contacts, not on one held through checks.
+            recon, self.state.gpis = estimator.reconstruct(*fitted, timings)
         self.state.adopt(plan)
         self.state.estimate_vertices = None if recon is None else recon.vertices
         if plan.terminated:

@@ -63,6 +63,11 @@ class GpisState:
         immutable, keyed by content: a fit extends it only where the content agrees).
     variance : NodeVariance or None
         The last surface's lattice-node variances (:mod:`~tactile_viz.engine.shape.gpis_variance`).
+    recon : Reconstruction or None
+        The last fit's whole surface (before a snapshot's reported parts), which a check
+        that touched nothing unpredicted may plan on again (``check_refit_every``).
+    held : int
+        Steps since ``recon`` was fitted.
     """
 
     scale: float = 1.0
@@ -73,6 +78,8 @@ class GpisState:
     pose: Any = None
     cache: Any = None
     variance: Any = None
+    recon: Any = None
+    held: int = 0
 
 
 @dataclass

@@ -1077,3 +1077,31 @@ def test_an_earlier_snapshot_is_learned_with_its_own_contacts_normals(novel_sess
     for contacts, normals in seen:
         np.testing.assert_array_equal(contacts, earlier.contacts)
         np.testing.assert_array_equal(normals, earlier.normals)
+
+
+@pytest.mark.slow
+def test_checks_that_touch_nothing_unpredicted_hold_the_estimate(sphere_model):
+    # A sphere against a box prior: its checks mostly touch it near the estimate.
+    runs = {}
+    for every in (1, 4):
+        params = session_preset("recommended", check_lines=8, eps=2.0, check_refit_every=every)
+        session = Session.simulated(make_truth(sphere_model, rng=0), _box_library(sphere_model),
+                                    seed=0, params=params)
+        held, fits = [], []
+        while not session.terminated and session.step_count < 80:
+            snapshot = session.step()
+            gpis = session.state.gpis
+            held.append(gpis.held)
+            fits.append(None if gpis.recon is None else gpis.recon.fit)
+            if gpis.held:  # planned on the surface of the fit before, drawn as it was
+                assert gpis.recon.fit is fits[-2] and "gpis" not in snapshot.timings
+                assert session.snapshots[-2].novel and snapshot.novel
+        runs[every] = session, held
+    session, held = runs[1]
+    assert session.terminated and max(held) == 0
+    session, held = runs[4]
+    assert session.terminated and 0 < max(held) <= 3
+    # It stops on a fit of every contact.
+    assert held[-1] == 0
+    fitted = session.state.gpis.recon.fit.points[:len(session.filter.contact_positions)]
+    np.testing.assert_array_equal(fitted, session.filter.contact_positions)

@@ -102,6 +102,34 @@ def test_the_truth_evaluator_measures_a_step_without_a_session(scale, rng):
     assert elsewhere["rotation_error_deg"] is None and elsewhere["pose_error"] > 0
 
 
+def test_the_truth_evaluator_remembers_what_it_measured_without_changing_it(rng):
+    """Contacts appended, dropped and replaced give each step's own coverage; a surface met
+    again gives its own error, and another surface its own."""
+    from types import SimpleNamespace
+
+    from tactile_viz.engine.session.truth import TruthEvaluator, make_truth
+    from tactile_viz.engine.shape.metrics import directed_hausdorff
+    from tactile_viz.engine.shape.objects import ObjectModel
+
+    box = trimesh.creation.box((2.0, 1.0, 0.5))
+    truth = make_truth(ObjectModel.from_arrays(box.vertices, box.faces, "box"), rng=rng)
+    evaluator = TruthEvaluator(truth, 1000)
+    contacts = rng.normal(size=(40, 3))
+    for count in (1, 2, 5, 30, 12, 40, 0, 3):
+        given = contacts[:count] if count != 3 else rng.normal(size=(3, 3))
+        found = evaluator.errors(truth.model, truth.rotation, truth.translation, None, given)
+        assert found["truth_coverage"] == pytest.approx(
+            directed_hausdorff(evaluator.points, given), rel=1e-12)
+    ball = trimesh.creation.icosphere(radius=0.7)
+    for mesh in (ball, box, ball):
+        recon = SimpleNamespace(vertices=mesh.vertices + truth.translation, faces=mesh.faces)
+        found = evaluator.errors(truth.model, truth.rotation, truth.translation, recon,
+                                 contacts)["recon_error"]
+        fresh = TruthEvaluator(truth, 1000).errors(
+            truth.model, truth.rotation, truth.translation, recon, contacts)["recon_error"]
+        assert found == fresh
+
+
 def _plate(rng, thickness, scale, count=60):
     """Contacts on both faces of a plate ``thickness`` thick, ``scale`` across (z up)."""
     xy = rng.uniform(-scale / 2, scale / 2, size=(count, 2))
