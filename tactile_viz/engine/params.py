@@ -380,7 +380,7 @@ class SessionParams:
               "surprising contact growing it again; no stop while one is queued "
               "(docs/bench-novel.md).")
     check_refit_every: int = _session(
-        4, "While checks touch nothing unpredicted, fit the estimate every this many steps "
+        1, "While checks touch nothing unpredicted, fit the estimate every this many steps "
         "(1: each; a stop fits afresh; docs/bench-speed.md).", kind="int", valid="[1, 100]")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "

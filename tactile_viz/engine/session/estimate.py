@@ -104,7 +104,7 @@ class Estimator(FinalSurface, Part):
         recon, variance = self._surface(fit, (low, high), p.gpis_resolution, spacing,
                                         gpis.variance)
         timings["surface"] = time.perf_counter() - clock
-        return recon, replace(gpis, variance=variance, recon=recon, held=0)
+        return recon, replace(gpis, variance=variance, recon=recon, held=0, free=self._free())
 
     def estimate(self, model, rotation, translation, map_vertices, timings):
         """The step's estimate: the last fit's surface again where :meth:`held_estimate`
@@ -116,15 +116,21 @@ class Estimator(FinalSurface, Part):
 
     def held_estimate(self):
         """The last fit's surface if this step may plan on it again, else None: after a
-        check that touched nothing unpredicted, up to ``check_refit_every - 1`` steps in a
-        row (what such a check adds lies within ``contact_spacing`` of the estimate, or is
-        free space the next checks avoid), never through a check of a decision."""
+        check that touched the object within ``contact_spacing`` of the estimate, up to
+        ``check_refit_every - 1`` steps in a row, while no miss has added free space since
+        the fit (a stale carve keeps phantom parts, which would pass a touch beside them as
+        predicted); never through a check of a decision."""
         state, gpis = self.state, self.state.gpis
         if (gpis.recon is None or state.check is None or state.confirming
                 or state.checks_passed == 0 or gpis.held + 1 >= self.p.check_refit_every
+                or gpis.free != self._free()
                 or not (self.snapshots and self.snapshots[-1].novel)):
             return None
         return gpis.recon
+
+    def _free(self):
+        """How many non-contacts and free-space points carve the prior now."""
+        return len(self.filter.noncontact_positions), len(self.state.free_space)
 
     def _prior_fit(self, kernel, model, poses, contacts, normals, gpis, force):
         """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's at

@@ -68,6 +68,8 @@ class GpisState:
         that touched nothing unpredicted may plan on again (``check_refit_every``).
     held : int
         Steps since ``recon`` was fitted.
+    free : tuple of int
+        The non-contacts and free-space points there were at that fit (what carves it).
     """
 
     scale: float = 1.0
@@ -80,6 +82,7 @@ class GpisState:
     variance: Any = None
     recon: Any = None
     held: int = 0
+    free: tuple = (0, 0)
 
 
 @dataclass

@@ -1087,15 +1087,17 @@ def test_checks_that_touch_nothing_unpredicted_hold_the_estimate(sphere_model):
         params = session_preset("recommended", check_lines=8, eps=2.0, check_refit_every=every)
         session = Session.simulated(make_truth(sphere_model, rng=0), _box_library(sphere_model),
                                     seed=0, params=params)
-        held, fits = [], []
+        held, fits, free = [], [], []
         while not session.terminated and session.step_count < 80:
             snapshot = session.step()
             gpis = session.state.gpis
             held.append(gpis.held)
             fits.append(None if gpis.recon is None else gpis.recon.fit)
+            free.append((len(snapshot.noncontacts), len(session.state.free_space)))
             if gpis.held:  # planned on the surface of the fit before, drawn as it was
                 assert gpis.recon.fit is fits[-2] and "gpis" not in snapshot.timings
                 assert session.snapshots[-2].novel and snapshot.novel
+                assert free[-1] == free[-2]  # no miss has carved it since
         runs[every] = session, held
     session, held = runs[1]
     assert session.terminated and max(held) == 0
