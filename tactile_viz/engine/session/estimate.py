@@ -104,7 +104,8 @@ class Estimator(FinalSurface, Part):
         recon, variance = self._surface(fit, (low, high), p.gpis_resolution, spacing,
                                         gpis.variance)
         timings["surface"] = time.perf_counter() - clock
-        return recon, replace(gpis, variance=variance, recon=recon, held=0, free=self._free())
+        kept = recon if self.p.check_refit_every > 1 else None  # held only then
+        return recon, replace(gpis, variance=variance, recon=kept, held=0, free=self._free())
 
     def estimate(self, model, rotation, translation, map_vertices, timings):
         """The step's estimate: the last fit's surface again where :meth:`held_estimate`

@@ -514,8 +514,7 @@ class Session:
 
     def _scene_lengths(self, unit, own=None):
         """The parameters in scene units (:func:`~.lengths.session_lengths`)."""
-        return session_lengths(self.params, unit, own, self.sensor_noise[0],
-                               self.scene.tip_radius)
+        return session_lengths(self.params, unit, own, self.sensor_noise[0], self.scene.tip_radius)
 
     def _generators(self):
         simulator = self.simulator
@@ -530,8 +529,7 @@ class Session:
         model, pose, map_vertices = map_shape(self.filter, belief)  # l.2: z*, eq. 14
         self._use_lengths(model, belief.novel)                    # lengths in its size
         estimator, planner, _ = self.parts()
-        contacts, recon = self.filter.contact_positions, None
-        fitted = model, *pose, map_vertices
+        contacts, recon, fitted = self.filter.contact_positions, None, (model, *pose, map_vertices)
         if belief.novel:                                          # l.3: below eq. 24
             recon, self.state.gpis = estimator.estimate(*fitted, timings)  # l.4: GPIS
         with _timed(timings, "decision"):                         # beyond the paper
@@ -547,8 +545,7 @@ class Session:
             belief, decision = replace(belief, novel=True), UNDECIDED
             self._use_lengths(model, novel=True)
             estimator, planner, _ = self.parts()
-            recon, self.state.gpis = estimator.reconstruct(model, *pose, map_vertices,
-                                                           timings)
+            recon, self.state.gpis = estimator.reconstruct(*fitted, timings)
         self.state.decided = decision.decided
         reported = decided_class(self.filter, belief, decision, model, pose, map_vertices)
         if reported[1] is not model:                              # beyond the paper
@@ -561,8 +558,7 @@ class Session:
             if recon is not None:                                 # beyond the paper
                 pose, map_vertices = estimator.prior_pose(model, pose, map_vertices)
             with _timed(timings, "target"):
-                coverage = planner.coverage(recon, map_vertices, contacts,  # l.8: eq. 35
-                                            model, pose)
+                coverage = planner.coverage(recon, map_vertices, contacts, model, pose)  # l.8
                 stop = planner.stop_test(coverage, belief, decision)        # l.1: d_H <= eps
                 plan = planner.choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
                                              map_vertices, recon, contacts, decision)  # 36
