@@ -380,8 +380,8 @@ class SessionParams:
               "surprising contact growing it again; no stop while one is queued "
               "(docs/bench-novel.md).")
     check_refit_every: int = _session(
-        1, "While checks touch nothing unpredicted, fit the estimate every this many steps "
-        "(1: each; a stop fits afresh; docs/bench-speed.md).", kind="int", valid="[1, 100]")
+        1, "While checks touch the object beside the estimate, no miss, fit it every this many "
+        "steps (1: each; a stop fits afresh; docs/bench-speed.md).", kind="int", valid="[1, 100]")
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,

@@ -65,7 +65,7 @@ class GpisState:
         The last surface's lattice-node variances (:mod:`~tactile_viz.engine.shape.gpis_variance`).
     recon : Reconstruction or None
         The last fit's whole surface (before a snapshot's reported parts), which a check
-        that touched nothing unpredicted may plan on again (with ``check_refit_every`` over
+        that touched the object beside it may plan on again (with ``check_refit_every`` over
         1; else None).
     held : int
         Steps since ``recon`` was fitted.

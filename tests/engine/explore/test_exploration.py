@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import trimesh
 
 from tactile_viz.engine import Contact, ContactSimulator, GroundTruth, NonContact
 from tactile_viz.engine.explore.exploration import (
@@ -261,6 +262,19 @@ def test_a_gap_beyond_the_end_of_a_part_is_found_in_the_shell():
     swept = np.vstack([surface + t * radial for t in np.arange(0.0, 2.01, 0.25)])
     point, gap = widest_gap(surface, swept, surface, outside, shell=0.6)
     assert point is not None and abs(point[2]) > 2.0 and gap >= 0.3
+
+
+def test_a_gap_far_from_the_estimate_is_measured_in_full():
+    # Contacts on a sphere of radius 2 around a small estimated ball of radius 0.5: the
+    # widest gap lies halfway between, 0.75 from both, beyond the near distances the
+    # estimate's vertices are first asked for; deep inside the ball nothing is a gap.
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5).vertices
+    contacts = 2.0 * trimesh.creation.icosphere(subdivisions=3).vertices
+    outside = lambda points: np.linalg.norm(points, axis=1) - 0.5  # noqa: E731
+    for observed_only in (False, True):
+        point, gap = widest_gap(contacts, contacts, ball, outside, shell=0.0,
+                                observed_only=observed_only)
+        assert abs(np.linalg.norm(point) - 1.25) < 0.15 and 0.6 < gap < 0.85
 
 
 def test_inward_moves_a_rim_gap_until_its_lattice_reaches_the_band():
