@@ -139,6 +139,10 @@ def test_poses_of_a_learned_shape_apart_by_its_own_error_are_one_mode(shapes):
     apart = surface_disagreement(pf.bank, 0, np.stack([np.eye(3), nudged]), np.zeros((2, 3)))
     tolerance = [mode_tolerance(model, 0.02) for model in library]
     assert tolerance[0] == 0.02 and tolerance[1] > apart > 0.02
+    # The touches' tolerance and the shape's own error are independent: in quadrature.
+    spread = mode_tolerance(learned, 0.0)
+    np.testing.assert_allclose(tolerance[1], np.hypot(0.02, spread), rtol=1e-12)
+    assert mode_tolerance(learned, spread) > spread
     rotations = np.stack([np.eye(3), nudged])
     for index, expected in ((0, [0, 1]), (1, [0])):
         kept = distinct(pf.bank, np.array([index, index]), rotations, np.zeros((2, 3)),
