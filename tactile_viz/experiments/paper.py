@@ -437,7 +437,22 @@ def _learned_section(before, after, results):
         return ["", "## Learned prior", "", f"Not run: {notes[0].get('error', notes[0])}"]
     return ["", "## Learned prior (home chair)", "",
             aggregate.markdown_table(aggregate.LEARNED_HEADER,
-                                     aggregate.learned_rows(before, after))]
+                                     aggregate.learned_rows(before, after)),
+            *_learned_source(before, results)]
+
+
+def _learned_source(before, results):
+    """The sentence that names the trial the learned prior came from and its reconstruction
+    error: the pose error of the learned shape held where it was learned (empty for a
+    prior passed with ``--learned-from``)."""
+    source = next((r for r in results if (r.get("learned") or {}).get("file")), None)
+    summary = source and next((s for s in before if s["seed"] == source["seed"]), None)
+    if summary is None or summary.get("gpis_error") is None:
+        return []
+    return ["", f"Learned from the reconstruction of the trial at seed {summary['seed']}, "
+            f"{summary['gpis_error']:.3g} off the {LEARN_OBJECT} (two-way Hausdorff distance); "
+            "the learned shape at the very pose it was learned at scores that pose error, so a "
+            f"pose error under {aggregate.THRESHOLD:g} needs a reconstruction about that close."]
 
 
 def require_trials(folder):

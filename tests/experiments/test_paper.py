@@ -85,6 +85,18 @@ def test_step_time_section_splits_novel_and_known_steps():
     assert _step_time_section([]) == []
 
 
+def test_the_learned_section_names_the_reconstruction_the_prior_came_from():
+    from tactile_viz.experiments.paper import _learned_source
+
+    before = [{"seed": 7, "gpis_error": 0.41}, {"seed": 8, "gpis_error": 0.632}]
+    results = [{"seed": 7}, {"seed": 8, "learned": {"file": "x.ply"}}]
+    line = _learned_source(before, results)[1]
+    assert "seed 8, 0.632 off the home_chair" in line and "under 0.6" in line
+    # A prior passed with --learned-from (no trial learned it) and a failed one: no line.
+    assert _learned_source(before, [{"seed": 8}]) == []
+    assert _learned_source([{"seed": 8, "gpis_error": None}], results) == []
+
+
 def test_learned_trials_can_take_the_prior_of_an_earlier_run(tmp_path, capsys):
     import pytest
 
