@@ -2,7 +2,7 @@
 
 ``python -m tactile_viz bench learn [--objects NAME ...] [--libraries few many]
 [--noise 0:0 0.002:2] [--seeds 1] [--first-seed 0] [--set NAME=VALUE ...] [--max-steps N]
-[--workers 2] [--out DIR] [--no-progress]``
+[--known] [--workers 2] [--out DIR] [--no-progress]``
 
 The objects are the project's own at real sizes in metres: the bundled known objects at
 :data:`~tactile_viz.assetgen.catalog.SIZES_M` (12 to 40 cm) and the hard objects of
@@ -22,8 +22,10 @@ as a share of the object's longest side, the paper's on samples and from samples
 other surface (without the samples' floor: 5-10% of a compact object's size), touches,
 whether the session stopped by itself, seconds; met again: whether the learned prior was
 the MAP at the decision, the touch of the decision, the pose error there as a share of the
-size, seconds. Writes ``learn.md`` (tables) and ``learn.json`` (every trial's summary) to
-``--out`` and prints the tables.
+size, seconds. With ``--known``, each object is also explored as a known one (its own mesh
+added to the library, the same seed, preset and sensor) to time the novel session against:
+touches, seconds and their ratio. Writes ``learn.md`` (tables) and ``learn.json`` (every
+trial's summary) to ``--out`` and prints the tables.
 """
 
 import argparse
@@ -94,9 +96,11 @@ def phase_params(preset, settings):
     return with_settings(session_preset(preset), settings).to_dict() if settings else None
 
 
-def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps, settings=()):
+def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps, settings=(),
+                known=False):
     """The leave-one-out trials that learn (their met-again trials follow each one), with
-    ``settings`` (``--set`` pairs) changed in both phases' presets."""
+    ``settings`` (``--set`` pairs) changed in both phases' presets; with ``known``, each
+    followed by the same trial with the object in its library (:func:`known_task`)."""
     out = []
     for (position, degrees), which, name in (
             (n, w, o) for n in noises for w in libraries for o in objects):
@@ -109,7 +113,17 @@ def learn_tasks(objects, libraries, noises, seeds, first_seed, files, max_steps,
                 sensor={"position_noise": position, "normal_noise_deg": degrees})
             task["tag"], task["settings"] = which, list(settings or ())
             out.append(task)
+            if known:
+                out.append(known_task(task, _prior(name, files)))
     return out
+
+
+def known_task(task, prior):
+    """The learning ``task`` with the object's own ``prior`` added to its library: the same
+    object, seed, preset and sensor, explored as a known object (what the novel session's
+    time is measured against)."""
+    return dict(task, kind="known", learn_as=None,
+                extra_priors=task["extra_priors"] + [prior])
 
 
 def again_task(task, result, max_steps):
@@ -159,6 +173,23 @@ def again_summary(result):
             "pose_share": None if at["pose_error"] is None else at["pose_error"] / size,
             "again_touches": len(steps), "again_seconds": result["seconds"],
             "again_slowest_touch": _slowest(steps)}
+
+
+def known_summary(result):
+    """What the tables need of the trial that explores the object as a known one."""
+    steps = result["steps"]
+    last, cap = steps[-1], result["task"].get("max_steps") or result["params"]["max_steps_known"]
+    return {"known_right": last["map_class"] == result["object"] and not last["novel"],
+            "known_touches": len(steps),
+            "known_stopped": result["terminated_at"] is not None and len(steps) < cap,
+            "known_seconds": result["seconds"], "known_slowest_touch": _slowest(steps)}
+
+
+def _time_ratio(row):
+    """The novel session's seconds over the known one's (None without both)."""
+    if row.get("known_seconds") is None or row.get("seconds") is None:
+        return None
+    return row["seconds"] / max(row["known_seconds"], 1e-9)
 
 
 def _slowest(steps):
@@ -233,7 +264,30 @@ def markdown(rows):
             f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
             f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} | "
             f"{_fmt(r.get('seconds'), '.0f')} | {_fmt(r.get('slowest_touch'), '.2f')} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _known_lines(rows)) + "\n"
+
+
+def _known_lines(rows):
+    """The novel sessions against the same objects explored as known ones (``--known``)."""
+    rows = [r for r in rows if "known_seconds" in r]
+    if not rows:
+        return []
+    lines = ["", "| object | library | noise | known: right, touches, stopped, s, slowest "
+             "touch s | novel: touches, s, slowest touch s | novel / known time |",
+             "|" + "---|" * 6]
+    for r in rows:
+        lines.append(
+            f"| {r['object']} | {r['library']} | {r['noise'][0]:g}, {r['noise'][1]:g} | "
+            f"{'yes' if r['known_right'] else 'no'}, {r['known_touches']}, "
+            f"{'yes' if r['known_stopped'] else 'cap'}, {_fmt(r['known_seconds'])}, "
+            f"{_fmt(r['known_slowest_touch'], '.2f')} | "
+            f"{r.get('touches', '-')}, {_fmt(r.get('seconds'))}, "
+            f"{_fmt(r.get('slowest_touch'), '.2f')} | {_fmt(_time_ratio(r), '.2f')} |")
+    ratios = [_time_ratio(r) for r in rows if _time_ratio(r) is not None]
+    if ratios:
+        lines += ["", f"Novel / known time: median {np.median(ratios):.2f}, largest "
+                  f"{max(ratios):.2f} ({len(ratios)} trial{'s' * (len(ratios) != 1)})."]
+    return lines
 
 
 def run(tasks, workers, max_steps, progress=True):
@@ -254,8 +308,9 @@ def run(tasks, workers, max_steps, progress=True):
             key = (task["object"], task["tag"], task["seed"] - (
                 AGAIN_SEED if task["kind"] == "again" else 0), json.dumps(result["sensor"]))
             row = rows.setdefault(key, {})
-            row.update(learn_summary(result) if task["kind"] == "learn"
-                       else again_summary(result))
+            summary = {"learn": learn_summary, "again": again_summary,
+                       "known": known_summary}[task["kind"]]
+            row.update(summary(result))
     finally:
         pool.close()
     return [row for row in rows.values() if "object" in row], failed
@@ -278,6 +333,9 @@ def main(argv=None):
                         help="the first seed (seeds run from it up)")
     parser.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                         help="cap every trial at N touches (default: the presets' caps)")
+    parser.add_argument("--known", action="store_true", help="also explore each object as a "
+                        "known one (its mesh in the library, the same seed) and report the novel "
+                        "session's time against it")
     parser.add_argument("--workers", type=workers_int, default=2, help="trials in parallel")
     parser.add_argument("--out", type=output_dir, default="results/learn",
                         help="folder for learn.md and learn.json")
@@ -288,7 +346,7 @@ def main(argv=None):
     files = hard_meshes(out / "objects")
     tasks = learn_tasks(args.objects or list(OBJECTS), args.libraries or ["few", "many"],
                         args.noise or DEFAULT_NOISE, args.seeds, args.first_seed, files,
-                        args.max_steps, args.set)
+                        args.max_steps, args.set, args.known)
     rows, failed = run(tasks, args.workers, args.max_steps, not args.no_progress)
     for result in failed:
         print(f"trial {result['object']} s{result['seed']} failed:\n{result['error']}")

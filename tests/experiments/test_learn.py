@@ -86,6 +86,33 @@ def test_summaries_and_tables():
     assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - | 4 | 0.30 |" in text
 
 
+def test_known_trials_add_the_object_to_its_library_and_time_the_novel_one(tmp_path):
+    files = {"block": tmp_path / "block.ply"}
+    tasks = learn.learn_tasks(["block", "mug_1"], ["few"], [(0.0, 0.0)], 1, 5, files, None,
+                              known=True)
+    assert [t["kind"] for t in tasks] == ["learn", "known"] * 2
+    for learning, known in zip(tasks[::2], tasks[1::2]):
+        names = [p["name"] for p in known["extra_priors"]]
+        assert names == [p["name"] for p in learning["extra_priors"]] + [learning["object"]]
+        assert known["seed"] == learning["seed"] and known["learn_as"] is None
+        assert known["preset"] == "recommended" and learning["object"] not in [
+            p["name"] for p in learning["extra_priors"]]
+    assert tasks[1]["extra_priors"][-1]["file"] == str(files["block"])
+    assert tasks[3]["extra_priors"][-1] == {"name": "mug_1", "bundled": "mug_1",
+                                            "longest_side": learn.sizes()["mug_1"]}
+    row = learn.learn_summary(_result("cup", 30))
+    known = _result("cup", 20, learned=False)
+    for record in known["steps"]:
+        record.update(novel=False, map_class="cup")
+    known["seconds"] = 1.6
+    row.update(learn.known_summary(known))
+    assert row["known_right"] and row["known_stopped"] and row["known_touches"] == 20
+    text = learn.markdown([row])
+    assert "| cup | few | 0, 0 | yes, 20, yes, 1.6, 0.20 | 30, 4.0, 0.30 | 2.50 |" in text
+    assert "Novel / known time: median 2.50, largest 2.50 (1 trial)." in text
+    assert "novel / known" not in learn.markdown([learn.learn_summary(_result("cup", 30))])
+
+
 @pytest.mark.parametrize("argv", [["--objects", "teapot"], ["--libraries", "all"],
                                   ["--noise", "x"], ["--seeds", "0"]])
 def test_bad_arguments_are_one_line(argv, capsys):
