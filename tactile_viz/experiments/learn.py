@@ -158,6 +158,7 @@ def learn_summary(result):
             "touches": len(steps),
             "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"], "slowest_touch": _slowest(steps),
+            "median_touch": _median_touch(steps),
             "learned": "vertices" in (result.get("learned") or {})}
 
 
@@ -182,14 +183,20 @@ def known_summary(result):
     return {"known_right": last["map_class"] == result["object"] and not last["novel"],
             "known_touches": len(steps),
             "known_stopped": result["terminated_at"] is not None and len(steps) < cap,
-            "known_seconds": result["seconds"], "known_slowest_touch": _slowest(steps)}
+            "known_seconds": result["seconds"], "known_slowest_touch": _slowest(steps),
+            "known_median_touch": _median_touch(steps)}
 
 
-def _time_ratio(row):
-    """The novel session's seconds over the known one's (None without both)."""
-    if row.get("known_seconds") is None or row.get("seconds") is None:
+def _ratio(row, novel, known):
+    """``row[novel] / row[known]`` (None without both)."""
+    if row.get(known) is None or row.get(novel) is None:
         return None
-    return row["seconds"] / max(row["known_seconds"], 1e-9)
+    return row[novel] / max(row[known], 1e-9)
+
+
+def _median_touch(steps):
+    """The median step of a trial, seconds (None without step timings)."""
+    return _median([s.get("step_seconds") for s in steps])
 
 
 def _slowest(steps):
@@ -272,21 +279,25 @@ def _known_lines(rows):
     rows = [r for r in rows if "known_seconds" in r]
     if not rows:
         return []
-    lines = ["", "| object | library | noise | known: right, touches, stopped, s, slowest "
-             "touch s | novel: touches, s, slowest touch s | novel / known time |",
-             "|" + "---|" * 6]
+    lines = ["", "| object | library | noise | known: right, touches, stopped, s, median "
+             "touch ms | novel: touches, s, median touch ms | novel / known: session, "
+             "median touch |", "|" + "---|" * 6]
     for r in rows:
         lines.append(
             f"| {r['object']} | {r['library']} | {r['noise'][0]:g}, {r['noise'][1]:g} | "
             f"{'yes' if r['known_right'] else 'no'}, {r['known_touches']}, "
             f"{'yes' if r['known_stopped'] else 'cap'}, {_fmt(r['known_seconds'])}, "
-            f"{_fmt(r['known_slowest_touch'], '.2f')} | "
+            f"{_fmt(r.get('known_median_touch'), '.0f', 1000)} | "
             f"{r.get('touches', '-')}, {_fmt(r.get('seconds'))}, "
-            f"{_fmt(r.get('slowest_touch'), '.2f')} | {_fmt(_time_ratio(r), '.2f')} |")
-    ratios = [_time_ratio(r) for r in rows if _time_ratio(r) is not None]
-    if ratios:
-        lines += ["", f"Novel / known time: median {np.median(ratios):.2f}, largest "
-                  f"{max(ratios):.2f} ({len(ratios)} trial{'s' * (len(ratios) != 1)})."]
+            f"{_fmt(r.get('median_touch'), '.0f', 1000)} | "
+            f"{_fmt(_ratio(r, 'seconds', 'known_seconds'), '.2f')}, "
+            f"{_fmt(_ratio(r, 'median_touch', 'known_median_touch'), '.2f')} |")
+    for what, novel, known in (("session", "seconds", "known_seconds"),
+                               ("median touch", "median_touch", "known_median_touch")):
+        ratios = [x for x in (_ratio(r, novel, known) for r in rows) if x is not None]
+        if ratios:
+            lines += ["", f"Novel / known {what}: median {np.median(ratios):.2f}, largest "
+                      f"{max(ratios):.2f} ({len(ratios)} trial{'s' * (len(ratios) != 1)})."]
     return lines
 
 

@@ -108,8 +108,10 @@ def test_known_trials_add_the_object_to_its_library_and_time_the_novel_one(tmp_p
     row.update(learn.known_summary(known))
     assert row["known_right"] and row["known_stopped"] and row["known_touches"] == 20
     text = learn.markdown([row])
-    assert "| cup | few | 0, 0 | yes, 20, yes, 1.6, 0.20 | 30, 4.0, 0.30 | 2.50 |" in text
-    assert "Novel / known time: median 2.50, largest 2.50 (1 trial)." in text
+    # Median touches: 0.155 s of the novel session's 30, 0.105 s of the known one's 20.
+    assert "| cup | few | 0, 0 | yes, 20, yes, 1.6, 105 | 30, 4.0, 155 | 2.50, 1.48 |" in text
+    assert "Novel / known session: median 2.50, largest 2.50 (1 trial)." in text
+    assert "Novel / known median touch: median 1.48, largest 1.48 (1 trial)." in text
     assert "novel / known" not in learn.markdown([learn.learn_summary(_result("cup", 30))])
 
 
