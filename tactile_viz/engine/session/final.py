@@ -112,8 +112,12 @@ class FinalSurface:
         return recon if cut.empty else cut
 
     def best_supported(self, final, contacts, prior):
-        """``final`` if the contacts cover it (every vertex within ``eps`` of a contact),
-        else the newest reconstruction they cover, else the best supported one (the least
+        """``final`` if the contacts cover it (every vertex within ``eps`` of a contact, and
+        a cell of its grid: the stop judged the same fit on the exploration's coarser
+        cells, and a finer grid moves its surface by about a cell; a 10 cm mug's final
+        surface reached 0.04 mm beyond its 11.8 mm, and seven candidates took 1.5 s to
+        find one 0.03 mm nearer), else the newest reconstruction they cover, else the best
+        supported one (the least
         :func:`support`): the GPIS fitted to every observation with the MAP prior of this
         step and of each of the last ``final_candidates`` steps, then (``gpis_agnostic``)
         with each superquadric fitted to the contacts, each without and then with the
@@ -132,22 +136,23 @@ class FinalSurface:
         p = self.p
         tree = cKDTree(contacts)
         best_support = self._support(final.vertices, tree, final.closure)
-        if best_support <= p.eps:
+        if best_support <= p.eps + cell_of(final.bounds, final.resolution):
             return final, self.state.gpis.shape
         screen = p.final_screen_resolution or p.final_resolution
         best, screened = None, []
         for candidate, box, shape in self._final_candidates(final, contacts, prior):
+            covered = p.eps + cell_of(box, p.final_resolution)
             if screen != p.final_resolution:
-                slack = float(np.ptp(np.asarray(box), axis=0).max()) / screen
+                slack = cell_of(box, screen)
                 coarse_support = self._level(candidate, box, screen, tree)[1]
-                if coarse_support > p.eps + slack:
+                if coarse_support > covered + slack:
                     # Only the few best are kept: each fit holds a factor of 4 rows a contact.
                     screened.append((coarse_support - slack, candidate, box, shape))
                     screened.sort(key=lambda item: item[0])
                     del screened[FINE_CANDIDATES:]
                     continue
             level, candidate_support = self._level(candidate, box, p.final_resolution, tree)
-            if candidate_support <= p.eps:
+            if candidate_support <= covered:
                 return self._surface(candidate, box, p.final_resolution, level=level)[0], shape
             if candidate_support < best_support:
                 best_support, best = candidate_support, (candidate, box, shape, level)
@@ -326,3 +331,11 @@ def own_box(vertices, bounds, resolution):
     if np.max(own_high - own_low) > OWN_BOX_SHARE * np.max(high - low):
         return None
     return own_low, own_high
+
+
+def cell_of(box, resolution):
+    """The cell of ``resolution`` cells along the longest side of ``box`` (``(low, high)``,
+    scene units; 0 without a box)."""
+    if box is None:
+        return 0.0
+    return float(np.ptp(np.asarray(box, dtype=float), axis=0).max()) / resolution

@@ -1,0 +1,64 @@
+"""The final surface's choice among candidates (``FinalSurface.best_supported``), on a
+stand-in estimator: which surfaces it weighs, not how they are fitted."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tactile_viz.engine.session.final import FinalSurface, cell_of
+
+
+class _Candidates(FinalSurface):
+    """An estimator whose candidates are counted, each supported ``candidate_support``."""
+
+    def __init__(self, eps, candidate_support):
+        self.p = SimpleNamespace(eps=eps, final_resolution=64, final_screen_resolution=32,
+                                 final_support_open=False, gpis_fill_voids=False)
+        self.state = SimpleNamespace(gpis=SimpleNamespace(shape=None))
+        self.candidate_support, self.weighed = candidate_support, 0
+
+    def _final_candidates(self, final, contacts, prior):
+        for _ in range(3):
+            self.weighed += 1
+            yield "fit", ((0.0, 0.0, 0.0), (6.4, 1.0, 1.0)), None
+
+    def _level(self, fit, box, resolution, tree):
+        return ("vertices", "faces"), self.candidate_support
+
+    def _surface(self, fit, box, resolution, level=None):
+        return (SimpleNamespace(chosen=fit, resolution=resolution),)
+
+
+def _final(reach):
+    """A surface on 64 cells of a box 6.4 long (cells of 0.1) whose farthest vertex lies
+    ``reach`` from the only contact."""
+    vertices = np.array([[0.0, 0.0, 0.0], [reach, 0.0, 0.0]])
+    return SimpleNamespace(vertices=vertices, closure=None, resolution=64,
+                           bounds=(np.zeros(3), np.array([6.4, 1.0, 1.0])))
+
+
+@pytest.mark.parametrize("reach, searched", [(1.0, False), (1.05, False), (1.2, True)])
+def test_a_final_surface_within_a_cell_of_eps_is_covered(reach, searched):
+    # The stop judged the same fit on the exploration's coarser cells: a surface a finer
+    # grid moves beyond eps by less than one of its cells (0.1) is covered, and no
+    # candidate is fitted (a 10 cm mug's last step: 0.04 mm beyond, seven candidates, 1.5 s).
+    estimator = _Candidates(eps=1.0, candidate_support=5.0)
+    final = _final(reach)
+    chosen, shape = estimator.best_supported(final, np.zeros((1, 3)), prior=None)
+    assert (estimator.weighed > 0) == searched
+    assert chosen is final and shape is None  # the candidates, weighed, support it worse
+
+
+@pytest.mark.parametrize("candidate_support, taken", [(1.08, True), (1.15, False)])
+def test_a_candidate_within_a_cell_of_eps_is_taken_first(candidate_support, taken):
+    estimator = _Candidates(eps=1.0, candidate_support=candidate_support)
+    chosen = estimator.best_supported(_final(3.0), np.zeros((1, 3)), prior=None)[0]
+    assert chosen.chosen == "fit" and chosen.resolution == 64
+    # The first covered one ends the search; otherwise every candidate is weighed.
+    assert estimator.weighed == (1 if taken else 3)
+
+
+def test_the_cell_is_the_longest_side_over_the_resolution():
+    assert cell_of(((0.0, 0.0, 0.0), (6.4, 1.0, 2.0)), 64) == pytest.approx(0.1)
+    assert cell_of(None, 64) == 0.0
