@@ -325,7 +325,7 @@ def own_box(vertices, bounds, resolution):
     low, high = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
     if len(vertices) == 0:
         return None
-    cell = float(np.max(high - low)) / resolution
+    cell = cell_of((low, high), resolution)
     own_low = np.maximum(np.min(vertices, axis=0) - OWN_BOX_CELLS * cell, low)
     own_high = np.minimum(np.max(vertices, axis=0) + OWN_BOX_CELLS * cell, high)
     if np.max(own_high - own_low) > OWN_BOX_SHARE * np.max(high - low):
