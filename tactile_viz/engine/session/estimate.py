@@ -283,8 +283,11 @@ class Estimator(FinalSurface, Part):
     def _observation_options(self, noncontacts):
         """The fits' noise and non-contact keywords."""
         p = self.p
-        # The sensor's position noise adds to the GPIS's observation noise (variances).
-        return {"noise_variance": p.gpis_noise + self.sensor_noise[0] ** 2,
+        # The sensor's noise adds to the GPIS's (variances): its position noise to the
+        # values (lengths), its normal noise to the gradients (a unit normal's tilt).
+        position, normal_deg = self.sensor_noise
+        return {"noise_variance": p.gpis_noise + position**2,
+                "gradient_noise_variance": p.gpis_noise + np.radians(normal_deg) ** 2,
                 "noncontacts": noncontacts if p.gpis_noncontacts else None,
                 "noncontact_value": p.gpis_noncontact_value}
 

@@ -36,6 +36,7 @@ from .gpis_prior import (  # noqa: F401
     free_space_cut,
     noncontact_observations,
     observations,
+    row_noise,
 )
 
 _CHUNK = 4096  # query points per kernel block
@@ -383,7 +384,8 @@ def newton_step_log_scale(gram0, residual, scale, noise, factor, alpha, max_step
 
 
 def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, newton=True,
-             noncontacts=None, noncontact_value=0.1, refuting=None):
+             noncontacts=None, noncontact_value=0.1, refuting=None,
+             gradient_noise_variance=None):
     """Fit the GPIS to contacts, taking one Newton step on the kernel scale.
 
     Parameters
@@ -411,6 +413,9 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     refuting : (q, 3) float, optional
         Positions outside the object that observe ``f = noncontact_value`` whatever the
         prior there (:func:`~.gpis_prior.refuted_fit`).
+    gradient_noise_variance : float, optional
+        That of the contacts' gradient (normal) rows; None: ``noise_variance`` (the
+        paper's one sigma).
 
     Returns
     -------
@@ -419,7 +424,7 @@ def fit_gpis(points, normals, prior, kernel, scale=1.0, noise_variance=1e-4, new
     kernel = as_kernel(kernel)
     everything, kept, residual, noise = observations(points, normals, prior, noncontacts,
                                                      noncontact_value, noise_variance,
-                                                     refuting)
+                                                     refuting, gradient_noise_variance)
     if len(everything) == 0:
         return GPISFit(everything, np.zeros(0, dtype=int), float(scale), kernel, np.zeros(0),
                        np.zeros((0, 0)), np.zeros(0), 0.0, prior)

@@ -26,6 +26,7 @@ from .gpis import (
     kernel_blocks,
     newton_step_log_scale,
     observations,
+    row_noise,
     stable_cholesky,
 )
 from .gpis_compiled import compiled_corrections
@@ -44,8 +45,10 @@ class GramCache:
         Added to the diagonal of ``gram0`` (an indefinite thin-plate Gram matrix).
     gram0 : (m, m) float
         ``K0`` (scale 1) of the rows, nugget included.
-    scale, noise, jitter : float
-        The factor is that of ``scale gram0 + (noise + jitter) I``.
+    scale, jitter : float
+    noise : (float, float)
+        The value rows' and the gradient rows' noise variance (:func:`~.gpis.row_noise`):
+        the factor is that of ``scale gram0 + diag(noise) + jitter I``.
     factor : (m, m) float
         Lower Cholesky factor.
     inverse_rows : (m,) float
@@ -57,7 +60,7 @@ class GramCache:
     nugget: float
     gram0: np.ndarray
     scale: float
-    noise: float
+    noise: tuple
     jitter: float
     factor: np.ndarray
     inverse_rows: np.ndarray
@@ -159,16 +162,28 @@ def _gram(cache, points, kept, kernel):
 
 
 def _full_factor(gram0, nugget, scale, noise):
-    """``(gram0, nugget, factor, jitter)`` by a full factorisation, a nugget added to
-    ``gram0`` when jitter alone does not make it positive definite (as fit_gpis)."""
+    """``(gram0, nugget, factor, jitter)`` by a full factorisation of
+    ``scale gram0 + diag(noise)`` (``noise`` (m,) per row), a nugget added to ``gram0``
+    when jitter alone does not make it positive definite (as fit_gpis)."""
     eye = np.eye(len(gram0))
     try:
-        factor, jitter = stable_cholesky(scale * gram0 + noise * eye)
+        factor, jitter = stable_cholesky(scale * gram0 + np.diag(noise))
     except LinAlgError:
         extra = indefinite_nugget(gram0)
         gram0, nugget = gram0 + extra * eye, nugget + extra
-        factor, jitter = stable_cholesky(scale * gram0 + noise * eye)
+        factor, jitter = stable_cholesky(scale * gram0 + np.diag(noise))
     return gram0, nugget, factor, jitter
+
+
+def _noise_pair(noise):
+    """``(value, gradient)`` noise variances from such a pair or one float for both."""
+    value, gradient = np.broadcast_to(np.asarray(noise, dtype=float), (2,))
+    return float(value), float(gradient)
+
+
+def _row_noise(rows, noise):
+    """The noise variance of each of ``rows`` ((m, 4), :func:`observed_rows`)."""
+    return row_noise(rows[:, 3], *noise)
 
 
 def cached_factor(cache, points, kept, kernel, scale, noise):
@@ -182,20 +197,23 @@ def cached_factor(cache, points, kept, kernel, scale, noise):
     kept : (m,) int
         Observed rows of the ``4 n`` [value, gradient] components.
     kernel : ThinPlateKernel or WendlandKernel
-    scale, noise : float
+    scale : float
+    noise : float or (float, float)
+        The value rows' and the gradient rows' noise variance (one float: both).
 
     Returns
     -------
     GramCache
     """
+    noise = _noise_pair(noise)
     gram0, nugget, shared, rows = _gram(cache, points, kept, kernel)
     same = shared and cache.scale == scale and cache.noise == noise
     if same and shared == len(kept):  # nothing new (a refit, a rolled-back step)
         return GramCache(rows, kernel, nugget, gram0, scale, noise, cache.jitter,
                          cache.factor[:shared, :shared], cache.inverse_rows[:shared])
     if same:
-        diagonal = noise + cache.jitter
-        corner = scale * gram0[shared:, shared:] + diagonal * np.eye(len(kept) - shared)
+        diagonal = _row_noise(rows[shared:], noise) + cache.jitter
+        corner = scale * gram0[shared:, shared:] + np.diag(diagonal)
         try:
             factor = extend_cholesky(cache.factor[:shared, :shared],
                                      scale * gram0[:shared, shared:], corner)
@@ -206,7 +224,7 @@ def cached_factor(cache, points, kept, kernel, scale, noise):
                 factor, shared, cache.factor[:shared, :shared])])
             return GramCache(rows, kernel, nugget, gram0, scale, noise, cache.jitter,
                              factor, norms)
-    gram0, nugget, factor, jitter = _full_factor(gram0, nugget, scale, noise)
+    gram0, nugget, factor, jitter = _full_factor(gram0, nugget, scale, _row_noise(rows, noise))
     return GramCache(rows, kernel, nugget, gram0, scale, noise, jitter, factor,
                      inverse_row_norms(factor))
 
@@ -222,20 +240,27 @@ def _likelihood(cache, residual):
 def scale_score(cache, residual, alpha):
     """The gradient of the log marginal likelihood in ``log a`` over its standard deviation
     under the model (``sqrt(m / 2)``, the Fisher information's bound): about N(0, 1) when
-    the scale fits the data, large when a Newton step would move it."""
+    the scale fits the data, large when a Newton step would move it.
+
+    The trace ``tr(S K^-1)`` takes each row's noise times its row of ``L^-1``'s squared
+    norm instead of ``K^-1``'s diagonal entry: the same sum, exact when the noise is the
+    same on every row, a trigger's approximation when the gradient rows' differs."""
     m = len(residual)
     if m == 0:
         return 0.0
-    s = cache.noise + cache.jitter
-    gradient = (0.5 * (residual @ alpha - s * alpha @ alpha)
-                - 0.5 * (m - s * float(np.sum(cache.inverse_rows))))
+    value, gradient_rows = cache.noise[0] + cache.jitter, cache.rows[:, 3] > 0
+    extra = cache.noise[1] - cache.noise[0]  # the gradient rows' noise beyond the values'
+    weighted = (value * alpha) @ alpha + extra * (alpha[gradient_rows] @ alpha[gradient_rows])
+    trace = (value * float(np.sum(cache.inverse_rows))
+             + extra * float(np.sum(cache.inverse_rows[gradient_rows])))
+    gradient = 0.5 * (residual @ alpha - weighted) - 0.5 * (m - trace)
     return float(gradient / np.sqrt(0.5 * m))
 
 
 def _newton(cache, residual, alpha, value):
     """One accepted Newton step on ``log a`` (halved up to six times, as fit_gpis):
     ``(cache, alpha, value)`` at the new scale, or the inputs when no step is accepted."""
-    noise = np.full(len(residual), cache.noise)
+    noise = _row_noise(cache.rows, cache.noise)
     step = newton_step_log_scale(cache.gram0, residual, cache.scale, noise, cache.factor,
                                  alpha)
     for _ in range(6):
@@ -244,7 +269,7 @@ def _newton(cache, residual, alpha, value):
         candidate = cache.scale * np.exp(step)
         try:
             gram0, nugget, factor, jitter = _full_factor(cache.gram0, cache.nugget,
-                                                         candidate, cache.noise)
+                                                         candidate, noise)
         except LinAlgError:
             step /= 2
             continue
@@ -260,13 +285,15 @@ def _newton(cache, residual, alpha, value):
 
 def fit_gpis_incremental(points, normals, prior, kernel, cache=None, scale=1.0,
                          noise_variance=1e-4, refit=True, refit_score=np.inf,
-                         noncontacts=None, noncontact_value=0.1):
+                         noncontacts=None, noncontact_value=0.1,
+                         gradient_noise_variance=None):
     """:func:`~.gpis.fit_gpis` reusing ``cache``, with the Newton step on the scale taken
     only when ``refit`` or when :func:`scale_score` exceeds ``refit_score``.
 
     Parameters
     ----------
     points, normals, prior, kernel, scale, noise_variance, noncontacts, noncontact_value
+    gradient_noise_variance
         As :func:`~.gpis.fit_gpis`.
     cache : GramCache or None
         The previous fit's (any content: only what matches is reused).
@@ -289,7 +316,8 @@ def fit_gpis_incremental(points, normals, prior, kernel, cache=None, scale=1.0,
                                                  noncontact_value)
     if len(everything) == 0:
         return fit_gpis_empty(everything, kernel, scale, prior), None, False
-    noise = float(noise_variance)
+    noise = _noise_pair(noise_variance if gradient_noise_variance is None
+                        else (noise_variance, gradient_noise_variance))
     cache = cached_factor(cache, everything, kept, kernel, float(scale), noise)
     alpha, value = _likelihood(cache, residual)
     refitted = bool(refit) or abs(scale_score(cache, residual, alpha)) > refit_score
@@ -297,7 +325,7 @@ def fit_gpis_incremental(points, normals, prior, kernel, cache=None, scale=1.0,
         cache, alpha, value = _newton(cache, residual, alpha, value)
     weights = np.zeros(4 * len(everything))
     weights[kept] = alpha
-    fit = GPISFit(everything, kept, float(cache.scale), kernel, np.full(len(kept), noise),
+    fit = GPISFit(everything, kept, float(cache.scale), kernel, _row_noise(cache.rows, noise),
                   cache.factor, weights, value, prior, compiled=True)
     return fit, cache, refitted
 

@@ -29,8 +29,18 @@ def noncontact_observations(prior, noncontacts, value):
     return noncontacts[np.asarray(prior(noncontacts)[0]) < value]
 
 
+def row_noise(components, noise_variance, gradient_noise_variance=None):
+    """The noise variance of observed rows by their ``components`` ((m,) int: 0 a value,
+    1-3 a gradient's): ``noise_variance`` on values, ``gradient_noise_variance`` (None:
+    the same) on gradients. A value is a length and a gradient a unit normal's tilt, so
+    a sensor's position and normal noise belong to different rows."""
+    components = np.asarray(components)
+    gradient = noise_variance if gradient_noise_variance is None else gradient_noise_variance
+    return np.where(components == 0, float(noise_variance), float(gradient))
+
+
 def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
-                 noise_variance=1e-4, refuting=None):
+                 noise_variance=1e-4, refuting=None, gradient_noise_variance=None):
     """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts
     that contradict the prior and the ``refuting`` (q, 3) points, whatever the prior there
     (value ``noncontact_value``), less the prior mean.
@@ -44,7 +54,8 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     residual : (m,) float
         Observation less prior mean on the kept rows.
     noise : (m,) float
-        ``noise_variance`` on every kept row.
+        ``noise_variance`` on the value rows, ``gradient_noise_variance`` (None: the
+        same) on the contacts' gradient rows.
     """
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     normals = np.asarray(normals, dtype=float).reshape(-1, 3)
@@ -62,7 +73,8 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
     kept = np.concatenate([np.arange(4 * len(points)),
                            4 * (len(points) + np.arange(len(outside)))])
-    noise = np.concatenate([np.full(4 * len(points), float(noise_variance)),
+    noise = np.concatenate([row_noise(np.arange(4 * len(points)) % 4, noise_variance,
+                                      gradient_noise_variance),
                             np.full(len(outside), float(noise_variance))])
     return everything, kept, residual[kept], noise
 

@@ -78,6 +78,53 @@ def test_cache_extended_contact_by_contact_equals_the_full_factor(rng):
                                2.0 * gram + 1e-3 * np.eye(40), atol=1e-8 * np.abs(gram).max())
 
 
+def test_a_cache_with_its_own_gradient_noise_equals_the_full_factor(rng):
+    points, kernel = _random_points(rng, 8), ThinPlateKernel(14.0)
+    cache = None
+    for count in range(1, 9):
+        cache = cached_factor(cache, points[:count], np.arange(4 * count), kernel, 0.5,
+                              (1e-3, 2e-2))
+    noise = np.tile([1e-3, 2e-2, 2e-2, 2e-2], 8)
+    gram = kernel_blocks(points, points, kernel)
+    np.testing.assert_allclose(cache.factor @ cache.factor.T,
+                               0.5 * gram + np.diag(noise + cache.jitter),
+                               atol=1e-8 * np.abs(gram).max())
+
+
+def test_an_incremental_fit_with_gradient_noise_equals_the_full_fit(mug):
+    points, normals, prior = mug
+    noisy = points + np.random.default_rng(3).normal(0, 0.05, points.shape)
+    kernel, cache, scale = ThinPlateKernel(12.0), None, 1.0
+    for count in (2, 10, 30):
+        options = {"noise_variance": 2.5e-3, "gradient_noise_variance": 1e-2}
+        fit, cache, _ = fit_gpis_incremental(noisy[:count], normals[:count], prior, kernel,
+                                             cache, scale, refit=True, **options)
+        full = fit_gpis(noisy[:count], normals[:count], prior, kernel, scale=scale, **options)
+        assert fit.scale == pytest.approx(full.scale, rel=1e-9)
+        query = points[:count] + 0.2
+        np.testing.assert_allclose(fit.mean_value(query), full.mean_value(query), atol=1e-8)
+        np.testing.assert_allclose(fit.variance(query), full.variance(query), atol=1e-8)
+        scale = fit.scale
+
+
+@pytest.mark.parametrize("gradient_noise", [1e-4, 1e-2])
+def test_the_scale_score_is_near_the_likelihoods_gradient_with_gradient_noise(
+        mug, gradient_noise):
+    points, normals, prior = mug
+    noisy = points + np.random.default_rng(4).normal(0, 0.05, points.shape)
+    for scale in (0.3, 3.0):
+        fit, cache, _ = fit_gpis_incremental(noisy, normals, prior, ThinPlateKernel(12.0),
+                                             None, scale, refit=False, noise_variance=2.5e-3,
+                                             gradient_noise_variance=gradient_noise)
+        alpha = fit.alpha[fit.kept]
+        residual = cache.factor @ (cache.factor.T @ alpha)
+        noise = fit.noise + cache.jitter
+        inverse = np.linalg.inv(cache.factor @ cache.factor.T)
+        exact = (0.5 * (residual @ alpha - alpha @ (noise * alpha))
+                 - 0.5 * (len(alpha) - np.diag(inverse) @ noise)) / np.sqrt(0.5 * len(alpha))
+        assert scale_score(cache, residual, alpha) == pytest.approx(exact, rel=0.05, abs=0.3)
+
+
 def test_a_schur_complement_that_is_not_positive_definite_refactors_in_full(rng):
     with pytest.raises(LinAlgError):
         extend_cholesky(np.eye(2), np.eye(2), 0.5 * np.eye(2))
@@ -156,6 +203,23 @@ def test_paper_preset_refits_in_full_every_step(bundled, monkeypatch):
     novel = [s for s in session.snapshots if s.gpis_faces is not None]
     assert novel and len(calls) == len(novel)
     assert all(call["newton"] for call in calls)
+
+
+def test_a_noisy_sensors_normal_noise_goes_to_the_gradient_rows(bundled, monkeypatch):
+    calls = []
+    monkeypatch.setattr(estimate, "fit_gpis",
+                        lambda *args, **kwargs: calls.append(kwargs) or fit_gpis(*args, **kwargs))
+    library = PriorLibrary(bundled[name] for name in ("mug_1", "bottle_1", "vase_1"))
+    session = Session.simulated(make_truth(bundled["mug_2"], rng=1), library, "gpis-dhd",
+                                params=session_preset("recommended"), seed=1,
+                                sensor_noise=(0.05, 3.0))
+    session.run(max_steps=12)
+    assert calls
+    for call in calls:
+        # Both carry the GPIS's own noise; the sensor's adds a length to the values and a
+        # tilt (radians) to the gradients.
+        assert (call["gradient_noise_variance"] - call["noise_variance"]
+                == pytest.approx(np.radians(3.0) ** 2 - 0.05**2, rel=1e-9))
 
 
 def test_a_full_fit_takes_the_scales_newton_step_as_the_data_grow(bundled, monkeypatch):
