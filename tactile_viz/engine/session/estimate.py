@@ -284,10 +284,11 @@ class Estimator(FinalSurface, Part):
         """The fits' noise and non-contact keywords."""
         p = self.p
         # The sensor's noise adds to the GPIS's (variances): its position noise to the
-        # values (lengths), its normal noise to the gradients (a unit normal's tilt).
+        # values (lengths), its normal noise to the gradients: a tilt by an angle of std s
+        # about a random axis moves a unit normal by s**2 / 2 along each tangent direction.
         position, normal_deg = self.sensor_noise
         return {"noise_variance": p.gpis_noise + position**2,
-                "gradient_noise_variance": p.gpis_noise + np.radians(normal_deg) ** 2,
+                "gradient_noise_variance": p.gpis_noise + np.radians(normal_deg) ** 2 / 2,
                 "noncontacts": noncontacts if p.gpis_noncontacts else None,
                 "noncontact_value": p.gpis_noncontact_value}
 

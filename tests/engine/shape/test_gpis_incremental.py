@@ -217,9 +217,9 @@ def test_a_noisy_sensors_normal_noise_goes_to_the_gradient_rows(bundled, monkeyp
     assert calls
     for call in calls:
         # Both carry the GPIS's own noise; the sensor's adds a length to the values and a
-        # tilt (radians) to the gradients.
+        # tilt (radians, half its square along each tangent direction) to the gradients.
         assert (call["gradient_noise_variance"] - call["noise_variance"]
-                == pytest.approx(np.radians(3.0) ** 2 - 0.05**2, rel=1e-9))
+                == pytest.approx(np.radians(3.0) ** 2 / 2 - 0.05**2, rel=1e-9))
 
 
 def test_a_full_fit_takes_the_scales_newton_step_as_the_data_grow(bundled, monkeypatch):
