@@ -285,7 +285,7 @@ class Estimator(FinalSurface, Part):
         p = self.p
         # The sensor's noise adds to the GPIS's (variances): its position noise to the
         # values (lengths), its normal noise to the gradients: a tilt by an angle of std s
-        # about a random axis moves a unit normal by s**2 / 2 along each tangent direction.
+        # about a random axis moves a unit normal with variance s**2 / 2 along each tangent.
         position, normal_deg = self.sensor_noise
         return {"noise_variance": p.gpis_noise + position**2,
                 "gradient_noise_variance": p.gpis_noise + np.radians(normal_deg) ** 2 / 2,
