@@ -73,10 +73,8 @@ def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
     residual = (observed - np.column_stack([prior_values, prior_gradients])).ravel()
     kept = np.concatenate([np.arange(4 * len(points)),
                            4 * (len(points) + np.arange(len(outside)))])
-    noise = np.concatenate([row_noise(np.arange(4 * len(points)) % 4, noise_variance,
-                                      gradient_noise_variance),
-                            np.full(len(outside), float(noise_variance))])
-    return everything, kept, residual[kept], noise
+    return (everything, kept, residual[kept],
+            row_noise(kept % 4, noise_variance, gradient_noise_variance))
 
 
 REFUTE_MOST = 64
