@@ -651,6 +651,24 @@ def test_the_fit_is_tested_on_the_mesh_when_the_grid_errs(shapes, monkeypatch):
     assert not refused.fits and not refused.decided
 
 
+def test_the_grids_own_error_is_no_grant_the_mesh_must_fit(shapes, monkeypatch):
+    """A lead within the grid's limit only by the grid's own error is asked on its mesh: a
+    mesh it fits passes it, a mesh it misfits refuses it, at the mesh's p-value (noiseless,
+    a fork fitted a knife's grid within the blade's grid error, 1.8 mm RMS off its mesh)."""
+    from tactile_viz.engine.belief import fit_test as module
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    monkeypatch.setattr(module, "grid_error", lambda bank, class_index: 1.0)
+    decision = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1)
+    lead, dof = decision.hypotheses[0], 40 - module.POSE_PARAMETERS
+    assert lead.misfit <= module.fit_limit(pf, lead.class_index, 1e-5, 0.99, dof)
+    assert lead.misfit > module.chi2_quantile(0.99, dof) * 1e-10  # beyond the noise alone
+    assert decision.fits
+    monkeypatch.setattr(module, "mesh_misfit", lambda *args: np.inf)
+    refused = decide(pf, state, 0.99, floor=1e-5, same_mode=0.1)
+    assert not refused.fits and not refused.decided and refused.fit_p == 0.0
+
+
 def _turned_back(library, turn_hypotheses, rotvec_of, noise, count):
     """Touches of a one-class library (``count`` even samples, ``noise`` std), a hypothesis
     posed off by the turn ``rotvec_of(pf)`` about the class's centre of mass, and
