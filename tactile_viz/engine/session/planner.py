@@ -93,6 +93,7 @@ EXTENSIONS = (("given-up targets", None), ("box caps", ("gpis_carve_radius", 0.0
               ("noisy cover", ("cover_noise_stds", 0.0)),
               ("own size", ("own_size_share", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
+              ("misfit holds the stop", ("misfit_novelty", 0.0)),
               ("decision stop", ("stop_at_decision", False)),
               ("telling apart", ("decision_targets", False)),
               ("confirm checks", ("decision_targets", False)))
@@ -320,7 +321,7 @@ class Planner(Part):
         coverage, belief and decision and the exploration state's progress."""
         state = self.state
         progress = Progress(len(self.snapshots), bool(state.frontier), state.checks_passed,
-                            state.decision_checks, state.telling_steps)
+                            state.decision_checks, state.telling_steps, state.misfit_steps)
         return stop_rule(self.p, coverage.value, coverage.dhd, belief.novel,
                          belief.novel and self.context.strategy != "rrt", decision, progress,
                          self.sensor_noise[0])

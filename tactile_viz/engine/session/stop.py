@@ -42,6 +42,9 @@ class Progress(NamedTuple):
         Confirm checks of the decision passed so far.
     telling_steps : int
         Steps spent telling hypotheses apart or posing the MAP.
+    misfit_steps : int
+        Steps in a row, this one included, that a known MAP misfitted
+        (:meth:`~.planner.Planner.misfits`; 0 without ``misfit_novelty``).
     """
 
     step: int
@@ -49,6 +52,7 @@ class Progress(NamedTuple):
     checks_passed: int
     decision_checks: int
     telling_steps: int
+    misfit_steps: int = 0
 
 
 def decision_ready(p, decision, dhd, checks_done):
@@ -115,10 +119,14 @@ def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress, noi
     doubting = p.stop_at_decision and bool(decision.hypotheses) and not decision.fits
     posing = (p.decision_targets and not novel and not rivals and not decided
               and (decision.loosest is not None or settling or doubting) and patient)
+    # Nor does a known object stop while its MAP misfits and the count that judges it
+    # novel runs (misfit_novelty): a 20 cm fork covered as a 25 cm knife stopped at the
+    # first of the five steps, its rivals and pose no longer held open by a fit.
+    misfitting = not novel and progress.misfit_steps > 0
     # The DHD stop waits for the decision's checks too: they are a step or two, and a thin
     # object is covered before they are swept (an 18 cm pencil in 15 touches).
     terminated = bool((covered and not checking and not frontier and not rivals
-                       and not posing and not confirm)
+                       and not posing and not confirm and not misfitting)
                       or (p.stop_at_decision and decided)
                       or progress.step + 1 >= cap)
     return Stop(terminated, decided, frontier, checking, confirm, rivals, posing,

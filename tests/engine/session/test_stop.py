@@ -49,6 +49,19 @@ def test_a_covered_novel_estimate_waits_for_its_checks_and_frontier():
     assert stop_rule(p, p.eps, p.eps, True, False, UNDECIDED, FRESH).terminated
 
 
+def test_a_covered_known_object_waits_while_its_misfit_count_runs():
+    p = session_preset("recommended")
+    counting = FRESH._replace(misfit_steps=1)
+    assert not stop_rule(p, p.eps, p.eps, False, False, UNDECIDED, counting).terminated
+    assert stop_rule(p, p.eps, p.eps, False, False, UNDECIDED, FRESH).terminated
+    # A novel stop waits for its checks, not for a count kept through it.
+    passed = counting._replace(checks_passed=p.check_lines)
+    assert stop_rule(p, p.eps, p.eps, True, True, UNDECIDED, passed).terminated
+    # The step cap stops whatever runs.
+    last = counting._replace(step=p.max_steps_known - 1)
+    assert stop_rule(p, p.eps, p.eps, False, False, UNDECIDED, last).terminated
+
+
 def test_a_decision_is_confirmed_before_it_stops_a_session():
     p = session_preset("recognise")
     around = p.decision_cover
