@@ -2,11 +2,12 @@
 
 The paper stops as soon as the contacts cover the estimate. Beyond the paper the stop also
 waits for check lines and the frontier (a novel object), for rival hypotheses to be told
-apart, for the one hypothesis left to be posed, and for the decision's confirm checks (a
-known object); a decision can stop a session by itself (``stop_at_decision``); the step
-cap always does. Every rule is here, as plain functions of the step's figures and the
-parameters in scene units, so that changing the stop means editing this module only;
-:meth:`~.planner.Planner.stop_test` gathers their inputs.
+apart, for the one hypothesis left to be posed, for the decision's confirm checks and
+while a misfitting MAP's count toward novelty runs (a known object); a decision can stop
+a session by itself (``stop_at_decision``); the step cap always does. Every rule is here,
+as plain functions of the step's figures and the parameters in scene units, so that
+changing the stop means editing this module only; :meth:`~.planner.Planner.stop_test`
+gathers their inputs.
 """
 
 from typing import NamedTuple
