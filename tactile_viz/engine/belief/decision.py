@@ -59,6 +59,7 @@ from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
 from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg
+from .grouped import lead_grouped_p
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
 from .mesh_fit import NO_FITS, weighed_on_meshes
@@ -134,6 +135,10 @@ class Decision:
         The chi-squared test's p-value of the MAP's residuals, the better of its grid's
         and its mesh's (1 when it fits at the confidence, or when not assessed): how
         unlikely a right hypothesis leaves them.
+    group_p : float
+        The p-value of the MAP's residuals averaged by place (:mod:`.grouped`; 1 when not
+        asked for or not assessed): a look-alike's misfit, shared by the contacts of a
+        place, stands out of the noise there long before it does in ``fit_p``.
     refined : Refined
         What it refined, for the next touch's starts (:mod:`.incremental`).
     lead : Hypothesis or None
@@ -148,6 +153,7 @@ class Decision:
     scale: float = 0.0
     modes: tuple = ()
     fit_p: float = 1.0
+    group_p: float = 1.0
     refined: Refined = field(default=NOTHING, repr=False)
     lead: object = field(default=None, repr=False)
 
@@ -172,7 +178,7 @@ UNDECIDED = Decision(False, 0.0)
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
            pose_tolerance=np.inf, normal_noise_deg=0.0, refined=NOTHING, refresh=1,
-           budget=np.inf, normals=False, any_class=False, spread=0):
+           budget=np.inf, normals=False, any_class=False, spread=0, localisation=None):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -231,6 +237,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         With more contacts, searched first on this many of them spread over the object
         and a thinned free space, and again on all unless the lead misfits there
         (:mod:`.spread`; 0: on all; the planner asks it while the MAP keeps misfitting).
+    localisation : float or None, scene units
+        What the contacts of one place may share off a right hypothesis (the contact's
+        localisation): with it the lead's residuals are also tested by place
+        (``Decision.group_p``, :func:`~.grouped.lead_grouped_p`); None: not tested.
 
     Returns
     -------
@@ -239,7 +249,7 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     options = dict(confidence=confidence, floor=floor, same_mode=same_mode, carried=carried,
                    free_space=free_space, pose_tolerance=pose_tolerance,
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget,
-                   normals=normals, any_class=any_class)
+                   normals=normals, any_class=any_class, localisation=localisation)
     count = len(pf.contact_positions)
     incremental = refresh > 1  # else as before: afresh at each touch
     full = not incremental or full_search_due(refined, count, refresh)
@@ -300,7 +310,8 @@ def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, no
 
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
-           normal_noise_deg, refined, budget, full, incremental, normals, any_class, count):
+           normal_noise_deg, refined, budget, full, incremental, normals, any_class, count,
+           localisation=None):
     """:func:`decide`, a full search or not, with what the last touch refined or
     afresh (not ``incremental``: the decision as it was before :mod:`.incremental`);
     ``count`` the filter's contacts (``pf`` may see a spread of them)."""
@@ -402,6 +413,8 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
                           lambda c: fit_limit(pf, c, floor, confidence, dof))
     level = min(weighed_share, lead.probability)
     fits, fit_p, limit = fit_test(pf, lead, floor, confidence, outside, oriented, tolerance)
+    group_p = 1.0 if localisation is None else lead_grouped_p(
+        pf, lead, oriented, floor, localisation, confidence, outside, tolerance)
     loosest, modes, posed = None, (), lead
     if fits and level >= confidence:
         modes = _open_modes(pf.bank, hypotheses, lead, limit,
@@ -415,7 +428,7 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         hypotheses = (posed,) + tuple(h for h in hypotheses if h is not lead)
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
-                    float(np.sqrt(scale2)), modes, fit_p, memory, lead)
+                    float(np.sqrt(scale2)), modes, fit_p, group_p, memory, lead)
 
 
 def _flipped(pf, poses):

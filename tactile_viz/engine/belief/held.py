@@ -14,6 +14,7 @@ import numpy as np
 
 from .decision import Decision, Hypothesis
 from .fit_test import fit_limit, model_floor2
+from .grouped import lead_grouped_p
 from .oriented import oriented_evaluator
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .posed import posed_by_normals
@@ -21,7 +22,7 @@ from .support import table_support
 
 
 def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
-                  normal_noise_deg=0.0, normals=False):
+                  normal_noise_deg=0.0, normals=False, localisation=None):
     """The decided ``lead`` refitted to every contact, as a :class:`~.decision.Decision`,
     or None when the decision must be made afresh.
 
@@ -32,7 +33,7 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     belief : FilterState
     lead : Hypothesis
         The decided hypothesis of an earlier touch.
-    confidence, floor, free_space, normal_noise_deg, normals
+    confidence, floor, free_space, normal_noise_deg, normals, localisation
         As for :func:`~.decision.decide`.
 
     Returns
@@ -68,7 +69,9 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     if not misfit <= fit_limit(pf, c, floor, confidence, dof):
         return None  # a misfit (or NaN) reopens the decision
     # Tested on positions, reported posed by the normals too (as :func:`~.decision.decide`).
-    kept = posed_by_normals(pf, Hypothesis(c, rotations[0], translations[0], misfit, 1.0),
-                            outside, oriented)
+    refitted = Hypothesis(c, rotations[0], translations[0], misfit, 1.0)
+    kept = posed_by_normals(pf, refitted, outside, oriented)
     scale = float(np.sqrt(max(misfit / dof, model_floor2(pf, c, floor), 1e-300)))
-    return Decision(True, share, (kept,), True, None, scale, ())
+    group_p = 1.0 if localisation is None else lead_grouped_p(
+        pf, refitted, oriented, floor, localisation, confidence, outside)
+    return Decision(True, share, (kept,), True, None, scale, (), group_p=group_p)

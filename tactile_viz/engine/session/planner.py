@@ -183,10 +183,11 @@ class Planner(Part):
         p, noise = self.p, self.sensor_noise[0]
         floor = float(np.hypot(p.decision_floor, noise))
         free_space = segment_points(self.state.missed, MISSED_SPACING * self.unit)
+        localisation = p.decision_floor if p.misfit_novelty > 0 else None
         if p.decision_hold and self.state.decided and self.state.hypotheses:
             held = held_decision(self.filter, belief, self.state.hypotheses[0],
                                  p.decision_confidence, floor, free_space,
-                                 self.sensor_noise[1], p.decision_normals)
+                                 self.sensor_noise[1], p.decision_normals, localisation)
             if held is not None:
                 return held
         return decide(self.filter, belief, p.decision_confidence, floor=floor,
@@ -197,7 +198,8 @@ class Planner(Part):
                       refined=self.state.decision_refined, refresh=p.decision_refresh,
                       budget=p.decision_budget, normals=p.decision_normals,
                       any_class=p.decision_any_class,
-                      spread=p.decision_contacts if self.state.misfit_steps else 0)
+                      spread=p.decision_contacts if self.state.misfit_steps else 0,
+                      localisation=localisation)
 
     def _misfit_held(self, belief):
         """Whether the step holds the misfit it would assess: the MAP class of the last
@@ -214,14 +216,15 @@ class Planner(Part):
     def misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):
         its MAP's refined residuals fail the chi-squared test (``decision.fit_p`` below
-        ``misfit_novelty``) for ``MISFIT_STEPS`` steps in a row with contacts all around
-        it (the last DHD within ``decision_cover``) and the same MAP class, and go on
-        failing it. The paper's test passes a look-alike of equal size that misfits by a
-        few percent of the size everywhere (its ``sigma_d`` is 8% of the size); the
-        decision's test asks for the sensor's noise. A step the paper's test judges novel
-        keeps the count and what the last decision weighed (nothing is assessed there): a
-        misfitting look-alike whose paper test flips now and then stays novel instead of
-        counting its five steps afresh.
+        ``misfit_novelty``), or the same test of their means by place
+        (``decision.group_p``, :mod:`~..belief.grouped`), for ``MISFIT_STEPS`` steps in a
+        row with contacts all around it (the last DHD within ``decision_cover``) and the
+        same MAP class, and go on failing it. The paper's test passes a look-alike of
+        equal size that misfits by a few percent of the size everywhere (its ``sigma_d`` is
+        8% of the size); the decision's test asks for the sensor's noise. A step the
+        paper's test judges novel keeps the count and what the last decision weighed
+        (nothing is assessed there): a misfitting look-alike whose paper test flips now
+        and then stays novel instead of counting its five steps afresh.
 
         Returns
         -------
@@ -240,7 +243,7 @@ class Planner(Part):
         last = self.snapshots[-1] if self.snapshots else None
         around = (last is not None and last.map_class == belief.map_class
                   and (last.dhd <= p.decision_cover or self._touched_round(belief)))
-        misfit = decision.fit_p < p.misfit_novelty
+        misfit = min(decision.fit_p, decision.group_p) < p.misfit_novelty
         steps = before + 1 if misfit and (around or before >= MISFIT_STEPS) else 0
         return steps >= MISFIT_STEPS, steps
 
