@@ -1080,3 +1080,28 @@ def test_a_learned_shapes_pose_need_not_be_known_better_than_the_shape(shapes):
     assert pose_limit(pf, 1, 0.5) == 0.5 * learned.length  # a looser tolerance holds
     pf.params = dataclasses.replace(pf.params, learned_noise=False)
     assert pose_limit(pf, 1, 0.05) == 0.05 * learned.length
+
+
+def test_a_misfit_judged_novel_stays_so_until_the_fit_passes(shapes, monkeypatch):
+    """Once five steps misfit at ``misfit_novelty`` (1e-9), the object stays novel while
+    the p-value only rises to 1e-4 (a look-alike's hovers about the threshold) and turns
+    known again once the fit passes at ``decision_confidence`` (0.5)."""
+    from tactile_viz.engine.session import planner
+
+    def hovering(pf, belief, *args, **kwargs):
+        first = Hypothesis(shapes.names.index(belief.map_class), belief.map_rotation,
+                           belief.map_translation, 1.0, 1.0)
+        fit_p = 1e-9 if pf.step_count < 15 else 1e-4 if pf.step_count < 21 else 0.5
+        return Decision(False, 1.0, (first,), fit_p == 0.5, fit_p=fit_p)
+
+    monkeypatch.setattr(planner, "decide", hovering)
+    params = session_preset("recommended", decision_cover=12.0, misfit_novelty=1e-6,
+                            max_steps_known=26, max_steps_novel=26)
+    session = Session.simulated(make_truth(shapes["box"], rng=[7, 0]), shapes, params=params,
+                                seed=7)
+    session.run(max_steps=26)
+    steps = {s.step: s for s in session.snapshots}
+    novel = sorted(step for step, s in steps.items() if s.novel)
+    assert novel and novel[0] < 15
+    assert all(steps[step].novel for step in range(novel[0], 21) if step in steps)
+    assert any(not steps[step].novel for step in range(21, 27) if step in steps)
