@@ -478,9 +478,8 @@ class SessionParams:
     decision_floor: float = _session(
         0.01, "How far a right hypothesis's contacts may lie off its surface besides the "
         "sensor's noise and the grid's own error.", valid=_POSITIVE, length=1,
-        control=(1e-4, 1.0), notes="Both added in quadrature: the contact's localisation "
-        "(the simulator's is within 0.01). The contacts of one place may all lie this far "
-        "off (the misfit test by place): on a robot, at least the scans' accuracy.")
+        control=(1e-4, 1.0), notes="The contact's localisation (the simulator's is within "
+        "0.01), shared by a place's contacts: on a robot, at least the scans' accuracy.")
     decision_cover: float = _session(
         2.4, "A decision also needs every point of the MAP surface within this distance of a "
         "contact (its DHD).", valid=_POSITIVE, length=1, control=(0.1, 12.0),
@@ -533,10 +532,8 @@ class SessionParams:
         "residuals have a chi-squared p-value below this, all of them or their means by "
         "place, for 5 steps in a row with contacts all around it (beyond the paper; 0: the "
         "paper's test alone).", valid="[0, 0.5]", control=(0.0, 0.01),
-        notes="The paper's sigma_d is 8% of the size: a look-alike of equal size that misfits "
-              "by a few percent everywhere passes its test. The decision's fit test asks "
-              "for the sensor's noise, the grid's error and a learned shape's own error; "
-              "by place, the noise averages out and a shape's misfit does not "
+        notes="The paper's sigma_d is 8% of the size: a look-alike of equal size passes its "
+              "test. By place, the noise averages out and a shape's misfit does not "
               "(engine/belief/grouped.py, docs/novel.md).")
     stop_at_decision: bool = _session(
         False, "Stop as soon as the object is decided (a robot that only needs to "
