@@ -89,7 +89,7 @@ def grouped_p(residuals, groups, noise2, shared2=0.0, trim=0.0):
     Returns
     -------
     float
-        1 with fewer than ``POSE_PARAMETERS`` contacts or a non-finite residual; 0 for a
+        1 with at most ``POSE_PARAMETERS`` contacts or a non-finite residual; 0 for a
         right hypothesis's variance of 0 with a mean off 0.
     """
     residuals = np.asarray(residuals, dtype=float).reshape(-1)
@@ -135,17 +135,19 @@ def contact_residuals(pf, class_index, rotation, translation, oriented, exact=Fa
 
 
 def grouped_test(pf, class_index, rotation, translation, oriented, floor, localisation=0.0,
-                 exact=False):
+                 exact=False, groups=None):
     """:func:`grouped_p` of a class posed at ``rotation``, ``translation`` on the filter's
     contacts (:func:`contact_residuals`, ``exact`` or on the grid): each residual's
     noise ``floor`` (the sensor's and the localisation's, scene units), a group's share
     the ``localisation`` and the class's own error (``shape_error``, a learned shape's)
-    in quadrature; the groups' normals weighed at the class's size unit."""
+    in quadrature; ``groups`` the contacts' :func:`contact_groups` (None: grouped with
+    the normals weighed at the class's size unit)."""
     model = pf.models[class_index]
     if len(pf.contact_positions) <= POSE_PARAMETERS:
         return 1.0
     residuals = contact_residuals(pf, class_index, rotation, translation, oriented, exact)
-    groups = contact_groups(pf.contact_positions, pf.contact_normals, model.size_unit)
+    if groups is None:
+        groups = contact_groups(pf.contact_positions, pf.contact_normals, model.size_unit)
     return grouped_p(residuals, groups, floor**2,
                      localisation**2 + model.shape_error**2, pf.params.outlier_probability)
 
@@ -160,14 +162,19 @@ def lead_grouped_p(pf, lead, oriented, floor, localisation, confidence, outside,
     of the two. The grid errs by place (in thin parts), and a pose refined on it is off
     by that error."""
     index, rotation, translation = int(lead.class_index), lead.rotation, lead.translation
-    p = grouped_test(pf, index, rotation, translation, oriented, floor, localisation)
+    if len(pf.contact_positions) <= POSE_PARAMETERS:
+        return 1.0
+    groups = contact_groups(pf.contact_positions, pf.contact_normals,
+                            pf.models[index].size_unit)  # the same for every pose asked
+    p = grouped_test(pf, index, rotation, translation, oriented, floor, localisation,
+                     groups=groups)
     if p >= 1 - confidence:
         return p
     p = grouped_test(pf, index, rotation, translation, oriented, floor, localisation,
-                     exact=True)
+                     exact=True, groups=groups)
     if p >= 1 - confidence:
         return p
     _, rotation, translation = mesh_fit(pf, index, rotation, translation, outside, oriented,
                                         tolerance=tolerance)
     return max(p, grouped_test(pf, index, rotation, translation, oriented, floor,
-                               localisation, exact=True))
+                               localisation, exact=True, groups=groups))
