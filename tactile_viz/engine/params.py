@@ -162,11 +162,7 @@ class FilterParams:
     contenders: int = _filter(
         4, "Classes whose heaviest particles are refined to tell near twins apart (beyond "
         "the paper; 0 off).", kind="int", valid=_AT_LEAST_0, control=(0, 50),
-        notes="For libraries of near twins (:mod:`.discrimination`): the heaviest particle "
-              "of each of this many heaviest classes holding at least contender_mass of the "
-              "posterior, and this many classes that fit the contacts best at the MAP's "
-              "pose, have their poses refined (refine_iterations steps); a lookalike that "
-              "fits better than every contender joins the belief, and while several classes "
+        notes="For libraries of near twins (:mod:`.discrimination`): while several classes "
               "contend the MAP is the one whose refined pose fits best.")
     contender_mass: float = _filter(
         0.05, "The share of the posterior a class must hold to contend (0-1).", valid="[0, 1]")
@@ -351,11 +347,8 @@ class SessionParams:
         4.0, "Under position noise, the GPIS-DHD target and a check's surprise lie farther "
         "than this many noise standard deviations from every contact (beyond the paper; 0: "
         "the paper's target).", valid="[0, 20]",
-        notes="A touch nearer than that repeats a contact within the noise: it is given "
-              "up as a repeat and covers nothing new. Under noise the GPIS variance is "
-              "nearly flat over the surface (the noise term dominates it), so the paper's "
-              "largest-variance target falls as often beside a contact as far from one. "
-              "Noiseless it changes nothing.")
+        notes="Under noise the GPIS variance is nearly flat over the surface, so the "
+              "paper's target falls as often beside a contact as far from one.")
     cover_noise_stds: float = _session(
         2.0, "Under position noise, a known object's surface counts as covered within "
         "hypot(eps, this many noise standard deviations) of a contact (beyond the paper; 0: "
@@ -385,14 +378,9 @@ class SessionParams:
     check_line_aim: str = _session(
         "gap-weakest", "Where each check sweeps: the widest gap, also the estimate's weakest "
         "support, or through a contact.", kind="choice", choices=CHECK_LINE_AIMS,
-        notes="gap: each check sweeps the widest gap that no contact, swept path or "
-              "estimated surface is near, alternately inside the contacts' convex hull and "
-              "in a shell of 2 eps around the estimate: in from a clear direction, "
-              "then a lattice of rows 0.2 apart through the cube inside the gap's ball; "
-              "gap-weakest: after every two gap checks one more sweeps that lattice about "
-              "the estimate's vertex farthest from every contact (where the object may lie "
-              "up to eps off the estimate unseen), not counted unless it surprises; "
-              "contact: a line through a random contact moved by about eps.")
+        notes="gap: the widest gap that nothing observed or estimated is near; "
+              "gap-weakest: after every two, one about the estimate's vertex farthest from "
+              "every contact; contact: a line through a random contact (docs/engine.md).")
     check_shell_inward: bool = _session(
         True, "A shell check's lattice reaches in to the band beside the estimate: its "
         "centre moves toward the estimate (beyond the paper).", kind="bool",
@@ -410,6 +398,11 @@ class SessionParams:
     final_support_open: bool = _gpis(
         True, "The reported surface's support (final_candidates) leaves out the vertices "
         "the stop does: near given-up targets and missed probes.", kind="bool")
+    final_support_near: bool = _gpis(
+        True, "Under position noise, where misses refute the reported surface "
+        "(final_candidates), a contact supports it within contact_spacing or "
+        "target_noise_stds noise stds, not eps (beyond the paper).", kind="bool",
+        notes="docs/gpis.md.")
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",

@@ -17,7 +17,7 @@ from ..shape.level_set import box_closure, zero_level_surface
 from ..shape.metrics import wall_thickness
 from ..transforms import transform_points
 from .refuted import open_estimate
-from .reported import reported_parts
+from .reported import reported_parts, support_reach
 
 FINE_CANDIDATES = 3  # the best supported on the screen's surfaces, judged finer too
 WALL_MOST = 4  # a thin wall's final surface takes at most this many times the resolution
@@ -87,12 +87,17 @@ class FinalSurface:
         return recon
 
     def _supported(self, recon, contacts, close=False):
-        """:func:`~.reported.reported_parts` of ``recon`` in this session (with ``close``,
-        cut by :meth:`_cut_refuted` where its holes cannot be closed)."""
+        """:func:`~.reported.reported_parts` of ``recon`` in this session, within
+        :meth:`support_reach` of a contact (with ``close``, cut by :meth:`_cut_refuted`
+        where its holes cannot be closed)."""
         cut = functools.partial(self._cut_refuted, contacts=contacts) if close else None
         return reported_parts(recon, self.state.refuted, contacts,
-                              self.p.contact_spacing, self.p.eps, close=close, cut=cut,
-                              cap_reach=self.p.gpis_carve_radius)
+                              self.p.contact_spacing, self.support_reach(), close=close,
+                              cut=cut, cap_reach=self.p.gpis_carve_radius)
+
+    def support_reach(self):
+        """:func:`~.reported.support_reach` of this session."""
+        return support_reach(self.p, self.sensor_noise[0])
 
     def _cut_refuted(self, recon, contacts):
         """``recon`` extracted again as it was, with balls of ``contact_spacing`` about
@@ -104,7 +109,7 @@ class FinalSurface:
         faces were dropped."""
         p = self.p
         balls = free_space_cut(self.state.refuted, contacts, p.contact_spacing,
-                               keep_within=p.eps)
+                               keep_within=self.support_reach())
         if balls is None or recon.bounds is None:
             return recon
         fit = replace(recon.fit, cut=joined_cut(recon.fit.cut, balls))

@@ -24,6 +24,23 @@ from ..shape.mesh_repair import closed_faces
 from .refuted import refuted_tree
 
 
+def support_reach(p, noise=0.0):
+    """How near a contact a reported surface is supported where misses refute it, and how
+    near one a part of it must come (scene units): ``eps``, or under position noise of std
+    ``noise`` (with ``final_support_near``) ``contact_spacing`` and at least
+    ``target_noise_stds`` stds (what the noise explains), at most ``eps``.
+
+    Under noise the thin-plate fit swings between readings that disagree, and the surface
+    grows blobs beside thin parts: a 20 cm fork's last surface at 2 mm kept blobs 6-20 mm
+    from every contact, within 5 mm of the misses about them and up to 23 mm off the fork
+    (12.0% of its size; 6.7% with the nearer reach, the same touches). Noiseless the
+    surface within eps of a contact interpolates exact readings, and the nearer reach cut
+    true parts near misses (a 15 cm elephant's 5.4% -> 15.0%)."""
+    if not p.final_support_near or noise <= 0:
+        return p.eps
+    return min(p.eps, max(p.contact_spacing, p.target_noise_stds * noise))
+
+
 def refuted_vertices(vertices, refuted, contacts, spacing, reach, closure=None,
                      cap_reach=0.0):
     """Mask of the ``vertices`` that misses refute: within ``spacing`` of a ``refuted``

@@ -2,6 +2,8 @@
 misses refute: :mod:`tactile_viz.engine.session.reported` and
 :meth:`Reconstruction.restricted` on their own."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -177,3 +179,29 @@ def test_a_surface_pymeshlab_refuses_is_not_closed(monkeypatch):
     assert without_refuted(recon, refuted, contacts, 0.2, 0.3,
                            cut=lambda r: cut.append(r) or "cut") is not recon
     assert len(cut) == 1
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+@pytest.mark.parametrize("noise", [1e-9, 0.01, 1.0])
+def test_a_surface_is_supported_nearer_a_contact_than_eps_where_misses_refute_it(scale,
+                                                                                 noise):
+    from tactile_viz.engine.presets import session_preset
+    from tactile_viz.engine.session.reported import support_reach
+
+    p = dataclasses.replace(session_preset("recommended"), eps=0.6 * scale,
+                            contact_spacing=0.3 * scale)
+    reach = support_reach(p, noise * scale)
+    assert reach == pytest.approx(min(p.eps, max(p.contact_spacing,
+                                                 p.target_noise_stds * noise * scale)))
+    assert p.contact_spacing <= reach <= p.eps
+    assert support_reach(dataclasses.replace(p, final_support_near=False), noise) == p.eps
+    assert support_reach(p, 0.0) == p.eps  # noiseless: eps
+    # A blob 0.45 units inside a shell of contacts, misses about it: within eps of them,
+    # beyond the spacing. Its vertices are refuted only with a reach under 0.45.
+    vertices, faces, body = _two_balls(scale)
+    centre = np.array([3.0 * scale, 0.0, 0.0])
+    contacts = centre + (vertices[body:] - centre) * 0.75 / 0.3
+    misses = vertices[body:] + [0.0, 0.1 * scale, 0.0]
+    for support, dropped in ((p.eps, False), (reach, reach < 0.45 * scale)):
+        refuted = refuted_vertices(vertices, misses, contacts, p.contact_spacing, support)
+        assert refuted[body:].any() == dropped
