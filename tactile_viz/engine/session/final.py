@@ -42,7 +42,7 @@ class FinalSurface:
         reconstruction of a recent MAP prior that the contacts cover, else the best
         supported (:meth:`best_supported`; ``prior`` is the step's ``(class, rotation,
         translation)``); of that, without what misses refute (the holes this leaves
-        closed), the parts some contact comes within ``eps`` of (:meth:`_supported`): a
+        closed), the parts some contact comes within reach of (:meth:`_supported`): a
         part no contact comes near is a phantom of the prior mean or the kernel (an 8 cm
         cup's ended with a blob 5 cm off every contact).
 
@@ -75,7 +75,7 @@ class FinalSurface:
     def reported(self, recon, contacts, timings):
         """The step's surface as a snapshot reports it: with ``final_candidates`` (as the
         final surface), without what misses refute, only the parts some contact comes
-        within ``eps`` of (:meth:`_supported`); the planner keeps the whole estimate. A
+        within reach of (:meth:`_supported`); the planner keeps the whole estimate. A
         part no contact comes near is a phantom of the prior mean or the kernel, and it
         comes and goes from step to step (an 8 cm cup's error between 10 and 90 mm on
         consecutive touches)."""
