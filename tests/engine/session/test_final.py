@@ -1,12 +1,16 @@
 """The final surface's choice among candidates (``FinalSurface.best_supported``), on a
 stand-in estimator: which surfaces it weighs, not how they are fitted."""
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import trimesh
 
+from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.session.final import FinalSurface, cell_of
+from tactile_viz.engine.session.snapshot import Reconstruction
 
 
 class _Candidates(FinalSurface):
@@ -62,3 +66,32 @@ def test_a_candidate_within_a_cell_of_eps_is_taken_first(candidate_support, take
 def test_the_cell_is_the_longest_side_over_the_resolution():
     assert cell_of(((0.0, 0.0, 0.0), (6.4, 1.0, 2.0)), 64) == pytest.approx(0.1)
     assert cell_of(None, 64) == 0.0
+
+
+class _Reporting(FinalSurface):
+    """An estimator that reports a given surface: its parameters, misses and noise."""
+
+    def __init__(self, noise, refuted):
+        self.p = dataclasses.replace(session_preset("recommended"), eps=0.6,
+                                     contact_spacing=0.3)
+        self.state = SimpleNamespace(refuted=refuted)
+        self.sensor_noise = (noise, 0.0)
+
+
+@pytest.mark.parametrize("noise, kept", [(0.0, True), (0.01, False), (1.0, True)])
+def test_a_blob_within_eps_but_beyond_the_noise_is_not_reported_under_noise(noise, kept):
+    # A body touched all over and a blob 0.45 from a shell of contacts, misses about it:
+    # within eps (0.6) of a contact, beyond the spacing (0.3). Noiseless, or where the
+    # noise explains 0.45 (4 stds of 1.0, at most eps), it is reported; else it is not.
+    body = trimesh.creation.icosphere(2, 1.0)
+    blob = trimesh.creation.icosphere(1, 0.3)
+    blob.apply_translation([3.0, 0.0, 0.0])
+    both = trimesh.util.concatenate([body, blob])
+    vertices, faces, n = np.asarray(both.vertices), np.asarray(both.faces), len(body.vertices)
+    centre = np.array([3.0, 0.0, 0.0])
+    contacts = np.vstack([vertices[:n], centre + (vertices[n:] - centre) * 0.75 / 0.3])
+    recon = Reconstruction(vertices, faces, np.arange(4), np.zeros(4), fit=None,
+                           resolution=32)
+    estimator = _Reporting(noise, refuted=vertices[n:] + [0.0, 0.1, 0.0])
+    reported = estimator.reported(recon, contacts, {})
+    assert len(reported.vertices) == (len(vertices) if kept else n)

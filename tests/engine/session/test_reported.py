@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.session.reported import (
     refuted_vertices,
+    support_reach,
     supported_parts,
     without_refuted,
 )
@@ -185,9 +187,6 @@ def test_a_surface_pymeshlab_refuses_is_not_closed(monkeypatch):
 @pytest.mark.parametrize("noise", [1e-9, 0.01, 1.0])
 def test_a_surface_is_supported_nearer_a_contact_than_eps_where_misses_refute_it(scale,
                                                                                  noise):
-    from tactile_viz.engine.presets import session_preset
-    from tactile_viz.engine.session.reported import support_reach
-
     p = dataclasses.replace(session_preset("recommended"), eps=0.6 * scale,
                             contact_spacing=0.3 * scale)
     reach = support_reach(p, noise * scale)
