@@ -330,7 +330,8 @@ class Planner(Part):
         coverage, belief and decision and the exploration state's progress."""
         state = self.state
         progress = Progress(len(self.snapshots), bool(state.frontier), state.checks_passed,
-                            state.decision_checks, state.telling_steps, state.misfit_steps)
+                            state.decision_checks, state.telling_steps, state.misfit_steps,
+                            bool(self.snapshots) and self.snapshots[-1].novel)
         return stop_rule(self.p, coverage.value, coverage.dhd, belief.novel,
                          belief.novel and self.context.strategy != "rrt", decision, progress,
                          self.sensor_noise[0])

@@ -49,6 +49,22 @@ def test_a_covered_novel_estimate_waits_for_its_checks_and_frontier():
     assert stop_rule(p, p.eps, p.eps, True, False, UNDECIDED, FRESH).terminated
 
 
+def test_a_known_flicker_after_novel_steps_stops_only_on_a_fitting_map():
+    p = session_preset("recommended")
+    after_novel = FRESH._replace(was_novel=True)
+    misfit = Decision(False, 0.9, (_hypothesis(0.9),), fits=False)
+    # The paper's test judging a novel object known for one step: no stop, the novel cap.
+    assert not stop_rule(p, p.eps, p.eps, False, False, misfit, after_novel).terminated
+    at_known_cap = after_novel._replace(step=p.max_steps_known - 1)
+    assert not stop_rule(p, p.eps, p.eps, False, False, misfit, at_known_cap).terminated
+    # A MAP that fits stops as before, so does one known for two steps, and the paper.
+    fitting = Decision(False, 0.5, (_hypothesis(0.5),), fits=True)
+    assert stop_rule(p, p.eps, p.eps, False, False, fitting, after_novel).terminated
+    assert stop_rule(p, p.eps, p.eps, False, False, misfit, FRESH).terminated
+    paper = session_preset("paper")
+    assert stop_rule(paper, paper.eps, paper.eps, False, False, misfit, after_novel).terminated
+
+
 def test_a_covered_known_object_waits_while_its_misfit_count_runs():
     p = session_preset("recommended")
     counting = FRESH._replace(misfit_steps=1)
