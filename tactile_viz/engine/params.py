@@ -302,11 +302,11 @@ class SessionParams:
               "a superquadric in force the MAP prior's surface need not be covered "
               "(cover_prior). docs/novel.md.")
     gpis_prior_hold: str = _gpis(
-        "noisy", "A novel object's GPIS prior keeps its last shape and pose until the MAP "
+        "noisy", "A novel object's GPIS prior keeps the MAP shape's last pose until the MAP "
         "particle's is 10 nats ahead in the contacts' GP evidence (beyond the paper): never, "
         "with a noisy sensor, or always.", kind="choice", choices=PRIOR_HOLDS,
-        notes="Another class held is posed at its heaviest particle; lengths, targets and "
-              "prior cover follow the prior held; noiseless it was mixed (docs/novel.md).")
+        notes="Targets, prior cover and snapshot follow the pose held; noiseless it was "
+              "mixed on bench learn and the protocol (docs/novel.md).")
     gpis_carve_estimate: str = _gpis(
         "never", "Cut the carve's balls out of the GPIS posterior mean too, the estimate "
         "itself, where no contact is within eps (beyond the paper): never, with a noisy "

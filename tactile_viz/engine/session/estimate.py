@@ -74,20 +74,21 @@ class Estimator(FinalSurface, Part):
         """
         p, gpis = self.p, self.state.gpis
         contacts, normals = self.filter.contact_positions, self.filter.contact_normals
-        priors = [(model, rotation, translation)] + self._held_prior(model, rotation,
-                                                                     translation)
+        poses = [(rotation, translation)] + self._held_pose(model, rotation, translation)
         force = (("shape", gpis.shape.roundness) if gpis.shape is not None
-                 else ("pose", min(len(priors) - 1, 1)))
+                 else ("pose", len(poses) - 1))
         low, high, kernel = self.gpis_box(
-            _prior_vertices(priors, map_vertices, force), contacts, gpis.shape)
+            self._prior_vertices(model, poses, map_vertices, force), contacts, gpis.shape)
         clock = time.perf_counter()
-        fit, fitted, chosen = self._prior_fit(kernel, priors, contacts, normals, gpis, force)
+        fit, fitted, chosen = self._prior_fit(kernel, model, poses, contacts, normals, gpis,
+                                              force)
         if chosen != force and "pose" in (chosen[0], force[0]):
-            # The prior mean switched between a prior shape and a superquadric, or between
-            # two posed prior shapes: fit again in the box of the one now in force.
+            # The prior mean switched between the MAP shape and a superquadric, or between
+            # two poses of the MAP shape: fit again in the box of the one now in force.
             low, high, kernel = self.gpis_box(
-                _prior_vertices(priors, map_vertices, chosen), contacts, fitted.shape)
-            fit, fitted, _ = self._prior_fit(kernel, priors, contacts, normals, fitted,
+                self._prior_vertices(model, poses, map_vertices, chosen), contacts,
+                fitted.shape)
+            fit, fitted, _ = self._prior_fit(kernel, model, poses, contacts, normals, fitted,
                                              chosen)
         gpis = fitted
         fit = self.cut_estimate(fit, contacts, normals, self.filter.noncontact_positions,
@@ -132,74 +133,70 @@ class Estimator(FinalSurface, Part):
         """How many non-contacts and free-space points carve the prior now."""
         return len(self.filter.noncontact_positions), len(self.state.free_space)
 
-    def _prior_fit(self, kernel, priors, contacts, normals, gpis, force):
-        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: one of the posed
-        prior shapes ``priors``, ``(model, rotation, translation)`` (the MAP particle's,
-        then with ``gpis_prior_hold`` the one the last fit held) or, with
-        ``gpis_agnostic``, a superquadric fitted to the contacts; the one in force
-        (``force``: ``("pose", k)`` or ``("shape", roundness)``) unless another's evidence
-        is ahead by ``AGNOSTIC_MARGIN`` nats (and, a superquadric either way,
-        ``AGNOSTIC_SHARE`` of its own; beyond the paper). Returns the fit, the next
-        :class:`~.state.GpisState` and the key of the prior mean it started from."""
+    def _prior_fit(self, kernel, model, poses, contacts, normals, gpis, force):
+        """The step's GPIS fit (:meth:`_step_fit`) from its prior mean: the MAP shape's at
+        one of ``poses`` (the MAP particle's, then with ``gpis_prior_hold`` the one the
+        last fit held) or, with ``gpis_agnostic``, a superquadric fitted to the contacts;
+        the one in force (``force``: ``("pose", k)`` or ``("shape", roundness)``) unless
+        another's evidence is ahead by ``AGNOSTIC_MARGIN`` nats (and, a superquadric
+        either way, ``AGNOSTIC_SHARE`` of its own; beyond the paper). Returns the fit, the
+        next :class:`~.state.GpisState` and the key of the prior mean it started from."""
         p = self.p
         free = self.filter.noncontact_positions, self.state.free_space
         shapes = (fit_superquadrics(contacts, normals, self._least_radius(contacts),
                                     faces=self.sensor_noise[0] > 0)
                   if p.gpis_agnostic else [])
-        keys = [("pose", k) for k in range(len(priors))] + [
+        keys = [("pose", k) for k in range(len(poses))] + [
             ("shape", shape.roundness) for shape in shapes]
-        candidates = [self.gpis_prior(*prior, contacts, *free, normals)
-                      for prior in priors] + [
-            self.gpis_prior(*priors[0], contacts, *free, normals, shape=shape)
+        candidates = [self.gpis_prior(model, *pose, contacts, *free, normals)
+                      for pose in poses] + [
+            self.gpis_prior(model, *poses[0], contacts, *free, normals, shape=shape)
             for shape in shapes]
         index = keys.index(force) if force in keys else 0
         fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
         if len(candidates) > 1:
             evidence = [contact_evidence(fit, c, contacts, normals) for c in candidates]
             best = int(np.argmax(evidence))
-            # Between two posed shapes the margin is the nats alone: a share of a
+            # Between two poses of one shape the margin is the nats alone: a share of a
             # look-alike's evidence (hundreds of nats) held a pose it had left far behind.
             share = AGNOSTIC_SHARE if "shape" in (keys[best][0], keys[index][0]) else 0.0
             margin = max(AGNOSTIC_MARGIN, share * abs(evidence[index]))
             if evidence[best] > evidence[index] + margin:  # another explains more
                 index = best
                 fit, gpis = self._step_fit(kernel, contacts, normals, candidates[index], gpis)
-        shape = shapes[index - len(priors)] if index >= len(priors) else None
-        held = None
-        if shape is None:
-            model, rotation, translation = priors[index]
-            held = (model.name, rotation, translation)
-        return fit, replace(gpis, shape=shape, pose=held), keys[index]
+        shape = shapes[index - len(poses)] if index >= len(poses) else None
+        pose = None if shape is not None else (model.name, *poses[index])
+        return fit, replace(gpis, shape=shape, pose=pose), keys[index]
 
-    def _held_prior(self, model, rotation, translation):
-        """``[(model, rotation, translation)]`` of the prior shape the last fit held
-        (``gpis_prior_hold``): another pose of this step's MAP class, or another class at
-        its heaviest particle's pose (:func:`held_class`); else ``[]``. A novel object's
-        MAP pose can turn from touch to touch between poses the contacts tell apart no
-        better (a 20 cm fork's flat-screwdriver prior turned half a turn 20 times in 80
-        touches), each bringing other uncovered prior surface; among many unlike priors its
-        MAP class changes as often (the same fork's went through seven classes in 100
-        touches, its reconstruction error between 35% and 120% of its size)."""
+    def _held_pose(self, model, rotation, translation):
+        """``[(rotation, translation)]`` the MAP shape's GPIS prior was held at by the
+        last fit (``gpis_prior_hold``), if that is another pose of this step's MAP class;
+        else ``[]``. A novel object's MAP pose can turn from touch to touch between poses
+        the contacts tell apart no better (a 20 cm fork's flat-screwdriver prior turned
+        half a turn 20 times in 80 touches), each bringing other uncovered prior surface."""
         held = self.state.gpis.pose
-        if not self._switched_on(self.p.gpis_prior_hold) or held is None:
+        if not self._switched_on(self.p.gpis_prior_hold) or held is None or held[0] != model.name:
             return []
-        if held[0] != model.name:
-            other = held_class(self.filter, self.state.gpis, model)
-            return [] if other is None else [other]
         if np.array_equal(held[1], rotation) and np.array_equal(held[2], translation):
             return []
-        return [(model, held[1], held[2])]
+        return [(held[1], held[2])]
 
-    def prior_shape(self, model, pose, map_vertices):
-        """The prior shape, its pose and vertices as the GPIS prior holds them
-        (``gpis_prior_hold``; else ``model``, ``pose`` and ``map_vertices``): the targets,
-        the prior cover and the snapshot follow the prior the estimate came from."""
-        held = self._held_prior(model, *pose)
+    def prior_pose(self, model, pose, map_vertices):
+        """The MAP shape's pose and vertices as the GPIS prior holds them
+        (``gpis_prior_hold``; else ``pose`` and ``map_vertices``): the targets, the prior
+        cover and the snapshot follow the prior the estimate came from."""
+        held = self._held_pose(model, *pose)
         if not held or self.state.gpis.shape is not None:
-            return model, pose, map_vertices
-        prior, rotation, translation = held[0]
-        return prior, (rotation, translation), transform_points(prior.mesh.vertices,
-                                                                 rotation, translation)
+            return pose, map_vertices
+        return held[0], transform_points(model.mesh.vertices, *held[0])
+
+    @staticmethod
+    def _prior_vertices(model, poses, map_vertices, key):
+        """The vertices of the MAP shape at the pose ``key`` names (``map_vertices``
+        for the MAP particle's, or for a superquadric)."""
+        if key[0] == "pose" and key[1] > 0:
+            return transform_points(model.mesh.vertices, *poses[key[1]])
+        return map_vertices
 
     def _step_fit(self, kernel, contacts, normals, prior, gpis):
         """A step's GPIS fit from ``prior``: extending the kept factor
@@ -393,7 +390,8 @@ class Estimator(FinalSurface, Part):
                               keep_within=self.p.eps, normals=normals, disk=self._disc())
 
     def _switched_on(self, when):
-        return switched_on(when, self.sensor_noise)
+        """Whether a ``"never"``/``"noisy"``/``"always"`` switch is on for this sensor."""
+        return when == "always" or (when == "noisy" and any(self.sensor_noise))
 
     def _prior(self, model, rotation, translation):
         return PosedSDF(model, rotation, translation)
@@ -432,46 +430,3 @@ def decided_class(filter, belief, decision, model, pose, map_vertices):
 def _extent(points):
     """The longest side of the axis-aligned box of ``points`` (n, 3) (0 without any)."""
     return float(np.ptp(points, axis=0).max()) if len(points) else 0.0
-
-
-def _prior_vertices(priors, map_vertices, key):
-    """The vertices of the posed prior shape ``key`` names among ``priors`` (``map_vertices``
-    for the MAP particle's, or for a superquadric)."""
-    if key[0] == "pose" and key[1] > 0:
-        model, rotation, translation = priors[key[1]]
-        return transform_points(model.mesh.vertices, rotation, translation)
-    return map_vertices
-
-
-def held_class(filter, gpis, model):
-    """The prior shape the last GPIS fit started from (``gpis``, a
-    :class:`~.state.GpisState`) when it is another class than ``model`` (the MAP's)
-    that still has particles in ``filter``: ``(prior, rotation, translation)`` at that
-    class's heaviest particle (its pose follows the filter; a pose held from the few
-    contacts it was taken at kept a 20 cm fork's probes missing for 100 touches); else
-    None."""
-    held = gpis.pose
-    if (held is None or gpis.shape is not None or held[0] == model.name
-            or held[0] not in filter.class_names):
-        return None
-    index = filter.class_names.index(held[0])
-    particles = filter.particles
-    members = np.flatnonzero(particles.classes == index)
-    if len(members) == 0:
-        return None
-    best = members[np.argmax(particles.log_weights[members])]
-    return filter.models[index], particles.rotations[best], particles.translations[best]
-
-
-def lengths_prior(filter, gpis, model, novel, hold, sensor_noise):
-    """The prior shape a step's lengths follow: a novel object's held class
-    (:func:`held_class`, with ``hold``, ``gpis_prior_hold``, on for ``sensor_noise``),
-    else ``model``."""
-    other = held_class(filter, gpis, model) if novel and switched_on(hold, sensor_noise) else None
-    return model if other is None else other[0]
-
-
-def switched_on(when, sensor_noise):
-    """Whether a ``"never"``/``"noisy"``/``"always"`` switch is on for a sensor of
-    ``sensor_noise`` (position, angle)."""
-    return when == "always" or (when == "noisy" and any(sensor_noise))

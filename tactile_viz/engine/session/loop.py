@@ -43,7 +43,7 @@ from ..scene import FREE, Scene
 from ..shape.library import PriorLibrary
 from .bookkeeping import Bookkeeper
 from .context import Observation, Parts, Sensor, StepContext  # noqa: F401 (Sensor: public)
-from .estimate import Estimator, decided_class, lengths_prior, map_shape
+from .estimate import Estimator, decided_class, map_shape
 from .learning import learned_model
 from .legacy import legacy_arguments
 from .lengths import OWN_STEPS, novel_for_long, own_unit, session_lengths
@@ -138,8 +138,8 @@ class Session:
                                      rng=np.random.default_rng([self.seed, 3]),
                                      scene=self.scene)
         self.snapshots = []
-        self._lengths = None  # (size unit, own size unit): _use_lengths
-        self._p, self._unit, self._lengths = self._lengths_of()
+        self._p, self._unit = self._scene_lengths(self._filter_unit), self._filter_unit
+        self._lengths = self._filter_unit, None  # (size unit, own size unit): _use_lengths
         self._live = None  # (kind, procedure, rng, path): transient, rebuilt by replay
         self.state = ExplorationState(gpis=GpisState(scale=self._p.gpis_scale))
 
@@ -468,7 +468,7 @@ class Session:
         before (:func:`~.lengths.novel_for_long`), much smaller or larger than ``model``,
         is explored at its own size (:func:`~.lengths.own_unit`). Changes nothing."""
         if model is None and self.snapshots:
-            model = self.filter.models[self.filter.class_names.index(self.latest.prior_name)]
+            model = self.filter.models[self.filter.class_names.index(self.latest.map_class)]
         judged = [s.novel for s in self.snapshots[-OWN_STEPS:]]
         if novel is not None:  # this step's judgement, not yet a snapshot
             judged.append(novel)
@@ -480,8 +480,7 @@ class Session:
                            None if model is None else model.diameter)
         if (unit, own) == self._lengths:
             return self._p, self._unit, self._lengths
-        p = session_lengths(self.params, unit, own, self.sensor_noise[0], self.scene.tip_radius)
-        return p, unit, (unit, own)
+        return self._scene_lengths(unit, own), unit, (unit, own)
 
     def parts(self, model=None, novel=None) -> Parts:
         """The parts of a step (estimator, planner, bookkeeper) built from the session's
@@ -508,10 +507,14 @@ class Session:
         ``resolution`` (default ``params.learned_resolution``). Changes nothing."""
         snapshot = snapshot or self.latest
         model = None if snapshot is None else self.filter.models[
-            self.filter.class_names.index(snapshot.prior_name)]
+            self.filter.class_names.index(snapshot.map_class)]
         estimator = self.parts(model).estimator
         return learned_model(estimator, snapshot, name,
                              resolution or self.params.learned_resolution, self.library)
+
+    def _scene_lengths(self, unit, own=None):
+        """The parameters in scene units (:func:`~.lengths.session_lengths`)."""
+        return session_lengths(self.params, unit, own, self.sensor_noise[0], self.scene.tip_radius)
 
     def _generators(self):
         simulator = self.simulator
@@ -524,9 +527,7 @@ class Session:
         with _timed(timings, "filter"):
             belief = self.filter.update(observations)             # l.2: PF, eqs. 19-20
         model, pose, map_vertices = map_shape(self.filter, belief)  # l.2: z*, eq. 14
-        self._use_lengths(lengths_prior(self.filter, self.state.gpis, model, belief.novel,
-                                        self.params.gpis_prior_hold, self.sensor_noise),
-                          belief.novel)                           # lengths in its size
+        self._use_lengths(model, belief.novel)                    # lengths in its size
         estimator, planner, _ = self.parts()
         contacts, recon, fitted = self.filter.contact_positions, None, (model, *pose, map_vertices)
         if belief.novel:                                          # l.3: below eq. 24
@@ -551,15 +552,15 @@ class Session:
             belief, model, pose, map_vertices = reported
             self._use_lengths(model, novel=False)                 # lengths in its size
             estimator, planner, _ = self.parts()
-        aimed, prior = estimator.aimed_pose(decision, model, pose, map_vertices), model
+        aimed = estimator.aimed_pose(decision, model, pose, map_vertices)
         while True:
             pose, map_vertices = aimed
             if recon is not None:                                 # beyond the paper
-                prior, pose, map_vertices = estimator.prior_shape(model, pose, map_vertices)
+                pose, map_vertices = estimator.prior_pose(model, pose, map_vertices)
             with _timed(timings, "target"):
-                coverage = planner.coverage(recon, map_vertices, contacts, prior, pose)  # l.8
+                coverage = planner.coverage(recon, map_vertices, contacts, model, pose)  # l.8
                 stop = planner.stop_test(coverage, belief, decision)        # l.1: d_H <= eps
-                plan = planner.choose_target(stop, coverage, prior, *pose,  # l.4: eq. 32,
+                plan = planner.choose_target(stop, coverage, model, *pose,  # l.4: eq. 32,
                                              map_vertices, recon, contacts, decision)  # 36
             if not (plan.terminated and recon is not None and self.state.gpis.held):
                 break
@@ -569,10 +570,9 @@ class Session:
         self.state.estimate_vertices = None if recon is None else recon.vertices
         if plan.terminated:
             recon, self.state.gpis = estimator.final_surface(
-                recon, map_vertices, contacts, timings, (prior.name, *pose))
+                recon, map_vertices, contacts, timings, (model.name, *pose))
         else:
             recon = estimator.reported(recon, contacts, timings)
-        pose, map_vertices = aimed if prior is not model else (pose, map_vertices)  # the MAP's
         return self._snapshot(belief, model, pose, map_vertices, recon, plan, paths,
                               observations, timings, decision)
 

@@ -51,9 +51,7 @@ class Snapshot:
     is the marching-cubes cells of the GPIS surface (``final_resolution`` on the step that
     stops; None without a surface); ``gpis_radius`` its kernel's reach and ``gpis_spacing``
     its grid's cell when kept from step to step (else None); ``gpis_shape`` the
-    object-agnostic prior mean its fit started from (None: a prior shape's), and
-    ``prior_class`` the class of that prior shape when the fit held another than the MAP
-    (``gpis_prior_hold``; None: the MAP's). ``decided`` (beyond the
+    object-agnostic prior mean its fit started from (None: the MAP shape's). ``decided`` (beyond the
     paper): the object is judged known and no other class or pose mode fits the contacts
     comparably
     (:mod:`~tactile_viz.engine.belief.decision`); ``decision_confidence`` the share the MAP holds.
@@ -92,7 +90,6 @@ class Snapshot:
     gpis_radius: object = None
     gpis_spacing: object = None
     gpis_shape: object = None
-    prior_class: object = None
     rotation_error_deg: object = None
     translation_error: object = None
     decided: bool = False
@@ -103,21 +100,12 @@ class Snapshot:
         return {**self.__dict__, "gpis_variance": self.gpis_variance}
 
     @property
-    def prior_name(self):
-        """The class whose shape the step's estimate came from: ``prior_class`` if held,
-        else the MAP's."""
-        return self.prior_class or self.map_class
-
-    @property
     def gpis_prior(self):
-        """What the GPIS started from: the prior class's name (the MAP's unless another
-        was held), the kind of a fitted superquadric (``"ellipsoid"``, ``"rounded box"``,
-        ``"box"``), or None (no GPIS)."""
+        """What the GPIS started from: the MAP class's name, the kind of a fitted
+        superquadric (``"ellipsoid"``, ``"rounded box"``, ``"box"``), or None (no GPIS)."""
         if self.gpis_vertices is None:
             return None
-        if self.gpis_shape is not None:
-            return self.gpis_shape.kind
-        return self.prior_name
+        return self.map_class if self.gpis_shape is None else self.gpis_shape.kind
 
     def record(self):
         """The JSON record of this step (the ``trial`` command's contract)."""
@@ -348,15 +336,6 @@ def step_snapshot(step, filter, state, belief, estimate, recon, plan, decision, 
         gpis_radius=None if recon is None else float(recon.fit.radius),
         gpis_spacing=None if recon is None else recon.spacing,
         gpis_shape=None if recon is None else state.gpis.shape,
-        prior_class=_prior_class(state.gpis, recon, belief.map_class),
         decided=bool(plan.decided), decision_confidence=decision.confidence,
         rotation_error_deg=errors.get("rotation_error_deg"),
         translation_error=errors.get("translation_error"))
-
-
-def _prior_class(gpis, recon, map_class):
-    """The class of the prior shape a step's GPIS fit held when another than the MAP's
-    (``gpis``: the step's :class:`~.state.GpisState`), else None."""
-    if recon is None or gpis.shape is not None or gpis.pose is None or gpis.pose[0] == map_class:
-        return None
-    return gpis.pose[0]

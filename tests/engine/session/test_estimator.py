@@ -182,7 +182,7 @@ def test_a_held_prior_pose_gives_way_only_to_a_pose_the_contacts_favour(scale, t
         estimator.state.gpis = replace(estimator.state.gpis, pose=(model.name, *held))
         vertices = transform_points(model.mesh.vertices, *particle)
         _, estimator.state.gpis = estimator.reconstruct(model, *particle, vertices, {})
-        _, pose, map_vertices = estimator.prior_shape(model, particle, vertices)
+        pose, map_vertices = estimator.prior_pose(model, particle, vertices)
         np.testing.assert_allclose(estimator.state.gpis.pose[1], pose[0], atol=1e-12)
         np.testing.assert_allclose(
             map_vertices, transform_points(model.mesh.vertices, *pose), atol=1e-9 * scale)
@@ -204,46 +204,3 @@ def test_a_held_prior_pose_gives_way_only_to_a_pose_the_contacts_favour(scale, t
             expected = fitting if hold else particle
             np.testing.assert_allclose(prior_in_force(estimator, model, held, particle)[0],
                                        expected[0], atol=1e-12)
-
-
-@pytest.mark.parametrize("scale", [1e-2, 1.0])
-def test_a_held_prior_class_gives_way_only_to_a_class_the_contacts_favour(scale, tmp_path,
-                                                                         monkeypatch):
-    from dataclasses import replace
-
-    from tactile_viz.engine.belief.particles import Particles
-    from tactile_viz.engine.io.cache import ArrayCache
-    from tactile_viz.engine.session import estimate
-
-    estimator, box, fitting, _ = _box_touched(scale, tmp_path, hold=True)
-    sphere = trimesh.creation.icosphere(2, radius=0.6 * scale)
-    ball = ObjectModel.from_arrays(sphere.vertices, sphere.faces, "ball",
-                                   cache=ArrayCache(tmp_path), longest_side=None)
-    f = estimator.filter
-    f.class_names, f.models = ["box", "ball"], [box, ball]
-    # The box's one particle lies on the contacts; the ball's is the MAP.
-    f.particles = Particles(np.array([0, 1]), np.stack([np.eye(3)] * 2), np.zeros((2, 3)),
-                            np.log([0.4, 0.6]))
-
-    def prior_in_force(held, hold, map_model=ball):
-        estimator.p = replace(estimator.p, gpis_prior_hold=hold)
-        estimator.state.gpis = replace(estimator.state.gpis,
-                                       pose=(held, np.eye(3), np.zeros(3)))
-        vertices = map_model.mesh.vertices
-        _, estimator.state.gpis = estimator.reconstruct(map_model, *fitting, vertices, {})
-        prior, pose, shown = estimator.prior_shape(map_model, fitting, vertices)
-        assert estimator.state.gpis.pose[0] == prior.name
-        np.testing.assert_allclose(shown, prior.mesh.vertices, atol=1e-9 * scale)
-        return prior.name
-
-    monkeypatch.setattr(estimate, "AGNOSTIC_MARGIN", 1.0)
-    assert prior_in_force("box", "always") == "box"  # held: the contacts lie on it
-    assert prior_in_force("box", "never") == "ball"  # the MAP's without the hold
-    assert prior_in_force("ball", "always", box) == "box"  # a held misfit gives way
-    # Lengths follow the class held while novel, and a class without particles holds none.
-    gpis = replace(estimator.state.gpis, pose=("box", np.eye(3), np.zeros(3)))
-    assert estimate.lengths_prior(f, gpis, ball, True, "noisy", (0.002, 2.0)) is box
-    assert estimate.lengths_prior(f, gpis, ball, True, "noisy", (0.0, 0.0)) is ball
-    assert estimate.lengths_prior(f, gpis, ball, False, "always", (0.0, 0.0)) is ball
-    f.particles = f.particles.take([1])
-    assert estimate.held_class(f, gpis, ball) is None
