@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from ..shape.gpis_evidence import fit_superquadrics
 from ..shape.gpis_prior import free_space_cut, joined_cut
-from ..shape.level_set import zero_level_surface
+from ..shape.level_set import box_closure, zero_level_surface
 from ..shape.metrics import wall_thickness
 from ..transforms import transform_points
 from .refuted import open_estimate
@@ -137,7 +137,7 @@ class FinalSurface:
         MAP prior's)."""
         p = self.p
         tree = cKDTree(contacts)
-        best_support = self._support(final.vertices, tree)
+        best_support = self._support(final.vertices, tree, final.closure)
         # The stop judged the same fit on the exploration's coarser cells, and a finer grid
         # moves a surface by up to about a cell: a 10 cm mug's reached 0.04 mm beyond its
         # 11.8 mm eps, and seven candidates took 1.5 s to find one 0.03 mm nearer.
@@ -231,18 +231,19 @@ class FinalSurface:
         level = zero_level_surface(fit, box, resolution, fill_voids=self.p.gpis_fill_voids)
         if not len(level[1]):
             return level, np.inf
-        return level, self._support(level[0], contacts_tree)
+        return level, self._support(level[0], contacts_tree,
+                                    box_closure(level[0], box, resolution))
 
-    def _support(self, vertices, contacts_tree):
+    def _support(self, vertices, contacts_tree, closure):
         """:func:`support` over the vertices the stop counts (``final_support_open``): not
-        near a given-up target or a missed probe's path, nor farther than eps from every
-        contact within the carve's reach of one (the planner's mask,
+        near a given-up target or a missed probe's path, nor where it closes at its box
+        within the carve's reach of one (the planner's mask,
         :func:`~.refuted.open_estimate`). A session stopped with its estimate covered
         there had every surface weighed again for vertices no probe could reach: a 20 cm
         fork's last step at 2 mm noise took 2.1 s, 1.8 of them candidate surfaces (0.8 s
         without)."""
         if self.p.final_support_open:
-            vertices = vertices[open_estimate(vertices, self.state, self.p,
+            vertices = vertices[open_estimate(vertices, closure, self.state, self.p,
                                               contacts_tree.data)]
         return support(vertices, contacts_tree)
 

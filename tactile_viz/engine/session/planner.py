@@ -271,7 +271,7 @@ class Planner(Part):
         """
         reconstructed = recon is not None and not recon.empty
         surface = recon.vertices if reconstructed else map_vertices
-        reachable = (open_estimate(surface, self.state, self.p, contacts)
+        reachable = (open_estimate(surface, recon.closure, self.state, self.p, contacts)
                      if reconstructed else self._reachable(surface))
         in_scene = not self.scene.is_free and model is not None
         map_reach = None  # the MAP's reachable vertices, only where they are asked for

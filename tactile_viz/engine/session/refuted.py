@@ -3,8 +3,9 @@ session may still have to visit, which the target, the DHD that stops it and the
 surface's support share.
 
 Near a given-up target or a missed probe's path, probing again cannot teach anything: the
-vertices within ``contact_spacing`` of one are left out, and where a GPIS estimate lies
-farther than ``eps`` from every contact, as far as the carve reaches.
+vertices within ``contact_spacing`` of one are left out, and where a GPIS estimate closes
+at its box (:func:`~..shape.level_set.box_closure`) far from every contact, as far as the carve
+reaches.
 """
 
 import functools
@@ -26,25 +27,21 @@ def open_vertices(vertices, state, radius, all_refuted=True):
     return far if far.any() or not all_refuted else np.ones(len(vertices), bool)
 
 
-def open_estimate(vertices, state, p, contacts):
+def open_estimate(vertices, closure, state, p, contacts):
     """Mask of a GPIS estimate's ``vertices`` still to visit (:func:`open_vertices`
-    within ``contact_spacing``), and of those farther than ``eps`` from every contact,
-    only the ones farther than the carve's reach (``gpis_carve_radius``) from every refuted
-    point (beyond the paper): the carve takes the prior mean out that far about a miss,
-    so what the estimate keeps there is the fit's, not the object's. An 8 cm cup's
-    estimate against a mug prior closed 260 vertices at its box (``closure``,
-    :func:`~..shape.level_set.box_closure`), and 100 probes in a row missed there; a 20 cm
-    fork's held a blob 80 x 80 x 110 mm, 130 mm from every contact, for 300 touches
-    to the step cap: each probe refuted the few vertices its path passed within
-    ``contact_spacing`` of. Within ``eps`` of a contact the estimate can be the object
-    going on: there, as the carve, a miss refutes no more than elsewhere."""
-    keep = open_vertices(vertices, state, p.contact_spacing, all_refuted=False)
+    within ``contact_spacing``), and of those where it closes at its box (``closure``,
+    :func:`~..shape.level_set.box_closure`) farther than ``eps`` from every contact, only the
+    ones farther than the carve's reach (``gpis_carve_radius``) from every refuted point
+    (beyond the paper). A thin-plate fit's solid can reach the box far from every contact:
+    an 8 cm cup's estimate against a mug prior closed 260 vertices at its box, and 100
+    probes in a row missed there, each refuting the few vertices its path passed within
+    ``contact_spacing`` of. Within ``eps`` of a contact a cap can be the object going on
+    past the box: there, as the carve, a miss refutes no more than elsewhere."""
+    keep = open_vertices(vertices, state, p.contact_spacing)
     reach = max(p.contact_spacing, p.gpis_carve_radius)
-    if not keep.any():  # refuted everywhere: every vertex counts (open_vertices)
-        return np.ones(len(vertices), bool)
-    if reach <= p.contact_spacing:
+    if reach <= p.contact_spacing or not closure.any() or not keep.any():
         return keep
-    far = np.ones(len(vertices), bool)
+    far = closure.copy()
     if len(contacts):
         far[far] = cKDTree(contacts).query(vertices[far], distance_upper_bound=p.eps)[0] > p.eps
     if not far.any():
