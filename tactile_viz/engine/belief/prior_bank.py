@@ -84,6 +84,7 @@ class PriorBank:
                 grid = model.load_sdf()
                 features.append(model.features)
                 tables.append(model.pair_table(distance_step, angle_step_deg, keep=False))
+                model.inertia  # noqa: B018 (cached: the decisions' turns read it)
             if grid.shape != tuple(self.shapes[c]):
                 raise RuntimeError(f"prior {model.name!r}: cached grid {grid.shape} is not "
                                    f"the expected {tuple(self.shapes[c])}")

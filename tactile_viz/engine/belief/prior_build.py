@@ -47,12 +47,14 @@ IGL_THREADS = "IGL_NUM_THREADS"
 
 
 def build_derived(model, distance_step, angle_step_deg):
-    """Build (or read) ``model``'s grid, features and pair table, keeping none of the build's
-    temporaries; what the disk cache holds afterwards is what a prior bank reads."""
+    """Build (or read) ``model``'s grid, features, pair table and inertia, keeping none of
+    the build's temporaries; what the disk cache holds afterwards is what a prior bank and
+    its decisions read."""
     with model.transient_exact():
         model.load_sdf()
         model.features  # noqa: B018 (a cached property: computed and stored)
         model.pair_table(distance_step, angle_step_deg, keep=False)
+        model.inertia  # noqa: B018
 
 
 def missing(models, distance_step, angle_step_deg):

@@ -70,14 +70,11 @@ def principal_axes(pf, class_index):
     moments within ``ROUND_MOMENTS``) and its centre of mass, object frame."""
     cache = pf.bank.__dict__.setdefault("_axes", {})
     if class_index not in cache:
-        mesh = pf.models[class_index].mesh
-        axes = np.asarray(mesh.principal_inertia_vectors)
-        moments = np.asarray(mesh.principal_inertia_components, float)
+        axes, moments, centre = pf.models[class_index].inertia
         others = [np.delete(moments, i) for i in range(3)]
         round_axes = [axis for axis, pair in zip(axes, others)
                       if np.ptp(pair) <= ROUND_MOMENTS * pair.max()]
-        cache[class_index] = (axes, np.reshape(round_axes, (-1, 3)),
-                              np.asarray(mesh.center_mass, float))
+        cache[class_index] = axes, np.reshape(round_axes, (-1, 3)), centre
     return cache[class_index]
 
 

@@ -288,6 +288,20 @@ class ObjectModel:
                                          self._features_params(), self._build_features)
         return arrays["points"], arrays["normals"]
 
+    @cached_property
+    def inertia(self):
+        """The mesh's principal axes of inertia ``(3, 3)`` (rows), their moments ``(3,)``
+        and its centre of mass ``(3,)``, object frame; cached on disk (a 22-prior
+        library's first decisions spent 0.3 s on them)."""
+        arrays = self.cache.get_or_build("inertia", self.content_hash, {}, self._build_inertia)
+        return arrays["axes"], arrays["moments"], arrays["centre"]
+
+    def _build_inertia(self):
+        mesh = bare_mesh(self.mesh)
+        return {"axes": np.asarray(mesh.principal_inertia_vectors, float),
+                "moments": np.asarray(mesh.principal_inertia_components, float),
+                "centre": np.asarray(mesh.center_mass, float)}
+
     def _build_features(self):
         # A bare copy: sampling derives triangles, cross products and areas (2 MB for a
         # 10,000-face prior) that would stay on the mesh, where a warm load has none.
@@ -355,14 +369,15 @@ class ObjectModel:
                 **self._features_params()}
 
     def derived_stored(self, distance_step=0.1, angle_step_deg=12.0) -> bool:
-        """Whether the grid, features and pair table a prior bank reads are here or in the
-        disk cache (so that building the bank builds nothing)."""
+        """Whether the grid, features, pair table and inertia a prior bank reads are here
+        or in the disk cache (so that building the bank builds nothing)."""
         tables = self.__dict__.get("_pair_tables", {})
         has = lambda kind, params: self.cache.has(kind, self.content_hash, params)  # noqa: E731
         return (("sdf" in self.__dict__ or self._grid_stored())
                 and ("features" in self.__dict__ or has("features", self._features_params()))
                 and ((float(distance_step), float(angle_step_deg)) in tables
-                     or has("pairs2", self._pairs_params(distance_step, angle_step_deg))))
+                     or has("pairs2", self._pairs_params(distance_step, angle_step_deg)))
+                and ("inertia" in self.__dict__ or has("inertia", {})))
 
     def describe(self):
         """A JSON-ready summary (name, sizes, parameters, hash)."""

@@ -71,7 +71,7 @@ def test_children_build_the_files_one_process_builds_and_the_bank_reads(tmp_path
     assert not missing(models, 0.1, 12.0)
     assert "features" not in models[0].__dict__  # nothing was built here
     files = _files(tmp_path / "children")
-    assert len(files) == 4 * 4 and files == _files(tmp_path / "serial")  # byte for byte
+    assert len(files) == 4 * 5 and files == _files(tmp_path / "serial")  # byte for byte
     assert build_in_child(models, 0.1, 12.0, minimum=1) == 0  # nothing left to build
     _assert_same_bank(PriorBank(models, 0.1, 12.0), PriorBank(serial, 0.1, 12.0))
 
@@ -111,3 +111,16 @@ def test_one_child_a_core_as_memory_allows(monkeypatch):
     assert prior_build.default_workers(78) == 1
     monkeypatch.setattr(prior_build, "_available_bytes", lambda: None)  # not Linux
     assert prior_build.default_workers(78) == 8
+
+
+def test_a_priors_inertia_is_built_once_and_read_from_the_disk_cache(tmp_path, monkeypatch):
+    model = _models(tmp_path, more=True)[2]  # the 4 x 2 x 1 box
+    axes, moments, centre = model.inertia
+    box = trimesh.creation.box((4.0, 2.0, 1.0))
+    np.testing.assert_allclose(np.abs(axes), np.abs(box.principal_inertia_vectors), atol=1e-9)
+    np.testing.assert_allclose(moments, box.principal_inertia_components, rtol=1e-9)
+    np.testing.assert_allclose(centre, np.zeros(3), atol=1e-9)
+    again = _models(tmp_path, more=True)[2]
+    monkeypatch.setattr(type(again), "_build_inertia", lambda self: 1 / 0)
+    for first, second in zip(model.inertia, again.inertia):
+        np.testing.assert_array_equal(first, second)
