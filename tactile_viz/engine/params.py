@@ -335,6 +335,10 @@ class SessionParams:
         "(beyond the paper).", kind="bool",
         notes="Within eps of a contact, or refuted by a missed probe: a reconstruction "
               "that shrank away from the untouched prior cannot pass the stop.")
+    missed_parts: int = _session(
+        3, "Targets given up on a detached part of a novel estimate that no contact comes "
+        "within eps of, after which exploration leaves the whole part out (beyond the paper; "
+        "0: never).", kind="int", valid=_AT_LEAST_0)
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
         "farther than eps from every contact (beyond the paper).", kind="bool")

@@ -16,6 +16,7 @@ extension          what it does                                     off with
 =================  ===============================================  ==========================
 given-up targets   targets out of reach, and the free space of      (always on; without a
                    missed probes, leave the DHD and the targets     miss it changes nothing)
+missed parts       so do detached unsupported parts missed thrice   ``missed_parts=0``
 box caps           where a GPIS estimate closes at its box beyond   ``gpis_carve_radius=0``
                    eps of every contact, a miss refutes it as far
                    as the carve reaches
@@ -67,7 +68,7 @@ from ..shape.sdf import normalise_rows
 from .context import Part
 from .fields import BelowTangentPlane, PosedSDF, ValueOf
 from .lengths import own_unit
-from .refuted import open_estimate, open_vertices
+from .refuted import open_estimate, open_parts, open_vertices
 from .state import Aim, Check
 from .stop import Progress, stop_rule
 
@@ -85,7 +86,8 @@ MISFIT_EVERY = 8  # every this many steps (while the MAP class stays)
 ROUND_SHARE = 0.5  # or contacts spanning under this share of its size, settled, misfit
 
 # (extension, the parameter and value that switch it off; None: always on)
-EXTENSIONS = (("given-up targets", None), ("box caps", ("gpis_carve_radius", 0.0)),
+EXTENSIONS = (("given-up targets", None), ("missed parts", ("missed_parts", 0)),
+              ("box caps", ("gpis_carve_radius", 0.0)),
               ("prior cover", ("cover_prior", False)),
               ("uncovered target", ("target_uncovered", False)),
               ("noisy target", ("target_noise_stds", 0.0)),
@@ -273,6 +275,8 @@ class Planner(Part):
         surface = recon.vertices if reconstructed else map_vertices
         reachable = (open_estimate(surface, recon.closure, self.state, self.p, contacts)
                      if reconstructed else self._reachable(surface))
+        if reconstructed:
+            reachable = open_parts(reachable, surface, recon.faces, contacts, self.state, self.p)
         in_scene = not self.scene.is_free and model is not None
         map_reach = None  # the MAP's reachable vertices, only where they are asked for
         if in_scene and (not reconstructed or self.p.cover_prior):
@@ -560,9 +564,7 @@ def _both(mask, other):
     """``mask & other``, or ``other`` alone when nothing is left of both (``mask`` when
     nothing is left of ``other``)."""
     both = mask & other
-    if both.any():
-        return both
-    return other if other.any() else mask
+    return both if both.any() else (other if other.any() else mask)
 
 
 def mesh_vertex_normals(vertices, faces):

@@ -16,12 +16,10 @@ holes they leave closed, so that what it reports is what it learns.
 from dataclasses import replace
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..shape.mesh_repair import closed_faces
-from .refuted import refuted_tree
+from .refuted import part_labels, refuted_tree
 
 
 def support_reach(p, noise=0.0):
@@ -156,9 +154,7 @@ def supported_parts(vertices, faces, points, reach):
     vertices, faces = np.asarray(vertices, float), np.asarray(faces, int)
     if len(vertices) == 0 or len(points) == 0:
         return np.zeros(len(vertices), bool)
-    ends = np.roll(faces, 1, axis=1)
-    graph = coo_matrix((np.ones(faces.size), (faces.ravel(), ends.ravel())),
-                       shape=(len(vertices),) * 2)
-    _, labels = connected_components(graph, directed=False)
+    labels = part_labels(vertices, faces)
     near = cKDTree(points).query(vertices, distance_upper_bound=reach)[0] <= reach
     return np.isin(labels, labels[near])
+

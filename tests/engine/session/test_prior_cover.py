@@ -2,6 +2,7 @@
 prior that the stop still asks to touch, on its own (a planner with no session)."""
 
 import dataclasses
+import functools
 import types
 
 import numpy as np
@@ -30,10 +31,10 @@ def _planner(scale, carve=0.1):
 
 def _estimate(radius):
     """A reconstruction whose surface is a ball of ``radius`` about the origin."""
-    vertices = _ball(radius)
+    ball = trimesh.creation.icosphere(3, radius)
     fit = types.SimpleNamespace(mean_value=lambda q: np.linalg.norm(q, axis=1) - radius)
-    return types.SimpleNamespace(vertices=vertices, empty=False, fit=fit,
-                                 closure=np.zeros(len(vertices), bool))
+    return types.SimpleNamespace(vertices=ball.vertices, faces=ball.faces, empty=False, fit=fit,
+                                 closure=np.zeros(len(ball.vertices), bool))
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
@@ -131,3 +132,23 @@ def _capped(scale, carve):
     recon.closure = np.r_[np.zeros(len(ball), bool), np.ones(len(disc), bool)]
     planner.state.free_space = np.linspace([0, 0, 3.0], [0, 0, 1.5], 31) * scale
     return planner, ball, disc, recon
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_detached_part_no_contact_supports_is_left_out_after_three_misses(scale):
+    from tactile_viz.engine.session.refuted import missed_parts
+
+    ball, blob = trimesh.creation.icosphere(2, scale), trimesh.creation.icosphere(2, scale)
+    blob.apply_translation([10 * scale, 0, 0])
+    vertices = np.vstack([ball.vertices, blob.vertices])
+    faces = np.vstack([ball.faces, blob.faces + len(ball.vertices)])
+    contacts = ball.vertices[::7]
+    on_blob, on_ball = blob.vertices[:3], ball.vertices[:3]
+    parts = functools.partial(missed_parts, vertices, faces, contacts, reach=0.5 * scale)
+    assert not parts(on_blob[:2], misses=3).any()
+    refuted = parts(on_blob, misses=3)
+    assert refuted[len(ball.vertices):].all() and not refuted[:len(ball.vertices)].any()
+    assert not parts(on_ball, misses=3).any()  # a part a contact supports stays
+    assert not parts(on_blob, misses=0).any()
+    # A target given up far from every vertex counts for no part.
+    assert not parts(on_blob + [0, 0, 5 * scale], misses=3).any()
