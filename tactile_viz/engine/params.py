@@ -336,7 +336,7 @@ class SessionParams:
         notes="Within eps of a contact, or refuted by a missed probe: a reconstruction "
               "that shrank away from the untouched prior cannot pass the stop.")
     missed_parts: int = _session(
-        3, "Targets given up on a detached part of a novel estimate that no contact comes "
+        10, "Targets given up on a detached part of a novel estimate that no contact comes "
         "within eps of, after which exploration leaves the whole part out (beyond the paper; "
         "0: never).", kind="int", valid=_AT_LEAST_0)
     target_uncovered: bool = _session(

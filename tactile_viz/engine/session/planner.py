@@ -16,7 +16,7 @@ extension          what it does                                     off with
 =================  ===============================================  ==========================
 given-up targets   targets out of reach, and the free space of      (always on; without a
                    missed probes, leave the DHD and the targets     miss it changes nothing)
-missed parts       so do detached unsupported parts missed thrice   ``missed_parts=0``
+missed parts       so do unsupported detached parts missed often    ``missed_parts=0``
 box caps           where a GPIS estimate closes at its box beyond   ``gpis_carve_radius=0``
                    eps of every contact, a miss refutes it as far
                    as the carve reaches
