@@ -70,7 +70,7 @@ from .fields import BelowTangentPlane, PosedSDF, ValueOf
 from .lengths import own_unit
 from .refuted import open_estimate, open_parts, open_vertices
 from .state import Aim, Check
-from .stop import Progress, stop_rule
+from .stop import FLICKER_STEPS, Progress, stop_rule
 
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEEP_RADIUS = 10.0  # a check line runs this far on either side of its point
@@ -335,7 +335,7 @@ class Planner(Part):
         state = self.state
         progress = Progress(len(self.snapshots), bool(state.frontier), state.checks_passed,
                             state.decision_checks, state.telling_steps, state.misfit_steps,
-                            bool(self.snapshots) and self.snapshots[-1].novel)
+                            any(s.novel for s in self.snapshots[-FLICKER_STEPS:]))
         return stop_rule(self.p, coverage.value, coverage.dhd, belief.novel,
                          belief.novel and self.context.strategy != "rrt", decision, progress,
                          self.sensor_noise[0])

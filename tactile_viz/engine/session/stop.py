@@ -28,6 +28,12 @@ class Stop(NamedTuple):
     decision_checks: int  # confirm checks passed (0: the MAP no longer qualifies)
 
 
+# A known judgement within this many steps of a novel one is a flicker while its MAP
+# misfits: the same fork in `many` at 2 mm, novel until touch 81, stopped judged known at
+# touch 84 as a knife whose fit's p-value was 1.5e-4.
+FLICKER_STEPS = 5
+
+
 class Progress(NamedTuple):
     """What a session has done so far that the stop reads (the exploration state's).
 
@@ -47,7 +53,7 @@ class Progress(NamedTuple):
         Steps in a row, this one included, that a known MAP misfitted
         (:meth:`~.planner.Planner.misfits`; 0 without ``misfit_novelty``).
     was_novel : bool
-        The step before this one judged the object novel.
+        One of the last ``FLICKER_STEPS`` steps before this one judged the object novel.
     """
 
     step: int
@@ -98,10 +104,10 @@ def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress, noi
     -------
     Stop
     """
-    # Nor does a known judgement right after a novel one whose MAP misfits the noise
-    # (misfit_novelty): the paper's test flickers on a novel object under noise (a 20 cm
-    # fork judged novel for 148 touches stopped as a knife at the 149th, 36 mm off it but
-    # within eps and its noise), and it keeps the novel cap.
+    # A known judgement soon after a novel one whose MAP misfits the noise stops nothing
+    # (misfit_novelty) and keeps the novel cap: the paper's test flickers on a novel
+    # object under noise (a 20 cm fork judged novel for most of 305 touches stopped
+    # judged known at the 306th, past the known cap).
     flicker = (p.misfit_novelty > 0 and not novel and progress.was_novel
                and not decision.fits)
     cap = p.max_steps_novel if novel or flicker else p.max_steps_known
