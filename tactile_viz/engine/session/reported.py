@@ -157,4 +157,3 @@ def supported_parts(vertices, faces, points, reach):
     labels = part_labels(vertices, faces)
     near = cKDTree(points).query(vertices, distance_upper_bound=reach)[0] <= reach
     return np.isin(labels, labels[near])
-

@@ -52,7 +52,7 @@ class Progress(NamedTuple):
     misfit_steps : int
         Steps in a row, this one included, that a known MAP misfitted
         (:meth:`~.planner.Planner.misfits`; 0 without ``misfit_novelty``).
-    was_novel : bool
+    recently_novel : bool
         One of the last ``FLICKER_STEPS`` steps before this one judged the object novel.
     """
 
@@ -62,7 +62,7 @@ class Progress(NamedTuple):
     decision_checks: int
     telling_steps: int
     misfit_steps: int = 0
-    was_novel: bool = False
+    recently_novel: bool = False
 
 
 def decision_ready(p, decision, dhd, checks_done):
@@ -108,7 +108,7 @@ def stop_rule(p, covered_dhd, map_dhd, novel, exploring, decision, progress, noi
     # (misfit_novelty) and keeps the novel cap: the paper's test flickers on a novel
     # object under noise (a 20 cm fork judged novel for most of 305 touches stopped
     # judged known at the 306th, past the known cap).
-    flicker = (p.misfit_novelty > 0 and not novel and progress.was_novel
+    flicker = (p.misfit_novelty > 0 and not novel and progress.recently_novel
                and not decision.fits)
     cap = p.max_steps_novel if novel or flicker else p.max_steps_known
     reach = p.eps if novel else float(np.hypot(p.eps, p.cover_noise_stds * noise))

@@ -51,7 +51,7 @@ def test_a_covered_novel_estimate_waits_for_its_checks_and_frontier():
 
 def test_a_known_flicker_after_novel_steps_stops_only_on_a_fitting_map():
     p = session_preset("recommended")
-    after_novel = FRESH._replace(was_novel=True)
+    after_novel = FRESH._replace(recently_novel=True)
     misfit = Decision(False, 0.9, (_hypothesis(0.9),), fits=False)
     # The paper's test judging a novel object known for one step: no stop, the novel cap.
     assert not stop_rule(p, p.eps, p.eps, False, False, misfit, after_novel).terminated
