@@ -93,7 +93,8 @@ class FinalSurface:
         cut = functools.partial(self._cut_refuted, contacts=contacts) if close else None
         return reported_parts(recon, self.state.refuted, contacts,
                               self.p.contact_spacing, self.support_reach(), close=close,
-                              cut=cut, cap_reach=self.p.gpis_carve_radius)
+                              cut=cut, cap_reach=self.p.gpis_carve_radius,
+                              normals=self.filter.contact_normals)
 
     def support_reach(self):
         """:func:`~.reported.support_reach` of this session."""

@@ -16,10 +16,13 @@ holes they leave closed, so that what it reports is what it learns.
 from dataclasses import replace
 
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
 from ..shape.mesh_repair import closed_faces
 from .refuted import part_labels, refuted_tree
+
+FACING_NEIGHBOURS = 16  # nearest contacts a vertex asks which way they face
 
 
 def support_reach(p, noise=0.0):
@@ -116,10 +119,10 @@ def without_refuted(recon, refuted, contacts, spacing, reach, close=False, cut=N
 
 
 def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=None,
-                   cap_reach=0.0):
+                   cap_reach=0.0, normals=None):
     """``recon`` :func:`without_refuted` (``close``, ``cut`` and ``cap_reach`` passed on),
-    and of the rest only the connected parts some contact comes within ``reach`` of
-    (:func:`supported_parts`).
+    and of the rest only the connected parts some contact comes within ``reach`` of, facing
+    its way with the contacts' ``normals`` (:func:`supported_parts`).
 
     Returns
     -------
@@ -129,13 +132,17 @@ def reported_parts(recon, refuted, contacts, spacing, reach, close=False, cut=No
         return recon
     recon = without_refuted(recon, refuted, contacts, spacing, reach, close=close, cut=cut,
                             cap_reach=cap_reach)
-    keep = supported_parts(recon.vertices, recon.faces, contacts, reach)
+    keep = supported_parts(recon.vertices, recon.faces, contacts, reach, normals)
     return recon.restricted(keep) if keep.any() and not keep.all() else recon
 
 
-def supported_parts(vertices, faces, points, reach):
+def supported_parts(vertices, faces, points, reach, normals=None):
     """Mask of the vertices on connected parts of a surface that come within ``reach`` of
-    a point: the parts some contact supports.
+    a point: the parts some contact supports. With the contacts' ``normals``, a contact
+    supports only surface that faces its way (:func:`facing_near`): a closed part inside
+    the estimate's solid, facing into the object, is a void of the fit that no probe can
+    reach, however near the contacts on the surface outside it (a 15 cm elephant at 2 mm
+    kept one 46 mm long, 7 mm inside its back and 27 mm off the elephant).
 
     Parameters
     ----------
@@ -145,6 +152,8 @@ def supported_parts(vertices, faces, points, reach):
         Contacts, the same frame as ``vertices``.
     reach : float
         Scene units.
+    normals : (n, 3) float, optional
+        The contacts' unit normals.
 
     Returns
     -------
@@ -155,5 +164,29 @@ def supported_parts(vertices, faces, points, reach):
     if len(vertices) == 0 or len(points) == 0:
         return np.zeros(len(vertices), bool)
     labels = part_labels(vertices, faces)
-    near = cKDTree(points).query(vertices, distance_upper_bound=reach)[0] <= reach
+    if normals is None:
+        near = cKDTree(points).query(vertices, distance_upper_bound=reach)[0] <= reach
+    else:
+        near = facing_near(vertices, faces, points, normals, reach)
     return np.isin(labels, labels[near])
+
+
+def facing_near(vertices, faces, points, normals, reach, neighbours=FACING_NEIGHBOURS):
+    """``(v,)`` bool: the vertices within ``reach`` of one of their ``neighbours`` nearest
+    contacts whose normal makes a positive dot product with the surface's normal there. The
+    surface's normals are oriented as the contacts find it (the sign most contacts agree
+    with at their nearest vertex), whatever the winding of its faces."""
+    vertices = np.asarray(vertices, float)
+    points, normals = np.asarray(points, float), np.asarray(normals, float)
+    surface = trimesh.Trimesh(vertices, faces, process=False).vertex_normals
+    tree = cKDTree(points)
+    nearest = cKDTree(vertices).query(points)[1]
+    if np.median(np.einsum("ij,ij->i", normals, surface[nearest])) < 0:
+        surface = -surface
+    count = min(int(neighbours), len(points))
+    distance, index = tree.query(vertices, k=count, distance_upper_bound=reach)
+    distance, index = distance.reshape(len(vertices), count), index.reshape(len(vertices), count)
+    found = distance <= reach
+    padded = np.vstack([normals, np.zeros((1, 3))])  # a missing neighbour faces nowhere
+    facing = np.einsum("vkj,vj->vk", padded[np.where(found, index, len(points))], surface) > 0
+    return np.any(found & facing, axis=1)

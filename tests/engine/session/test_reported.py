@@ -41,6 +41,34 @@ def test_only_the_parts_a_contact_comes_near_are_kept(scale):
     assert not supported_parts(vertices, faces, beside, 0.05 * scale).any()
 
 
+def _ball_with_void(scale, winding=1):
+    """A ball's surface and, 5% of its radius inside it, a void's facing into the void (as
+    a fit's level set winds them; ``winding`` -1 turns every face)."""
+    outer = trimesh.creation.icosphere(3, scale)
+    void = trimesh.creation.icosphere(2, 0.95 * scale)
+    void.invert()
+    both = trimesh.util.concatenate([outer, void])
+    faces = np.asarray(both.faces)
+    return np.asarray(both.vertices), faces if winding > 0 else faces[:, ::-1], len(outer.vertices)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+@pytest.mark.parametrize("winding", [1, -1])
+def test_a_void_inside_the_solid_is_not_supported_by_the_contacts_outside(scale, winding):
+    vertices, faces, outer = _ball_with_void(scale, winding)
+    contacts = vertices[:outer][::9]
+    normals = contacts / np.linalg.norm(contacts, axis=1)[:, None]
+    reach = 0.1 * scale  # the void lies within it of the contacts
+    assert supported_parts(vertices, faces, contacts, reach).all()
+    keep = supported_parts(vertices, faces, contacts, reach, normals)
+    assert keep[:outer].all() and not keep[outer:].any()
+    # Touched from inside (a cup's inner wall), the same surface is supported.
+    inside = vertices[outer:][::9]
+    both = supported_parts(vertices, faces, np.vstack([contacts, inside]), reach,
+                           np.vstack([normals, -inside / np.linalg.norm(inside, axis=1)[:, None]]))
+    assert both.all()
+
+
 def test_no_contacts_or_no_surface_support_nothing():
     vertices, faces, _ = _two_balls(1.0)
     assert not supported_parts(vertices, faces, np.zeros((0, 3)), 1.0).any()
