@@ -233,6 +233,11 @@ class SessionParams:
         400, "Step cap while judged novel (paper 400).", kind="int", valid=_AT_LEAST_1)
     gpis_noise: float = _gpis(
         1e-4, "Observation noise variance of the GPIS (paper 1e-4).", valid=_POSITIVE, length=2)
+    gpis_edge_tilt: float = _gpis(
+        1.0, "Under position noise s, a contact's GPIS gradient rows allow its normal a tilt "
+        "of this x sqrt(s / size) rad (beyond the paper; 0: the sensor's normal noise alone).",
+        valid="[0, 10]", notes="A contact the noise moves across an edge or a thin wall carries "
+        "a normal from its other side; their share of the contacts grows as s / size.")
     gpis_scale: float = _gpis(
         1.0, "Initial kernel scale a_0 of the GPIS.", valid=_POSITIVE, length=-1,
         unit="per size unit (thin-plate; Wendland: size units squared)")

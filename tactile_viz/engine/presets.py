@@ -39,7 +39,7 @@ PRESET_TABLE = {
               "variance_points": 1500,
               "way_back_anchors": 1,
               "misfit_novelty": 0.0, "gpis_agnostic": False, "gpis_prior_hold": "never",
-              "target_noise_stds": 0.0,
+              "target_noise_stds": 0.0, "gpis_edge_tilt": 0.0,
               "target_farthest": False,
               "cover_noise_stds": 0.0, "own_size_share": 0.0, "missed_parts": 0},
     # A robot that only needs to know what and where the object is: the default, stopped

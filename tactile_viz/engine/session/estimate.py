@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..params import PAPER_SIZE
 from ..shape.gpis import (
     ThinPlateKernel,
     WendlandKernel,
@@ -23,6 +24,7 @@ from ..shape.gpis_incremental import fit_gpis_incremental
 from ..shape.gpis_prior import (
     CarvedPrior,
     contact_balls,
+    edge_tilt,
     filled_prior,
     free_space_cut,
     refuted_fit,
@@ -287,8 +289,10 @@ class Estimator(FinalSurface, Part):
         # values (lengths), its normal noise to the gradients: a tilt by an angle of std s
         # about a random axis moves a unit normal with variance s**2 / 2 along each tangent.
         position, normal_deg = self.sensor_noise
+        tilt = np.hypot(np.radians(normal_deg),
+                        edge_tilt(position, PAPER_SIZE * self.unit, p.gpis_edge_tilt))
         return {"noise_variance": p.gpis_noise + position**2,
-                "gradient_noise_variance": p.gpis_noise + np.radians(normal_deg) ** 2 / 2,
+                "gradient_noise_variance": p.gpis_noise + tilt**2 / 2,
                 "noncontacts": noncontacts if p.gpis_noncontacts else None,
                 "noncontact_value": p.gpis_noncontact_value}
 

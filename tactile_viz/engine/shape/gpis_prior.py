@@ -39,6 +39,26 @@ def row_noise(components, noise_variance, gradient_noise_variance=None):
     return np.where(components == 0, float(noise_variance), float(gradient))
 
 
+def edge_tilt(position_noise, size, gain=1.0):
+    """The tilt (rad, a standard deviation) of a contact's normal at its noisy position: a
+    contact the position noise ``s`` moves across an edge or a thin wall carries the
+    normal of its other side, and the share of such contacts on an object of longest side
+    ``size`` grows as ``s / size``; ``gain * sqrt(s / size)``, 0 without noise.
+
+    Parameters
+    ----------
+    position_noise : float
+        The sensor's position noise (a standard deviation, scene units).
+    size : float
+        The object's longest side (scene units).
+    gain : float
+        1: a tilt of about 0.3 rad (18 degrees) at a noise of a tenth of the size.
+    """
+    if not (position_noise > 0 and gain > 0 and size > 0):
+        return 0.0
+    return float(gain) * float(np.sqrt(position_noise / size))
+
+
 def observations(points, normals, prior, noncontacts=None, noncontact_value=0.1,
                  noise_variance=1e-4, refuting=None, gradient_noise_variance=None):
     """The GPIS's observations: contacts (value 0, gradient the normal), then non-contacts

@@ -937,10 +937,11 @@ def test_a_noisy_estimate_has_no_surface_where_probes_found_nothing(sphere_model
     library = _box_library(sphere_model)
     # The balls of every free point (gpis_carve_outside), as _inside_balls measures them;
     # the box's phantom kept as the prior (a fitted ellipsoid would leave none to cut).
-    # The decision afresh at every touch and the box's MAP pose followed at every touch:
-    # the trajectory this phantom was found on.
+    # The decision afresh at every touch, the box's MAP pose followed at every touch and
+    # the normals held to the sensor's tilt: the trajectory this phantom was found on.
     params = session_preset("recommended", gpis_carve_estimate=when, gpis_carve_outside=True,
-                            gpis_agnostic=False, gpis_prior_hold="never", decision_refresh=1)
+                            gpis_agnostic=False, gpis_prior_hold="never", decision_refresh=1,
+                            gpis_edge_tilt=0.0)
     session = Session.simulated(make_truth(sphere_model, rng=0), library, seed=0, params=params,
                       sensor_noise=(0.06, 2.0))
     session.run(max_steps=30)

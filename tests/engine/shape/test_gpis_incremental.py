@@ -25,6 +25,7 @@ from tactile_viz.engine.shape.gpis_incremental import (
     inverse_row_norms,
     scale_score,
 )
+from tactile_viz.engine.shape.gpis_prior import edge_tilt
 from tactile_viz.engine.shape.gpis_variance import lattice_low, lattice_variance
 from tactile_viz.engine.shape.level_set import zero_level_surface
 from tactile_viz.engine.shape.metrics import surface_samples
@@ -217,9 +218,11 @@ def test_a_noisy_sensors_normal_noise_goes_to_the_gradient_rows(bundled, monkeyp
     assert calls
     for call in calls:
         # Both carry the GPIS's own noise; the sensor's adds a length to the values and a
-        # tilt (radians, half its square along each tangent direction) to the gradients.
+        # tilt (radians, half its square along each tangent direction) to the gradients:
+        # its normal noise and the edge tilt of its position noise (objects of size 6).
+        tilt = np.hypot(np.radians(3.0), edge_tilt(0.05, 6.0))
         assert (call["gradient_noise_variance"] - call["noise_variance"]
-                == pytest.approx(np.radians(3.0) ** 2 / 2 - 0.05**2, rel=1e-9))
+                == pytest.approx(tilt**2 / 2 - 0.05**2, rel=1e-9))
 
 
 def test_a_full_fit_takes_the_scales_newton_step_as_the_data_grow(bundled, monkeypatch):
