@@ -71,10 +71,11 @@ def test_the_cell_is_the_longest_side_over_the_resolution():
 class _Reporting(FinalSurface):
     """An estimator that reports a given surface: its parameters, misses and noise."""
 
-    def __init__(self, noise, refuted):
+    def __init__(self, noise, refuted, normals):
         self.p = dataclasses.replace(session_preset("recommended"), eps=0.6,
                                      contact_spacing=0.3)
         self.state = SimpleNamespace(refuted=refuted)
+        self.filter = SimpleNamespace(contact_normals=normals)
         self.sensor_noise = (noise, 0.0)
 
 
@@ -92,6 +93,9 @@ def test_a_blob_within_eps_but_beyond_the_noise_is_not_reported_under_noise(nois
     contacts = np.vstack([vertices[:n], centre + (vertices[n:] - centre) * 0.75 / 0.3])
     recon = Reconstruction(vertices, faces, np.arange(4), np.zeros(4), fit=None,
                            resolution=32)
-    estimator = _Reporting(noise, refuted=vertices[n:] + [0.0, 0.1, 0.0])
+    # The contacts face the way of the surface beside them (the body's, the blob's).
+    normals = np.vstack([vertices[:n], vertices[n:] - centre])
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    estimator = _Reporting(noise, refuted=vertices[n:] + [0.0, 0.1, 0.0], normals=normals)
     reported = estimator.reported(recon, contacts, {})
     assert len(reported.vertices) == (len(vertices) if kept else n)
