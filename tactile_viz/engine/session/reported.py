@@ -16,7 +16,6 @@ holes they leave closed, so that what it reports is what it learns.
 from dataclasses import replace
 
 import numpy as np
-import trimesh
 from scipy.spatial import cKDTree
 
 from ..shape.mesh_repair import closed_faces
@@ -178,7 +177,7 @@ def facing_near(vertices, faces, points, normals, reach, neighbours=FACING_NEIGH
     with at their nearest vertex), whatever the winding of its faces."""
     vertices = np.asarray(vertices, float)
     points, normals = np.asarray(points, float), np.asarray(normals, float)
-    surface = trimesh.Trimesh(vertices, faces, process=False).vertex_normals
+    surface = vertex_normals(vertices, faces)
     tree = cKDTree(points)
     nearest = cKDTree(vertices).query(points)[1]
     if np.median(np.einsum("ij,ij->i", normals, surface[nearest])) < 0:
@@ -190,3 +189,13 @@ def facing_near(vertices, faces, points, normals, reach, neighbours=FACING_NEIGH
     padded = np.vstack([normals, np.zeros((1, 3))])  # a missing neighbour faces nowhere
     facing = np.einsum("vkj,vj->vk", padded[np.where(found, index, len(points))], surface) > 0
     return np.any(found & facing, axis=1)
+
+
+def vertex_normals(vertices, faces):
+    """``(v, 3)`` float: each vertex's faces' normals summed, weighted by their areas
+    (unnormalised; only their signs are read), along the faces' winding."""
+    vertices, faces = np.asarray(vertices, float), np.asarray(faces, int).reshape(-1, 3)
+    corners = vertices[faces]
+    area = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return np.column_stack([np.bincount(faces.ravel(), np.repeat(area[:, axis], 3),
+                                        minlength=len(vertices)) for axis in range(3)])
