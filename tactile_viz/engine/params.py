@@ -408,10 +408,9 @@ class SessionParams:
         True, "The reported surface's support (final_candidates) leaves out the vertices "
         "the stop does: near given-up targets and missed probes.", kind="bool")
     final_support_near: bool = _gpis(
-        True, "Under position noise, where misses refute the reported surface "
-        "(final_candidates), a contact supports it within contact_spacing or "
-        "target_noise_stds noise stds, not eps (beyond the paper).", kind="bool",
-        notes="docs/gpis.md.")
+        True, "Under position noise, where misses refute the reported surface (final_candidates), "
+        "a contact supports it within contact_spacing or target_noise_stds noise stds, not eps "
+        "(beyond the paper).", kind="bool", notes="docs/gpis.md.")
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",
