@@ -286,8 +286,9 @@ class Estimator(FinalSurface, Part):
         """The fits' noise and non-contact keywords."""
         p = self.p
         # The sensor's noise adds to the GPIS's (variances): its position noise to the
-        # values (lengths), its normal noise to the gradients: a tilt by an angle of std s
-        # about a random axis moves a unit normal with variance s**2 / 2 along each tangent.
+        # values (lengths), its normal noise and the edge tilt its position noise brings to
+        # the gradients: a tilt by an angle of std s about a random axis moves a unit normal
+        # with variance s**2 / 2 along each tangent.
         position, normal_deg = self.sensor_noise
         tilt = np.hypot(np.radians(normal_deg),
                         edge_tilt(position, PAPER_SIZE * self.unit, p.gpis_edge_tilt))
