@@ -68,8 +68,7 @@ from ..shape.sdf import normalise_rows
 from .context import Part
 from .fields import BelowTangentPlane, PosedSDF, ValueOf
 from .lengths import own_unit
-from .refuted import open_estimate, open_parts, open_vertices, unsought
-from .reported import vertex_normals as vertex_sums
+from .refuted import open_estimate, open_parts, open_vertices
 from .state import Aim, Check
 from .stop import FLICKER_STEPS, Progress, stop_rule
 
@@ -145,8 +144,6 @@ class Plan:
         ``target`` is the head of the frontier queue (taken off it).
     telling_apart, confirming : bool
         ``target`` tells rival hypotheses apart; ``check`` confirms a decision.
-    sought : tuple or None
-        ``target`` is the uncovered prior's: its class name and position in its frame.
     dhd : float
         ``Coverage.value``.
     terminated, decided : bool
@@ -163,7 +160,6 @@ class Plan:
     frontier: bool = False
     telling_apart: bool = False
     confirming: bool = False
-    sought: Any = None
 
 
 class Planner(Part):
@@ -293,14 +289,13 @@ class Planner(Part):
         dhd = directed_hausdorff(surface[reachable], contacts)
         prior_open, prior_dhd = None, 0.0
         if self._covers_prior(recon):
-            # Cut out around missed probes and the places aimed at on it (its frame) as far
-            # as the carve reaches; a prior refuted everywhere has nothing to cover (a 2 mm
-            # fork's held screwdriver, every vertex within 20 mm of a given-up target, held
-            # its stop 28 mm off for 80 touches to the cap).
-            reach = max(self.p.contact_spacing, self.p.gpis_carve_radius)
-            prior_open = (open_vertices(map_vertices, self.state, reach, all_refuted=False)
-                          & unsought(map_vertices, self.state.sought,
-                                     getattr(model, "name", None), pose, reach))
+            # The prior is cut out around missed probes as far as the carve reaches; a
+            # prior refuted everywhere has nothing left to cover (a 2 mm fork's held
+            # screwdriver, every vertex within 20 mm of a given-up target, held its stop
+            # 28 mm off for 80 touches to the cap).
+            prior_open = open_vertices(map_vertices, self.state,
+                                       max(self.p.contact_spacing, self.p.gpis_carve_radius),
+                                       all_refuted=False)
             if map_reach is not None and prior_open.any():
                 prior_open = _both(prior_open, map_reach)
             if prior_open.any():
@@ -385,10 +380,8 @@ class Planner(Part):
         if coverage.dhd <= self.p.eps < coverage.prior_dhd:
             # The reconstruction is covered, but part of the prior it came from is neither
             # touched nor refuted: the object may extend there.
-            aim = self._next_target(map_vertices, coverage.prior_open, None, model, rotation,
-                                    translation, contacts)
-            sought = (model.name, (aim.position - translation) @ rotation)
-            return Plan(aim, None, sought=sought, **keep)
+            return Plan(self._next_target(map_vertices, coverage.prior_open, None, model,
+                                          rotation, translation, contacts), None, **keep)
         return Plan(self._next_target(coverage.surface, coverage.reachable, recon, model,
                                       rotation, translation, contacts), None, **keep)
 
@@ -559,6 +552,7 @@ def beyond_noise(p, sensor_noise):
     return p.target_noise_stds * sensor_noise[0]
 
 
+
 @functools.lru_cache(maxsize=8)
 def vertex_normals(model):
     """A prior's vertex normals, (n, 3), object frame, from a bare copy of its mesh (see
@@ -575,7 +569,13 @@ def _both(mask, other):
 
 def mesh_vertex_normals(vertices, faces):
     """Area-weighted vertex normals of a triangle mesh, (v, 3), unit (zero-area: +z)."""
-    return normalise_rows(vertex_sums(vertices, faces), fallback=np.array([0.0, 0.0, 1.0]))
+    vertices, faces = np.asarray(vertices, float), np.asarray(faces)
+    face_normals = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
+                            vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    normals = np.zeros_like(vertices)
+    for corner in range(3):
+        np.add.at(normals, faces[:, corner], face_normals)
+    return normalise_rows(normals, fallback=np.array([0.0, 0.0, 1.0]))
 
 
 def segment_points(segments, spacing):

@@ -103,35 +103,6 @@ def open_parts(reachable, vertices, faces, contacts, state, p):
     return kept if kept.any() else reachable
 
 
-def unsought(vertices, sought, name, pose, radius):
-    """Mask of a prior's ``vertices`` (world frame, posed by ``pose``) farther than
-    ``radius`` from every point of it aimed at before, kept in its own frame.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-        The prior ``name``'s vertices at ``pose``, world frame.
-    sought : list of (str, (3,) float)
-        Each prior target's class name and position in that class's frame.
-    name : str or None
-    pose : tuple of (3, 3) float and (3,) float, or None
-        Rotation and translation from the prior's frame to the world (None: nothing is
-        left out).
-    radius : float, scene units
-
-    A prior the contacts leave free to turn (a mug's about an 8 cm cup's axis) moves the
-    part it has and the object lacks from step to step: a probe aimed at it refutes it
-    where it was (an 8 cm cup's mug handle, aimed at in 34 directions, held the stop to
-    the cap). Once aimed at, a part of the prior has been looked for.
-    """
-    points = np.reshape([point for owner, point in sought if owner == name], (-1, 3))
-    if len(points) == 0 or len(vertices) == 0 or pose is None:
-        return np.ones(len(vertices), bool)
-    rotation, translation = pose
-    world = points @ np.asarray(rotation).T + translation
-    return cKDTree(world).query(vertices, distance_upper_bound=radius)[0] >= radius
-
-
 @functools.lru_cache(maxsize=4)
 def refuted_tree(points):
     """A KD-tree of refuted points given as the bytes of a ``(k, 3)`` float array, kept

@@ -147,9 +147,6 @@ class ExplorationState:
         ``(observations, free space)`` given before the first contact ever, kept for its step.
     misfit_steps : int
         Steps in a row whose known MAP misfitted (``misfit_novelty``).
-    sought : list of (str, (3,) float)
-        The prior targets so far (``cover_prior``): the MAP class's name and the target in
-        its frame.
     replayed : int
         Recorded steps given to a :class:`~.recorded.RecordedSession` (misses before the
         first contact are held, so it can run ahead of the snapshots).
@@ -179,7 +176,6 @@ class ExplorationState:
     results: list = field(default_factory=list)
     held: Any = None
     misfit_steps: int = 0
-    sought: list = field(default_factory=list)
     replayed: int = 0
 
     @property
@@ -201,8 +197,6 @@ class ExplorationState:
             self.told.append(plan.target.position)
         if plan.frontier:
             self.frontier.pop(0)
-        if plan.sought is not None:
-            self.sought.append(plan.sought)
         if plan.check is not None:
             self.check_directions.append(plan.check.direction)
 

@@ -13,7 +13,6 @@ from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.scene import FREE
 from tactile_viz.engine.session.context import StepContext
 from tactile_viz.engine.session.planner import Planner
-from tactile_viz.engine.session.refuted import unsought
 from tactile_viz.engine.session.state import ExplorationState
 
 
@@ -153,51 +152,3 @@ def test_a_detached_part_no_contact_supports_is_left_out_after_three_misses(scal
     assert not parts(on_blob, misses=0).any()
     # A target given up far from every vertex counts for no part.
     assert not parts(on_blob + [0, 0, 5 * scale], misses=3).any()
-
-
-def _turned(angle, scale):
-    """A rotation by ``angle`` about z and a translation, scaled."""
-    c, s = np.cos(angle), np.sin(angle)
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return rotation, np.array([0.2, -0.1, 0.3]) * scale
-
-
-@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
-def test_a_prior_part_aimed_at_is_refuted_in_its_own_frame(scale):
-    # A mug prior about a cup: its handle, which the cup lacks, turns round the cup from
-    # step to step (the contacts leave the mug's turn free). Aimed at once, it is no longer
-    # asked for at any turn; a part not aimed at, or another class's, still is.
-    planner, contacts = _planner(scale), _ball(scale, 2)
-    body = np.vstack([_ball(scale, 2), _ball(0.04 * scale, 1) + [1.4 * scale, 0.0, 0.0]])
-    handle = np.arange(len(body)) >= len(contacts)
-    mug = types.SimpleNamespace(name="mug")
-    for angle in (0.0, 1.0, 2.5):
-        rotation, translation = pose = _turned(angle, scale)
-        prior = body @ rotation.T + translation
-        recon = _estimate(scale)
-        recon.vertices = recon.vertices + translation
-        coverage = planner.coverage(recon, prior, contacts + translation, mug, pose)
-        assert coverage.prior_open[handle].any() == (angle == 0.0)
-        assert (coverage.prior_dhd > 0.25 * scale) == (angle == 0.0)
-        if angle == 0.0:  # the step aims at the handle's tip, in the mug's frame
-            tip = np.array([1.44, 0.0, 0.0]) * scale
-            planner.state.sought.append(("mug", tip))
-    other = planner.coverage(recon, prior, contacts + translation,
-                             types.SimpleNamespace(name="jug"), pose)
-    assert other.prior_open[handle].any() and other.prior_dhd > 0.25 * scale
-
-
-@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
-def test_unsought_leaves_out_what_lies_within_radius_of_an_aimed_place(scale):
-    rotation, translation = _turned(0.7, scale)
-    body = _ball(scale, 2)
-    vertices = body @ rotation.T + translation
-    aimed = body[0]
-    kept = unsought(vertices, [("mug", aimed), ("jug", body[1])], "mug",
-                    (rotation, translation), 0.3 * scale)
-    near = np.linalg.norm(body - aimed, axis=1) < 0.3 * scale
-    np.testing.assert_array_equal(kept, ~near)
-    assert unsought(vertices, [], "mug", (rotation, translation), scale).all()
-    assert unsought(vertices, [("mug", aimed)], "mug", None, scale).all()
-    none = unsought(vertices[:0], [("mug", aimed)], "mug", (rotation, translation), scale)
-    assert none.shape == (0,)
