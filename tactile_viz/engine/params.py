@@ -530,12 +530,12 @@ class SessionParams:
               "feature points lie on it. Cost: the hypotheses' distances at every candidate.")
     misfit_novelty: float = _session(
         1e-6, "An object the paper's test judges known is novel once its MAP's refined "
-        "residuals have a chi-squared p-value below this, all of them or their means by "
-        "place, for 5 steps in a row with contacts all around it (beyond the paper; 0: the "
-        "paper's test alone).", valid="[0, 0.5]", control=(0.0, 0.01),
+        "residuals have a chi-squared p-value below this, all of them, their means by "
+        "place or their stretch, 5 steps in a row with contacts all around it (beyond the "
+        "paper; 0: the paper's test alone).", valid="[0, 0.5]", control=(0.0, 0.01),
         notes="The paper's sigma_d is 8% of the size: a look-alike of equal size passes its "
-              "test. By place, the noise averages out and a shape's misfit does not "
-              "(engine/belief/grouped.py, docs/novel.md).")
+              "test. By place or as a stretch, the noise averages out and a misfit does not "
+              "(engine/belief/grouped.py, stretch.py, docs/novel.md).")
     stop_at_decision: bool = _session(
         False, "Stop as soon as the object is decided (a robot that only needs to "
         "recognise).", kind="bool", notes="False: go on to the DHD stop for shape.")

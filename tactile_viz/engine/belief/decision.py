@@ -136,9 +136,10 @@ class Decision:
         and its mesh's (1 when it fits at the confidence, or when not assessed): how
         unlikely a right hypothesis leaves them.
     group_p : float
-        The p-value of the MAP's residuals averaged by place (:mod:`.grouped`; 1 when not
-        asked for or not assessed): a look-alike's misfit, shared by the contacts of a
-        place, stands out of the noise there long before it does in ``fit_p``.
+        The p-value of the MAP's residuals averaged by place (:mod:`.grouped`), or as its
+        shape stretched (:mod:`.stretch`), the smaller (1 when not asked for or not
+        assessed): a look-alike's misfit, shared by the contacts of a place or all of
+        them, stands out of the noise there long before it does in ``fit_p``.
     refined : Refined
         What it refined, for the next touch's starts (:mod:`.incremental`).
     lead : Hypothesis or None

@@ -24,9 +24,9 @@ takes up to six of the degrees of freedom, so the test is conservative.
 import numpy as np
 from scipy.special import chdtrc
 
-from ..transforms import inverse_transform_points_batch
 from .mesh_fit import mesh_fit
 from .pose_refinement import POSE_PARAMETERS
+from .stretch import contact_frame, stretch_p
 
 GROUP_SIZE = 10  # contacts a group holds on average: its mean's noise is ~1/3 of one's
 
@@ -117,9 +117,7 @@ def contact_residuals(pf, class_index, rotation, translation, oriented, exact=Fa
     normal (a noisy touch through a thin wall), the distance to the nearest surface facing
     its way (``oriented``, :class:`~.oriented.OrientedEvaluator`), as the pose fits
     measure them. Returns (n,) float, scene units."""
-    contacts = pf.contact_positions
-    local = inverse_transform_points_batch(contacts, rotation[None], translation[None])[0]
-    facing = inverse_transform_points_batch(pf.contact_normals, rotation[None])[0]
+    local, facing = contact_frame(pf, rotation, translation)
     if exact:
         mesh = pf.exact_distance(class_index)
         distance, _, face = mesh.query(local)
@@ -136,20 +134,24 @@ def contact_residuals(pf, class_index, rotation, translation, oriented, exact=Fa
 
 def grouped_test(pf, class_index, rotation, translation, oriented, floor, localisation=0.0,
                  exact=False, groups=None):
-    """:func:`grouped_p` of a class posed at ``rotation``, ``translation`` on the filter's
-    contacts (:func:`contact_residuals`, ``exact`` or on the grid): each residual's
-    noise ``floor`` (the sensor's and the localisation's, scene units), a group's share
-    the ``localisation`` and the class's own error (``shape_error``, a learned shape's)
-    in quadrature; ``groups`` the contacts' :func:`contact_groups` (None: grouped with
-    the normals weighed at the class's size unit)."""
+    """The look-alike tests of a class posed at ``rotation``, ``translation`` on the
+    filter's contacts (:func:`contact_residuals`, ``exact`` or on the grid): the smaller
+    of :func:`grouped_p` and :func:`~.stretch.stretch_p`, each residual's noise ``floor``
+    (the sensor's and the localisation's, scene units), a place's share the
+    ``localisation`` and the class's own error (``shape_error``, a learned shape's) in
+    quadrature; ``groups`` the contacts' :func:`contact_groups` (None: grouped with the
+    normals weighed at the class's size unit). A look-alike of another size misfits as a
+    stretch of the whole shape more plainly than by place (:mod:`.stretch`)."""
     model = pf.models[class_index]
     if len(pf.contact_positions) <= POSE_PARAMETERS:
         return 1.0
     residuals = contact_residuals(pf, class_index, rotation, translation, oriented, exact)
     if groups is None:
         groups = contact_groups(pf.contact_positions, pf.contact_normals, model.size_unit)
-    return grouped_p(residuals, groups, floor**2,
-                     localisation**2 + model.shape_error**2, pf.params.outlier_probability)
+    shared2, trim = localisation**2 + model.shape_error**2, pf.params.outlier_probability
+    points, normals = contact_frame(pf, rotation, translation)
+    stretched, _ = stretch_p(residuals, points, normals, floor**2, shared2, trim)
+    return min(grouped_p(residuals, groups, floor**2, shared2, trim), stretched)
 
 
 def lead_grouped_p(pf, lead, oriented, floor, localisation, confidence, outside,

@@ -218,7 +218,7 @@ class Planner(Part):
     def misfits(self, belief, decision):
         """Whether an object the filter judges known is novel after all (beyond the paper):
         its MAP's refined residuals fail the chi-squared test (``decision.fit_p`` below
-        ``misfit_novelty``), or the same test of their means by place
+        ``misfit_novelty``), or of their means by place or their stretch
         (``decision.group_p``, :mod:`~..belief.grouped`), for ``MISFIT_STEPS`` steps in a
         row with contacts all around it (the last DHD within ``decision_cover``) and the
         same MAP class, and stay novel until the fit passes at ``decision_confidence``.
