@@ -170,6 +170,7 @@ def again_summary(result):
     at = decided or steps[-1]
     return {"map_learned": at["map_class"] == learned,
             "decided_at": None if decided is None else decided["t"],
+            "decided_class": None if decided is None else decided["map_class"],
             "decided_learned": bool(decided is not None and decided["map_class"] == learned),
             "pose_share": None if at["pose_error"] is None else at["pose_error"] / size,
             "again_touches": len(steps), "again_seconds": result["seconds"],
@@ -243,6 +244,7 @@ def markdown(rows):
             mine = [r for r in rows if r["library"] == which and tuple(r["noise"]) == noise]
             n = len(mine)
             again = [r for r in mine if "decided_at" in r]
+            right = [r["decided_at"] for r in again if r["decided_learned"]]
             lines.append(
                 f"| {which} | {noise[0]:g}, {noise[1]:g} | "
                 f"{sum(r['judged_novel'] for r in mine)}/{n} | "
@@ -251,7 +253,7 @@ def markdown(rows):
                 f"{sum(r['stopped'] for r in mine)}/{n} | "
                 f"{sum(r['map_learned'] for r in again)}/{len(again)} | "
                 f"{sum(r['decided_learned'] for r in again)}/{len(again)} | "
-                f"{_fmt(_median([r['decided_at'] for r in again]), '.0f')} | "
+                f"{_fmt(_median(right), '.0f')} | "
                 f"{_fmt(_mean([r['pose_share'] for r in again]), scale=100)} | "
                 f"{sum(_pose_within(r) for r in again)}/{len(again)} | "
                 f"{_fmt(_median([r['seconds'] for r in mine]), '.0f')}, "
@@ -269,9 +271,17 @@ def markdown(rows):
             f"{r['touches']} | "
             f"{'yes' if r['stopped'] else 'cap'} | "
             f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
-            f"{_fmt(r.get('decided_at'), '.0f')} | {_fmt(r.get('pose_share'), scale=100)} | "
+            f"{_decided(r)} | {_fmt(r.get('pose_share'), scale=100)} | "
             f"{_fmt(r.get('seconds'), '.0f')} | {_fmt(r.get('slowest_touch'), '.2f')} |")
     return "\n".join(lines + _known_lines(rows)) + "\n"
+
+
+def _decided(row):
+    """The touch a met-again trial was decided at, and the class when it is not the
+    learned one (a wrong decision is no decision of the learned object)."""
+    at = _fmt(row.get("decided_at"), ".0f")
+    wrong = row.get("decided_at") is not None and not row.get("decided_learned")
+    return f"{at}, as {row.get('decided_class')}" if wrong else at
 
 
 def _known_lines(rows):

@@ -84,6 +84,11 @@ def test_summaries_and_tables():
     assert ("| few | 0, 0 | 1/2 | 5.0 (5.0) | 3.0 (3.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 | "
             "4, 4 | 0.30, 0.20 |") in text
     assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - | 4 | 0.30 |" in text
+    # Decided as another class met again: no decision of the learned one, nor its touches.
+    wrong = dict(row, decided_class="mug_1_large", decided_learned=False, decided_at=33)
+    text = learn.markdown([wrong])
+    assert "| few | 0, 0 | 1/1 | 5.0 (5.0) | 3.0 (3.0) | 1/1 | 1/1 | 0/1 | - | 4.0 |" in text
+    assert "| 30 | yes | yes | 33, as mug_1_large | 4.0 |" in text
 
 
 def test_known_trials_add_the_object_to_its_library_and_time_the_novel_one(tmp_path):
