@@ -120,7 +120,7 @@ def contact_residuals(pf, class_index, rotation, translation, oriented, exact=Fa
     local, facing = contact_frame(pf, rotation, translation)
     if exact:
         mesh = pf.exact_distance(class_index)
-        distance, _, face = mesh.query(local)
+        distance, _, face = mesh.query_near(local)
         gradients = mesh.face_normal(face)
     else:
         values, gradients = pf.bank.evaluate(np.array([class_index]), local[None])

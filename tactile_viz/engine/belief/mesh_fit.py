@@ -64,7 +64,7 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
     last = {}  # the points of the last look-up and a lower bound of their distances
 
     def evaluate(classes, points):
-        distance, _, face = exact.query(points.reshape(-1, 3))
+        distance, _, face = exact.query_near(points.reshape(-1, 3))
         return distance.reshape(points.shape[:-1]), exact.face_normal(face).reshape(points.shape)
 
     def bounded(classes, points):
@@ -82,7 +82,7 @@ def mesh_fit(pf, class_index, rotation, translation, outside, oriented, iteratio
         distance, normals = bound, np.zeros_like(flat)
         normals[:, 2] = 1.0
         if asked.any():
-            distance[asked], _, face = exact.query(flat[asked])
+            distance[asked], _, face = exact.query_near(flat[asked])
             normals[asked] = exact.face_normal(face)
         last.update(points=flat.copy(), bound=distance.copy())
         return distance.reshape(points.shape[:-1]), normals.reshape(points.shape)

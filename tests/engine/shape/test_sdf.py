@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
+import trimesh
 
-from tactile_viz.engine.shape.sdf import normalise_rows
+from tactile_viz.engine.shape.sdf import ExactDistance, normalise_rows
 from tactile_viz.experiments.sdf_speed import near_surface_points
 
 
@@ -386,3 +387,29 @@ def test_a_banded_prior_keeps_its_own_cache_entries(tmp_path):
     assert banded._sdf_params() == {**model._sdf_params(), "band": 3.0}
     assert not np.array_equal(model.sdf.codes, banded.sdf.codes)
     assert model.sdf.shape == banded.sdf.shape
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_pseudonormal_sign_is_the_winding_numbers(scale):
+    # Points at every distance from a box, a ball, a ring (concave edges) and about their
+    # vertices and edges: the same signed distance as the winding number's off the
+    # surface; two pieces (which may overlap) keep the winding number.
+    rng = np.random.default_rng(4)
+    ring = trimesh.creation.annulus(r_min=0.3, r_max=1.0, height=0.5)
+    for mesh in (trimesh.creation.box((1.0, 0.6, 0.3)), trimesh.creation.icosphere(2), ring):
+        exact = ExactDistance(mesh.vertices * scale, mesh.faces)
+        assert exact._pseudonormals is not None
+        points = np.vstack([mesh.vertices, mesh.triangles_center,
+                            (mesh.vertices[mesh.edges_unique].mean(axis=1))]) * scale
+        points = np.vstack([points + rng.normal(0.0, s * scale, points.shape)
+                            for s in (1e-4, 1e-2, 0.3)])
+        expected, closest, face = exact.query(points)
+        near, near_closest, near_face = exact.query_near(points)
+        np.testing.assert_allclose(near, expected, atol=1e-9 * scale)
+        np.testing.assert_array_equal(near_face, face)
+    two = trimesh.util.concatenate([trimesh.creation.box((1, 1, 1)),
+                                    trimesh.creation.box((1, 1, 1)).apply_translation([0.5] * 3)])
+    exact = ExactDistance(two.vertices * scale, two.faces)
+    assert exact._pseudonormals is None
+    inside = np.array([[0.6, 0.6, 0.6], [0.2, 0.2, 0.2]]) * scale
+    np.testing.assert_array_equal(exact.query_near(inside)[0] < 0, [True, True])
