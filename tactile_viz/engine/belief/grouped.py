@@ -110,14 +110,14 @@ def grouped_p(residuals, groups, noise2, shared2=0.0, trim=0.0):
     return float(chdtrc(int(held.sum()), float(np.sum(means**2 / variance))))
 
 
-def contact_residuals(pf, class_index, rotation, translation, oriented, exact=False):
-    """The filter's contacts' signed residuals to a class posed at ``rotation`` (3, 3),
-    ``translation`` (3,) (world frame), on its grid (the filter's bank) or, ``exact``,
-    on its mesh; where the surface found is turned away from the contact's measured
-    normal (a noisy touch through a thin wall), the distance to the nearest surface facing
-    its way (``oriented``, :class:`~.oriented.OrientedEvaluator`), as the pose fits
-    measure them. Returns (n,) float, scene units."""
-    local, facing = contact_frame(pf, rotation, translation)
+def contact_residuals(pf, class_index, local, facing, oriented, exact=False):
+    """The filter's contacts' signed residuals to a class, the contacts ``local`` and
+    their measured normals ``facing`` in its posed frame (:func:`~.stretch.contact_frame`,
+    (n, 3) each), on its grid (the filter's bank) or, ``exact``, on its mesh; where the
+    surface found is turned away from the contact's measured normal (a noisy touch
+    through a thin wall), the distance to the nearest surface facing its way
+    (``oriented``, :class:`~.oriented.OrientedEvaluator`), as the pose fits measure them.
+    Returns (n,) float, scene units."""
     if exact:
         mesh = pf.exact_distance(class_index)
         distance, _, face = mesh.query_near(local)
@@ -145,11 +145,11 @@ def grouped_test(pf, class_index, rotation, translation, oriented, floor, locali
     model = pf.models[class_index]
     if len(pf.contact_positions) <= POSE_PARAMETERS:
         return 1.0
-    residuals = contact_residuals(pf, class_index, rotation, translation, oriented, exact)
+    points, normals = contact_frame(pf, rotation, translation)
+    residuals = contact_residuals(pf, class_index, points, normals, oriented, exact)
     if groups is None:
         groups = contact_groups(pf.contact_positions, pf.contact_normals, model.size_unit)
     shared2, trim = localisation**2 + model.shape_error**2, pf.params.outlier_probability
-    points, normals = contact_frame(pf, rotation, translation)
     stretched, _ = stretch_p(residuals, points, normals, floor**2, shared2, trim)
     return min(grouped_p(residuals, groups, floor**2, shared2, trim), stretched)
 
