@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from trimesh.triangles import angles as triangle_angles
 
 # Below this length a gradient is taken to vanish (the medial axis or a flat grid region).
 _TINY = 1e-12
@@ -133,7 +134,7 @@ class ExactDistance:
         normals = self._face_normals
         edges = np.zeros((len(unique), 3))
         np.add.at(edges, edge, np.repeat(normals, 3, axis=0))
-        angles = np.stack([_corner_angle(corners, k) for k in range(3)], axis=1)
+        angles = triangle_angles(corners)
         at_vertices = np.zeros_like(vertices)
         for k in range(3):
             np.add.at(at_vertices, faces[:, k], angles[:, k, None] * normals)
@@ -418,13 +419,6 @@ def _interpolate(codes, gradient_codes, offset, shape, origin, spacing, value_st
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = gx / norm, gy / norm, gz / norm
         else:
             gradients[i, 0], gradients[i, 1], gradients[i, 2] = 0.0, 0.0, 1.0
-
-
-def _corner_angle(corners, k):
-    """The angle at corner ``k`` of each triangle of ``(m, 3, 3)`` corners, radians."""
-    a, b, c = corners[:, k], corners[:, (k + 1) % 3], corners[:, (k + 2) % 3]
-    u, v = normalise_rows(b - a), normalise_rows(c - a)
-    return np.arccos(np.clip(np.einsum("ij,ij->i", u, v), -1.0, 1.0))
 
 
 def _pseudonormal(closest, corners, face, faces, normals, edges, at_vertices):
