@@ -38,6 +38,46 @@ def farthest_vertex(vertices, contacts):
     return int(np.argmax(distance))
 
 
+def weakest_support(vertices, contacts, tried=(), least=0.0):
+    """The vertex farthest from every contact, and that distance (at least ``least``):
+    where an estimate rests on the fewest touches.
+
+    A vertex within an earlier such vertex's own distance to the contacts (``tried``, as
+    they stand now) is left out: a sweep planned about one again takes the same way in
+    and meets what it met before (an elephant's hind leg, on the way to its belly, fifteen
+    times in 48 checks).
+
+    Parameters
+    ----------
+    vertices : (v, 3) float
+        The estimate's vertices that exploration may still visit.
+    contacts : (n, 3) float
+    tried : (k, 3) float
+        Earlier weakest supports that a sweep was planned about.
+    least : float
+        The smallest distance returned (scene units).
+
+    Returns
+    -------
+    vertex : (3,) float or None
+        None without vertices, contacts, or any left.
+    distance : float
+    """
+    vertices, tried = np.reshape(vertices, (-1, 3)), np.reshape(tried, (-1, 3))
+    if len(vertices) == 0 or len(contacts) == 0:
+        return None, 0.0
+    tree = cKDTree(contacts)
+    distance = tree.query(vertices)[0]
+    if len(tried):
+        radii = np.maximum(tree.query(tried)[0], least)
+        left_out = cKDTree(vertices).query_ball_point(tried, radii)
+        distance[np.concatenate([np.asarray(i, dtype=int) for i in left_out])] = -np.inf
+    best = int(np.argmax(distance))
+    if not np.isfinite(distance[best]):
+        return None, 0.0
+    return vertices[best], max(float(distance[best]), least)
+
+
 def variance_target(vertices, subset, variance, reachable, contacts, uncovered_beyond=None,
                     farthest_when_flat=False):
     """Index of the GPIS-DHD target of a novel object: the surface vertex of largest

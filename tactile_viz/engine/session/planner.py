@@ -59,6 +59,7 @@ from ..explore.exploration import (
     next_sweep_direction,
     raster_path,
     variance_target,
+    weakest_support,
     widest_gap,
 )
 from ..explore.scene_moves import check_line
@@ -524,15 +525,14 @@ class Planner(Part):
 
     def _weakest_support(self, estimate, contacts):
         """The estimate's vertex farthest from every contact (among those exploration may
-        still visit) and that distance: where the estimate rests on the fewest touches, so
-        the object may lie up to ``eps`` off it unseen (a leg's middle between touched ends).
-        """
-        reachable = np.flatnonzero(self._reachable(estimate))
-        if len(reachable) == 0 or len(contacts) == 0:
-            return None, 0.0
-        distance = cKDTree(contacts).query(estimate[reachable])[0]
-        best = int(np.argmax(distance))
-        return estimate[reachable[best]], max(float(distance[best]), self.p.contact_spacing)
+        still visit, away from earlier weakest supports: :func:`weakest_support`) and that
+        distance: where the estimate rests on the fewest touches, so the object may lie up
+        to ``eps`` off it unseen (a leg's middle between touched ends)."""
+        state = self.state
+        tried = [through for index, through in enumerate(state.check_throughs)
+                 if check_kind(self.p, index) == "weakest"]
+        return weakest_support(estimate[self._reachable(estimate)], contacts, tried,
+                               self.p.contact_spacing)
 
 
 def check_kind(p, index):

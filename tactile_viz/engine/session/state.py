@@ -118,6 +118,8 @@ class ExplorationState:
         The check the next step sweeps.
     check_directions : list of (3,) float
         The directions of the checks so far.
+    check_throughs : list of (3,) float
+        The points they were planned through (one a check, as ``check_directions``).
     checks_passed : int
         Checks in a row that touched nothing unpredicted.
     hypotheses : tuple of Hypothesis
@@ -164,6 +166,7 @@ class ExplorationState:
     telling_apart: bool = False
     check: Any = None
     check_directions: list = field(default_factory=list)
+    check_throughs: list = field(default_factory=list)
     checks_passed: int = 0
     hypotheses: tuple = ()
     decided: bool = False
@@ -188,7 +191,8 @@ class ExplorationState:
     def adopt(self, plan):
         """Take a step's plan (:class:`~.planner.Plan`): the one place the target, the
         check and their flags enter the state; a frontier target leaves the queue, a
-        check's direction joins ``check_directions`` and a telling target ``told``."""
+        check's direction and point join ``check_directions`` and ``check_throughs``, a
+        telling target ``told``."""
         self.target, self.check, self.frontier_target = plan.target, plan.check, plan.frontier
         self.telling_apart, self.confirming = plan.telling_apart, plan.confirming
         self.decision_checks = plan.decision_checks
@@ -199,6 +203,7 @@ class ExplorationState:
             self.frontier.pop(0)
         if plan.check is not None:
             self.check_directions.append(plan.check.direction)
+            self.check_throughs.append(plan.check.through)
 
     def copy(self):
         """A deep copy: changing any list, dict or array of the copy leaves this state as
