@@ -21,6 +21,7 @@ from tactile_viz.engine.explore.exploration import (
     sweep_directions,
     sweep_line,
     variance_target,
+    weakest_support,
     widest_gap,
 )
 from tactile_viz.engine.session import deepest_inside, free_approach
@@ -152,6 +153,35 @@ def test_farthest_vertex_and_deepest_inside():
     estimate = lambda points: np.abs(points[:, 2] - 0.4) - 0.5  # noqa: E731 (slab, deepest at z=0.4)
     depth = deepest_inside(estimate, np.array([0.0, 0, 1.0]), np.array([0.0, 0, 1.0]), 1.0)
     assert depth == pytest.approx(0.6, abs=0.06)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_the_weakest_support_moves_on_from_places_tried(scale):
+    # A line of vertices touched at both ends and at x = 6: the weakest support is the
+    # middle of the longer span, then (that one tried) the middle of the shorter.
+    vertices = scale * np.c_[np.linspace(0.0, 8.0, 81), np.zeros(81), np.zeros(81)]
+    contacts = scale * np.array([[0.0, 0, 0], [6.0, 0, 0], [8.0, 0, 0]])
+    vertex, distance = weakest_support(vertices, contacts, least=0.5 * scale)
+    np.testing.assert_allclose(vertex, [3.0 * scale, 0, 0], atol=1e-9 * scale)
+    assert distance == pytest.approx(3.0 * scale)
+    vertex, distance = weakest_support(vertices, contacts, [vertex], least=0.5 * scale)
+    np.testing.assert_allclose(vertex, [7.0 * scale, 0, 0], atol=1e-9 * scale)
+    assert distance == pytest.approx(1.0 * scale)
+    # The least distance is what is returned when the support is close.
+    assert weakest_support(vertices, contacts, least=5.0 * scale)[1] == pytest.approx(
+        5.0 * scale)
+    # A place tried leaves out only as far as its own distance to the contacts now.
+    near = weakest_support(vertices, np.vstack([contacts, [[3.0 * scale, 0, 0.1 * scale]]]),
+                           [[3.0 * scale, 0, 0]])
+    assert 1.4 * scale < near[0][0] < 1.6 * scale or 4.4 * scale < near[0][0] < 4.6 * scale
+
+
+def test_the_weakest_support_of_nothing_or_all_tried():
+    vertices = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    contacts = np.array([[3.0, 0, 0]])
+    assert weakest_support(np.zeros((0, 3)), contacts) == (None, 0.0)
+    assert weakest_support(vertices, np.zeros((0, 3))) == (None, 0.0)
+    assert weakest_support(vertices, contacts, [[0.0, 0, 0]]) == (None, 0.0)
 
 
 def test_sweep_directions_are_spread_and_the_next_is_the_least_used(rng):

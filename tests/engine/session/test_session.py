@@ -509,6 +509,7 @@ def _plan_check(session, *args):
     check = session.parts().planner.plan_check_line(*args)
     session.state.check = check
     session.state.check_directions.append(check.direction)
+    session.state.check_throughs.append(check.through)
     return check
 
 
@@ -555,6 +556,7 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     estimate = np.c_[np.linspace(0.0, 3.0, 31), np.zeros(31), np.zeros(31)]
     contacts = estimate[[0, -1]] + [0.0, 0.0, 0.1]
     session.state.check_directions = [np.eye(3)[0], np.eye(3)[1]]  # two checks done
+    session.state.check_throughs = [np.full(3, 9.0), np.full(3, 9.0)]
     _plan_check(session, estimate, contacts, lambda p: p[:, 2])
     _, through, _, path = session.state.check
     np.testing.assert_allclose(through, [1.5, 0.0, 0.0], atol=1e-9)
@@ -572,6 +574,11 @@ def test_every_third_check_sweeps_the_estimates_weakest_support(bundled, known):
     assert not np.allclose(session.state.check.through, through)
     session.parts().bookkeeper.count_check(NonContact(session.state.check.path[-1]))
     assert session.state.checks_passed == 1
+    # The next weakest support (the sixth check) is not sought where the third was: a
+    # sweep about it again would take the same way in.
+    for _ in range(2):
+        _plan_check(session, estimate, contacts, lambda p: p[:, 2])
+    assert np.linalg.norm(session.state.check.through - through) > 0.5
 
 
 def _bordered_plate():
