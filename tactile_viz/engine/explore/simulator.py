@@ -321,3 +321,25 @@ def random_touch(truth, rng=None, approach=1.0):
     point = truth.surface_points(1, rng)[0]
     _, _, normal = truth.closest(point[None])
     return np.stack([point + approach * normal[0], point - approach * normal[0]])
+
+
+def segment_points(segments, spacing):
+    """Points along each segment, at most ``spacing`` apart, ends included.
+
+    Parameters
+    ----------
+    segments : (k, 2, 3) float
+    spacing : float, > 0
+
+    Returns
+    -------
+    (m, 3) float
+    """
+    if len(segments) == 0:
+        return np.zeros((0, 3))
+    lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    counts = np.maximum(np.ceil(lengths / spacing).astype(int), 1) + 1
+    fractions = np.concatenate([np.linspace(0.0, 1.0, c) for c in counts])
+    starts = np.repeat(segments[:, 0], counts, axis=0)
+    ends = np.repeat(segments[:, 1], counts, axis=0)
+    return starts + fractions[:, None] * (ends - starts)

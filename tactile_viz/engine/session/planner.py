@@ -63,6 +63,7 @@ from ..explore.exploration import (
     widest_gap,
 )
 from ..explore.scene_moves import check_line
+from ..explore.simulator import segment_points
 from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
@@ -576,25 +577,3 @@ def mesh_vertex_normals(vertices, faces):
     for corner in range(3):
         np.add.at(normals, faces[:, corner], face_normals)
     return normalise_rows(normals, fallback=np.array([0.0, 0.0, 1.0]))
-
-
-def segment_points(segments, spacing):
-    """Points along each segment, at most ``spacing`` apart, ends included.
-
-    Parameters
-    ----------
-    segments : (k, 2, 3) float
-    spacing : float, > 0
-
-    Returns
-    -------
-    (m, 3) float
-    """
-    if len(segments) == 0:
-        return np.zeros((0, 3))
-    lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
-    counts = np.maximum(np.ceil(lengths / spacing).astype(int), 1) + 1
-    fractions = np.concatenate([np.linspace(0.0, 1.0, c) for c in counts])
-    starts = np.repeat(segments[:, 0], counts, axis=0)
-    ends = np.repeat(segments[:, 1], counts, axis=0)
-    return starts + fractions[:, None] * (ends - starts)

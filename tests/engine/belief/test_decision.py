@@ -483,7 +483,7 @@ def test_a_miss_through_a_rivals_part_refutes_it(shapes):
 
 
 def test_a_missed_probe_is_kept_whole_for_the_decision():
-    from tactile_viz.engine.session.planner import segment_points
+    from tactile_viz.engine.explore.simulator import segment_points
 
     segments = np.array([[[0.0, 0, 0], [1.0, 0, 0]], [[0.0, 1, 0], [0.0, 1, 0.25]]])
     points = segment_points(segments, 0.1)
