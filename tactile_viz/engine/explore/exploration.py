@@ -38,14 +38,16 @@ def farthest_vertex(vertices, contacts):
     return int(np.argmax(distance))
 
 
-def weakest_support(vertices, contacts, tried=(), least=0.0):
+def weakest_support(vertices, contacts, tried=(), least=0.0, largest=np.inf):
     """The vertex farthest from every contact, and that distance (at least ``least``):
     where an estimate rests on the fewest touches.
 
-    A vertex within an earlier such vertex's own distance to the contacts (``tried``, as
-    they stand now) is left out: a sweep planned about one again takes the same way in
-    and meets what it met before (an elephant's hind leg, on the way to its belly, fifteen
-    times in 48 checks).
+    A vertex that a sweep about an earlier one (``tried``) was planned to cover is left
+    out: within ``RASTER_HALF`` of that one's distance to the contacts (as they stand now,
+    between ``least`` and ``largest``), the half-size of the cube :func:`raster_path`
+    sweeps about it. Swept about again, it is reached by the same way in and meets what
+    it met before (an elephant's hind leg, on the way to its belly, fifteen times in 48
+    checks).
 
     Parameters
     ----------
@@ -54,8 +56,8 @@ def weakest_support(vertices, contacts, tried=(), least=0.0):
     contacts : (n, 3) float
     tried : (k, 3) float
         Earlier weakest supports that a sweep was planned about.
-    least : float
-        The smallest distance returned (scene units).
+    least, largest : float
+        The bounds of the distance (scene units): a sweep's lattice radius.
 
     Returns
     -------
@@ -69,7 +71,7 @@ def weakest_support(vertices, contacts, tried=(), least=0.0):
     tree = cKDTree(contacts)
     distance = tree.query(vertices)[0]
     if len(tried):
-        radii = np.maximum(tree.query(tried)[0], least)
+        radii = RASTER_HALF * np.clip(tree.query(tried)[0], least, largest)
         left_out = cKDTree(vertices).query_ball_point(tried, radii)
         distance[np.concatenate([np.asarray(i, dtype=int) for i in left_out])] = -np.inf
     best = int(np.argmax(distance))

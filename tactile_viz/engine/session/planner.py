@@ -533,7 +533,7 @@ class Planner(Part):
         tried = [through for index, through in enumerate(state.check_throughs)
                  if check_kind(self.p, index) == "weakest"]
         return weakest_support(estimate[self._reachable(estimate)], contacts, tried,
-                               self.p.contact_spacing)
+                               self.p.contact_spacing, MAX_RASTER_RADIUS * self.unit)
 
 
 def check_kind(p, index):

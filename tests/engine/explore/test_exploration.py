@@ -158,15 +158,20 @@ def test_farthest_vertex_and_deepest_inside():
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_the_weakest_support_moves_on_from_places_tried(scale):
     # A line of vertices touched at both ends and at x = 6: the weakest support is the
-    # middle of the longer span, then (that one tried) the middle of the shorter.
+    # middle of the longer span; that one tried, the sweep's cube about it (half-size
+    # RASTER_HALF of 3) is left out, and the next lies just beyond it.
     vertices = scale * np.c_[np.linspace(0.0, 8.0, 81), np.zeros(81), np.zeros(81)]
     contacts = scale * np.array([[0.0, 0, 0], [6.0, 0, 0], [8.0, 0, 0]])
     vertex, distance = weakest_support(vertices, contacts, least=0.5 * scale)
     np.testing.assert_allclose(vertex, [3.0 * scale, 0, 0], atol=1e-9 * scale)
     assert distance == pytest.approx(3.0 * scale)
-    vertex, distance = weakest_support(vertices, contacts, [vertex], least=0.5 * scale)
-    np.testing.assert_allclose(vertex, [7.0 * scale, 0, 0], atol=1e-9 * scale)
-    assert distance == pytest.approx(1.0 * scale)
+    tried = [vertex]
+    vertex, distance = weakest_support(vertices, contacts, tried, least=0.5 * scale)
+    assert abs(vertex[0] - 3.0 * scale) > RASTER_HALF * 3.0 * scale
+    assert distance == pytest.approx(1.3 * scale)
+    # At most `largest` is left out.
+    vertex, _ = weakest_support(vertices, contacts, tried, 0.5 * scale, largest=0.5 * scale)
+    assert abs(vertex[0] - 3.0 * scale) == pytest.approx(0.3 * scale)
     # The least distance is what is returned when the support is close.
     assert weakest_support(vertices, contacts, least=5.0 * scale)[1] == pytest.approx(
         5.0 * scale)
