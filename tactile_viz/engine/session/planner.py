@@ -484,8 +484,11 @@ class Planner(Part):
         if kind == "weakest" and outside is not None:
             through, gap = self._weakest_support(estimate, contacts)
         elif kind in ("hull", "shell") and outside is not None:
+            # A place a check was planned about counts as observed: swept about again, a
+            # gap under an elephant was reached by the same way in, touched at its edge.
             explored = np.vstack([contacts, self.filter.noncontact_positions,
-                                  self.state.free_space, self.state.swept])
+                                  self.state.free_space, self.state.swept,
+                                  np.reshape(self.state.check_throughs, (-1, 3))])
             # Checks alternate between gaps inside the contacts' hull and the shell just
             # outside the estimate (beyond the ends of parts it closes off).
             shell = 2 * self.p.eps if kind == "shell" else 0.0

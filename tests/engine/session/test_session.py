@@ -1115,3 +1115,24 @@ def test_checks_that_touch_nothing_unpredicted_hold_the_estimate(sphere_model):
     assert held[-1] == 0
     fitted = session.state.gpis.recon.fit.points[:len(session.filter.contact_positions)]
     np.testing.assert_array_equal(fitted, session.filter.contact_positions)
+
+
+def test_a_gap_check_is_not_planned_again_about_an_earlier_checks_point(bundled, known):
+    # Two plates 4 apart touched along their borders: the hull's widest gap lies between
+    # them. A check about a gap whose way in meets a part first touches that part again
+    # and again, leaving the gap as it was: the points checks were planned about count as
+    # observed, so the next hull check (the fourth) is planned elsewhere.
+    session = Session.simulated(make_truth(bundled["bottle_1"], rng=0), known, seed=0,
+                                params=session_preset("recommended"))
+    plate, border = _bordered_plate()
+    estimate = np.vstack([plate, plate + [0.0, 0.0, 4.0]])
+    contacts = np.vstack([border, border + [0.0, 0.0, 4.0]])
+    between = lambda p: np.minimum(np.abs(p[:, 2]), np.abs(p[:, 2] - 4.0))  # noqa: E731
+    _plan_check(session, estimate, contacts, between)
+    first = session.state.check.through
+    assert len(session.state.check.path) > 2  # a lattice about a gap
+    session.state.check_directions += [np.eye(3)[1], np.eye(3)[2]]
+    session.state.check_throughs += [np.full(3, 9.0), np.full(3, 9.0)]
+    _plan_check(session, estimate, contacts, between)
+    assert len(session.state.check.path) > 2
+    assert np.linalg.norm(session.state.check.through - first) > 1.0
