@@ -261,11 +261,12 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         decision = _weigh(view, belief, full=full, incremental=incremental, count=count,
                           **{**options, "free_space": thinned(free_space,
                                                               FREE_PER_CONTACT * spread)})
-        fits, fit_p = True, 1.0  # a lead that fits, or none, is searched on all
+        fits, fit_p, group_p = True, 1.0, 1.0  # a lead that fits, or none: searched on all
         if decision.lead is not None and not decision.fits:  # its misfit, tested on all
-            fits, fit_p = _tested_on_all(pf, decision.lead, floor, confidence, free_space,
-                                         normal_noise_deg, normals, incremental)
-        decision = None if fits else replace(decision, fit_p=fit_p)
+            fits, fit_p, group_p = _tested_on_all(pf, decision.lead, floor, confidence,
+                                                  free_space, normal_noise_deg, normals,
+                                                  incremental, localisation)
+        decision = None if fits else replace(decision, fit_p=fit_p, group_p=group_p)
     if decision is None:
         decision = _weigh(pf, belief, full=full, incremental=incremental, count=count,
                           **options)
@@ -292,9 +293,13 @@ def _refined(pf, classes, rotations, translations, outside, oriented, tolerance)
 
 
 def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, normals,
-                   incremental):
+                   incremental, localisation=None):
     """:func:`fit_test`'s ``(fits, fit_p)`` of a lead found on a spread of the contacts
-    (:mod:`.spread`), its pose refined on every contact and all the free space first."""
+    (:mod:`.spread`), its pose refined on every contact and all the free space first, and
+    its look-alike tests' ``group_p`` there (:func:`~.grouped.lead_grouped_p`; 1 without
+    ``localisation``). On the spread alone, 64 of a mug's 150 contacts at 2 mm, its 4%
+    larger copy's stretch passed at 1e-3 where all of them refuted it at 1e-8, every
+    other step: the misfit count never reached five."""
     outside = _outside(pf, free_space)
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
                                   normals)
@@ -304,10 +309,13 @@ def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, no
             pf, [lead.class_index], lead.rotation[None], lead.translation[None], outside,
             oriented, tolerance)
     except np.linalg.LinAlgError:
-        return True, 1.0  # untested: searched on all
+        return True, 1.0, 1.0  # untested: searched on all
     refit = replace(lead, rotation=rotations[0], translation=translations[0],
                     misfit=float(misfit[0]) if np.isfinite(misfit[0]) else np.inf)
-    return fit_test(pf, refit, floor, confidence, outside, oriented, tolerance)[:2]
+    fits, fit_p = fit_test(pf, refit, floor, confidence, outside, oriented, tolerance)[:2]
+    group_p = 1.0 if localisation is None or fits else lead_grouped_p(
+        pf, refit, oriented, floor, localisation, confidence, outside, tolerance)
+    return fits, fit_p, group_p
 
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,

@@ -141,7 +141,7 @@ def test_a_misfit_on_a_spread_that_all_contacts_pass_is_searched_on_all(shapes, 
     (a learned shape wrong where the spread's extremes lie), all of them are searched."""
     library = PriorLibrary([shapes["box"], shapes["cylinder"]])
     pf, state = _filter(library, shapes["knobbed"], 80, seed=3)
-    monkeypatch.setattr(decision_module, "_tested_on_all", lambda *args: (True, 1.0))
+    monkeypatch.setattr(decision_module, "_tested_on_all", lambda *args: (True, 1.0, 1.0))
     seen = _seen_counts(monkeypatch)
     decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=24)
     assert seen == [24, 80]
@@ -153,14 +153,24 @@ def test_the_lead_of_a_spread_is_tested_on_every_contact(shapes):
     view = seen_through(pf, spread_contacts(pf.contact_positions, 24))
     on_spread = decide(view, state, 0.99, floor=0.02, same_mode=0.1)
     assert not on_spread.fits and on_spread.lead is not None
-    fits, fit_p = decision_module._tested_on_all(pf, on_spread.lead, 0.02, 0.99, None, 0.0,
-                                                 False, False)
-    assert not fits and fit_p < 1e-6
+    fits, fit_p, group_p = decision_module._tested_on_all(
+        pf, on_spread.lead, 0.02, 0.99, None, 0.0, False, False)
+    assert not fits and fit_p < 1e-6 and group_p == 1.0  # no look-alike test asked
+    # Asked, the look-alike tests of a misfitting lead are of every contact too, and the
+    # decision of the spread carries them (on the spread alone a 4% larger copy of a mug
+    # passed at 1e-3 every other step, where all its contacts refuted it at 1e-8).
+    _, _, group_p = decision_module._tested_on_all(
+        pf, on_spread.lead, 0.02, 0.99, None, 0.0, False, False, localisation=0.0)
+    spread_p = decide(view, state, 0.99, floor=0.02, same_mode=0.1, localisation=0.0).group_p
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, spread=24,
+                      localisation=0.0)
+    assert not decision.fits
+    assert decision.group_p == pytest.approx(group_p, rel=1e-9) and group_p < spread_p
     pf, state = _filter(shapes, shapes["cylinder"], 60, seed=1)
     view = seen_through(pf, spread_contacts(pf.contact_positions, 16))
     lead = decide(view, state, 0.99, floor=0.02, same_mode=0.1).lead
     assert decision_module._tested_on_all(pf, lead, 0.02, 0.99, None, 0.0, False,
-                                          False) == (True, 1.0)
+                                          False, localisation=0.0) == (True, 1.0, 1.0)
 
 
 @pytest.mark.parametrize("spread", [1, 2, 6])
