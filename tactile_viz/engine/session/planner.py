@@ -255,11 +255,7 @@ class Planner(Part):
             p.misfit_novelty, 1 - p.decision_confidence)
         misfit = min(decision.fit_p, decision.group_p) < level
         steps = before + 1 if misfit and (around or before >= MISFIT_STEPS) else 0
-        # A known judgement among novel ones whose MAP misfits is a flicker of the paper's
-        # test: a 2 cm die beside 10-25 cm mugs, novel by it at 55 of 60 steps, was
-        # reported known at single steps while its count stood at two (p-values of 0).
-        recent = any(s.novel for s in self.snapshots[-FLICKER_STEPS:])
-        return steps >= MISFIT_STEPS or (misfit and recent), steps
+        return steps >= MISFIT_STEPS, steps
 
     def _touched_round(self, belief):
         """Whether the contacts' span settled under :data:`ROUND_SHARE` of the MAP class's
