@@ -294,12 +294,13 @@ def _refined(pf, classes, rotations, translations, outside, oriented, tolerance)
 
 def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, normals,
                    incremental, localisation=None):
-    """:func:`fit_test`'s ``(fits, fit_p)`` of a lead found on a spread of the contacts
-    (:mod:`.spread`), its pose refined on every contact and all the free space first, and
-    its look-alike tests' ``group_p`` there (:func:`~.grouped.lead_grouped_p`; 1 without
-    ``localisation``). On the spread alone, 64 of a mug's 150 contacts at 2 mm, its 4%
-    larger copy's stretch passed at 1e-3 where all of them refuted it at 1e-8, every
-    other step: the misfit count never reached five."""
+    """``(fits, fit_p, group_p)`` of a lead found on a spread of the contacts
+    (:mod:`.spread`), its pose refined on every contact and all the free space first:
+    :func:`fit_test`'s and, when it misfits, its look-alike tests' p-value there
+    (:func:`~.grouped.lead_grouped_p`; 1 without ``localisation``). On the spread
+    alone, 64 of a mug's 150 contacts at 2 mm, its 4% larger copy's stretch passed at
+    1e-3 where all of them refuted it at 1e-8, every other step: the misfit count never
+    reached five."""
     outside = _outside(pf, free_space)
     oriented = oriented_evaluator(pf.bank, pf.models, max(floor, 1e-12), normal_noise_deg,
                                   normals)

@@ -46,7 +46,7 @@ def weakest_support(vertices, contacts, tried=(), least=0.0, largest=np.inf):
     out: within ``RASTER_HALF`` of that one's distance to the contacts (as they stand now,
     between ``least`` and ``largest``), the half-size of the cube :func:`raster_path`
     sweeps about it. Swept about again, it is reached by the same way in and meets what
-    it met before (an elephant's hind leg, on the way to its belly, fifteen times in 48
+    it met before (an elephant's hind leg, on the way to its belly, at 17 of its 71
     checks).
 
     Parameters

@@ -532,8 +532,7 @@ class Planner(Part):
         still visit, away from earlier weakest supports: :func:`weakest_support`) and that
         distance: where the estimate rests on the fewest touches, so the object may lie up
         to ``eps`` off it unseen (a leg's middle between touched ends)."""
-        state = self.state
-        tried = [through for index, through in enumerate(state.check_throughs)
+        tried = [through for index, through in enumerate(self.state.check_throughs)
                  if check_kind(self.p, index) == "weakest"]
         return weakest_support(estimate[self._reachable(estimate)], contacts, tried,
                                self.p.contact_spacing, MAX_RASTER_RADIUS * self.unit)
