@@ -344,14 +344,17 @@ class SessionParams:
         10, "Targets given up on a detached part of a novel estimate that no contact comes "
         "within eps of, after which exploration leaves the whole part out (beyond the paper; "
         "0: never).", kind="int", valid=_AT_LEAST_0)
+    follow_unheld: bool = _session(
+        True, "A contact a novel estimate leaves farther than a check's surprise from its surface "
+        "queues frontier targets contact_spacing about it, once (beyond the paper).", kind="bool")
     target_uncovered: bool = _session(
         False, "The GPIS-DHD target is the largest variance among the surface vertices still "
         "farther than eps from every contact (beyond the paper).", kind="bool")
     target_farthest: bool = _session(
         True, "Where the GPIS variance does not grow away from the contacts, the novel target "
-        "is the candidate farthest from them (beyond the paper).", kind="bool",
-        notes="Once the fitted scale falls to the noise's order, the largest variance lies "
-              "beside the contacts (engine/explore/exploration.py, grows_away).")
+        "is the candidate farthest from them (beyond the paper).", kind="bool", notes="Once "
+        "the fitted scale falls to the noise's order, the largest variance lies beside the "
+        "contacts (engine/explore/exploration.py, grows_away).")
     target_noise_stds: float = _session(
         4.0, "Under position noise, the GPIS-DHD target and a check's surprise lie farther "
         "than this many noise standard deviations from every contact (beyond the paper; 0: "
@@ -377,10 +380,9 @@ class SessionParams:
         48, "Checks that must touch nothing unpredicted before a covered novel object stops "
         "(beyond the paper; 0: the paper's stop).", kind="int", valid=_AT_LEAST_0,
         notes="Each must touch nothing farther than contact_spacing from the estimate and "
-              "every contact; one that does restarts the count (a part never predicted) "
-              "and grows a frontier from the contact: targets eps along four tangents, each "
-              "surprising contact growing it again; no stop while one is queued "
-              "(docs/bench-novel.md).")
+              "every contact; one that does restarts the count and grows a frontier: targets "
+              "eps along four tangents, each surprising contact growing it again; no stop "
+              "while one is queued (docs/bench-novel.md).")
     check_refit_every: int = _session(
         1, "While checks touch the object beside the estimate, no miss, fit it every this many "
         "steps (1: each; a stop fits afresh; docs/bench-speed.md).", kind="int", valid="[1, 100]")
@@ -397,13 +399,13 @@ class SessionParams:
               "met a part beside the estimate (an elephant's ear tip, docs/journal/novel.md).")
     check_shell_observed: bool = _session(
         True, "A check in the shell outside the estimate sweeps the place farthest from "
-        "what was observed, not also from the estimated surface (beyond the paper).",
-        kind="bool", notes="The surface is no observation (docs/journal/novel.md).")
+        "what was observed, not also from the estimated surface (beyond the paper; the "
+        "surface is no observation).", kind="bool")
     variance_points: int = _gpis(
         400, "Surface vertices at which the GPIS variance is evaluated (a random subset).",
         kind="int", valid=_AT_LEAST_1,
         notes="The target is their largest variance; other vertices show the 4 nearest's "
-              "inverse-distance mean. Each costs a solve against the whole factor (O(m^2)).")
+              "inverse-distance mean. Each costs a solve against the factor (O(m^2)).")
     final_support_open: bool = _gpis(
         True, "The reported surface's support (final_candidates) leaves out the vertices "
         "the stop does: near given-up targets and missed probes.", kind="bool")
@@ -414,9 +416,8 @@ class SessionParams:
     final_resolution: int = _gpis(
         64, "Marching-cubes cells along the longest side of the reconstruction reported when "
         "a novel session stops.", kind="int", valid="[8, inf)",
-        notes="The same posterior mean as the steps' surfaces, sampled finer (at 32 cells a "
-              "sofa's foot or a chair's rung thinner than a cell can fall between the samples and "
-              "vanish, docs/bench-novel.md). Exploration keeps gpis_resolution.")
+        notes="The steps' posterior mean sampled finer: at 32 cells a sofa's foot thinner "
+              "than a cell can vanish (docs/bench-novel.md).")
     final_candidates: int = _gpis(
         10, "When a novel session stops with part of its reconstruction farther than eps "
         "from every contact, the reported surface is the newest one the contacts cover of "
@@ -426,8 +427,7 @@ class SessionParams:
         "(beyond the paper; 0: the step's own prior, whole).", kind="int", valid="[0, 100]",
         notes="A novel object's MAP prior switches from step to step, and a switch at the "
               "last step can leave surface far from every contact. Covered: every vertex "
-              "within eps of a contact, the stop's own test; the exploration never changes "
-              "(docs/gpis.md).")
+              "within eps of a contact, the stop's own test (docs/gpis.md).")
     final_screen_resolution: int = _gpis(
         32, "Marching-cubes cells along the longest side of the surfaces the final candidates "
         "are screened on; only those that could be covered or win are extracted at "

@@ -41,7 +41,8 @@ PRESET_TABLE = {
               "misfit_novelty": 0.0, "gpis_agnostic": False, "gpis_prior_hold": "never",
               "target_noise_stds": 0.0, "gpis_edge_tilt": 0.0,
               "target_farthest": False,
-              "cover_noise_stds": 0.0, "own_size_share": 0.0, "missed_parts": 0},
+              "cover_noise_stds": 0.0, "own_size_share": 0.0, "missed_parts": 0,
+              "follow_unheld": False},
     # A robot that only needs to know what and where the object is: the default, stopped
     # as soon as the object is decided, on grids exact only near the surface (a library
     # builds faster; a novel object's reconstruction is worse).

@@ -7,6 +7,7 @@ A part of the step (:class:`~.context.Part`), built from its inputs without a se
 """
 
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
 from ..explore.exploration import path_until
@@ -19,6 +20,9 @@ from .planner import beyond_noise, check_kind
 # Lengths in size units (a sixth of the object's longest side; see ..params):
 SWEPT_SPACING = 0.25  # samples of the paths the sensor swept, for the gaps of check lines
 CONTACT_PRECISION = 0.01  # a sensor without a tolerance: contacts closer than this are one touch
+# A contact is followed once this many contacts came after it and the estimate still leaves
+# it: early on the fit has not caught up with the newest contacts yet.
+UNHELD_AFTER = 10
 
 
 class Bookkeeper(Part):
@@ -169,16 +173,39 @@ class Bookkeeper(Part):
         rail it bumped into (beyond the paper). Places within :meth:`new_ground` of a
         contact, a given-up target or a queued target are skipped."""
         normal = normalise_rows(np.asarray(contact.normal, float)[None])[0]
-        helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
-        first = normalise_rows(np.cross(normal, helper)[None])[0]
-        second = np.cross(normal, first)
-        for tangent in (first, -first, second, -second):
-            point = contact.position + self.p.eps * tangent
+        for point in tangent_points(contact.position, normal, self.p.eps):
             taken = np.vstack([self.filter.contact_positions, contact.position[None],
-                               np.reshape(self.state.given_up, (-1, 3)),
-                               np.reshape([p for p, _ in self.state.frontier], (-1, 3))])
+                               self._aimed()])
             if cKDTree(taken).query(point)[0] > self.new_ground():
                 self.state.frontier.append((point, normal))
+
+    def follow_unheld(self, vertices, faces):
+        """Queue frontier targets ``contact_spacing`` about each contact that the novel
+        estimate ``(vertices, faces)`` leaves farther than :meth:`new_ground` from its
+        surface :data:`UNHELD_AFTER` contacts later, once a contact (``follow_unheld``,
+        beyond the paper); places within half the spacing of another contact, a given-up
+        or a queued target are skipped. Under noise a thin part touched once is a lone
+        contact the fit smooths away: a 15 cm elephant's trunk, touched 1.4 mm from the
+        truth, lay 8 mm off its estimate for the last 220 of 346 touches, and nothing
+        aimed near it."""
+        contacts = self.filter.contact_positions
+        if not self.p.follow_unheld or len(contacts) == 0 or len(faces) == 0:
+            return
+        fresh = np.setdiff1d(np.arange(len(contacts) - UNHELD_AFTER), self.state.followed)
+        spacing = self.p.contact_spacing
+        for index in fresh[unheld_contacts(contacts[fresh], vertices, faces,
+                                           self.new_ground())]:
+            self.state.followed.append(int(index))
+            normal = normalise_rows(self.filter.contact_normals[index][None])[0]
+            for point in tangent_points(contacts[index], normal, spacing):
+                taken = np.vstack([np.delete(contacts, index, axis=0), self._aimed()])
+                if len(taken) == 0 or cKDTree(taken).query(point)[0] > spacing / 2:
+                    self.state.frontier.append((point, normal))
+
+    def _aimed(self):
+        """The given-up and queued frontier targets, ``(k, 3)``."""
+        return np.vstack([np.reshape(self.state.given_up, (-1, 3)),
+                          np.reshape([p for p, _ in self.state.frontier], (-1, 3))])
 
     def _reached(self, observations):
         """Whether the touches of a step that reached for the target reached it: the
@@ -210,3 +237,25 @@ class Bookkeeper(Part):
                      else CONTACT_PRECISION * self.context.filter_unit)
         tolerance = max(4.0 * self.sensor_noise[0], precision)
         return bool(cKDTree(contacts).query(observation.position)[0] <= tolerance)
+
+
+def tangent_points(position, normal, distance):
+    """The four points ``distance`` from ``position`` along two perpendicular tangents of
+    the unit ``normal`` (both ways), ``(4, 3)``."""
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    first = normalise_rows(np.cross(normal, helper)[None])[0]
+    second = np.cross(normal, first)
+    return position + distance * np.array([first, -first, second, -second])
+
+
+def unheld_contacts(contacts, vertices, faces, reach):
+    """Mask of the ``contacts`` ((n, 3)) farther than ``reach`` from the triangle surface
+    ``(vertices, faces)`` (one frame; all of them without a surface)."""
+    contacts = np.reshape(contacts, (-1, 3))
+    if len(faces) == 0:
+        return np.ones(len(contacts), bool)
+    far = cKDTree(vertices).query(contacts)[0] > reach  # a vertex is at least as far
+    if far.any():
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+        far[far] = trimesh.proximity.closest_point(mesh, contacts[far])[1] > reach
+    return far

@@ -552,6 +552,8 @@ class Session:
             belief, model, pose, map_vertices = reported
             self._use_lengths(model, novel=False)                 # lengths in its size
             estimator, planner, _ = self.parts()
+        if recon is not None and belief.novel and self.strategy != "rrt":  # beyond the paper
+            self.parts().bookkeeper.follow_unheld(recon.vertices, recon.faces)
         aimed = estimator.aimed_pose(decision, model, pose, map_vertices)
         while True:
             pose, map_vertices = aimed
@@ -588,13 +590,11 @@ class Session:
         return snapshot
 
     def save(self, path: str | os.PathLike) -> str | os.PathLike:
-        """Save the session (its set-up and its observation history) to an ``.npz`` file;
-        see :func:`tactile_viz.engine.io.persistence.save_session`."""
+        """Save the session (set-up, observations) to an ``.npz`` file: :func:`save_session`."""
         return save_session(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike,
              callback: Callable[[Snapshot], object] | None = None) -> Session:
-        """Rebuild a saved session by replaying its steps; see
-        :func:`tactile_viz.engine.io.persistence.load_session`."""
+        """Rebuild a saved session by replaying its steps: :func:`load_session`."""
         return load_session(path, cls.from_setup, callback)

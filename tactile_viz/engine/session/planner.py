@@ -33,6 +33,8 @@ own size           a novel object much smaller or larger than its   ``own_size_s
 check lines        sweeps through unobserved gaps before stopping   ``check_lines=0``
 frontier           targets along parts nothing predicted            ``check_lines=0`` (grown
                                                                     by checks' surprises)
+unheld contacts    frontier targets about a contact the estimate    ``follow_unheld=False``
+                   leaves beyond a surprise's distance
 decision           whether a known object is decided; its checks    ``stop_at_decision=False``
                    can stop the session                             (reported always)
 telling apart      targets where rival hypotheses disagree          ``decision_targets=False``
@@ -97,6 +99,7 @@ EXTENSIONS = (("given-up targets", None), ("missed parts", ("missed_parts", 0)),
               ("noisy cover", ("cover_noise_stds", 0.0)),
               ("own size", ("own_size_share", 0.0)),
               ("check lines", ("check_lines", 0)), ("frontier", ("check_lines", 0)),
+              ("unheld contacts", ("follow_unheld", False)),
               ("misfit holds the stop", ("misfit_novelty", 0.0)),
               ("decision stop", ("stop_at_decision", False)),
               ("telling apart", ("decision_targets", False)),

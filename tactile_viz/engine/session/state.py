@@ -109,6 +109,9 @@ class ExplorationState:
         Targets beside contacts on parts nothing predicted, still to visit.
     frontier_target : bool
         Whether ``target`` came from the frontier.
+    followed : list of int
+        Contacts an estimate left unheld whose places joined the frontier
+        (``follow_unheld``).
     estimate_vertices : (k, 3) float or None
         The whole surface the last step planned on (a snapshot reports only its parts some
         contact supports): the frontier asks whether it predicted a touch.
@@ -162,6 +165,7 @@ class ExplorationState:
     missed: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     frontier: list = field(default_factory=list)
     frontier_target: bool = False
+    followed: list = field(default_factory=list)
     estimate_vertices: Any = None
     telling_apart: bool = False
     check: Any = None

@@ -10,7 +10,12 @@ import trimesh
 
 from tactile_viz.engine.explore.observations import Contact
 from tactile_viz.engine.presets import session_preset
-from tactile_viz.engine.session.bookkeeping import Bookkeeper
+from tactile_viz.engine.session.bookkeeping import (
+    UNHELD_AFTER,
+    Bookkeeper,
+    tangent_points,
+    unheld_contacts,
+)
 from tactile_viz.engine.session.context import StepContext
 from tactile_viz.engine.session.state import ExplorationState
 
@@ -44,3 +49,53 @@ def test_the_frontier_follows_only_ground_the_estimate_did_not_predict(scale):
         queued = np.reshape([position for position, _ in keeper.state.frontier], (-1, 3))
         np.testing.assert_allclose(np.linalg.norm(queued - touch.position, axis=1),
                                    0.2 * scale)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_contact_the_estimate_leaves_off_queues_places_about_it_once(scale):
+    # Contacts on a ball, the first 0.3 out (a thin part's lone touch the fit smoothed
+    # away): only that one queues targets, contact_spacing (0.1) about it across its
+    # normal, once ten contacts came after it, and only once; without follow_unheld, none.
+    mesh = trimesh.creation.icosphere(3, scale)
+    contacts = np.vstack([[[0.0, 0.0, 1.3 * scale]], mesh.vertices[::40]])
+    assert len(contacts) > UNHELD_AFTER + 1
+    normals = contacts / np.linalg.norm(contacts, axis=1, keepdims=True)
+    for follow in (True, False):
+        keeper = _keeper(scale, contacts[:UNHELD_AFTER], None)
+        keeper.p = dataclasses.replace(keeper.p, follow_unheld=follow)
+        keeper.filter.contact_normals = normals
+        keeper.follow_unheld(mesh.vertices, mesh.faces)  # too soon
+        assert not keeper.state.frontier
+        keeper.filter.contact_positions = contacts
+        keeper.follow_unheld(mesh.vertices, mesh.faces)
+        queued = np.reshape([position for position, _ in keeper.state.frontier], (-1, 3))
+        if not follow:
+            assert len(queued) == 0
+            continue
+        assert keeper.state.followed == [0]
+        assert len(queued) == 4
+        np.testing.assert_allclose(np.linalg.norm(queued - contacts[0], axis=1), 0.1 * scale)
+        np.testing.assert_allclose(queued[:, 2], 1.3 * scale)
+        keeper.follow_unheld(mesh.vertices, mesh.faces)
+        assert len(keeper.state.frontier) == 4
+        keeper.follow_unheld(mesh.vertices, mesh.faces[:0])  # no surface: nothing
+        assert len(keeper.state.frontier) == 4
+
+
+def test_a_contact_on_a_face_between_far_vertices_is_held():
+    # Beside a coarse estimate's vertices but on its faces: held (the surface is measured,
+    # not its vertices); one off every face is not, nor any without a surface.
+    mesh = trimesh.creation.box((2.0, 2.0, 2.0))
+    contacts = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.5]])
+    np.testing.assert_array_equal(unheld_contacts(contacts, mesh.vertices, mesh.faces, 0.2),
+                                  [False, True])
+    np.testing.assert_array_equal(unheld_contacts(contacts, mesh.vertices, mesh.faces[:0], 0.2),
+                                  [True, True])
+
+
+def test_tangent_points_lie_across_the_normal():
+    normal = np.array([0.6, 0.0, 0.8])
+    points = tangent_points(np.ones(3), normal, 0.5)
+    np.testing.assert_allclose((points - 1.0) @ normal, 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(points - 1.0, axis=1), 0.5)
+    np.testing.assert_allclose(points.mean(axis=0), np.ones(3))
