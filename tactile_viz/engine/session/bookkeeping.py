@@ -179,22 +179,23 @@ class Bookkeeper(Part):
             if cKDTree(taken).query(point)[0] > self.new_ground():
                 self.state.frontier.append((point, normal))
 
-    def follow_unheld(self, vertices, faces):
+    def follow_unheld(self, recon):
         """Queue frontier targets ``contact_spacing`` about each contact that the novel
-        estimate ``(vertices, faces)`` leaves farther than :meth:`new_ground` from its
-        surface :data:`UNHELD_AFTER` contacts later, once a contact (``follow_unheld``,
+        estimate ``recon`` (a :class:`~.snapshot.Reconstruction`) leaves farther than
+        :meth:`new_ground` from its surface and its fit's zero level
+        :data:`UNHELD_AFTER` contacts later, once a contact (``follow_unheld``,
         beyond the paper); places within half the spacing of another contact, a given-up
         or a queued target are skipped. Under noise a thin part touched once is a lone
         contact the fit smooths away: a 15 cm elephant's trunk, touched 1.4 mm from the
         truth, lay 8 mm off its estimate for the last 220 of 346 touches, and nothing
         aimed near it."""
         contacts = self.filter.contact_positions
-        if not self.p.follow_unheld or len(contacts) == 0 or len(faces) == 0:
+        if not self.p.follow_unheld or len(contacts) == 0 or len(recon.faces) == 0:
             return
         fresh = np.setdiff1d(np.arange(len(contacts) - UNHELD_AFTER), self.state.followed)
         spacing = self.p.contact_spacing
-        for index in fresh[unheld_contacts(contacts[fresh], vertices, faces,
-                                           self.new_ground())]:
+        for index in fresh[unheld_contacts(contacts[fresh], recon.vertices, recon.faces,
+                                           self.new_ground(), recon.fit.mean_value)]:
             self.state.followed.append(int(index))
             normal = normalise_rows(self.filter.contact_normals[index][None])[0]
             for point in tangent_points(contacts[index], normal, spacing):
@@ -248,9 +249,13 @@ def tangent_points(position, normal, distance):
     return position + distance * np.array([first, -first, second, -second])
 
 
-def unheld_contacts(contacts, vertices, faces, reach):
+def unheld_contacts(contacts, vertices, faces, reach, value=None):
     """Mask of the ``contacts`` ((n, 3)) farther than ``reach`` from the triangle surface
-    ``(vertices, faces)`` (one frame; all of them without a surface)."""
+    ``(vertices, faces)`` (one frame; all of them without a surface) and, given the
+    surface's implicit function ``value`` (points to (k,) values, about a signed
+    distance), where its magnitude is beyond ``reach`` too: a thin part between a coarse
+    grid's samples has no triangles, yet the fit holds its contacts (a 20 cm fork's
+    tines at 32 cells: followed, its frontier grew to the step cap)."""
     contacts = np.reshape(contacts, (-1, 3))
     if len(faces) == 0:
         return np.ones(len(contacts), bool)
@@ -258,4 +263,6 @@ def unheld_contacts(contacts, vertices, faces, reach):
     if far.any():
         mesh = trimesh.Trimesh(vertices, faces, process=False)
         far[far] = trimesh.proximity.closest_point(mesh, contacts[far])[1] > reach
+    if far.any() and value is not None:
+        far[far] = np.abs(value(contacts[far])) > reach
     return far

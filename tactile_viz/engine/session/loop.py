@@ -553,7 +553,7 @@ class Session:
             self._use_lengths(model, novel=False)                 # lengths in its size
             estimator, planner, _ = self.parts()
         if recon is not None and belief.novel and self.strategy != "rrt":  # beyond the paper
-            self.parts().bookkeeper.follow_unheld(recon.vertices, recon.faces)
+            self.parts().bookkeeper.follow_unheld(recon)
         aimed = estimator.aimed_pose(decision, model, pose, map_vertices)
         while True:
             pose, map_vertices = aimed

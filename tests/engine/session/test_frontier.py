@@ -57,6 +57,7 @@ def test_a_contact_the_estimate_leaves_off_queues_places_about_it_once(scale):
     # away): only that one queues targets, contact_spacing (0.1) about it across its
     # normal, once ten contacts came after it, and only once; without follow_unheld, none.
     mesh = trimesh.creation.icosphere(3, scale)
+    recon = _estimate(mesh.vertices, mesh.faces, scale)
     contacts = np.vstack([[[0.0, 0.0, 1.3 * scale]], mesh.vertices[::40]])
     assert len(contacts) > UNHELD_AFTER + 1
     normals = contacts / np.linalg.norm(contacts, axis=1, keepdims=True)
@@ -64,10 +65,10 @@ def test_a_contact_the_estimate_leaves_off_queues_places_about_it_once(scale):
         keeper = _keeper(scale, contacts[:UNHELD_AFTER], None)
         keeper.p = dataclasses.replace(keeper.p, follow_unheld=follow)
         keeper.filter.contact_normals = normals
-        keeper.follow_unheld(mesh.vertices, mesh.faces)  # too soon
+        keeper.follow_unheld(recon)  # too soon
         assert not keeper.state.frontier
         keeper.filter.contact_positions = contacts
-        keeper.follow_unheld(mesh.vertices, mesh.faces)
+        keeper.follow_unheld(recon)
         queued = np.reshape([position for position, _ in keeper.state.frontier], (-1, 3))
         if not follow:
             assert len(queued) == 0
@@ -76,10 +77,17 @@ def test_a_contact_the_estimate_leaves_off_queues_places_about_it_once(scale):
         assert len(queued) == 4
         np.testing.assert_allclose(np.linalg.norm(queued - contacts[0], axis=1), 0.1 * scale)
         np.testing.assert_allclose(queued[:, 2], 1.3 * scale)
-        keeper.follow_unheld(mesh.vertices, mesh.faces)
+        keeper.follow_unheld(recon)
         assert len(keeper.state.frontier) == 4
-        keeper.follow_unheld(mesh.vertices, mesh.faces[:0])  # no surface: nothing
+        keeper.follow_unheld(_estimate(mesh.vertices, mesh.faces[:0], scale))  # no surface
         assert len(keeper.state.frontier) == 4
+
+
+def _estimate(vertices, faces, radius):
+    """An estimate whose fit is a ball's signed distance (what ``follow_unheld`` reads)."""
+    fit = types.SimpleNamespace(
+        mean_value=lambda points: np.linalg.norm(points, axis=1) - radius)
+    return types.SimpleNamespace(vertices=vertices, faces=faces, fit=fit)
 
 
 def test_a_contact_on_a_face_between_far_vertices_is_held():
@@ -91,6 +99,19 @@ def test_a_contact_on_a_face_between_far_vertices_is_held():
                                   [False, True])
     np.testing.assert_array_equal(unheld_contacts(contacts, mesh.vertices, mesh.faces[:0], 0.2),
                                   [True, True])
+
+
+def test_a_contact_the_fit_holds_between_the_grids_samples_is_held():
+    # A thin part between a coarse grid's samples has no triangles, yet its fit passes
+    # through the contact: held; a contact where the fit is far from zero is not.
+    mesh = trimesh.creation.box((2.0, 2.0, 2.0))
+    contacts = np.array([[0.0, 0.0, 1.5], [0.0, 0.0, 2.0]])
+
+    def tine(points):  # zero at the first contact (a thin part), 0.5 at the second
+        return np.abs(points[:, 2] - 1.5)
+
+    np.testing.assert_array_equal(
+        unheld_contacts(contacts, mesh.vertices, mesh.faces, 0.2, tine), [False, True])
 
 
 def test_tangent_points_lie_across_the_normal():
