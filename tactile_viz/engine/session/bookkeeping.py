@@ -252,10 +252,11 @@ def tangent_points(position, normal, distance):
 def unheld_contacts(contacts, vertices, faces, reach, value=None):
     """Mask of the ``contacts`` ((n, 3)) farther than ``reach`` from the triangle surface
     ``(vertices, faces)`` (one frame; all of them without a surface) and, given the
-    surface's implicit function ``value`` (points to (k,) values, about a signed
-    distance), where its magnitude is beyond ``reach`` too: a thin part between a coarse
-    grid's samples has no triangles, yet the fit holds its contacts (a 20 cm fork's
-    tines at 32 cells: followed, its frontier grew to the step cap)."""
+    surface's implicit function ``value`` (points to (k,) values), where it keeps its
+    sign within ``reach`` of the contact (:func:`sign_kept`): a thin part between a
+    coarse grid's samples has no triangles, yet the fit's zero level passes by its
+    contacts (a 20 cm fork's tines at 32 cells: followed, its frontier grew to the step
+    cap)."""
     contacts = np.reshape(contacts, (-1, 3))
     if len(faces) == 0:
         return np.ones(len(contacts), bool)
@@ -264,5 +265,18 @@ def unheld_contacts(contacts, vertices, faces, reach, value=None):
         mesh = trimesh.Trimesh(vertices, faces, process=False)
         far[far] = trimesh.proximity.closest_point(mesh, contacts[far])[1] > reach
     if far.any() and value is not None:
-        far[far] = np.abs(value(contacts[far])) > reach
+        far[far] = sign_kept(value, contacts[far], reach)
     return far
+
+
+def sign_kept(value, points, reach, samples=8):
+    """Whether the implicit function ``value`` keeps the sign it has at each of ``points``
+    ((n, 3)) out to ``reach`` along the 26 directions of a cube's faces, edges and
+    corners, ``samples`` places a direction: no zero level within reach (to a
+    ``reach / samples`` step across)."""
+    steps = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], float) - 1.0
+    steps *= (reach / samples) / np.linalg.norm(steps, axis=1, keepdims=True)
+    offsets = (np.arange(1, samples + 1)[:, None, None] * steps[None]).reshape(-1, 3)
+    around = value((points[:, None, :] + offsets[None]).reshape(-1, 3))
+    here = np.sign(value(points))
+    return (np.sign(around).reshape(len(points), -1) == here[:, None]).all(axis=1)
