@@ -13,6 +13,7 @@ from tactile_viz.engine.presets import session_preset
 from tactile_viz.engine.session.bookkeeping import (
     UNHELD_AFTER,
     Bookkeeper,
+    sign_kept,
     tangent_points,
     unheld_contacts,
 )
@@ -120,3 +121,17 @@ def test_tangent_points_lie_across_the_normal():
     np.testing.assert_allclose((points - 1.0) @ normal, 0.0, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(points - 1.0, axis=1), 0.5)
     np.testing.assert_allclose(points.mean(axis=0), np.ones(3))
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_sign_is_kept_only_where_no_zero_level_comes_within_reach(scale):
+    # A ball's signed distance: 0.3 outside it, the sign holds to 0.2 and not to 0.4
+    # (nor on the surface itself, where it is zero), whatever the direction.
+    def ball(points):
+        return np.linalg.norm(points, axis=1) - scale
+
+    directions = trimesh.creation.icosphere(1).vertices
+    points = 1.3 * scale * directions
+    assert sign_kept(ball, points, 0.2 * scale).all()
+    assert not sign_kept(ball, points, 0.4 * scale).any()
+    assert not sign_kept(ball, scale * directions, 0.2 * scale).any()
