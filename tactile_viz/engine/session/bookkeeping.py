@@ -181,11 +181,11 @@ class Bookkeeper(Part):
 
     def follow_unheld(self, recon):
         """Queue frontier targets ``contact_spacing`` about each contact that the novel
-        estimate ``recon`` (a :class:`~.snapshot.Reconstruction`) leaves farther than
-        :meth:`new_ground` from its surface and its fit's zero level
-        :data:`UNHELD_AFTER` contacts later, once a contact (``follow_unheld``,
-        beyond the paper); places within half the spacing of another contact, a given-up
-        or a queued target are skipped. Under noise a thin part touched once is a lone
+        estimate ``recon`` (a :class:`~.snapshot.Reconstruction`) still leaves unheld
+        :data:`UNHELD_AFTER` contacts after it (:func:`unheld_contacts` within
+        :meth:`new_ground`), once a contact (``follow_unheld``, beyond the paper); places
+        within half the spacing of another contact, a given-up or a queued target are
+        skipped. Under noise a thin part touched once is a lone
         contact the fit smooths away: a 15 cm elephant's trunk, touched 1.4 mm from the
         truth, lay 8 mm off its estimate for the last 220 of 346 touches, and nothing
         aimed near it."""
