@@ -108,8 +108,8 @@ def test_a_contact_the_fit_holds_between_the_grids_samples_is_held():
     mesh = trimesh.creation.box((2.0, 2.0, 2.0))
     contacts = np.array([[0.0, 0.0, 1.5], [0.0, 0.0, 2.0]])
 
-    def tine(points):  # zero at the first contact (a thin part), 0.5 at the second
-        return np.abs(points[:, 2] - 1.5)
+    def tine(points):  # a slab 0.02 thick through the first contact, 0.49 off the second
+        return np.abs(points[:, 2] - 1.5) - 0.01
 
     np.testing.assert_array_equal(
         unheld_contacts(contacts, mesh.vertices, mesh.faces, 0.2, tine), [False, True])
