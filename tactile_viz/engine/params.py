@@ -508,17 +508,18 @@ class SessionParams:
     decision_normals: bool = _session(
         True, "The decided pose is fitted to the contacts' normals too, and a pose mode they "
         "refute is not open (beyond the paper).", kind="bool")
+    decision_normals_p: float = _session(
+        1e-4, "A lead whose contacts' normals misfit it at a chi-squared p-value below this is "
+        "not decided (beyond the paper; 0: not tested).", valid="[0, 0.5]", control=(0.0, 0.1))
     decision_any_class: bool = _session(
-        True, "The decision may be about a class its fits hold at the confidence, not the "
-        "filter's MAP; decided, that class is reported (beyond the paper).", kind="bool")
+        True, "The decision may be about a class its fits hold, not the filter's MAP; "
+        "decided, that class is reported (beyond the paper).", kind="bool")
     decision_targets: bool = _session(
-        True, "While a known object is not decided, touch where the plausible hypotheses' "
-        "surfaces disagree most (beyond the paper).", kind="bool",
-        notes="While its MAP fits (the DHD stop held), decision_patience steps at most, aimed "
-              "from its refined fit. False: the paper's targets, stop and MAP particle.")
+        True, "While undecided, touch where the plausible hypotheses' surfaces disagree "
+        "most (beyond the paper; at most decision_patience steps).", kind="bool")
     decision_patience: int = _session(
-        30, "Steps of a session aimed at rival hypotheses at most (then the paper's targets "
-        "and stop).", kind="int", valid=_AT_LEAST_0, control=(0, 300))
+        30, "Steps aimed at rivals at most (then the paper's targets and stop).", kind="int",
+        valid=_AT_LEAST_0, control=(0, 300))
     decision_hold: bool = _session(
         True, "Once decided, each touch only refits the decided pose and keeps the decision "
         "while the contacts fit it within the noise (False: decide afresh every touch).",
@@ -526,8 +527,7 @@ class SessionParams:
     decision_candidates: int = _session(
         2000, "Surface points of each hypothesis a telling target is chosen from (0: its "
         "feature points).", kind="int", valid=_AT_LEAST_0, control=(0, 20000),
-        notes="The part that tells two shapes apart can be small (a screwdriver's tip): few "
-              "feature points lie on it. Cost: the hypotheses' distances at every candidate.")
+        notes="A telling part can be small (a screwdriver's tip). Cost: distances at each.")
     misfit_novelty: float = _session(
         1e-6, "An object the paper's test judges known is novel once its MAP's refined "
         "residuals have a chi-squared p-value below this, all of them, their means by "

@@ -34,6 +34,7 @@ PRESET_TABLE = {
               "cover_prior": False, "check_lines": 0, "approach_clearance": 0.5,
               "decision_targets": False, "decision_hold": False, "decision_refresh": 1,
               "decision_contacts": 0, "decision_normals": False, "decision_any_class": False,
+              "decision_normals_p": 0.0,
               "sdf_max_resolution": 0,
               "final_candidates": 0, "final_wall_cells": 0.0, "final_support_near": False,
               "variance_points": 1500,

@@ -132,7 +132,8 @@ def _decision(particle_filter, p, **options):
     (``refresh``, ``carried``, ``refined``) a touch between full searches."""
     return decide(particle_filter, particle_filter.state, p.decision_confidence,
                   floor=p.decision_floor, same_mode=p.decision_same_mode,
-                  pose_tolerance=p.decision_pose_error, normals=p.decision_normals, **options)
+                  pose_tolerance=p.decision_pose_error, normals=p.decision_normals,
+                  least_turn_p=p.decision_normals_p, **options)
 
 
 def _incremental(contacts, normals, prior, kernel, scale, box, repeats):

@@ -16,7 +16,9 @@ handle are both covered before the tip is touched. Here a step's belief is *deci
    ``decision_confidence`` with the noise scale ``s`` below and ``n - 6`` degrees of freedom
    (a rival the particles never held cannot be weighed, but a MAP in a wrong mode leaves
    residuals beyond the noise); when its grid's residuals fail, those on its mesh are
-   tested without the grid's error, and
+   tested without the grid's error; with ``decision_normals_p`` its contacts' normals
+   too (:func:`~.fit_test.turn_p`: a spatula fits a fork's touches within a millimetre,
+   their normals not), and
 5. no other pose mode of its class fits within the noise as well while lying farther from
    it than the pose tolerance (:func:`_open_modes`; such a mode is aimed at however
    improbable: a can whose ends differ by a few mm of rim was decided 178 degrees off).
@@ -58,7 +60,7 @@ from scipy.special import ndtri
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
-from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg
+from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg, turn_p
 from .grouped import lead_grouped_p
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
@@ -179,7 +181,8 @@ UNDECIDED = Decision(False, 0.0)
 
 def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), free_space=None,
            pose_tolerance=np.inf, normal_noise_deg=0.0, refined=NOTHING, refresh=1,
-           budget=np.inf, normals=False, any_class=False, spread=0, localisation=None):
+           budget=np.inf, normals=False, any_class=False, spread=0, localisation=None,
+           least_turn_p=0.0):
     """The :class:`Decision` of a filter's belief.
 
     Parameters
@@ -242,6 +245,10 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
         What the contacts of one place may share off a right hypothesis (the contact's
         localisation): with it the lead's residuals are also tested by place
         (``Decision.group_p``, :func:`~.grouped.lead_grouped_p`); None: not tested.
+    least_turn_p : float
+        ``decision_normals_p``: a lead whose contacts' normals cost it more than the noise
+        leaves at this p-value (:func:`~.fit_test.turn_p`, at its own normal error) is not
+        decided (0: not tested).
 
     Returns
     -------
@@ -250,7 +257,8 @@ def decide(pf, belief, confidence=0.99, floor=0.0, same_mode=0.0, carried=(), fr
     options = dict(confidence=confidence, floor=floor, same_mode=same_mode, carried=carried,
                    free_space=free_space, pose_tolerance=pose_tolerance,
                    normal_noise_deg=normal_noise_deg, refined=refined, budget=budget,
-                   normals=normals, any_class=any_class, localisation=localisation)
+                   normals=normals, any_class=any_class, localisation=localisation,
+                   least_turn_p=least_turn_p)
     count = len(pf.contact_positions)
     incremental = refresh > 1  # else as before: afresh at each touch
     full = not incremental or full_search_due(refined, count, refresh)
@@ -321,7 +329,7 @@ def _tested_on_all(pf, lead, floor, confidence, free_space, normal_noise_deg, no
 
 def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_tolerance,
            normal_noise_deg, refined, budget, full, incremental, normals, any_class, count,
-           localisation=None):
+           localisation=None, least_turn_p=0.0):
     """:func:`decide`, a full search or not, with what the last touch refined or
     afresh (not ``incremental``: the decision as it was before :mod:`.incremental`);
     ``count`` the filter's contacts (``pf`` may see a spread of them)."""
@@ -433,12 +441,29 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         posed = posed_by_normals(pf, lead, outside, oriented, tolerance)
         loosest = _loosest(pf, posed, scale2, confidence, pose_tolerance, oriented.fit_noise)
     decided = (not belief.novel and fits and level >= confidence and loosest is None
-               and not modes)
+               and not modes and _normals_fit(pf, lead, oriented, normal_noise_deg, turn_deg,
+                                              least_turn_p))
     if decided:  # the decided pose is the one reported and aimed from
         hypotheses = (posed,) + tuple(h for h in hypotheses if h is not lead)
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p, group_p, memory, lead)
+
+
+def _normals_fit(pf, lead, oriented, normal_noise_deg, turn_deg, least_turn_p):
+    """Whether the contacts' normals fit the ``lead`` within the noise: their cost at
+    its own normal error (:func:`~.fit_test.model_turn_deg`; the hypotheses were weighed at
+    the MAP candidate's, ``turn_deg``) has a p-value of at least ``least_turn_p``
+    (:func:`~.fit_test.turn_p`)."""
+    if least_turn_p <= 0:
+        return True
+    turned = lead.turned
+    own = model_turn_deg(pf, lead.class_index, normal_noise_deg)
+    if own != turn_deg:
+        turned = float(turned_cost(oriented, [lead.class_index], lead.rotation[None],
+                                   lead.translation[None], pf.contact_positions,
+                                   pf.contact_normals, own)[0])
+    return turn_p(turned, len(pf.contact_positions)) >= least_turn_p
 
 
 def _flipped(pf, poses):

@@ -48,6 +48,19 @@ def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
     return False, max(float(chdtrc(dof, lead.misfit / grid2)), p_mesh), limit
 
 
+def turn_p(turned, count):
+    """The chi-squared p-value of what ``count`` contacts' measured normals cost a
+    hypothesis, ``turned`` nats (:func:`~.oriented.turned_cost`): a normal's tilt has two
+    degrees of freedom, and ``2 turned`` is their sum of squares in noise stds (1 without
+    contacts). A 25 cm spatula fitted a 20 cm fork's 44 touches, tines and handle, within
+    0.5 mm while their normals cost it 82 nats (p 2e-6), and was decided; right leads'
+    normals on 23 objects cost them 0.01-1.2 nats a contact (p at least 0.09 at a
+    decision)."""
+    if count <= 0:
+        return 1.0
+    return float(chdtrc(2 * count, 2 * max(float(turned), 0.0)))
+
+
 def chi2_quantile(q, dof):
     """``scipy.stats.chi2.ppf(q, dof)`` to the bit, from :mod:`scipy.special` (as
     ``chdtrc`` is its ``sf`` and ``ndtri`` the normal's ``ppf``): importing

@@ -206,7 +206,7 @@ class Planner(Part):
                       budget=p.decision_budget, normals=p.decision_normals,
                       any_class=p.decision_any_class,
                       spread=p.decision_contacts if self.state.misfit_steps else 0,
-                      localisation=localisation)
+                      localisation=localisation, least_turn_p=p.decision_normals_p)
 
     def _misfit_held(self, belief):
         """Whether the step holds the misfit it would assess: the MAP class of the last

@@ -1105,3 +1105,37 @@ def test_a_misfit_judged_novel_stays_so_until_the_fit_passes(shapes, monkeypatch
     assert novel and novel[0] < 15
     assert all(steps[step].novel for step in range(novel[0], 21) if step in steps)
     assert any(not steps[step].novel for step in range(21, 27) if step in steps)
+
+
+def test_the_normals_p_value_is_scipy_stats_own():
+    """``turn_p``: two degrees of freedom a contact, twice the nats their sum of squares;
+    1 without contacts or cost."""
+    from scipy.stats import chi2
+
+    from tactile_viz.engine.belief.fit_test import turn_p
+
+    for count, turned in ((1, 0.5), (44, 82.0), (44, 30.0), (3000, 3100.0)):
+        np.testing.assert_allclose(turn_p(turned, count), chi2.sf(2 * turned, 2 * count),
+                                   rtol=1e-9)
+    assert turn_p(82.0, 44) < 1e-4 < turn_p(44.0, 44)
+    assert turn_p(5.0, 0) == 1.0 and turn_p(0.0, 10) == 1.0
+
+
+@pytest.mark.parametrize("tilt", [0.0, 0.3])
+def test_a_lead_whose_normals_misfit_is_not_decided(shapes, tilt):
+    """Touches of the cylinder whose positions fit it but whose normals turn 40 degrees
+    (std) off its surface's: the positions decide it, the normals' test does not (a
+    spatula fitted a fork's touches within 0.5 mm and was decided while their normals
+    cost it 82 nats over 44 contacts); normals that fit leave the decision as it was."""
+    touches = _touches(shapes["cylinder"], 40, seed=1)
+    turn = Rotation.from_rotvec(np.random.default_rng(5).normal(0.0, tilt, (40, 3)))
+    turned = turn.apply(np.array([t.normal for t in touches]))
+    touches = [Contact(t.position, n / np.linalg.norm(n)) for t, n in zip(touches, turned)]
+    pf, state = _filter(shapes, touches)
+    assert state.map_class == "cylinder"
+    options = dict(floor=0.02, same_mode=0.1)
+    plain = decide(pf, state, 0.99, **options)
+    tested = decide(pf, state, 0.99, least_turn_p=1e-4, **options)
+    assert plain.decided
+    assert tested.decided == (tilt == 0.0)
+    np.testing.assert_allclose(tested.hypotheses[0].turned, plain.hypotheses[0].turned)
