@@ -240,11 +240,12 @@ class Estimator(FinalSurface, Part):
         return Reconstruction(vertices, faces, subset, candidates, fit, resolution, spacing,
                               everywhere, bounds), variance
 
-    def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True):
+    def _fit(self, kernel, contacts, normals, noncontacts, prior, scale, newton=True,
+             factors=None):
         """A full fit, then refitted while it puts a non-contact farther than ``eps`` from
         every contact inside (beyond the paper: ``gpis_refute_rounds``, at the scale the
-        first fit took)."""
-        options = self._observation_options(noncontacts)
+        first fit took); ``factors``: :func:`~..shape.gpis.fit_gpis`'s cache."""
+        options = dict(self._observation_options(noncontacts), factors=factors)
         fit = fit_gpis(contacts, normals, prior, kernel, scale=scale, newton=newton, **options)
         return refuted_fit(
             fit, noncontacts, self.p.gpis_noncontact_value, self.p.gpis_refute_rounds,

@@ -257,6 +257,7 @@ class FinalSurface:
         cut = functools.partial(self.carve_estimate, contacts=contacts,
                                 normals=f.contact_normals, free=free)
         step_prior = None
+        factors = {}  # the candidates' fits share their observations' covariance
         for index, (class_name, rotation, translation) in enumerate(
                 self._recent_priors(p.final_candidates, prior)):
             model = f.models[f.class_names.index(class_name)]
@@ -272,7 +273,7 @@ class FinalSurface:
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                            self.state.gpis.scale, newton=False)
+                            self.state.gpis.scale, newton=False, factors=factors)
             yield fit, (low, high), None
             yield cut(fit), (low, high), None
         if not p.gpis_agnostic or step_prior is None:
@@ -289,7 +290,7 @@ class FinalSurface:
                                           f.noncontact_positions, self.state.free_space,
                                           f.contact_normals, shape=shape)
             fit = self._fit(kernel, contacts, f.contact_normals, observed, prior_mean,
-                            self.state.gpis.scale, newton=False)
+                            self.state.gpis.scale, newton=False, factors=factors)
             yield fit, (low, high), shape
             yield cut(fit), (low, high), shape
 

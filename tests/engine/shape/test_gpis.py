@@ -461,3 +461,30 @@ def test_box_closure_marks_the_surface_the_box_cuts_off(scale, spacing):
     whole = (np.full(3, -1.2 * scale), np.full(3, 1.2 * scale))
     inside = zero_level_surface(fit, whole, 24, spacing=spacing)[0]
     assert not box_closure(inside, whole, 24, spacing).any()
+
+
+def test_fits_of_the_same_observations_share_their_factor_by_content(mug_data, bundled):
+    """Two prior means, one set of observations: the second fit takes the first's
+    Cholesky factor from ``factors`` and is the uncached fit to the bit; another scale,
+    kernel or point set is factored afresh, and the cache keeps ``FACTORS_KEPT``."""
+    from tactile_viz.engine.shape.gpis import FACTORS_KEPT
+
+    points, normals, prior, _ = mug_data
+    other = lambda p: bundled["mug_2"].sdf.evaluate(p)  # noqa: E731
+    kernel = WendlandKernel(3.0)
+    factors = {}
+    first = fit_gpis(points, normals, prior, kernel, newton=False, factors=factors)
+    second = fit_gpis(points, normals, other, kernel, newton=False, factors=factors)
+    alone = fit_gpis(points, normals, other, kernel, newton=False)
+    assert second.factor is first.factor and len(factors) == 1
+    np.testing.assert_array_equal(second.alpha, alone.alpha)
+    assert second.log_marginal_likelihood == alone.log_marginal_likelihood
+    for changed in (dict(scale=2.0), dict(kernel=WendlandKernel(4.0)),
+                    dict(points=points[1:], normals=normals[1:])):
+        options = {"points": points, "normals": normals, "kernel": kernel, **changed}
+        fit = fit_gpis(options.pop("points"), options.pop("normals"), other,
+                       options.pop("kernel"), newton=False, factors=factors, **options)
+        assert fit.factor is not first.factor
+        assert len(factors) <= FACTORS_KEPT
+    newton = fit_gpis(points, normals, prior, kernel, newton=True, factors={})
+    assert newton.log_marginal_likelihood >= first.log_marginal_likelihood
