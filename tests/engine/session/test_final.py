@@ -99,3 +99,34 @@ def test_a_blob_within_eps_but_beyond_the_noise_is_not_reported_under_noise(nois
     estimator = _Reporting(noise, refuted=vertices[n:] + [0.0, 0.1, 0.0], normals=normals)
     reported = estimator.reported(recon, contacts, {})
     assert len(reported.vertices) == (len(vertices) if kept else n)
+
+
+def test_recent_priors_whose_posed_surfaces_agree_are_weighed_once():
+    """A prior of the same class whose posed surface agrees within the tolerance with a
+    newer one's (a cylinder turned about its axis, or moved by less) is that one; turned
+    off its axis, moved farther, or another class, it is weighed; at 0 only the very
+    same pose is."""
+    from scipy.spatial.transform import Rotation
+
+    from tactile_viz.engine import ObjectModel, PriorLibrary
+    from tactile_viz.engine.belief.particle_filter import ParticleFilter
+
+    meshes = {"cylinder": trimesh.creation.cylinder(radius=1.5, height=6, sections=48),
+              "box": trimesh.creation.box(extents=(6, 3, 2))}
+    library = PriorLibrary([ObjectModel.from_arrays(m.vertices, m.faces, name)
+                            for name, m in meshes.items()])
+    estimator = FinalSurface()
+    estimator.filter = ParticleFilter(library)
+    spin, tip = (Rotation.from_rotvec(v).as_matrix() for v in ([0, 0, 0.9], [0.9, 0, 0]))
+    still, near, far = np.zeros(3), np.array([0.03, 0.0, 0.0]), np.array([0.5, 0.0, 0.0])
+    recent = [("cylinder", spin, still), ("cylinder", tip, still), ("box", spin, still),
+              ("cylinder", np.eye(3), near), ("cylinder", np.eye(3), far),
+              ("cylinder", np.eye(3), still)]
+    estimator.snapshots = [SimpleNamespace(map_class=c, map_rotation=r, map_translation=t,
+                                           novel=True) for c, r, t in reversed(recent)]
+    current = ("cylinder", np.eye(3), still)
+    weighed = estimator._recent_priors(10, current, tolerance=0.1)
+    assert [(c, round(float(np.linalg.norm(t)), 2)) for c, _, t in weighed] == [
+        ("cylinder", 0.0), ("cylinder", 0.0), ("box", 0.0), ("cylinder", 0.5)]
+    np.testing.assert_allclose(weighed[1][1], tip)
+    assert len(estimator._recent_priors(10, current)) == 6  # all but the very same pose
