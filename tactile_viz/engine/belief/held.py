@@ -6,23 +6,24 @@ most of what a known touch cost (issue 63: 129 ms of a 159-211 ms step on the bu
 armadillo). New contacts can only refute a decision by not fitting it, so the decided
 hypothesis alone is refitted from its pose with every contact (one warm-started
 Levenberg-Marquardt) and kept while it passes the decision's own fit test, the
-chi-squared test of its residuals at ``confidence``, and the filter still puts the class at
-``confidence``; otherwise the decision is made afresh.
+chi-squared test of its residuals at ``confidence`` (and of its normals, with
+``least_turn_p``), and the filter still puts the class at ``confidence``; otherwise the
+decision is made afresh.
 """
 
 import numpy as np
 
 from .decision import Decision, Hypothesis
-from .fit_test import fit_limit, model_floor2
+from .fit_test import fit_limit, model_floor2, model_turn_deg, turn_p
 from .grouped import lead_grouped_p
-from .oriented import oriented_evaluator
+from .oriented import oriented_evaluator, turned_cost
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .posed import posed_by_normals
 from .support import table_support
 
 
 def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
-                  normal_noise_deg=0.0, normals=False, localisation=None):
+                  normal_noise_deg=0.0, normals=False, localisation=None, least_turn_p=0.0):
     """The decided ``lead`` refitted to every contact, as a :class:`~.decision.Decision`,
     or None when the decision must be made afresh.
 
@@ -33,7 +34,7 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     belief : FilterState
     lead : Hypothesis
         The decided hypothesis of an earlier touch.
-    confidence, floor, free_space, normal_noise_deg, normals, localisation
+    confidence, floor, free_space, normal_noise_deg, normals, localisation, least_turn_p
         As for :func:`~.decision.decide`.
 
     Returns
@@ -68,6 +69,10 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     misfit = float(misfit[0])
     if not misfit <= fit_limit(pf, c, floor, confidence, dof):
         return None  # a misfit (or NaN) reopens the decision
+    if least_turn_p > 0 and turn_p(turned_cost(
+            oriented, [c], rotations, translations, contacts, pf.contact_normals,
+            model_turn_deg(pf, c, normal_noise_deg))[0], len(contacts)) < least_turn_p:
+        return None  # so does a misfit of the normals
     # Tested on positions, reported posed by the normals too (as :func:`~.decision.decide`).
     refitted = Hypothesis(c, rotations[0], translations[0], misfit, 1.0)
     kept = posed_by_normals(pf, refitted, outside, oriented)

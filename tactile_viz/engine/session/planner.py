@@ -194,7 +194,8 @@ class Planner(Part):
         if p.decision_hold and self.state.decided and self.state.hypotheses:
             held = held_decision(self.filter, belief, self.state.hypotheses[0],
                                  p.decision_confidence, floor, free_space,
-                                 self.sensor_noise[1], p.decision_normals, localisation)
+                                 self.sensor_noise[1], p.decision_normals, localisation,
+                                 p.decision_normals_p)
             if held is not None:
                 return held
         return decide(self.filter, belief, p.decision_confidence, floor=floor,

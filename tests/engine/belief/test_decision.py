@@ -1139,3 +1139,20 @@ def test_a_lead_whose_normals_misfit_is_not_decided(shapes, tilt):
     assert plain.decided
     assert tested.decided == (tilt == 0.0)
     np.testing.assert_allclose(tested.hypotheses[0].turned, plain.hypotheses[0].turned)
+
+
+def test_a_held_decision_is_reopened_when_the_normals_misfit(shapes):
+    """The held lead is refitted on positions; normals that turn 24 degrees off its
+    surface reopen it with the normals' test, and only with it."""
+    from tactile_viz.engine.belief.held import held_decision
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    decision = decide(pf, state, 0.99, floor=0.02, same_mode=0.1, least_turn_p=1e-4)
+    assert decision.decided
+    lead = decision.hypotheses[0]
+    assert held_decision(pf, state, lead, 0.99, floor=0.02, least_turn_p=1e-4) is not None
+    turn = Rotation.from_rotvec(np.random.default_rng(5).normal(0.0, 0.3, (40, 3)))
+    turned = turn.apply(pf.contact_normals)
+    pf.contact_normals = turned / np.linalg.norm(turned, axis=1, keepdims=True)
+    assert held_decision(pf, state, lead, 0.99, floor=0.02) is not None
+    assert held_decision(pf, state, lead, 0.99, floor=0.02, least_turn_p=1e-4) is None
