@@ -60,7 +60,7 @@ from scipy.special import ndtri
 from ..shape.symmetry import symmetry_group
 from ..transforms import transform_points
 from .discrimination import contenders, lookalikes
-from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg, turn_p
+from .fit_test import fit_limit, fit_test, model_floor2, model_turn_deg, normals_fit
 from .grouped import lead_grouped_p
 from .incremental import MODE_ANGLE_DEG, NOTHING, Refined, full_search_due, remembered, starts
 from .lead import class_lead, fit_leader, particle_lead
@@ -441,29 +441,13 @@ def _weigh(pf, belief, confidence, floor, same_mode, carried, free_space, pose_t
         posed = posed_by_normals(pf, lead, outside, oriented, tolerance)
         loosest = _loosest(pf, posed, scale2, confidence, pose_tolerance, oriented.fit_noise)
     decided = (not belief.novel and fits and level >= confidence and loosest is None
-               and not modes and _normals_fit(pf, lead, oriented, normal_noise_deg, turn_deg,
-                                              least_turn_p))
+               and not modes and normals_fit(pf, lead, oriented, normal_noise_deg,
+                                             least_turn_p, turn_deg))
     if decided:  # the decided pose is the one reported and aimed from
         hypotheses = (posed,) + tuple(h for h in hypotheses if h is not lead)
         memory = replace(memory, decided=True)
     return Decision(bool(decided), float(level), hypotheses, bool(fits), loosest,
                     float(np.sqrt(scale2)), modes, fit_p, group_p, memory, lead)
-
-
-def _normals_fit(pf, lead, oriented, normal_noise_deg, turn_deg, least_turn_p):
-    """Whether the contacts' normals fit the ``lead`` within the noise: their cost at
-    its own normal error (:func:`~.fit_test.model_turn_deg`; the hypotheses were weighed at
-    the MAP candidate's, ``turn_deg``) has a p-value of at least ``least_turn_p``
-    (:func:`~.fit_test.turn_p`)."""
-    if least_turn_p <= 0:
-        return True
-    turned = lead.turned
-    own = model_turn_deg(pf, lead.class_index, normal_noise_deg)
-    if own != turn_deg:
-        turned = float(turned_cost(oriented, [lead.class_index], lead.rotation[None],
-                                   lead.translation[None], pf.contact_positions,
-                                   pf.contact_normals, own)[0])
-    return turn_p(turned, len(pf.contact_positions)) >= least_turn_p
 
 
 def _flipped(pf, poses):

@@ -14,9 +14,9 @@ decision is made afresh.
 import numpy as np
 
 from .decision import Decision, Hypothesis
-from .fit_test import fit_limit, model_floor2, model_turn_deg, turn_p
+from .fit_test import fit_limit, model_floor2, normals_fit
 from .grouped import lead_grouped_p
-from .oriented import oriented_evaluator, turned_cost
+from .oriented import oriented_evaluator
 from .pose_refinement import POSE_PARAMETERS, refine_poses
 from .posed import posed_by_normals
 from .support import table_support
@@ -69,12 +69,10 @@ def held_decision(pf, belief, lead, confidence=0.99, floor=0.0, free_space=None,
     misfit = float(misfit[0])
     if not misfit <= fit_limit(pf, c, floor, confidence, dof):
         return None  # a misfit (or NaN) reopens the decision
-    if least_turn_p > 0 and turn_p(turned_cost(
-            oriented, [c], rotations, translations, contacts, pf.contact_normals,
-            model_turn_deg(pf, c, normal_noise_deg))[0], len(contacts)) < least_turn_p:
-        return None  # so does a misfit of the normals
     # Tested on positions, reported posed by the normals too (as :func:`~.decision.decide`).
     refitted = Hypothesis(c, rotations[0], translations[0], misfit, 1.0)
+    if not normals_fit(pf, refitted, oriented, normal_noise_deg, least_turn_p):
+        return None  # so does a misfit of the normals
     kept = posed_by_normals(pf, refitted, outside, oriented)
     scale = float(np.sqrt(max(misfit / dof, model_floor2(pf, c, floor), 1e-300)))
     group_p = 1.0 if localisation is None else lead_grouped_p(
