@@ -8,7 +8,7 @@ import numpy as np
 from scipy.special import chdtrc, gammaincinv
 
 from .mesh_fit import mesh_misfit
-from .oriented import MIN_NORMAL_NOISE_DEG, turned_cost
+from .oriented import MIN_NORMAL_NOISE_DEG, contact_turns
 from .pose_refinement import POSE_PARAMETERS
 
 GRID_ERROR_PERCENTILE = 95
@@ -50,19 +50,24 @@ def fit_test(pf, lead, floor, confidence, outside, oriented, tolerance=0.0):
 
 def normals_fit(pf, lead, oriented, normal_noise_deg, least_turn_p, weighed_deg=None):
     """Whether the contacts' normals fit the ``lead`` (a :class:`~.decision.Hypothesis`)
-    within the noise: their cost at its own normal error (:func:`model_turn_deg`) has a
-    p-value of at least ``least_turn_p`` (:func:`turn_p`; 0: not tested). ``lead.turned``
-    is that cost when it was weighed at ``weighed_deg`` and that is its own (the
-    decision weighs every hypothesis at the MAP candidate's); else it is costed afresh."""
+    within the noise: their cost at its own normal error (:func:`model_turn_deg`), without
+    the worst ``ceil(eps n)`` contacts (``eps = outlier_probability``: a wrong reading's
+    normal points anywhere), has a p-value of at least ``least_turn_p`` (:func:`turn_p`;
+    0: not tested). ``lead.turned`` is that cost when nothing is left out and it was
+    weighed at ``weighed_deg``, its own (the decision weighs every hypothesis at the MAP
+    candidate's); else the lead is costed afresh."""
     if least_turn_p <= 0:
         return True
     own = model_turn_deg(pf, lead.class_index, normal_noise_deg)
-    turned = lead.turned
-    if weighed_deg is None or own != weighed_deg:
-        turned = float(turned_cost(oriented, [lead.class_index], lead.rotation[None],
-                                   lead.translation[None], pf.contact_positions,
-                                   pf.contact_normals, own)[0])
-    return turn_p(turned, len(pf.contact_positions)) >= least_turn_p
+    count = len(pf.contact_positions)
+    drop = int(np.ceil(pf.params.outlier_probability * count))
+    if not drop and weighed_deg is not None and own == weighed_deg:
+        return turn_p(lead.turned, count) >= least_turn_p
+    turns = contact_turns(oriented, [lead.class_index], lead.rotation[None],
+                          lead.translation[None], pf.contact_positions, pf.contact_normals,
+                          own)[0]
+    kept = np.sort(turns)[:count - drop] if drop else turns
+    return turn_p(float(kept.sum()), len(kept)) >= least_turn_p
 
 
 def turn_p(turned, count):

@@ -177,6 +177,12 @@ def turned_cost(oriented, classes, rotations, translations, contacts, normals, n
     noise_deg : float
         The sensor's normal noise (std, degrees).
     """
+    return contact_turns(oriented, classes, rotations, translations, contacts, normals,
+                         noise_deg).sum(axis=1)
+
+
+def contact_turns(oriented, classes, rotations, translations, contacts, normals, noise_deg):
+    """:func:`turned_cost` contact by contact: ``(k, m)`` nats, the same arguments."""
     sigma = np.radians(max(float(noise_deg), MIN_NORMAL_NOISE_DEG))
     rotations = np.asarray(rotations, float)
     local = inverse_transform_points_batch(contacts, rotations, translations)
@@ -184,7 +190,7 @@ def turned_cost(oriented, classes, rotations, translations, contacts, normals, n
     m = len(contacts)
     _, matched = oriented(np.repeat(classes, m), local.reshape(-1, 3), facing.reshape(-1, 3))
     apart = np.linalg.norm(facing.reshape(-1, 3) - matched, axis=1).reshape(-1, m)
-    return 0.5 * np.square(np.minimum(apart / sigma, NORMAL_CAP)).sum(axis=1)
+    return 0.5 * np.square(np.minimum(apart / sigma, NORMAL_CAP))
 
 
 def normal_weight(position_scale, normal_noise_deg):

@@ -1156,3 +1156,22 @@ def test_a_held_decision_is_reopened_when_the_normals_misfit(shapes):
     pf.contact_normals = turned / np.linalg.norm(turned, axis=1, keepdims=True)
     assert held_decision(pf, state, lead, 0.99, floor=0.02) is not None
     assert held_decision(pf, state, lead, 0.99, floor=0.02, least_turn_p=1e-4) is None
+
+
+def test_the_normals_test_leaves_out_as_many_contacts_as_may_be_wrong(shapes):
+    """Ten of forty normals reversed (wrong readings), the rest turned 14 degrees (std)
+    off the lead: the test refutes it with ``outlier_probability`` 0 and passes it with
+    0.25, the worst ``ceil(eps n)`` contacts left out."""
+    from tactile_viz.engine.belief.fit_test import normals_fit
+
+    pf, state = _filter(shapes, _touches(shapes["cylinder"], 40, seed=1))
+    lead = decide(pf, state, 0.99, floor=0.02, same_mode=0.1).hypotheses[0]
+    oriented = oriented_evaluator(pf.bank, pf.models, 0.02, 0.0)
+    turn = Rotation.from_rotvec(np.random.default_rng(5).normal(0.0, 0.2, (40, 3)))
+    normals = turn.apply(pf.contact_normals)
+    normals[::4] *= -1
+    pf.contact_normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    assert normals_fit(pf, lead, oriented, 0.0, 1e-4) is False
+    pf.params = dataclasses.replace(pf.params, outlier_probability=0.25)
+    assert normals_fit(pf, lead, oriented, 0.0, 1e-4) is True
+    assert normals_fit(pf, lead, oriented, 0.0, 0.0) is True  # not tested
