@@ -197,10 +197,11 @@ class Bookkeeper(Part):
                                            self.new_ground(), recon.fit.mean_value)]:
             self.state.followed.append(int(index))
             normal = normalise_rows(self.filter.contact_normals[index][None])[0]
-            for point in tangent_points(contacts[index], normal, spacing):
-                taken = np.vstack([np.delete(contacts, index, axis=0), self._aimed()])
-                if cKDTree(taken).query(point)[0] > spacing / 2:
-                    self.state.frontier.append((point, normal))
+            # The four places lie at least 1.4 spacings apart: none can skip another.
+            places = tangent_points(contacts[index], normal, spacing)
+            taken = cKDTree(np.vstack([np.delete(contacts, index, axis=0), self._aimed()]))
+            for point in places[taken.query(places)[0] > spacing / 2]:
+                self.state.frontier.append((point, normal))
 
     def _aimed(self):
         """The given-up and queued frontier targets, ``(k, 3)``."""

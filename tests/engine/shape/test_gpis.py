@@ -486,5 +486,7 @@ def test_fits_of_the_same_observations_share_their_factor_by_content(mug_data, b
                        options.pop("kernel"), newton=False, factors=factors, **options)
         assert fit.factor is not first.factor
         assert len(factors) <= FACTORS_KEPT
-    newton = fit_gpis(points, normals, prior, kernel, newton=True, factors={})
+    untouched = {}
+    newton = fit_gpis(points, normals, prior, kernel, newton=True, factors=untouched)
     assert newton.log_marginal_likelihood >= first.log_marginal_likelihood
+    assert untouched == {}  # a Newton step's scale moves: its factors are not kept
