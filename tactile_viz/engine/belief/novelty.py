@@ -43,16 +43,23 @@ def contact_test(exact, local, normals, params, noise=0.0, turn=0.0):
     -------
     total, threshold : float, nats
     """
-    distance, own, shifts = offset_faces(exact, local, normals, noise)
+    offsets = noise * NOISE_OFFSETS[1:] if noise else ()
+    # One look-up for the readings and their offsets; the likelihood needs no sign.
+    distance, faces = exact.nearest_face(
+        np.vstack([local, *(local + offset * normals for offset in offsets)]))
+    distance, faces = distance[:len(local)], faces.reshape(-1, len(local))
+    own = exact.face_normal(faces[0])
     terms = log_contact_likelihood(distance, own, normals, params.sigma_d, params.sigma_n,
                                    params.outlier_probability)
-    for offset, shifted_normal, fold in shifts:
+    for offset, at_offset in zip(offsets, faces[1:]):
         # The normal a reading ``offset`` off along its normal would meet, where the offset
         # crosses a fold of the distance field (FOLD_COSINE) and nowhere else: a
         # best-of-five normal elsewhere grants every contact on a near twin's curves slack
         # that no noise explains (sofa_2 passed as sofa_1). The distance stays the
         # reading's own, so a shape that merely lies near the contacts gains nothing; the
         # offset costs as a distance does, with the same sigma_d.
+        shifted_normal = exact.face_normal(at_offset)
+        fold = np.einsum("ij,ij->i", shifted_normal, own) < FOLD_COSINE
         shifted = log_contact_likelihood(distance, shifted_normal, normals, params.sigma_d,
                                          params.sigma_n, params.outlier_probability)
         prior = -0.5 * (offset / params.sigma_d) ** 2
@@ -61,38 +68,6 @@ def contact_test(exact, local, normals, params, noise=0.0, turn=0.0):
     return total, kept * (np.log(params.known_fraction)
                           - log_normaliser(params.sigma_d, params.sigma_n)
                           - 0.5 * (turn / params.sigma_n) ** 2)
-
-
-def offset_faces(exact, local, normals, noise):
-    """Where readings meet a mesh within a position ``noise``: ``(distance (n,), own
-    (n, 3), shifts)``, each reading's distance to the mesh and its nearest face's outward
-    normal, and for each offset of :data:`NOISE_OFFSETS` (times ``noise``, none without
-    it) along the reading's measured normal, ``(offset, normal (n, 3), fold (n,) bool)``:
-    the normal of the face nearest the offset reading and whether it turns past
-    :data:`FOLD_COSINE` from ``own`` (the offset crosses a fold of the distance field)."""
-    offsets = noise * NOISE_OFFSETS[1:] if noise else ()
-    # One look-up for the readings and their offsets; the likelihood needs no sign.
-    distance, faces = exact.nearest_face(
-        np.vstack([local, *(local + offset * normals for offset in offsets)]))
-    distance, faces = distance[:len(local)], faces.reshape(-1, len(local))
-    own = exact.face_normal(faces[0])
-    shifts = []
-    for offset, at_offset in zip(offsets, faces[1:]):
-        shifted = exact.face_normal(at_offset)
-        shifts.append((offset, shifted, np.einsum("ij,ij->i", shifted, own) < FOLD_COSINE))
-    return distance, own, shifts
-
-
-def met_normal_chords(exact, local, normals, noise):
-    """The length of the difference between each reading's measured unit normal and the
-    face normal the contact test meets it with at its best (:func:`offset_faces`: its
-    nearest face's, or across a fold within ``noise`` the nearer): ``(n,)``, 0 to 2."""
-    _, own, shifts = offset_faces(exact, local, normals, noise)
-    chords = np.linalg.norm(own - normals, axis=1)
-    for _, shifted, fold in shifts:
-        chords = np.where(fold, np.minimum(chords, np.linalg.norm(shifted - normals, axis=1)),
-                          chords)
-    return chords
 
 
 def trimmed_sum(terms, fraction):

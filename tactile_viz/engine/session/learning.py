@@ -5,7 +5,6 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..belief.novelty import met_normal_chords
 from ..errors import SessionError
 from ..shape.gpis import ThinPlateKernel, held_out_errors
 from ..shape.gpis_variance import lattice_low
@@ -13,8 +12,6 @@ from ..shape.level_set import zero_level_surface
 from ..shape.objects import ObjectModel
 from ..shape.sdf import ExactDistance
 from .final import own_box
-
-NORMAL_DRAWS = 4  # fresh-noise draws of each contact for a learned shape's normal error
 
 
 def learned_model(estimator, snapshot, name, resolution, library):
@@ -143,7 +140,7 @@ def learned_model_from_surface(vertices, faces, name, params=None, contacts=None
                                    normal_error=normal_error)
 
 
-def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0, rng=None):
+def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0):
     """How far a learned surface's contacts lie off it, ``(shape_error, normal_error)``.
 
     ``shape_error`` (scene units): the RMS of the fit's ``held_out`` errors and of the
@@ -151,15 +148,8 @@ def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0, 
     grid a surface is extracted on blurs a fork's tines into blobs a millimetre off
     contacts its fit passes through: met again, touches missed it by 1.4 mm RMS where
     the held-out errors alone granted 0.6). ``normal_error``: the RMS length of the
-    difference between each contact's unit normal and the outward normal the contact
-    test meets it with (0 to 2; 0 without ``normals``): its nearest face's, and under
-    ``noise`` at the contact moved by fresh noise (:data:`NORMAL_DRAWS` draws), as a
-    touch met again lands, across a fold within the noise the test grants the better
-    (:func:`~..belief.novelty.met_normal_chords`). The surface was fitted through its
-    own noisy contacts, so their nearest faces face their way; a touch it has not seen
-    lands as often behind a thin part's middle (a learned 20 cm fork met again at 2 mm:
-    half of its touches' nearest faces turned over 60 degrees, where its own contacts'
-    normals lay 0.47 off, and it was judged novel).
+    difference between each contact's unit normal and the outward normal of the
+    surface's nearest face (0 to 2; 0 without ``normals``).
 
     Parameters
     ----------
@@ -170,9 +160,6 @@ def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0, 
     held_out : (j,) float, scene units
     noise : float, scene units
         The sensor's position noise (std).
-    rng : numpy.random.Generator, optional
-        Draws the moved contacts (default: seeded with 0, so a surface's errors are its
-        own).
     """
     contacts = np.reshape(contacts, (-1, 3))
     held_out = np.asarray(held_out, dtype=float)
@@ -182,17 +169,7 @@ def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0, 
     exact = ExactDistance(vertices, faces)
     distance, nearest = exact.nearest_face(contacts)
     squares += max(float(np.mean(distance**2)) - noise**2, 0.0)
-    shape_error = float(np.sqrt(squares))
     if normals is None:
-        return shape_error, 0.0
-    normals = np.reshape(normals, (-1, 3))
-    if noise <= 0:
-        chords = np.linalg.norm(exact.face_normal(nearest) - normals, axis=1)
-    else:
-        rng = np.random.default_rng(0) if rng is None else rng
-        spread = float(np.hypot(noise, shape_error))
-        moved = contacts + rng.normal(0.0, spread, (NORMAL_DRAWS, *contacts.shape))
-        chords = met_normal_chords(exact, moved.reshape(-1, 3),
-                                   np.tile(normals, (NORMAL_DRAWS, 1)),
-                                   spread)
-    return shape_error, float(np.sqrt(np.mean(chords**2)))
+        return float(np.sqrt(squares)), 0.0
+    difference = exact.face_normal(nearest) - np.reshape(normals, (-1, 3))
+    return float(np.sqrt(squares)), float(np.sqrt(np.mean(np.sum(difference**2, axis=1))))

@@ -56,33 +56,3 @@ def test_a_learned_shape_carries_its_contacts_errors():
     assert model.shape_error == pytest.approx(np.hypot(0.1, 0.2), rel=1e-9)
     alone = learned_model_from_surface(box.vertices, box.faces, "box")
     assert (alone.shape_error, alone.normal_error) == (0.0, 0.0)
-
-
-
-def _bar_touched(width, count=60, seed=0):
-    """A box ``width`` x ``width`` x 40 and ``count`` contacts on its two x faces, each
-    with its face's outward normal."""
-    rng = np.random.default_rng(seed)
-    bar = trimesh.creation.box(extents=(width, width, 40.0))
-    side = np.where(rng.random(count) < 0.5, -1.0, 1.0)
-    contacts = np.column_stack([side * width / 2, np.zeros(count), rng.uniform(-15, 15, count)])
-    return bar, contacts, np.column_stack([side, np.zeros((count, 2))])
-
-
-def test_under_noise_a_thin_parts_normals_are_met_as_a_touch_it_has_not_seen_lands():
-    """Moved by 2 of noise, a touch on a 2-wide rod lies as often nearer another of its
-    faces, one the fold test does not bring back (turned about the rod, not across it):
-    the normal error a learned rod grants is that of the touches it will meet, not of the
-    ones it was fitted through; a 40-wide bar's faces keep their touches' normals."""
-    rod, contacts, normals = _bar_touched(2.0)
-    assert own_errors(rod.vertices, rod.faces, contacts, normals)[1] == pytest.approx(0.0)
-    thin = own_errors(rod.vertices, rod.faces, contacts, normals, noise=2.0)[1]
-    assert thin > 0.5
-    assert own_errors(rod.vertices, rod.faces, contacts, normals, noise=0.2)[1] < 0.2
-    # The same surface and contacts, the same error (its own draws); another draw close.
-    assert own_errors(rod.vertices, rod.faces, contacts, normals, noise=2.0)[1] == thin
-    other = own_errors(rod.vertices, rod.faces, contacts, normals, noise=2.0,
-                       rng=np.random.default_rng(1))[1]
-    assert other == pytest.approx(thin, rel=0.3)
-    bar, contacts, normals = _bar_touched(40.0)
-    assert own_errors(bar.vertices, bar.faces, contacts, normals, noise=2.0)[1] < 0.1
