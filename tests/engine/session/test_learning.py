@@ -56,3 +56,26 @@ def test_a_learned_shape_carries_its_contacts_errors():
     assert model.shape_error == pytest.approx(np.hypot(0.1, 0.2), rel=1e-9)
     alone = learned_model_from_surface(box.vertices, box.faces, "box")
     assert (alone.shape_error, alone.normal_error) == (0.0, 0.0)
+
+
+def test_the_shape_error_takes_in_the_fits_spread_on_its_surface():
+    """Touches met again land anywhere on a learned surface, not only at its contacts: the
+    fit's posterior spread there joins the shape error in quadrature."""
+    box, contacts, normals = _box_faces_touched()
+    out = contacts + 0.3 * normals
+    assert own_errors(box.vertices, box.faces, out, surface=0.4)[0] == pytest.approx(
+        0.5, rel=1e-9)
+    assert own_errors(box.vertices, box.faces, np.empty((0, 3)),
+                      surface=0.4)[0] == pytest.approx(0.4)
+
+
+def test_a_fits_spread_on_its_surface_is_its_posterior_std_there():
+    from tactile_viz.engine.session.learning import surface_spread
+
+    class Fit:
+        def variance(self, points):
+            return np.full(len(points), 0.04)
+
+    vertices = np.random.default_rng(0).normal(size=(5000, 3))
+    assert surface_spread(Fit(), vertices) == pytest.approx(0.2)
+    assert surface_spread(Fit(), np.empty((0, 3))) == 0.0
