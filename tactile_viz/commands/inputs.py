@@ -14,6 +14,8 @@ import logging
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..cli import ExtendList, existing_file, one_line, output_dir, positive_float
 from ..engine.errors import LibraryError, TactileVizError
 from ..engine.shape.library import MANIFEST, PriorLibrary, size_warning
@@ -346,9 +348,17 @@ def learn(session, library, name, folder, units=None, args=None):
         return {"name": name, "saved_to": str(folder) if made else None, "reason": reason}
     saved.add(model, units=units)
     saved.save(folder)
-    say(args, "note", f"learned {name} ({model.length:.3g} {units or 'scene units'} long), "
+    unit, turn = units or "scene units", chord_degrees(model.normal_error)
+    say(args, "note", f"learned {name} ({model.length:.3g} {unit} long; a touch may miss it "
+                      f"by {model.shape_error:.2g} {unit} RMS, its normal by {turn:.0f} deg), "
                       f"saved to {folder}")
-    return {"name": name, "saved_to": str(folder), "longest_side": model.length}
+    return {"name": name, "saved_to": str(folder), "longest_side": model.length,
+            "shape_error": model.shape_error, "normal_error_deg": turn}
+
+
+def chord_degrees(chord):
+    """The angle between two unit vectors ``chord`` apart (0 to 2), degrees."""
+    return float(np.degrees(2 * np.arcsin(np.clip(chord / 2, 0.0, 1.0))))
 
 
 # ------------------------------------------------------------- a recording's scene

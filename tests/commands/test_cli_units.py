@@ -66,6 +66,9 @@ def test_a_learned_library_is_saved_with_the_learned_flag(mm_meshes):
     note = json.loads(out.read_text())["learned"]
     assert note["saved_to"] == str(mm_meshes / "lib")
     library = PriorLibrary.load(mm_meshes / "lib")
+    # Its own errors, in the scene's unit and degrees, as the library keeps them.
+    assert note["shape_error"] == pytest.approx(library["ball_learned"].shape_error, rel=1e-6)
+    assert 0 < note["shape_error"] < 0.04 and 0 <= note["normal_error_deg"] <= 180
     assert library.names == ["block_mm", "ball_learned"]
     assert library["ball_learned"].learned and not library["block_mm"].learned
     assert library["ball_learned"].length == pytest.approx(0.04, rel=0.4)
