@@ -19,7 +19,9 @@ the object is met again at another pose (seed + 1000) with that prior added, wit
 
 Per trial: judged novel at the end, the reconstruction error (two-way Hausdorff distance)
 as a share of the object's longest side, the paper's on samples and from samples to the
-other surface (without the samples' floor: 5-10% of a compact object's size), touches,
+other surface (without the samples' floor: 5-10% of a compact object's size), the learned
+shape's own error (how far a touch may miss it, which the decision grants it met again)
+as a share of the size, touches,
 whether the session stopped by itself, seconds; met again: whether the learned prior was
 the MAP at the decision, the touch of the decision, the pose error there as a share of the
 size, seconds. With ``--known``, each object is also explored as a known one (its own mesh
@@ -155,11 +157,21 @@ def learn_summary(result):
             "size": size, "judged_novel": bool(last["novel"]),
             "recon_share": None if recon is None or not last["novel"] else recon / size,
             "surface_share": None if surface is None or not last["novel"] else surface / size,
+            "own_share": _own_share(result.get("learned"), size),
             "touches": len(steps),
             "stopped": result["terminated_at"] is not None and len(steps) < cap,
             "seconds": result["seconds"], "slowest_touch": _slowest(steps),
             "median_touch": _median_touch(steps),
             "learned": "vertices" in (result.get("learned") or {})}
+
+
+def _own_share(learned, size):
+    """A learned shape's own error (``shape_error``: how far a touch may miss it, which
+    the decision grants it met again) as a share of the size; None when nothing was
+    learned."""
+    if not isinstance(learned, dict) or learned.get("shape_error") is None:
+        return None
+    return learned["shape_error"] / size
 
 
 def again_summary(result):
@@ -261,14 +273,14 @@ def markdown(rows):
                 f"{_fmt(_largest([r.get('slowest_touch') for r in mine]), '.2f')}, "
                 f"{_fmt(_largest([r.get('again_slowest_touch') for r in again]), '.2f')} |")
     lines += ["", "| object | size (cm) | library | noise | novel | recon. % | to surface % | "
-              "touches | stopped | MAP again | decided at | pose % | s | slowest touch s |",
-              "|" + "---|" * 14]
+              "own error % | touches | stopped | MAP again | decided at | pose % | s | "
+              "slowest touch s |", "|" + "---|" * 15]
     for r in rows:
         lines.append(
             f"| {r['object']} | {100 * r['size']:.0f} | {r['library']} | "
             f"{r['noise'][0]:g}, {r['noise'][1]:g} | {'yes' if r['judged_novel'] else 'no'} | "
             f"{_fmt(r['recon_share'], scale=100)} | {_fmt(r.get('surface_share'), scale=100)} | "
-            f"{r['touches']} | "
+            f"{_fmt(r.get('own_share'), scale=100)} | {r['touches']} | "
             f"{'yes' if r['stopped'] else 'cap'} | "
             f"{'-' if 'map_learned' not in r else 'yes' if r['map_learned'] else 'no'} | "
             f"{_decided(r)} | {_fmt(r.get('pose_share'), scale=100)} | "

@@ -52,7 +52,8 @@ def _result(name, steps, novel=True, learned=True, terminated=True, kind="learn"
               "task": {"tag": "few", "max_steps": None},
               "params": {"max_steps_novel": 40, "max_steps_known": 30}}
     if learned:
-        result["learned"] = {"name": f"{name}_learned", "vertices": [[0, 0, 0]], "faces": []}
+        result["learned"] = {"name": f"{name}_learned", "vertices": [[0, 0, 0]], "faces": [],
+                             "shape_error": 0.002}
     return result
 
 
@@ -72,8 +73,9 @@ def test_summaries_and_tables():
     row = learn.learn_summary(_result("cup", 30))
     assert row["judged_novel"] and row["stopped"] and row["learned"]
     assert np.isclose(row["recon_share"], 0.05) and row["touches"] == 30
-    assert np.isclose(row["surface_share"], 0.03)
-    capped = learn.learn_summary(_result("cup", 30, novel=False, terminated=True))
+    assert np.isclose(row["surface_share"], 0.03) and np.isclose(row["own_share"], 0.02)
+    capped = learn.learn_summary(_result("cup", 30, novel=False, learned=False,
+                                         terminated=True))
     assert capped["recon_share"] is None and not capped["stopped"]  # the known cap, 30
     assert not learn.learn_summary(_result("cup", 30, terminated=False))["stopped"]
     row.update(learn.again_summary(_result("cup", 20, kind="again")))
@@ -83,7 +85,8 @@ def test_summaries_and_tables():
     text = learn.markdown([row, capped])
     assert ("| few | 0, 0 | 1/2 | 5.0 (5.0) | 3.0 (3.0) | 1/2 | 1/1 | 1/1 | 9 | 4.0 | 1/1 | "
             "4, 4 | 0.30, 0.20 |") in text
-    assert "| cup | 10 | few | 0, 0 | no | - | - | 30 | cap | - | - | - | 4 | 0.30 |" in text
+    assert "| cup | 10 | few | 0, 0 | yes | 5.0 | 3.0 | 2.0 | 30 | yes | yes | 9 |" in text
+    assert "| cup | 10 | few | 0, 0 | no | - | - | - | 30 | cap | - | - | - | 4 | 0.30 |" in text
     # Decided as another class met again: no decision of the learned one, nor its touches.
     wrong = dict(row, decided_class="mug_1_large", decided_learned=False, decided_at=33)
     text = learn.markdown([wrong])
