@@ -157,7 +157,7 @@ def learned_model_from_surface(vertices, faces, name, params=None, contacts=None
 
 
 def own_errors(vertices, faces, contacts, normals=None, held_out=(), noise=0.0, surface=0.0):
-    """How far a learned surface's contacts lie off it, ``(shape_error, normal_error)``.
+    """How far a touch may lie off a learned surface, ``(shape_error, normal_error)``.
 
     ``shape_error`` (scene units): the RMS of the fit's ``held_out`` errors, of the
     contacts' distances to the surface beyond the sensor's ``noise`` and the fit's

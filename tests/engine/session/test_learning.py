@@ -79,3 +79,9 @@ def test_a_fits_spread_on_its_surface_is_its_posterior_std_there():
     vertices = np.random.default_rng(0).normal(size=(5000, 3))
     assert surface_spread(Fit(), vertices) == pytest.approx(0.2)
     assert surface_spread(Fit(), np.empty((0, 3))) == 0.0
+
+    class Varied:  # the variance x^2 at N(0, 1) points: an RMS std of 1, a mean std of 0.8
+        def variance(self, points):
+            return points[:, 0] ** 2
+
+    assert surface_spread(Varied(), vertices) == pytest.approx(1.0, rel=0.05)
