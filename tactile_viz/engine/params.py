@@ -340,6 +340,11 @@ class SessionParams:
         "(beyond the paper).", kind="bool",
         notes="Within eps of a contact, or refuted by a missed probe: a reconstruction "
               "that shrank away from the untouched prior cannot pass the stop.")
+    cover_prior_poses: int = _session(
+        8, "The prior cover asks only for MAP vertices within eps / 2 of the MAP class's "
+        "SDF averaged over this many of its heaviest poses (beyond the paper; 1: all).",
+        kind="int", valid="[1, 64]", notes="A part they place apart, which no touch pinned, "
+        "is no prediction: a mug prior's handle about a cup's free axis (docs/novel.md).")
     missed_parts: int = _session(
         10, "Targets given up on a detached part of a novel estimate that no contact comes "
         "within eps of, after which exploration leaves the whole part out (beyond the paper; "

@@ -1,8 +1,8 @@
-"""Callables and point sets a session builds: a model's SDF at a pose, the values of a
-field, the space below a tangent plane, thinned free-space samples, and how deep a probe
-goes (how far out it starts, :func:`free_approach`, is exploration's, re-exported here).
-The callables are classes, not closures, so that a session pickles (the app steps it in
-another process)."""
+"""Callables and point sets a session builds: a model's SDF at a pose or averaged over
+poses, the values of a field, the space below a tangent plane, thinned free-space samples,
+and how deep a probe goes (how far out it starts, :func:`free_approach`, is exploration's,
+re-exported here). The callables are classes, not closures, so that a session pickles (the
+app steps it in another process)."""
 
 import numpy as np
 
@@ -24,6 +24,42 @@ class PosedSDF:
         values, gradients = grid_of(self.model).evaluate(
             (np.atleast_2d(points) - self.translation) @ self.rotation)
         return values, gradients @ self.rotation.T
+
+
+class MixedSDF:
+    """A model's SDF averaged over poses: ``sum_k w_k f_k(points)`` for the field ``f_k``
+    at pose ``k`` and weights ``w`` summing to 1, values (k,) and gradients (k, 3). Where
+    the poses agree (a surface they all place alike, or one turned within itself) it is
+    the model's surface; a part whose place they disagree on by more than its thickness
+    (a mug's handle about a cup's free axis) lies outside for most and fades."""
+
+    def __init__(self, model, rotations, translations, weights):
+        self.fields = [PosedSDF(model, r, t) for r, t in zip(rotations, translations)]
+        self.weights = np.asarray(weights, dtype=float) / float(np.sum(weights))
+
+    def __call__(self, points):
+        values, gradients = 0.0, 0.0
+        for weight, field in zip(self.weights, self.fields):
+            v, g = field(points)
+            values, gradients = values + weight * v, gradients + weight * g
+        return values, gradients
+
+
+def prior_poses(particles, class_index, rotation, translation, count):
+    """The poses a prior's cover averages over: ``(rotation, translation)`` in the place of
+    the class's heaviest particle, then its ``count - 1`` next heaviest, and their
+    weights relative to the heaviest's ((k, 3, 3), (k, 3), (k,); k at most ``count``, 1
+    without particles)."""
+    if particles is None or count <= 1:
+        return rotation[None], translation[None], np.ones(1)
+    index = np.flatnonzero(particles.classes == class_index)
+    index = index[np.argsort(-particles.log_weights[index], kind="stable")][:count]
+    if len(index) <= 1:
+        return rotation[None], translation[None], np.ones(1)
+    log_w = particles.log_weights[index]
+    rotations = np.concatenate([rotation[None], particles.rotations[index[1:]]])
+    translations = np.concatenate([translation[None], particles.translations[index[1:]]])
+    return rotations, translations, np.exp(log_w - log_w.max())
 
 
 class ValueOf:

@@ -70,7 +70,7 @@ from ..shape.meshes import bare_mesh
 from ..shape.metrics import directed_hausdorff, oriented_samples
 from ..shape.sdf import normalise_rows
 from .context import Part
-from .fields import BelowTangentPlane, PosedSDF, ValueOf
+from .fields import BelowTangentPlane, MixedSDF, PosedSDF, ValueOf, prior_poses
 from .lengths import own_unit
 from .refuted import open_estimate, open_parts, open_vertices
 from .state import Aim, Check
@@ -304,9 +304,23 @@ class Planner(Part):
                                        all_refuted=False)
             if map_reach is not None and prior_open.any():
                 prior_open = _both(prior_open, map_reach)
+            if prior_open.any() and model is not None:
+                prior_open = prior_open & self._agreed(map_vertices, model, pose)
             if prior_open.any():
                 prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
+
+    def _agreed(self, map_vertices, model, pose):
+        """Which MAP vertices lie within ``eps / 2`` of the MAP class's surface averaged
+        over its heaviest poses (``cover_prior_poses``, :class:`MixedSDF`): a part no
+        touch pinned, which they place apart, is no prediction to cover (a mug prior's
+        handle turned about a cup's free axis from touch to touch held its stop)."""
+        f = self.filter
+        poses = prior_poses(f.particles, f.class_names.index(model.name), *pose,
+                            self.p.cover_prior_poses)
+        if len(poses[0]) == 1:
+            return np.ones(len(map_vertices), bool)
+        return np.abs(MixedSDF(model, *poses)(map_vertices)[0]) <= self.p.eps / 2
 
     def _covers_prior(self, recon):
         """Whether the MAP prior counts in the coverage (``cover_prior``): not while a

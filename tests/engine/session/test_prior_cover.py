@@ -152,3 +152,80 @@ def test_a_detached_part_no_contact_supports_is_left_out_after_three_misses(scal
     assert not parts(on_blob, misses=0).any()
     # A target given up far from every vertex counts for no part.
     assert not parts(on_blob + [0, 0, 5 * scale], misses=3).any()
+
+
+def _box_model(scale, tmp_path):
+    from tactile_viz.engine import ObjectModel
+    from tactile_viz.engine.io.cache import ArrayCache
+
+    box = trimesh.creation.box((2.0 * scale, scale, scale))
+    return ObjectModel.from_arrays(box.vertices, box.faces, "box", cache=ArrayCache(tmp_path),
+                                   longest_side=None)
+
+
+def _turned(axis, angle=np.pi / 2):
+    return trimesh.transformations.rotation_matrix(angle, axis)[:3, :3]
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_prior_part_its_poses_place_apart_is_not_asked_to_be_covered(scale, tmp_path):
+    # A 2 x 1 x 1 box prior whose two heaviest particles differ by a quarter turn: about
+    # its long axis they place it alike and all of it is a prediction to cover; about the
+    # vertical its ends lie apart, and only its middle is.
+    from tactile_viz.engine.belief.particles import Particles
+
+    model = _box_model(scale, tmp_path)
+    planner = _planner(scale)
+    vertices = np.asarray(trimesh.creation.box((2.0 * scale, scale, scale)).subdivide()
+                          .subdivide().vertices)
+    contacts = np.array([[0.0, 0.0, 0.5 * scale]])
+    recon = _estimate(0.5 * scale)
+    pose = np.eye(3), np.zeros(3)
+    for axis, ends_open in (([1, 0, 0], True), ([0, 0, 1], False)):
+        particles = Particles(np.zeros(2, int), np.stack([np.eye(3), _turned(axis)]),
+                              np.zeros((2, 3)), np.log([0.6, 0.4]))
+        planner.filter = types.SimpleNamespace(particles=particles, class_names=["box"])
+        coverage = planner.coverage(recon, vertices, contacts, model, pose)
+        ends = np.abs(vertices[:, 0]) > 0.9 * scale
+        assert coverage.prior_open[ends].all() == ends_open
+        assert coverage.prior_open[np.abs(vertices[:, 0]) < 0.2 * scale].any()
+        # With one pose (the paper's) the whole prior is asked for.
+        planner.p = dataclasses.replace(planner.p, cover_prior_poses=1)
+        assert planner.coverage(recon, vertices, contacts, model, pose).prior_open[ends].all()
+        planner.p = dataclasses.replace(planner.p, cover_prior_poses=8)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_a_prior_averaged_over_poses_keeps_what_they_place_alike(scale, tmp_path):
+    # A box prior's SDF averaged over its poses (cover_prior_poses): turned within
+    # itself (about its long axis) it is the box; turned about the vertical its ends,
+    # placed apart, lie outside.
+    from tactile_viz.engine.belief.particles import Particles
+    from tactile_viz.engine.session.fields import MixedSDF, PosedSDF, prior_poses
+
+    model = _box_model(scale, tmp_path)
+    points = np.array([[0.5 * scale, 0.0, 0.5 * scale], [scale, 0.0, 0.0],
+                       [0.0, 2.0 * scale, 0.0]])
+    own = PosedSDF(model, np.eye(3), np.zeros(3))(points)
+    quarter = {axis: trimesh.transformations.rotation_matrix(np.pi / 2, axis)[:3, :3]
+               for axis in ((1, 0, 0), (0, 0, 1))}
+    alike = MixedSDF(model, np.stack([np.eye(3), quarter[(1, 0, 0)]]), np.zeros((2, 3)),
+                     [3.0, 1.0])
+    np.testing.assert_allclose(alike(points)[0], own[0], atol=0.02 * scale)
+    apart = MixedSDF(model, np.stack([np.eye(3), quarter[(0, 0, 1)]]), np.zeros((2, 3)),
+                     [1.0, 1.0])
+    values, gradients = apart(points)
+    assert values[1] > 0.2 * scale  # the box's end: outside the turned box by half its size
+    assert abs(values[0]) < 0.02 * scale and gradients.shape == (3, 3)
+    # The poses: the given one in the place of the class's heaviest particle, then the
+    # next heaviest by weight; other classes' particles are left out.
+    particles = Particles(np.array([0, 1, 0, 0]), np.stack([np.eye(3)] * 4),
+                          np.arange(12.0).reshape(4, 3), np.log([0.1, 0.5, 0.3, 0.1]))
+    given = quarter[(0, 0, 1)], np.full(3, -1.0)
+    rotations, translations, weights = prior_poses(particles, 0, *given, 2)
+    np.testing.assert_allclose(rotations[0], given[0])
+    np.testing.assert_allclose(translations, [[-1.0, -1.0, -1.0], [0.0, 1.0, 2.0]])
+    np.testing.assert_allclose(weights, [1.0, 1.0 / 3.0])
+    for count, particles_given in ((1, particles), (8, None)):
+        rotations, translations, weights = prior_poses(particles_given, 0, *given, count)
+        assert len(weights) == 1 and np.allclose(translations, given[1])
