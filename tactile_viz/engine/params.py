@@ -1,9 +1,8 @@
 """Parameters of the filter and of a session, each in one dataclass with the paper's values as
 defaults. Every parameter is declared once, by its field (:func:`~.param_schema.param`):
 component, kind, valid range, unit, the range a control offers and a one-line doc; the
-validation, the docstrings' Attributes and the declarations for the GUI, the command line
-and the benchmarks (:func:`declarations`) come from there. Named presets are in
-:mod:`.presets`.
+validation, the docstrings' Attributes and the declarations for the GUI, the command line and
+the benchmarks (:func:`declarations`) come from there. Named presets are in :mod:`.presets`.
 
 Lengths
 -------
@@ -191,8 +190,7 @@ class FilterParams:
               "surface, and beyond as exact as the sdf_resolution grid (or its band).")
     sdf_exact_band: float = _filter(
         0.0, "Voxels from the surface within which a prior's SDF grid is exact; farther "
-        "nodes are interpolated from coarser grids (0: exact at every node).",
-        valid="[0, inf)",
+        "nodes are interpolated from coarser grids (0: exact at every node).", valid="[0, inf)",
         notes="4 in the recognise preset: 16,000-face priors build 2-3x faster; beyond the "
               "band a value is off by up to 15-25% of the distance, never in sign. A novel "
               "object's contacts lie far from every prior's: worse with a band.")
@@ -208,8 +206,7 @@ class FilterParams:
         """Build from a dict, refusing unknown keys (a typo should not pass silently)."""
         if not isinstance(values, dict):
             raise ParameterError(f"filter parameters must be a dict, got {type(values).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = set(values) - known
+        unknown = set(values) - {f.name for f in fields(cls)}
         if unknown:
             raise ParameterError(f"unknown filter parameter(s): {', '.join(sorted(unknown))}")
         return cls(**values)
@@ -341,10 +338,9 @@ class SessionParams:
         notes="Within eps of a contact, or refuted by a missed probe: a reconstruction "
               "that shrank away from the untouched prior cannot pass the stop.")
     cover_prior_poses: int = _session(
-        8, "The prior cover asks only for MAP vertices within eps / 2 of the MAP class's "
-        "SDF averaged over this many of its heaviest poses (beyond the paper; 1: all).",
-        kind="int", valid="[1, 64]", notes="A part they place apart, which no touch pinned, "
-        "is no prediction: a mug prior's handle about a cup's free axis (docs/novel.md).")
+        8, "The prior cover asks only for MAP vertices within eps / 2 of the class's SDF "
+        "averaged over this many of its heaviest poses: a part they place apart is no "
+        "prediction (beyond the paper; 1: all; docs/novel.md).", kind="int", valid="[1, 64]")
     missed_parts: int = _session(
         10, "Targets given up on a detached part of a novel estimate that no contact comes "
         "within eps of, after which exploration leaves the whole part out (beyond the paper; "
@@ -567,8 +563,7 @@ class SessionParams:
         if not isinstance(values, dict):
             raise ParameterError(f"session parameters must be a dict, got {type(values).__name__}")
         values = dict(values)
-        known = {f.name for f in fields(cls)}
-        unknown = set(values) - known
+        unknown = set(values) - {f.name for f in fields(cls)}
         if unknown:
             raise ParameterError(f"unknown session parameter(s): {', '.join(sorted(unknown))}")
         values["filter"] = FilterParams.from_dict(values.get("filter", {}))

@@ -305,18 +305,17 @@ class Planner(Part):
             if map_reach is not None and prior_open.any():
                 prior_open = _both(prior_open, map_reach)
             if prior_open.any() and model is not None:
-                prior_open = prior_open.copy()  # only the open vertices are looked up
+                prior_open = prior_open.copy()
                 prior_open[prior_open] = self._agreed(map_vertices[prior_open], model, pose)
             if prior_open.any():
                 prior_dhd = directed_hausdorff(map_vertices[prior_open], contacts)
         return Coverage(surface, reachable, dhd, prior_open, prior_dhd)
 
     def _agreed(self, vertices, model, pose):
-        """Which of the MAP shape's ``vertices`` (world frame) lie within ``eps / 2`` of
-        the MAP class's surface averaged over its heaviest poses (``cover_prior_poses``,
-        :class:`MixedSDF`): a part no touch pinned, which they place apart, is no
-        prediction to cover (a mug prior's handle turned about a cup's free axis from
-        touch to touch held its stop)."""
+        """Which MAP ``vertices`` (world frame) lie within ``eps / 2`` of the class's surface
+        averaged over its heaviest poses (``cover_prior_poses``, :class:`MixedSDF`): a part
+        no touch pinned, which they place apart, is no prediction (a mug prior's handle
+        turning about a cup's free axis held the cup's stop)."""
         f = self.filter
         poses = prior_poses(f.particles, f.class_names.index(model.name), *pose,
                             self.p.cover_prior_poses)
